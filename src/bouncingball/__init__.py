@@ -1,0 +1,9 @@
+"""bouncingball: a ball with compliant contact, integrated by SUNDIALS CVODE with exact events."""
+
+from bouncingball.physics import Ball, Mode
+from bouncingball.solvers import SOLVERS, simulate
+from bouncingball.solvers.result import Event, SimulationResult, SolverStats
+
+__version__ = "0.1.0"
+
+__all__ = ["SOLVERS", "Ball", "Event", "Mode", "SimulationResult", "SolverStats", "simulate", "__version__"]

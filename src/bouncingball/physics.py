@@ -1,0 +1,122 @@
+"""The bouncing ball with compliant contact: parameters, both modes' equations, events, energy.
+
+No solver and no I/O here. States are h, the height of the ball's centre [m], and v = dh/dt [m/s].
+F_ext [N] is an external vertical force on the ball (positive upwards).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from bouncingball import validation
+
+
+class Mode(enum.IntEnum):
+    """The discrete phase, held between events."""
+
+    FLIGHT = 0
+    CONTACT = 1
+
+
+@dataclass(frozen=True)
+class Ball:
+    """A ball of mass m [kg] and radius R [m] over rigid ground; in contact a spring k [N/m] and a damper b [N s/m]."""
+
+    m: float = 1.0
+    k: float = 1e4
+    b: float = 10.0
+    R: float = 0.06
+    g: float = 9.81
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "m", validation.positive("m", self.m, "kg"))
+        object.__setattr__(self, "k", validation.positive("k", self.k, "N/m"))
+        object.__setattr__(self, "b", validation.non_negative("b", self.b, "N s/m"))
+        object.__setattr__(self, "R", validation.positive("R", self.R, "m"))
+        object.__setattr__(self, "g", validation.non_negative("g", self.g, "m/s2"))
+
+    # --- derived quantities -------------------------------------------------------------
+    @property
+    def natural_frequency(self) -> float:
+        """w = sqrt(k/m) [rad/s] of the contact oscillator."""
+        return math.sqrt(self.k / self.m)
+
+    @property
+    def damping_ratio(self) -> float:
+        """zeta = b / (2 sqrt(k m)): < 1 under-damped, 1 critical, > 1 over-damped."""
+        return self.b / (2.0 * math.sqrt(self.k * self.m))
+
+    def effective_gravity(self, F_ext: float = 0.0) -> float:
+        """g - F_ext/m [m/s2]: the net downward acceleration in flight."""
+        return self.g - F_ext / self.m
+
+    def static_deflection(self, F_ext: float = 0.0) -> float:
+        """(m g - F_ext)/k [m]: how far below R the centre rests; negative if F_ext lifts the ball."""
+        return (self.m * self.g - F_ext) / self.k
+
+    def rest_height(self, F_ext: float = 0.0) -> float:
+        """R - (m g - F_ext)/k [m]: the equilibrium height of the centre in contact."""
+        return self.R - self.static_deflection(F_ext)
+
+    # --- equations of motion ---------------------------------------------------------------
+    def acceleration(self, h: float, v: float, mode: Mode, F_ext: float = 0.0) -> float:
+        """dv/dt [m/s2] in the given mode."""
+        if mode == Mode.FLIGHT:
+            return -self.g + F_ext / self.m
+        return (-self.b * v + self.k * (self.R - h) + F_ext) / self.m - self.g
+
+    def jacobian(self, mode: Mode) -> np.ndarray:
+        """d(h', v')/d(h, v): constant in each mode."""
+        if mode == Mode.FLIGHT:
+            return np.array([[0.0, 1.0], [0.0, 0.0]])
+        return np.array([[0.0, 1.0], [-self.k / self.m, -self.b / self.m]])
+
+    def contact_force(self, h: float, v: float, mode: Mode) -> float:
+        """Force of the ground on the ball [N], positive upwards; zero in flight.
+
+        As published, the damper can pull (negative force) just before departure.
+        """
+        if mode == Mode.FLIGHT:
+            return 0.0
+        return self.k * (self.R - h) - self.b * v
+
+    def energy(self, h, v, F_ext: float = 0.0):
+        """Kinetic + gravitational potential (zero at h = 0) + spring energy [J]; arrays allowed.
+
+        The spring stores energy whenever h < R. A constant F_ext adds the potential -F_ext h.
+        """
+        h = np.asarray(h, dtype=float)
+        v = np.asarray(v, dtype=float)
+        compression = np.maximum(self.R - h, 0.0)
+        return 0.5 * self.m * v**2 + (self.m * self.g - F_ext) * h + 0.5 * self.k * compression**2
+
+    # --- events ---------------------------------------------------------------------------------
+    def event_function(self, h: float) -> float:
+        """h - R [m]: impact is its downward zero crossing, departure its upward one."""
+        return h - self.R
+
+    def initial_mode(self, h0: float, v0: float, F_ext: float = 0.0) -> Mode:
+        """The mode a ball starts in: contact below R, or at R when it is about to move down."""
+        if h0 < self.R:
+            return Mode.CONTACT
+        if h0 == self.R and (v0 < 0.0 or (v0 == 0.0 and self.effective_gravity(F_ext) > 0.0)):
+            return Mode.CONTACT
+        return Mode.FLIGHT
+
+    def contact_is_permanent(self, h: float, v: float, F_ext: float = 0.0) -> bool:
+        """True if a ball in contact at (h, v) can never reach h = R again.
+
+        The oscillator energy about the rest height, 0.5 v^2 + 0.5 w^2 y^2 with y = h - rest
+        height, never grows (b >= 0); below 0.5 w^2 d^2, with d the static deflection, y cannot
+        reach d, that is h cannot reach R.
+        """
+        d = self.static_deflection(F_ext)
+        if d <= 0.0:
+            return False
+        w2 = self.k / self.m
+        y = h - self.rest_height(F_ext)
+        return v * v + w2 * y * y < w2 * d * d

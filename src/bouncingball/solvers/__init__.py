@@ -1,0 +1,71 @@
+"""One call, three solvers: CVODE (default), the exact solution and the article's SciPy algorithm."""
+
+from __future__ import annotations
+
+import time
+
+from bouncingball import validation
+from bouncingball.physics import Ball
+from bouncingball.solvers.result import Event, SimulationResult, SolverStats, output_grid
+
+SOLVERS = ("cvode", "exact", "scipy")
+DEFAULT_OUTPUT_INTERVAL = 1e-3
+
+
+def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float = DEFAULT_OUTPUT_INTERVAL,
+             solver: str = "cvode", *, t_start: float = 0.0, F_ext: float = 0.0, **options) -> SimulationResult:
+    """Simulate the ball from (h0 [m], v0 [m/s]) at t_start to t_end [s] on a grid of output_interval [s].
+
+    options go to the solver: cvode takes rtol, atol, method ("auto", "Adams", "BDF"),
+    max_step; scipy takes method, rtol, atol, max_step, max_events; exact takes none.
+    """
+    if not isinstance(ball, Ball):
+        raise ValueError(f"ball = {ball!r} is not allowed: it must be a bouncingball.Ball")
+    solver = validation.choice("solver", solver, SOLVERS)
+    h0 = validation.finite("h0", h0, "m")
+    v0 = validation.finite("v0", v0, "m/s")
+    t_start = validation.finite("t_start", t_start, "s")
+    F_ext = validation.finite("F_ext", F_ext, "N")
+    t_end = validation.finite("t_end", t_end, "s")
+    if not t_end > t_start:
+        raise ValueError(f"t_end = {t_end!r} s is not allowed: it must be > t_start = {t_start!r} s")
+    output_interval = validation.in_range("output_interval", output_interval, 0.0, t_end - t_start, "s")
+    if solver == "cvode":
+        from bouncingball.solvers.cvode import simulate_cvode as run
+    elif solver == "scipy":
+        try:
+            from bouncingball.solvers.scipy_ref import simulate_scipy as run
+        except ImportError as error:  # scipy is an optional extra
+            raise ImportError("solver 'scipy' needs SciPy: pip install 'bouncingball[reference]'") from error
+    else:
+        run = simulate_exact
+    allowed = _OPTIONS[solver]
+    unknown = sorted(set(options) - set(allowed))
+    if unknown:
+        raise ValueError(f"option {unknown[0]} = {options[unknown[0]]!r} is not allowed for solver "
+                         f"'{solver}': it takes {', '.join(allowed) or 'no options'}")
+    return run(ball, h0, v0, t_end, output_interval, t_start=t_start, F_ext=F_ext, **options)
+
+
+_OPTIONS = {
+    "cvode": ("rtol", "atol", "method", "max_step"),
+    "scipy": ("method", "rtol", "atol", "max_step", "max_events"),
+    "exact": (),
+}
+
+
+def simulate_exact(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
+                   t_start: float = 0.0, F_ext: float = 0.0) -> SimulationResult:
+    """The piecewise-analytic solution on the output grid."""
+    from bouncingball.solvers.exact import ExactSolution
+
+    started = time.perf_counter()
+    grid = output_grid(t_start, t_end, output_interval)
+    exact = ExactSolution(ball, h0, v0, t_start, t_end, F_ext)
+    h, v = exact.state(grid)
+    stats = SolverStats(steps=len(exact.phases), rhs_calls=0, events=len(exact.events),
+                        wall_time=time.perf_counter() - started)
+    return SimulationResult("exact", ball, grid, h, v, list(exact.events), exact.rest_time, stats, F_ext)
+
+
+__all__ = ["SOLVERS", "Event", "SimulationResult", "SolverStats", "simulate", "simulate_exact"]

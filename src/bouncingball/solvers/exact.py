@@ -1,0 +1,226 @@
+"""The exact piecewise-analytic solution: parabolas in flight, a damped linear oscillator in contact.
+
+Event times are found in closed form (impact) or by a safeguarded Newton iteration inside a
+bracket between extrema of the oscillator (departure), to a few ulps.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from bouncingball.physics import Ball, Mode
+from bouncingball.solvers.result import DEPARTURE, IMPACT, Event
+
+
+@dataclass(frozen=True)
+class Phase:
+    """One mode held from t_start [s], starting from the state (h0 [m], v0 [m/s])."""
+
+    t_start: float
+    mode: Mode
+    h0: float
+    v0: float
+
+
+class ExactSolution:
+    """The ball's exact trajectory from (h0, v0) at t_start up to t_end, with a constant F_ext."""
+
+    def __init__(self, ball: Ball, h0: float, v0: float, t_start: float = 0.0,
+                 t_end: float = math.inf, F_ext: float = 0.0) -> None:
+        self.ball = ball
+        self.F_ext = F_ext
+        self.t_start = t_start
+        self.t_end = t_end
+        self.phases: list[Phase] = []
+        self.events: list[Event] = []
+        self.rest_time: float | None = None
+        self._build(h0, v0)
+
+    def _build(self, h: float, v: float) -> None:
+        ball, R = self.ball, self.ball.R
+        t = self.t_start
+        mode = ball.initial_mode(h, v, self.F_ext)
+        while True:
+            self.phases.append(Phase(t, mode, h, v))
+            if mode == Mode.FLIGHT:
+                tau, v_next = time_to_impact(h - R, v, ball.effective_gravity(self.F_ext))
+                kind, next_mode = IMPACT, Mode.CONTACT
+            else:
+                tau = self._time_to_departure(h, v)
+                if math.isinf(tau):
+                    self.rest_time = t
+                    return
+                v_next = float(self._contact_state(self.phases[-1], np.array([tau]))[1][0])
+                kind, next_mode = DEPARTURE, Mode.FLIGHT
+            if not t + tau <= self.t_end:
+                return
+            t, h, v, mode = t + tau, R, v_next, next_mode
+            self.events.append(Event(t, kind, v))
+
+    # --- contact ----------------------------------------------------------------------------
+    def _oscillator(self) -> tuple[float, float, float, float]:
+        """sigma = b/2m [1/s], w^2 = k/m [1/s2], rest height [m] and static deflection d [m]."""
+        ball = self.ball
+        return (ball.b / (2.0 * ball.m), ball.k / ball.m, ball.rest_height(self.F_ext),
+                ball.static_deflection(self.F_ext))
+
+    def _contact_state(self, phase: Phase, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        sigma, w2, rest, _ = self._oscillator()
+        y0 = phase.h0 - rest
+        c, s = oscillator_basis(sigma, w2, tau)
+        y = y0 * c + (phase.v0 + sigma * y0) * s
+        v = phase.v0 * c - (sigma * phase.v0 + w2 * y0) * s
+        return rest + y, v
+
+    def _time_to_departure(self, h0: float, v0: float) -> float:
+        """Time from (h0, v0) in contact to the first upward crossing of h = R; inf if none."""
+        sigma, w2, rest, d = self._oscillator()
+        y0 = h0 - rest
+        q = sigma * v0 + w2 * y0  # v(tau) = v0 C(tau) - q S(tau)
+        phase = Phase(0.0, Mode.CONTACT, h0, v0)
+
+        def excess(tau: float) -> tuple[float, float]:
+            h, v = self._contact_state(phase, np.array([tau]))
+            return float(h[0] - self.ball.R), float(v[0])
+
+        rising = v0 > 0.0 or (v0 == 0.0 and q < 0.0)
+        disc = sigma * sigma - w2
+        if disc < 0.0:
+            # Under-damped: extrema every pi/omega; maxima are positive and decay, so the
+            # first maximum decides whether the ball ever leaves.
+            omega = math.sqrt(-disc)
+            first = math.atan2(omega * v0, q) % math.pi
+            tau1 = (first if first > 0.0 else math.pi) / omega
+            a, b = (0.0, tau1) if rising else (tau1, tau1 + math.pi / omega)
+        else:
+            # Critically or over-damped: at most one extremum, then a monotone approach to rest.
+            mu = math.sqrt(disc)
+            tau_ext = _overdamped_extremum(v0, q, mu)
+            slow_rate = w2 / (sigma + mu)
+            if rising and tau_ext is not None:
+                a, b = 0.0, tau_ext
+            elif d < 0.0 and (rising or tau_ext is not None):
+                a = 0.0 if rising else tau_ext
+                b = a + 1.0 / slow_rate
+                for _ in range(2000):
+                    if excess(b)[0] > 0.0:
+                        break
+                    b = a + 2.0 * (b - a)
+                else:
+                    return math.inf
+            else:
+                return math.inf
+        if excess(b)[0] <= 0.0:
+            return math.inf
+        return _polish_root(excess, a, b)
+
+    # --- evaluation ---------------------------------------------------------------------------
+    def state(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """Height [m] and velocity [m/s] at the times t [s] (t_start <= t <= t_end)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        order = None if np.all(t[1:] >= t[:-1]) else np.argsort(t, kind="stable")
+        ts = t if order is None else t[order]
+        h = np.empty_like(ts)
+        v = np.empty_like(ts)
+        starts = np.array([p.t_start for p in self.phases])
+        bounds = np.searchsorted(ts, starts[1:], side="left")
+        first = np.concatenate(([0], bounds))
+        last = np.concatenate((bounds, [len(ts)]))
+        g_eff = self.ball.effective_gravity(self.F_ext)
+        for phase, i, j in zip(self.phases, first, last):
+            if i == j:
+                continue
+            tau = ts[i:j] - phase.t_start
+            if phase.mode == Mode.FLIGHT:
+                h[i:j] = phase.h0 + tau * (phase.v0 - 0.5 * g_eff * tau)
+                v[i:j] = phase.v0 - g_eff * tau
+            else:
+                h[i:j], v[i:j] = self._contact_state(phase, tau)
+        if order is not None:
+            h[order], v[order] = h.copy(), v.copy()
+        return h, v
+
+
+def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tuple[float, float]:
+    """Flight time [s] until h falls to R, and the impact velocity [m/s]; (inf, nan) if never.
+
+    With D = v0^2 + 2 g (h0 - R) and s = sqrt(D), t = (v0 + s)/g when rising and
+    2 (h0 - R)/(s - v0) when falling, which has no cancellation; the impact speed is s.
+    """
+    dh = height_above_contact
+    disc = v0 * v0 + 2.0 * g_eff * dh
+    if v0 < 0.0 and disc >= 0.0:
+        s = math.sqrt(disc)
+        return 2.0 * dh / (s - v0), -s
+    if v0 >= 0.0 and g_eff > 0.0:
+        s = math.sqrt(disc)
+        return (v0 + s) / g_eff, -s
+    return math.inf, math.nan
+
+
+def oscillator_basis(sigma: float, w2: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """C, S such that y'' + 2 sigma y' + w2 y = 0 gives y = y0 C + (v0 + sigma y0) S, y' = v0 C - (sigma v0 + w2 y0) S.
+
+    C = exp(-sigma tau) cos(omega tau) and S = exp(-sigma tau) sin(omega tau)/omega, continued
+    through critical damping (S = tau exp(-sigma tau)) into the over-damped cosh/sinh forms.
+    """
+    disc = sigma * sigma - w2
+    if disc < 0.0:
+        omega = math.sqrt(-disc)
+        decay = np.exp(-sigma * tau)
+        return decay * np.cos(omega * tau), decay * np.sin(omega * tau) / omega
+    if disc == 0.0:
+        decay = np.exp(-sigma * tau)
+        return decay, tau * decay
+    mu = math.sqrt(disc)
+    slow = np.exp(-w2 / (sigma + mu) * tau)  # the small root computed without cancellation
+    fast = np.exp(-(sigma + mu) * tau)
+    with np.errstate(over="ignore", invalid="ignore"):
+        near = fast * np.expm1(2.0 * mu * tau) / (2.0 * mu)
+        s = np.where(2.0 * mu * tau < 1.0, near, (slow - fast) / (2.0 * mu))
+    return 0.5 * (slow + fast), s
+
+
+def _overdamped_extremum(v0: float, q: float, mu: float) -> float | None:
+    """The one time > 0 where v0 C = q S (critical or over-damped), or None."""
+    if v0 == 0.0:
+        return None
+    if mu == 0.0:
+        tau = v0 / q if q != 0.0 else -1.0
+        return tau if tau > 0.0 else None
+    denominator = q - v0 * mu
+    if denominator == 0.0:
+        return None
+    x = 2.0 * v0 * mu / denominator
+    if not x > 0.0:
+        return None
+    return math.log1p(x) / (2.0 * mu)
+
+
+def _polish_root(f, a: float, b: float) -> float:
+    """Root of an increasing f on [a, b] with f(a) <= 0 < f(b); f returns (value, derivative)."""
+    if f(a)[0] >= 0.0:
+        return a
+    x = 0.5 * (a + b)
+    best, best_abs = b, math.inf
+    for _ in range(200):
+        fx, dfx = f(x)
+        if abs(fx) < best_abs:
+            best, best_abs = x, abs(fx)
+        if fx == 0.0:
+            return x
+        if fx < 0.0:
+            a = x
+        else:
+            b = x
+        step = fx / dfx if dfx > 0.0 else math.inf
+        x_new = x - step
+        if not a < x_new < b:
+            x_new = 0.5 * (a + b)
+        if abs(x_new - x) <= 2.0 * math.ulp(x) or b - a <= 2.0 * math.ulp(b):
+            break
+        x = x_new
+    return best

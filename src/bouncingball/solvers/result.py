@@ -1,0 +1,71 @@
+"""The result type shared by every solver, and the output grid."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bouncingball.physics import Ball
+
+IMPACT = "impact"
+DEPARTURE = "departure"
+
+
+@dataclass(frozen=True)
+class Event:
+    """A mode switch: time [s], kind ("impact" or "departure") and the velocity there [m/s]."""
+
+    time: float
+    kind: str
+    velocity: float
+
+
+@dataclass
+class SolverStats:
+    """Work done: internal steps, right-hand-side calls, events and wall time [s]."""
+
+    steps: int = 0
+    rhs_calls: int = 0
+    events: int = 0
+    wall_time: float = 0.0
+
+
+@dataclass
+class SimulationResult:
+    """Height h [m] and velocity v [m/s] on the output grid t [s], with events and stats."""
+
+    solver: str
+    ball: Ball
+    t: np.ndarray
+    h: np.ndarray
+    v: np.ndarray
+    events: list[Event]
+    rest_time: float | None
+    stats: SolverStats
+    F_ext: float = 0.0
+    options: dict = field(default_factory=dict)
+
+    @property
+    def event_times(self) -> np.ndarray:
+        return np.array([e.time for e in self.events])
+
+    @property
+    def impacts(self) -> int:
+        return sum(e.kind == IMPACT for e in self.events)
+
+    @property
+    def energy(self) -> np.ndarray:
+        """Total energy [J] on the output grid."""
+        return self.ball.energy(self.h, self.v, self.F_ext)
+
+
+def output_grid(t_start: float, t_end: float, output_interval: float) -> np.ndarray:
+    """t_start, t_start + dt, ... and t_end exactly as the last point."""
+    n = math.floor((t_end - t_start) / output_interval * (1.0 + 1e-12))
+    grid = t_start + output_interval * np.arange(n + 1)
+    if t_end - grid[-1] > 1e-9 * output_interval:
+        grid = np.append(grid, t_end)
+    grid[-1] = t_end
+    return grid

@@ -1,0 +1,60 @@
+"""Input checks that raise a ValueError naming the field, its value and what is allowed."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+
+def _as_float(name: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        try:
+            return float(value)  # numpy scalars, numeric strings from a TOML file
+        except (TypeError, ValueError):
+            raise ValueError(f"{name} = {value!r} is not a number") from None
+    return float(value)
+
+
+def positive(name: str, value: object, unit: str = "") -> float:
+    """Return value as a float if it is finite and > 0."""
+    x = _as_float(name, value)
+    if not (math.isfinite(x) and x > 0.0):
+        raise ValueError(f"{name} = {value!r}{_unit(unit)} is not allowed: it must be finite and > 0")
+    return x
+
+
+def non_negative(name: str, value: object, unit: str = "") -> float:
+    """Return value as a float if it is finite and >= 0."""
+    x = _as_float(name, value)
+    if not (math.isfinite(x) and x >= 0.0):
+        raise ValueError(f"{name} = {value!r}{_unit(unit)} is not allowed: it must be finite and >= 0")
+    return x
+
+
+def finite(name: str, value: object, unit: str = "") -> float:
+    """Return value as a float if it is finite (not NaN, not infinite)."""
+    x = _as_float(name, value)
+    if not math.isfinite(x):
+        raise ValueError(f"{name} = {value!r}{_unit(unit)} is not allowed: it must be a finite number")
+    return x
+
+
+def in_range(name: str, value: object, low: float, high: float, unit: str = "") -> float:
+    """Return value as a float if low < value <= high."""
+    x = _as_float(name, value)
+    if not (math.isfinite(x) and low < x <= high):
+        raise ValueError(f"{name} = {value!r}{_unit(unit)} is not allowed: it must be in ({low:g}, {high:g}]")
+    return x
+
+
+def choice(name: str, value: object, allowed: Iterable[str]) -> str:
+    """Return value if it is one of allowed (compared case-insensitively), spelled as in allowed."""
+    allowed = list(allowed)
+    for option in allowed:
+        if isinstance(value, str) and value.lower() == option.lower():
+            return option
+    raise ValueError(f"{name} = {value!r} is not allowed: it must be one of {', '.join(allowed)}")
+
+
+def _unit(unit: str) -> str:
+    return f" {unit}" if unit else ""
