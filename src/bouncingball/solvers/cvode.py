@@ -226,7 +226,8 @@ class BallIntegrator:
         """Integrate to t_target [s], resolving every impact and departure on the way."""
         t_target = float(t_target)
         if not t_target >= self._state.t:
-            raise ValueError(f"t_target = {t_target!r} s is not allowed: it must be >= the current time {self._state.t!r} s")
+            raise ValueError(f"t_target = {t_target!r} s is not allowed: "
+                             f"it must be >= the current time {self._state.t!r} s")
         events: list[Event] = []
         while self._state.t < t_target:
             if self._close_enough(t_target):
@@ -345,6 +346,6 @@ def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     wall_time = time.perf_counter() - started
     stats = SolverStats(steps=integrator.steps, rhs_calls=integrator.rhs_calls, events=len(events),
                         wall_time=wall_time)
-    options = {"rtol": settings.rtol, "atol": settings.atol, "method": settings.method, "contact_method": integrator.methods[Mode.CONTACT],
-               "max_step": settings.max_step}
+    options = {"rtol": settings.rtol, "atol": settings.atol, "method": settings.method,
+               "contact_method": integrator.methods[Mode.CONTACT], "max_step": settings.max_step}
     return SimulationResult("cvode", ball, grid, h, v, events, integrator.rest_time, stats, F_ext, options)

@@ -130,7 +130,7 @@ class ExactSolution:
         first = np.concatenate(([0], bounds))
         last = np.concatenate((bounds, [len(ts)]))
         g_eff = self.ball.effective_gravity(self.F_ext)
-        for phase, i, j in zip(self.phases, first, last):
+        for phase, i, j in zip(self.phases, first, last, strict=True):
             if i == j:
                 continue
             tau = ts[i:j] - phase.t_start
