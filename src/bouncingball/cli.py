@@ -1,0 +1,114 @@
+"""The bouncingball command line: run a scene, list scenes."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from bouncingball import SOLVERS
+
+EXIT_BAD_INPUT = 2
+EXIT_SOLVER_FAILED = 1
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="bouncingball", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    run = sub.add_parser("run", help="simulate a scene and print a summary")
+    run.add_argument("scene", nargs="?", default="article", help="built-in scene name or a .toml file (default: article)")
+    run.add_argument("--solver", default="cvode", help=f"one of {', '.join(SOLVERS)} (default: cvode)")
+    run.add_argument("--method", help="cvode: auto, Adams or BDF; scipy: RK45, DOP853, LSODA, Radau, BDF, ...")
+    run.add_argument("--rtol", type=float, help="relative tolerance")
+    run.add_argument("--atol", type=float, help="absolute tolerance")
+    run.add_argument("--max-step", type=float, help="maximum step size [s] (0: unbounded)")
+    run.add_argument("--t-end", type=float, help="end time [s] (default: the scene's)")
+    run.add_argument("--output-interval", type=float, help="output interval [s] (default: the scene's)")
+    run.add_argument("--output", metavar="CSV", help="write time,h,v to this file")
+    run.add_argument("--events", metavar="CSV", help="write time,kind,v of each event to this file")
+    run.add_argument("--plot", metavar="PNG", help="draw height against time with the events marked")
+
+    sub.add_parser("scenes", help="list the built-in scenes")
+    return parser
+
+
+def _run(args: argparse.Namespace) -> int:
+    from bouncingball.accuracy import compare, exact_counterpart
+    from bouncingball.output import write_events_csv, write_solution_csv
+    from bouncingball.scenes import load_scene
+
+    scene = load_scene(args.scene)
+    options = {name: getattr(args, name) for name in ("method", "rtol", "atol", "max_step")
+               if getattr(args, name) is not None}
+    if args.t_end is not None:
+        options["t_end"] = args.t_end
+    if args.output_interval is not None:
+        options["output_interval"] = args.output_interval
+    result = scene.simulate(args.solver, **options)
+    exact = result if result.solver == "exact" else exact_counterpart(result, scene.h0, scene.v0)
+
+    ball = scene.ball
+    impacts = result.impacts
+    print(f"scene {scene.name}: {scene.description}")
+    print(f"  ball        m = {ball.m:g} kg, k = {ball.k:g} N/m, b = {ball.b:g} N s/m, R = {ball.R:g} m, "
+          f"g = {ball.g:g} m/s2")
+    print(f"  start       h0 = {scene.h0:.15g} m, v0 = {scene.v0:g} m/s; {result.t[0]:g} to {result.t[-1]:g} s, "
+          f"output every {result.t[1] - result.t[0]:g} s")
+    settings = ", ".join(f"{key} {value}" for key, value in result.options.items())
+    print(f"  solver      {result.solver}" + (f" ({settings})" if settings else ""))
+    print(f"  events      {len(result.events)} ({impacts} impacts, {len(result.events) - impacts} departures)"
+          + ("" if exact is result else f"; exact solution: {len(exact.events)}"))
+    rest = "none" if result.rest_time is None else f"at rest from t = {result.rest_time:.12g} s"
+    print(f"  rest        {rest}")
+    print(f"  final state h = {result.h[-1]:.12g} m, v = {result.v[-1]:.6g} m/s at t = {result.t[-1]:g} s")
+    stats = result.stats
+    print(f"  wall time   {stats.wall_time * 1e3:.2f} ms ({stats.steps} steps, {stats.rhs_calls} "
+          "right-hand-side calls)")
+    if exact is not result:
+        accuracy = compare(result, exact)
+        print(f"  max |h - h_exact|          {accuracy.max_height_error:.3e} m")
+        print(f"  max event time error       {accuracy.max_event_time_error:.3e} s")
+    if args.output:
+        print(f"  wrote {write_solution_csv(result, args.output)}")
+    if args.events:
+        print(f"  wrote {write_events_csv(result, args.events)}")
+    if args.plot:
+        from bouncingball.plotting import plot_height
+
+        title = f"scene {scene.name}: {result.solver}, {len(result.events)} events"
+        print(f"  wrote {plot_height(result, args.plot, title, exact=exact)}")
+    return 0
+
+
+def _scenes() -> int:
+    from bouncingball.scenes import BUILTIN_SCENES, load_scene
+
+    header = f"{'scene':14s}{'m [kg]':>9s}{'k [N/m]':>9s}{'b [N s/m]':>11s}{'R [m]':>7s}{'g [m/s2]':>10s}" \
+             f"{'h0 [m]':>10s}{'v0 [m/s]':>10s}{'t_end [s]':>11s}  description"
+    print(header)
+    print("-" * len(header))
+    for name in BUILTIN_SCENES:
+        s = load_scene(name)
+        b = s.ball
+        print(f"{name:14s}{b.m:9.3g}{b.k:9.3g}{b.b:11.3g}{b.R:7.3g}{b.g:10.3g}{s.h0:10.4g}{s.v0:10.3g}"
+              f"{s.t_end:11.4g}  {s.description}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _build_parser().parse_args(argv)
+    try:
+        if args.command == "run":
+            return _run(args)
+        return _scenes()
+    except (ValueError, ImportError) as error:
+        print(f"bouncingball: error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except RuntimeError as error:  # a solver that failed says why
+        print(f"bouncingball: solver failed: {error}", file=sys.stderr)
+        return EXIT_SOLVER_FAILED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,8 @@
+import pytest
+
+from bouncingball.physics import Ball
+
+
+@pytest.fixture
+def article_ball() -> Ball:
+    return Ball()

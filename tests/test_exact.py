@@ -1,0 +1,156 @@
+"""The exact solution against independent truth: closed forms, invariants, and high-precision integration."""
+
+import math
+
+import mpmath
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from bouncingball.physics import Ball, Mode
+from bouncingball.solvers.exact import ExactSolution, oscillator_basis
+
+
+def test_first_impact_is_free_fall():
+    ball = Ball()
+    exact = ExactSolution(ball, 2.0, 0.0, 0.0, 8.0)
+    first = exact.events[0]
+    assert first.kind == "impact"
+    assert first.time == pytest.approx(math.sqrt(2 * (2.0 - 0.06) / 9.81), rel=1e-15)
+    assert first.velocity == pytest.approx(-math.sqrt(2 * 9.81 * (2.0 - 0.06)), rel=1e-15)
+
+
+def test_article_has_41_events_that_alternate():
+    exact = ExactSolution(Ball(), 2.0, 0.0, 0.0, 8.0)
+    kinds = [e.kind for e in exact.events]
+    assert len(kinds) == 41
+    assert kinds == ["impact", "departure"] * 20 + ["impact"]
+    times = np.array([e.time for e in exact.events])
+    assert np.all(np.diff(times) > 0)
+
+
+def test_flight_conserves_energy_and_contact_dissipates_it():
+    ball = Ball()
+    exact = ExactSolution(ball, 2.0, 0.0, 0.0, 8.0)
+    events = exact.events
+    for departure, impact in zip(events[1::2], events[2::2], strict=False):
+        assert impact.velocity == pytest.approx(-departure.velocity, rel=1e-12)
+    for impact, departure in zip(events[0::2], events[1::2], strict=False):
+        assert departure.velocity < -impact.velocity
+    h, _ = exact.state([e.time for e in events])
+    np.testing.assert_allclose(h, ball.R, atol=1e-15)
+
+
+def test_undamped_contact_is_elastic():
+    exact = ExactSolution(Ball(b=0.0), 2.0, 0.0, 0.0, 1000.0)
+    assert len(exact.events) == 1550
+    speeds = np.abs([e.velocity for e in exact.events])
+    np.testing.assert_allclose(speeds, speeds[0], rtol=1e-12)
+
+
+def _mp_oscillator(sigma, w2, y0, v0, tau):
+    """y(tau) of y'' + 2 sigma y' + w2 y = 0 by mpmath's Taylor-series integrator (40 digits)."""
+    mpmath.mp.dps = 40
+    f = mpmath.odefun(lambda t, u: [u[1], -2 * sigma * u[1] - w2 * u[0]], 0, [mpmath.mpf(y0), mpmath.mpf(v0)])
+    y, v = f(mpmath.mpf(tau))
+    return float(y), float(v)
+
+
+@pytest.mark.parametrize("b", [10.0, 200.0, 200.0 * (1 + 1e-9), 1e4, 0.0])
+def test_oscillator_closed_form_against_mpmath(b):
+    ball = Ball(b=b)
+    sigma, w2 = b / 2.0, ball.k
+    y0, v0 = 9.81e-4, -6.0
+    for tau in (1e-3, 0.011, 0.03):
+        c, s = oscillator_basis(sigma, w2, np.array([tau]))
+        y = y0 * c[0] + (v0 + sigma * y0) * s[0]
+        v = v0 * c[0] - (sigma * v0 + w2 * y0) * s[0]
+        y_ref, v_ref = _mp_oscillator(sigma, w2, y0, v0, tau)
+        assert y == pytest.approx(y_ref, rel=1e-12, abs=1e-17)
+        assert v == pytest.approx(v_ref, rel=1e-12, abs=1e-15)
+
+
+def test_oscillator_is_continuous_through_critical_damping():
+    w2 = 1e4
+    tau = np.linspace(0.0, 0.2, 201)
+    values = [oscillator_basis(100.0 * (1 + d), w2, tau) for d in (-1e-10, 0.0, 1e-10)]
+    for c, s in values[::2]:
+        np.testing.assert_allclose(c, values[1][0], atol=1e-9)
+        np.testing.assert_allclose(s, values[1][1], atol=1e-11)
+
+
+def _high_precision_run(ball, h0, v0, t_end, grid, F_ext=0.0):
+    """An independent integration: DOP853 at rtol 1e-13 with a terminal event per phase."""
+    t, y, mode = 0.0, np.array([h0, v0]), ball.initial_mode(h0, v0, F_ext)
+    times, h_out = [], np.empty_like(grid)
+    while t < t_end:
+        def rhs(_t, u, mode=mode):
+            return [u[1], ball.acceleration(u[0], u[1], mode, F_ext)]
+
+        def crossing(_t, u):
+            return u[0] - ball.R
+
+        crossing.terminal = True
+        crossing.direction = -1 if mode == Mode.FLIGHT else 1
+        sol = solve_ivp(rhs, (t, t_end), y, method="DOP853", rtol=1e-13, atol=1e-16, events=crossing,
+                        dense_output=True)
+        sel = (grid >= t) & (grid <= sol.t[-1])
+        h_out[sel] = sol.sol(grid[sel])[0]
+        t, y = sol.t[-1], sol.y[:, -1]
+        if sol.status == 1:
+            times.append(t)
+            mode = Mode.FLIGHT if mode == Mode.CONTACT else Mode.CONTACT
+    return np.array(times), h_out
+
+
+@pytest.mark.parametrize("kwargs, h0, v0, F_ext", [
+    ({}, 2.0, 0.0, 0.0),
+    ({"b": 200.0}, 2.0, 0.0, 0.0),
+    ({"b": 1e4}, 2.0, 0.0, 0.0),
+    ({}, 0.05, 0.0, 0.0),
+    ({}, 1.0, 3.0, 0.0),
+    ({"m": 2.0}, 1.0, 0.0, 5.0),
+    ({}, 1.0, 0.0, 12.0),  # F_ext > m g: one bounce, then lifted away for good
+])
+def test_exact_against_high_precision_integration(kwargs, h0, v0, F_ext):
+    ball = Ball(**kwargs)
+    grid = np.linspace(0.0, 4.0, 4001)
+    exact = ExactSolution(ball, h0, v0, 0.0, 4.0, F_ext)
+    times, h_ref = _high_precision_run(ball, h0, v0, 4.0, grid, F_ext)
+    assert len(exact.events) == len(times)
+    np.testing.assert_allclose([e.time for e in exact.events], times, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(exact.state(grid)[0], h_ref, rtol=0, atol=1e-9)
+
+
+def test_rest_is_detected_when_no_maximum_reaches_R():
+    ball = Ball(b=1e4)
+    exact = ExactSolution(ball, 2.0, 0.0, 0.0, 60.0)
+    assert [e.kind for e in exact.events] == ["impact"]
+    assert exact.rest_time == exact.events[0].time
+    h, v = exact.state([60.0])  # the slow rate is w^2/(sigma + mu) ~ 1/s
+    assert h[0] == pytest.approx(ball.rest_height(), abs=1e-12)
+
+
+def test_starting_at_rest_stays_at_rest():
+    ball = Ball(k=1e12)
+    exact = ExactSolution(ball, ball.rest_height(), 0.0, 0.0, 8.0)
+    assert exact.events == [] and exact.rest_time == 0.0
+    h, v = exact.state(np.linspace(0, 8, 9))
+    np.testing.assert_allclose(h, ball.rest_height(), rtol=0, atol=1e-17)
+
+
+def test_external_force_equal_to_weight_gives_uniform_motion():
+    ball = Ball()
+    exact = ExactSolution(ball, 1.0, 2.0, 0.0, 5.0, F_ext=ball.m * ball.g)
+    assert exact.events == []
+    h, v = exact.state([0.0, 2.5, 5.0])
+    np.testing.assert_allclose(h, [1.0, 6.0, 11.0], rtol=1e-15)
+    np.testing.assert_allclose(v, 2.0, rtol=1e-15)
+
+
+def test_state_accepts_unsorted_times():
+    exact = ExactSolution(Ball(), 2.0, 0.0, 0.0, 8.0)
+    t = np.array([5.0, 0.1, 7.9, 0.7])
+    h_unsorted, _ = exact.state(t)
+    for ti, hi in zip(t, h_unsorted, strict=True):
+        assert hi == exact.state([ti])[0][0]
