@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 import bouncingball
 from bouncingball.accuracy import compare, exact_counterpart
-from bouncingball.physics import Ball, Mode
+from bouncingball.physics import Ball
 from bouncingball.scenes import BUILTIN_SCENES, load_scene
 from bouncingball.solvers.cvode import BallIntegrator, CvodeSettings, choose_method
 from bouncingball.solvers.exact import ExactSolution

@@ -17,7 +17,8 @@ def _build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser("run", help="simulate a scene and print a summary")
-    run.add_argument("scene", nargs="?", default="article", help="built-in scene name or a .toml file (default: article)")
+    run.add_argument("scene", nargs="?", default="article",
+                     help="built-in scene name or a .toml file (default: article)")
     run.add_argument("--solver", default="cvode", help=f"one of {', '.join(SOLVERS)} (default: cvode)")
     run.add_argument("--method", help="cvode: auto, Adams or BDF; scipy: RK45, DOP853, LSODA, Radau, BDF, ...")
     run.add_argument("--rtol", type=float, help="relative tolerance")
