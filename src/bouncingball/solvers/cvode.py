@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from sksundae.cvode import CVODE
@@ -79,11 +79,12 @@ class IntegratorState:
     v: float
     mode: Mode
     F_ext: float
-    impacts: int
-    departures: int
-    last_impact_time: float | None
-    rhs_calls: int
-    steps: int
+    impacts: int = 0
+    departures: int = 0
+    last_impact_time: float | None = None
+    t_start: float = 0.0
+    rhs_calls: int = 0
+    steps: int = 0
 
 
 class BallIntegrator:
@@ -105,28 +106,25 @@ class BallIntegrator:
         v0 = validation.finite("v0", v0, "m/s")
         t0 = validation.finite("t0", t0, "s")
         F_ext = validation.finite("F_ext", F_ext, "N")
-        self._state = IntegratorState(
-            t=t0, h=h0, v=v0, mode=ball.initial_mode(h0, v0, F_ext), F_ext=F_ext, impacts=0,
-            departures=0, last_impact_time=None, rhs_calls=0, steps=0,
-        )
-        self._t_start = t0
         self._solvers: dict[Mode, CVODE] = {}
         self._event_functions = {}
         for mode in Mode:
             self._solvers[mode], self._event_functions[mode] = self._make_solver(mode)
-        self._needs_init = True
-        self._nfev_since_init = 0
+        self.set_state(IntegratorState(t=t0, h=h0, v=v0, mode=ball.initial_mode(h0, v0, F_ext), F_ext=F_ext,
+                                       t_start=t0))
 
     # --- CVODE set-up ---------------------------------------------------------------------
     def _make_solver(self, mode: Mode):
         ball = self.ball
         jacobian = ball.jacobian(mode)
-        acceleration = ball.acceleration
         R = ball.R
+        acceleration = ball.acceleration
 
         def rhs(t, y, yp):
+            # physics computes k (R - h): R - h is exact near R, whereas k R - k h would bury the
+            # deflection of a stiff ball (k = 1e12) in the round-off of two 6e10 terms.
             yp[0] = y[1]
-            yp[1] = acceleration(y[0], y[1], mode, self._state.F_ext)
+            yp[1] = acceleration(y[0], y[1], mode, self._F_ext)
 
         def jac(t, y, yp, JJ):
             JJ[:, :] = jacobian
@@ -141,105 +139,110 @@ class BallIntegrator:
                        eventsfn=event, num_events=1, jacfn=jac, max_num_steps=_MAX_STEPS_PER_CALL)
         return solver, event
 
+    def _set_force(self, F_ext: float) -> None:
+        self._F_ext = F_ext
+
     # --- read-only view --------------------------------------------------------------------
     @property
     def t(self) -> float:
-        return self._state.t
+        return self._t
 
     @property
     def h(self) -> float:
-        return self._state.h
+        return self._h
 
     @property
     def v(self) -> float:
-        return self._state.v
+        return self._v
 
     @property
     def mode(self) -> Mode:
-        return self._state.mode
+        return self._mode
 
     @property
     def impacts(self) -> int:
-        return self._state.impacts
+        return self._impacts
 
     @property
     def departures(self) -> int:
-        return self._state.departures
+        return self._departures
 
     @property
     def rhs_calls(self) -> int:
-        return self._state.rhs_calls + self._nfev_since_init
+        return self._rhs_calls + self._nfev_since_init
 
     @property
     def steps(self) -> int:
         """Internal steps counted by integrate_grid (advance() cannot see them)."""
-        return self._state.steps
+        return self._steps
 
     @property
     def F_ext(self) -> float:
-        return self._state.F_ext
+        return self._F_ext
 
     @F_ext.setter
     def F_ext(self, value: float) -> None:
         value = validation.finite("F_ext", value, "N")
-        if value != self._state.F_ext:
+        if value != self._F_ext:
             self._reinit_needed()
-            self._state = replace(self._state, F_ext=value)
+            self._set_force(value)
 
     @property
     def acceleration(self) -> float:
-        s = self._state
-        return self.ball.acceleration(s.h, s.v, s.mode, s.F_ext)
+        return self.ball.acceleration(self._h, self._v, self._mode, self._F_ext)
 
     @property
     def contact_force(self) -> float:
-        s = self._state
-        return self.ball.contact_force(s.h, s.v, s.mode)
+        return self.ball.contact_force(self._h, self._v, self._mode)
 
     @property
     def rest_time(self) -> float | None:
         """Start of the current contact if it can never end (F_ext held constant), else None."""
-        s = self._state
-        if s.mode == Mode.CONTACT and self.ball.contact_is_permanent(s.h, s.v, s.F_ext):
-            return s.last_impact_time if s.last_impact_time is not None else self._t_start
+        if self._mode == Mode.CONTACT and self.ball.contact_is_permanent(self._h, self._v, self._F_ext):
+            return self._last_impact_time if self._last_impact_time is not None else self._t_start
         return None
 
     # --- state ---------------------------------------------------------------------------------
     def get_state(self) -> IntegratorState:
         """A snapshot; the integrator restarts CVODE from it, so a restored copy continues identically."""
         self._reinit_needed()
-        return self._state
+        return IntegratorState(t=self._t, h=self._h, v=self._v, mode=self._mode, F_ext=self._F_ext,
+                               impacts=self._impacts, departures=self._departures,
+                               last_impact_time=self._last_impact_time, t_start=self._t_start,
+                               rhs_calls=self._rhs_calls, steps=self._steps)
 
     def set_state(self, state: IntegratorState) -> None:
-        self._reinit_needed()
-        self._state = state
+        self._t, self._h, self._v = float(state.t), float(state.h), float(state.v)
+        self._mode = Mode(state.mode)
+        self._set_force(float(state.F_ext))
+        self._impacts, self._departures = int(state.impacts), int(state.departures)
+        self._last_impact_time, self._t_start = state.last_impact_time, float(state.t_start)
+        self._rhs_calls, self._steps = int(state.rhs_calls), int(state.steps)
         self._nfev_since_init = 0
+        self._needs_init = True
 
     def _reinit_needed(self) -> None:
-        if not self._needs_init:
-            self._state = replace(self._state, rhs_calls=self._state.rhs_calls + self._nfev_since_init)
-            self._nfev_since_init = 0
-            self._needs_init = True
+        self._rhs_calls += self._nfev_since_init
+        self._nfev_since_init = 0
+        self._needs_init = True
 
     # --- integration -------------------------------------------------------------------------
     def advance(self, t_target: float) -> list[Event]:
         """Integrate to t_target [s], resolving every impact and departure on the way."""
         t_target = float(t_target)
-        if not t_target >= self._state.t:
-            raise ValueError(f"t_target = {t_target!r} s is not allowed: "
-                             f"it must be >= the current time {self._state.t!r} s")
+        if not t_target >= self._t:
+            raise ValueError(f"t_target = {t_target!r} s is not allowed: it must be >= the current time {self._t!r} s")
         events: list[Event] = []
-        while self._state.t < t_target:
-            if self._close_enough(t_target):
-                break
-            solver = self._solvers[self._state.mode]
+        while self._t < t_target and not self._close_enough(t_target):
+            solver = self._solvers[self._mode]
             if self._needs_init:
-                solver.init_step(self._state.t, np.array([self._state.h, self._state.v]))
+                solver.init_step(self._t, np.array([self._h, self._v]))
                 self._needs_init = False
             result = solver.step(t_target)
             self._check(result)
-            self._nfev_since_init = int(result.nfev)
-            self._state = replace(self._state, t=float(result.t), h=float(result.y[0]), v=float(result.y[1]))
+            self._nfev_since_init = result.nfev
+            y = result.y
+            self._t, self._h, self._v = float(result.t), float(y[0]), float(y[1])
             if result.status == _CV_ROOT_RETURN:
                 events.append(self._switch_mode())
         return events
@@ -255,37 +258,38 @@ class BallIntegrator:
         grid = np.asarray(grid, dtype=float)
         h_out = np.empty_like(grid)
         v_out = np.empty_like(grid)
-        h_out[0], v_out[0] = self._state.h, self._state.v
+        h_out[0], v_out[0] = self._h, self._v
         filled = 1
         events: list[Event] = []
         t_end = grid[-1]
-        while self._state.t < t_end and not self._close_enough(t_end):
-            solver = self._solvers[self._state.mode]
-            result = solver.solve(np.array([self._state.t, t_end]), np.array([self._state.h, self._state.v]))
+        self._reinit_needed()
+        while self._t < t_end and not self._close_enough(t_end):
+            solver = self._solvers[self._mode]
+            result = solver.solve(np.array([self._t, t_end]), np.array([self._h, self._v]))
             self._check(result)
             ts, ys = result.t, result.y
             stop = np.searchsorted(grid, ts[-1], side="right")
             if stop > filled:
                 h_out[filled:stop], v_out[filled:stop] = self._hermite(ts, ys, grid[filled:stop])
                 filled = stop
-            self._state = replace(self._state, t=float(ts[-1]), h=float(ys[-1, 0]), v=float(ys[-1, 1]),
-                                  steps=self._state.steps + len(ts) - 1,
-                                  rhs_calls=self._state.rhs_calls + int(result.nfev))
-            self._needs_init = True
+            self._t, self._h, self._v = float(ts[-1]), float(ys[-1, 0]), float(ys[-1, 1])
+            self._steps += len(ts) - 1
+            self._rhs_calls += int(result.nfev)
             if result.status == _CV_ROOT_RETURN:
                 events.append(self._switch_mode())
         if filled < len(grid):  # the last points lie within a few ulps of the final state
-            h_out[filled:], v_out[filled:] = self._state.h, self._state.v
+            h_out[filled:], v_out[filled:] = self._h, self._v
         return h_out, v_out, events
 
     def _hermite(self, ts: np.ndarray, ys: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        ball, mode, F_ext = self.ball, self._state.mode, self._state.F_ext
+        ball, mode = self.ball, self._mode
         h, v = ys[:, 0], ys[:, 1]
-        a = np.broadcast_to(ball.acceleration(h, v, mode, F_ext), h.shape)
+        a = np.broadcast_to(ball.acceleration(h, v, mode, self._F_ext), h.shape)
         J = ball.jacobian(mode)
         jerk = J[1, 0] * v + J[1, 1] * a  # d a/dt = J f for this autonomous system
         i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
-        dt = ts[i + 1] - ts[i]
+        j = i + 1
+        dt = ts[j] - ts[i]
         s = (t - ts[i]) / dt
         s2, s3 = s * s, s * s * s
         s4, s5 = s3 * s, s3 * s2
@@ -295,7 +299,6 @@ class BallIntegrator:
         H3 = 0.5 * (s3 - 2 * s4 + s5)
         H4 = -4 * s3 + 7 * s4 - 3 * s5
         H5 = 10 * s3 - 15 * s4 + 6 * s5
-        j = i + 1
         dt2 = dt * dt
         h_t = H0 * h[i] + dt * H1 * v[i] + dt2 * H2 * a[i] + dt2 * H3 * a[j] + dt * H4 * v[j] + H5 * h[j]
         v_t = H0 * v[i] + dt * H1 * a[i] + dt2 * H2 * jerk[i] + dt2 * H3 * jerk[j] + dt * H4 * a[j] + H5 * v[j]
@@ -303,35 +306,32 @@ class BallIntegrator:
 
     def _close_enough(self, t_target: float) -> bool:
         """Within a few ulps of t_target CVODE refuses to step (CV_TOO_CLOSE): finish by Taylor."""
-        s = self._state
-        dt = t_target - s.t
-        if dt > 8.0 * math.ulp(max(abs(t_target), abs(s.t), 1e-300)) * 4:
+        dt = t_target - self._t
+        if dt > 32.0 * math.ulp(max(abs(t_target), abs(self._t), 1e-300)):
             return False
-        a = self.ball.acceleration(s.h, s.v, s.mode, s.F_ext)
-        self._state = replace(s, t=t_target, h=s.h + dt * (s.v + 0.5 * dt * a), v=s.v + dt * a)
+        a = self.acceleration
+        self._t, self._h, self._v = t_target, self._h + dt * (self._v + 0.5 * dt * a), self._v + dt * a
         return True
 
     def _check(self, result) -> None:
         if result.status < 0:
-            s = self._state
-            raise SolverError(f"CVODE failed at t = {float(result.t)!r} s ({s.mode.name.lower()}, "
-                              f"h = {s.h!r} m, v = {s.v!r} m/s): {result.message}")
+            raise SolverError(f"CVODE failed at t = {float(result.t)!r} s ({self._mode.name.lower()}, "
+                              f"h = {self._h!r} m, v = {self._v!r} m/s): {result.message}")
 
     def _switch_mode(self) -> Event:
         # scikit-sundae keeps every event on the events function and rebuilds that history on
         # each call; clearing it keeps the cost per event flat.
-        event = self._event_functions[self._state.mode]
+        event = self._event_functions[self._mode]
         event._i.clear()
         event._t.clear()
         event._y.clear()
         event._i_cnt[:] = 0
-        s = self._state
         self._reinit_needed()
-        if s.mode == Mode.FLIGHT:
-            self._state = replace(self._state, mode=Mode.CONTACT, impacts=s.impacts + 1, last_impact_time=s.t)
-            return Event(s.t, IMPACT, s.v)
-        self._state = replace(self._state, mode=Mode.FLIGHT, departures=s.departures + 1)
-        return Event(s.t, DEPARTURE, s.v)
+        if self._mode == Mode.FLIGHT:
+            self._mode, self._impacts, self._last_impact_time = Mode.CONTACT, self._impacts + 1, self._t
+            return Event(self._t, IMPACT, self._v)
+        self._mode, self._departures = Mode.FLIGHT, self._departures + 1
+        return Event(self._t, DEPARTURE, self._v)
 
 
 def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
