@@ -159,7 +159,7 @@ def test_event_history_is_not_kept():
     integrator.advance(1000.0)
     assert integrator.impacts + integrator.departures == 1550
     for event_function in integrator._event_functions.values():
-        assert len(event_function._t) == 0
+        assert len(event_function._t) <= 1  # at most the root found beyond the last target
 
 
 def test_time_per_event_stays_flat():

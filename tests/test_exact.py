@@ -154,3 +154,16 @@ def test_state_accepts_unsorted_times():
     h_unsorted, _ = exact.state(t)
     for ti, hi in zip(t, h_unsorted, strict=True):
         assert hi == exact.state([ti])[0][0]
+
+
+def test_extremum_at_the_start_found_by_round_off():
+    """A contact starting at a minimum with v0 = -1e-38 (found by hypothesis) must still leave."""
+    ball = Ball(m=1.0, k=100.0, b=0.0, R=0.5, g=1.0)
+    reference = ExactSolution(ball, 0.0, 0.0, 0.0, 3.0)
+    nudged = ExactSolution(ball, 0.0, -1.1754943508222875e-38, 0.0, 3.0)
+    assert [e.kind for e in reference.events] == ["departure"]
+    assert [e.kind for e in nudged.events] == ["departure"]
+    assert nudged.events[0].time == pytest.approx(reference.events[0].time, rel=1e-14)
+    # undamped: leaves at the speed sqrt(w^2 (y0^2 - d^2)) from energy conservation
+    w2, d, y0 = 100.0, 0.01, -0.49
+    assert nudged.events[0].velocity == pytest.approx(math.sqrt(w2 * (y0**2 - d**2)), rel=1e-12)

@@ -94,7 +94,10 @@ class ExactSolution:
             omega = math.sqrt(-disc)
             first = math.atan2(omega * v0, q) % math.pi
             tau1 = (first if first > 0.0 else math.pi) / omega
-            a, b = (0.0, tau1) if rising else (tau1, tau1 + math.pi / omega)
+            # Maxima lie above the rest height and minima below it; this decides robustly even
+            # when round-off puts an extremum at tau = 0.
+            is_maximum = self._contact_state(phase, np.array([tau1]))[0][0] > rest
+            a, b = (0.0, tau1) if is_maximum else (tau1, tau1 + math.pi / omega)
         else:
             # Critically or over-damped: at most one extremum, then a monotone approach to rest.
             mu = math.sqrt(disc)
