@@ -197,3 +197,4 @@ def test_random_balls_against_the_exact_solution(m, k, zeta, R, g, h0, v0):
     assert accuracy.events_match
     scale = max(1.0, h0, v0 * v0 / g)
     assert accuracy.max_height_error <= 1e-5 * scale
+

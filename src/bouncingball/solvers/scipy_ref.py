@@ -12,6 +12,7 @@ from bouncingball.physics import Ball, Mode
 from bouncingball.solvers.result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
 
 METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
+IMPLICIT = ("Radau", "BDF", "LSODA")
 ARTICLE_MAX_STEP = 0.01
 
 
@@ -49,9 +50,14 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
 
         crossing.terminal = True
         crossing.direction = -1.0 if mode == Mode.FLIGHT else 1.0
+        jacobian = ball.jacobian(mode)
+
+        def jac(_t, _state, jacobian=jacobian):  # a callable: LSODA cannot take a constant array
+            return jacobian
+
         sol = solve_ivp(rhs, (t, t_end), y, method=method, rtol=rtol, atol=atol,
                         max_step=max_step or np.inf, events=crossing, dense_output=True,
-                        **({"jac": ball.jacobian(mode)} if method in ("Radau", "BDF", "LSODA") else {}))
+                        **({"jac": jac} if method in IMPLICIT else {}))
         stats.steps += len(sol.t) - 1
         stats.rhs_calls += sol.nfev
         if sol.status == -1:
