@@ -312,36 +312,52 @@ class BallIntegrator:
         """Integrate through the increasing output times grid (grid[0] = current time).
 
         CVODE returns each internal step; the grid values come from the same quintic Hermite
-        interpolant as in advance(), evaluated for all grid points of a phase at once, which
+        interpolant as in advance(), evaluated for all grid points in one pass at the end, which
         costs far less per output point than asking CVODE for each one.
         """
         grid = np.asarray(grid, dtype=float)
-        h_out = np.empty_like(grid)
-        v_out = np.empty_like(grid)
-        h_out[0], v_out[0] = self._h, self._v
-        filled = 1
-        events: list[Event] = []
         t_end = grid[-1]
+        times, states, modes = [np.array([self._t])], [np.array([[self._h, self._v]])], [np.array([self._mode])]
+        events: list[Event] = []
         self._reinit_needed()
         while self._t < t_end and not self._close_enough(t_end):
-            solver = self._solvers[self._mode]
-            result = solver.solve(np.array([self._t, t_end]), np.array([self._h, self._v]))
+            mode = self._mode
+            result = self._solvers[mode].solve(np.array([self._t, t_end]), np.array([self._h, self._v]))
             self._check(result)
             ts, ys = result.t, result.y
-            stop = np.searchsorted(grid, ts[-1], side="right")
-            if stop > filled:
-                i = np.clip(np.searchsorted(ts, grid[filled:stop], side="right") - 1, 0, len(ts) - 2)
-                segments = self._quintic((ts[i], ys[i, 0], ys[i, 1]), (ts[i + 1], ys[i + 1, 0], ys[i + 1, 1]))
-                h_out[filled:stop], v_out[filled:stop] = segments.state(grid[filled:stop])
-                filled = stop
+            # A phase's first point is the previous phase's last: one copy per mode, so that no
+            # interpolation segment straddles the switch.
+            times.append(ts)
+            states.append(ys)
+            modes.append(np.full(len(ts), mode))
             self._t, self._h, self._v = float(ts[-1]), float(ys[-1, 0]), float(ys[-1, 1])
             self._steps += len(ts) - 1
             self._rhs_calls += int(result.nfev)
             if result.status == _CV_ROOT_RETURN:
                 events.append(self._switch_mode())
-        if filled < len(grid):  # the last points lie within a few ulps of the final state
-            h_out[filled:], v_out[filled:] = self._h, self._v
+        if self._t > times[-1][-1]:  # finished by a Taylor step within a few ulps of t_end
+            times.append(np.array([self._t]))
+            states.append(np.array([[self._h, self._v]]))
+            modes.append(np.array([self._mode]))
+        h_out, v_out = self._interpolate(np.concatenate(times), np.concatenate(states), np.concatenate(modes), grid)
         return h_out, v_out, events
+
+    def _interpolate(self, ts, ys, modes, t):
+        """The quintic Hermite interpolant of the step points (ts, ys) in their modes, at the times t."""
+        h, v = ys[:, 0], ys[:, 1]
+        contact = modes == Mode.CONTACT
+        a = np.where(contact, self.ball.acceleration(h, v, Mode.CONTACT, self._F_ext),
+                     self.ball.acceleration(h, v, Mode.FLIGHT, self._F_ext))
+        (_, _), (dadh, dadv) = self._jacobians[Mode.CONTACT]
+        jerk = np.where(contact, dadh * v + dadv * a, 0.0)  # J f; the flight Jacobian has no a row
+        i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
+        j = i + 1
+        dt = ts[j] - ts[i]
+        ok = dt > 0.0
+        t1 = np.where(ok, ts[j], ts[i] + 1.0)  # a zero-length segment: take its start values
+        segments = QuinticSegment(ts[i], t1, h[i], v[i], a[i], np.where(ok, h[j], h[i]), np.where(ok, v[j], v[i]),
+                                  np.where(ok, a[j], a[i]), jerk[i], np.where(ok, jerk[j], jerk[i]))
+        return segments.state(np.where(ok, t, ts[i]))
 
     def _quintic(self, start, end) -> QuinticSegment:
         """The Hermite interpolant of (t, h, v) between two step ends (scalars or arrays of them)."""
