@@ -1,4 +1,4 @@
-"""The bouncingball command line: run a scene, list scenes."""
+"""The bouncingball command line: run a scene, list scenes, build and validate the FMU."""
 
 from __future__ import annotations
 
@@ -31,6 +31,21 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--plot", metavar="PNG", help="draw height against time with the events marked")
 
     sub.add_parser("scenes", help="list the built-in scenes")
+
+    build = sub.add_parser("build-fmu", help="build the FMI 2.0 co-simulation FMU")
+    build.add_argument("-o", "--output", default="dist/BouncingBall.fmu",
+                       help="where to write it (default: dist/BouncingBall.fmu)")
+    check = sub.add_parser("validate", help="run the FMU through FMPy and compare it with CVODE, SciPy and the "
+                                            "exact solution")
+    check.add_argument("scene", nargs="?", default="article", help="built-in scene name or a .toml file "
+                                                                   "(default: article)")
+    check.add_argument("--fmu", help="the FMU to run (default: dist/BouncingBall.fmu, built if missing or stale)")
+    bench = sub.add_parser("bench", help="benchmark error against run time (or, with --stability, the stability "
+                                         "matrix) and write the results")
+    bench.add_argument("--quick", action="store_true", help="a small run that CI can afford")
+    bench.add_argument("--stability", action="store_true", help="run every scene with every solver under a time "
+                                                                "cap and write stability.md")
+    bench.add_argument("--output-dir", default="docs", help="where to write the results (default: docs)")
     return parser
 
 
@@ -102,6 +117,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.command == "run":
             return _run(args)
+        if args.command == "build-fmu":
+            from bouncingball.fmu_build import build_command
+
+            return build_command(args.output)
+        if args.command == "validate":
+            from bouncingball.fmu_validate import validate_command
+
+            return validate_command(args.scene, args.fmu)
+        if args.command == "bench":
+            from bouncingball.bench import bench_command
+
+            return bench_command(args.output_dir, args.quick, args.stability)
         return _scenes()
     except (ValueError, ImportError) as error:
         print(f"bouncingball: error: {error}", file=sys.stderr)
