@@ -1,0 +1,400 @@
+/* The BouncingBall FMU's binary: a thin FMI 2.0 layer in front of pythonfmu's binary.
+ *
+ * It does three things pythonfmu's Linux binary does not (see docs/fmu.md):
+ *   1. In a master without Python (a plain C or C++ master) it starts the Python the FMU was
+ *      built with before pythonfmu's binary is loaded: it loads that libpython with RTLD_GLOBAL,
+ *      so the Py* symbols of pythonfmu's binary and of every extension module (math, numpy,
+ *      scikit-sundae) resolve, and initialises it as the build environment's python executable,
+ *      so that its sys.path (standard library, site-packages of the virtual environment) is the
+ *      one the FMU was built and tested with. No LD_PRELOAD, PYTHONPATH or PYTHONHOME needed.
+ *      In a master that runs Python itself (FMPy, libcosimpy) that Python is used as it is.
+ *   2. pythonfmu reports a Python exception as fmi2Fatal and has no way to return fmi2Error.
+ *      Here, the status of each call is the worst of what pythonfmu returns and what the slave
+ *      logged during the call, so a slave that logs an error makes the call return fmi2Error.
+ *      A fatal status from pythonfmu becomes fmi2Error for this instance only, which is then
+ *      refused further calls (pythonfmu has already released its Python objects).
+ *   3. pythonfmu 0.7.0 releases its interpreter state twice at process exit; the loader
+ *      releases it once, first (see load()).
+ * Everything else is forwarded unchanged. Built by bouncingball.fmu_build with
+ * -DBB_LIBPYTHON="path of libpython", -DBB_PYTHON="path of the python executable" and
+ * -DBB_INNER="file name of pythonfmu's binary, next to this one".
+ */
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <libgen.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include <wchar.h>
+
+#include "fmi2Functions.h"
+
+#ifndef BB_LIBPYTHON
+#error "define BB_LIBPYTHON, the path of the libpython to load in a master without Python"
+#endif
+#ifndef BB_PYTHON
+#error "define BB_PYTHON, the path of the python executable whose environment a master without Python gets"
+#endif
+#ifndef BB_INNER
+#error "define BB_INNER, the file name of pythonfmu's binary next to this one"
+#endif
+
+/* pythonfmu's functions, loaded once per process */
+#define INNER_FUNCTIONS(X) \
+    X(SetDebugLogging) X(Instantiate) X(FreeInstance) X(SetupExperiment) X(EnterInitializationMode) \
+    X(ExitInitializationMode) X(Terminate) X(Reset) X(GetReal) X(GetInteger) X(GetBoolean) X(GetString) \
+    X(SetReal) X(SetInteger) X(SetBoolean) X(SetString) X(GetFMUstate) X(SetFMUstate) X(FreeFMUstate) \
+    X(SerializedFMUstateSize) X(SerializeFMUstate) X(DeSerializeFMUstate) X(GetDirectionalDerivative) \
+    X(SetRealInputDerivatives) X(GetRealOutputDerivatives) X(DoStep) X(CancelStep) X(GetStatus) \
+    X(GetRealStatus) X(GetIntegerStatus) X(GetBooleanStatus) X(GetStringStatus)
+
+#define DECLARE(name) fmi2##name##TYPE *name;
+static struct {
+    INNER_FUNCTIONS(DECLARE)
+} inner;
+
+static void (*release_python_state)(void); /* pythonfmu's finalizePythonInterpreter */
+static pthread_once_t load_once = PTHREAD_ONCE_INIT;
+static char load_error[4096];
+
+typedef struct {
+    fmi2Component inner;
+    fmi2CallbackFunctions master; /* the master's callbacks */
+    fmi2CallbackFunctions own;    /* handed to pythonfmu: our logger, the master's memory functions */
+    fmi2String name;
+    fmi2Boolean logging_on;
+    fmi2Status worst;             /* worst status logged during the current call */
+    int dead;                     /* pythonfmu returned fmi2Fatal: its instance is gone */
+} Instance;
+
+static void *symbol(void *library, const char *name)
+{
+    void *address = dlsym(library, name);
+    if (address == NULL && load_error[0] == '\0') {
+        snprintf(load_error, sizeof load_error, "%s not found in " BB_INNER ": %s", name, dlerror());
+    }
+    return address;
+}
+
+/* Start the build environment's Python in a process that has none. */
+static int start_python(void)
+{
+    void *python;
+    wchar_t *(*decode_locale)(const char *, size_t *);
+    void (*set_program_name)(const wchar_t *);
+    void (*initialize)(int);
+    void *(*save_thread)(void);
+    wchar_t *program;
+
+    if (BB_LIBPYTHON[0] == '\0') {
+        snprintf(load_error, sizeof load_error, "this FMU was built with a Python that has no shared libpython: "
+                 "it runs only in a master that runs Python itself");
+        return 0;
+    }
+    if (access(BB_PYTHON, X_OK) != 0) {
+        snprintf(load_error, sizeof load_error,
+                 "this FMU runs the Python it was built with, " BB_PYTHON ", which is not there");
+        return 0;
+    }
+    python = dlopen(BB_LIBPYTHON, RTLD_NOW | RTLD_GLOBAL);
+    if (python == NULL) {
+        snprintf(load_error, sizeof load_error, "this FMU runs the Python it was built with, and cannot load it: %s",
+                 dlerror());
+        return 0;
+    }
+    *(void **)&decode_locale = dlsym(python, "Py_DecodeLocale");
+    *(void **)&set_program_name = dlsym(python, "Py_SetProgramName");
+    *(void **)&initialize = dlsym(python, "Py_InitializeEx");
+    *(void **)&save_thread = dlsym(python, "PyEval_SaveThread");
+    if (decode_locale == NULL || set_program_name == NULL || initialize == NULL || save_thread == NULL) {
+        snprintf(load_error, sizeof load_error, BB_LIBPYTHON " lacks Py_SetProgramName or Py_InitializeEx");
+        return 0;
+    }
+    program = decode_locale(BB_PYTHON, NULL); /* Python keeps using it: never freed */
+    set_program_name(program);
+    initialize(0); /* 0: leave the master's signal handlers alone */
+    save_thread(); /* release the GIL; pythonfmu takes it for each call */
+    return 1;
+}
+
+static void load(void)
+{
+    Dl_info self;
+    char directory[4096];
+    char path[4096 + 64];
+    void *library;
+
+    if (dlsym(RTLD_DEFAULT, "Py_IsInitialized") == NULL && !start_python()) {
+        return;
+    }
+    if (dladdr((void *)&load, &self) == 0 || self.dli_fname == NULL) {
+        snprintf(load_error, sizeof load_error, "cannot find the directory of the FMU's binary");
+        return;
+    }
+    snprintf(directory, sizeof directory, "%s", self.dli_fname);
+    snprintf(path, sizeof path, "%s/" BB_INNER, dirname(directory));
+    library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (library == NULL) {
+        snprintf(load_error, sizeof load_error, "cannot load %.2048s: %.1024s", path, dlerror());
+        return;
+    }
+#define LOAD(name) *(void **)&inner.name = symbol(library, "fmi2" #name);
+    INNER_FUNCTIONS(LOAD)
+    /* pythonfmu 0.7.0 releases its PyState twice when the process exits with its binary loaded
+     * (its static shared_ptr's destructor, then its own destructor function), which corrupts the
+     * heap: about one exit in four crashed after a few FMPy runs. Release it once, first: exit
+     * handlers run in reverse order, and this one is registered after pythonfmu's. */
+    *(void **)&release_python_state = dlsym(library, "finalizePythonInterpreter");
+    if (release_python_state != NULL) {
+        atexit(release_python_state);
+    }
+}
+
+/* The logger pythonfmu calls: remember the worst status, pass the message on. pythonfmu always
+ * logs here (it is instantiated with logging on); messages with status fmi2OK reach the master
+ * only while it has logging on, warnings and errors always. */
+static void log_message(fmi2ComponentEnvironment environment, fmi2String name, fmi2Status status,
+                        fmi2String category, fmi2String message, ...)
+{
+    Instance *c = (Instance *)environment;
+    if (status > c->worst) {
+        c->worst = status;
+    }
+    if ((status != fmi2OK || c->logging_on) && c->master.logger != NULL) {
+        c->master.logger(c->master.componentEnvironment, name, status, category, "%s", message);
+    }
+}
+
+static fmi2Status refuse(Instance *c, const char *function)
+{
+    if (c->master.logger != NULL) {
+        c->master.logger(c->master.componentEnvironment, c->name, fmi2Error, "logStatusError",
+                         "%s refused: an earlier error ended this instance", function);
+    }
+    return fmi2Error;
+}
+
+static fmi2Status finish(Instance *c, fmi2Status status)
+{
+    if (status == fmi2Fatal) {
+        c->dead = 1;
+        return fmi2Error;
+    }
+    if (c->worst > status) {
+        status = c->worst > fmi2Error ? fmi2Error : c->worst;
+    }
+    return status;
+}
+
+/* Forward one call to pythonfmu and return the combined status. */
+#define FORWARD(function, ...)                        \
+    do {                                              \
+        Instance *c_ = (Instance *)c;                 \
+        if (c_->dead) {                               \
+            return refuse(c_, "fmi2" #function);      \
+        }                                             \
+        c_->worst = fmi2OK;                           \
+        fmi2Status status_ = inner.function(c_->inner, __VA_ARGS__); \
+        return finish(c_, status_);                   \
+    } while (0)
+
+#define FORWARD0(function)                            \
+    do {                                              \
+        Instance *c_ = (Instance *)c;                 \
+        if (c_->dead) {                               \
+            return refuse(c_, "fmi2" #function);      \
+        }                                             \
+        c_->worst = fmi2OK;                           \
+        fmi2Status status_ = inner.function(c_->inner); \
+        return finish(c_, status_);                   \
+    } while (0)
+
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+
+const char *fmi2GetVersion(void) { return fmi2Version; }
+
+fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                              fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                              fmi2Boolean visible, fmi2Boolean loggingOn)
+{
+    Instance *c;
+    pthread_once(&load_once, load);
+    if (load_error[0] != '\0') {
+        if (functions != NULL && functions->logger != NULL) {
+            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError", "%s",
+                              load_error);
+        }
+        return NULL;
+    }
+    c = calloc(1, sizeof *c);
+    if (c == NULL) {
+        return NULL;
+    }
+    if (functions != NULL) {
+        c->master = *functions;
+    }
+    c->own = c->master;
+    c->own.logger = log_message;
+    c->own.componentEnvironment = c;
+    c->name = strdup(instanceName != NULL ? instanceName : "");
+    c->logging_on = loggingOn;
+    c->inner = inner.Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, &c->own, visible, fmi2True);
+    if (c->inner == NULL) {
+        free((void *)c->name);
+        free(c);
+        return NULL;
+    }
+    return c;
+}
+
+void fmi2FreeInstance(fmi2Component c)
+{
+    Instance *instance = (Instance *)c;
+    if (instance == NULL) {
+        return;
+    }
+    if (!instance->dead) { /* a dead pythonfmu instance has released its objects already */
+        inner.FreeInstance(instance->inner);
+    }
+    free((void *)instance->name);
+    free(instance);
+}
+
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
+                               const fmi2String categories[])
+{
+    (void)nCategories;
+    (void)categories;
+    ((Instance *)c)->logging_on = loggingOn; /* pythonfmu keeps logging everything to us */
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+                               fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
+{
+    FORWARD(SetupExperiment, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime);
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) { FORWARD0(EnterInitializationMode); }
+
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) { FORWARD0(ExitInitializationMode); }
+
+fmi2Status fmi2Terminate(fmi2Component c) { FORWARD0(Terminate); }
+
+fmi2Status fmi2Reset(fmi2Component c) { FORWARD0(Reset); }
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
+{
+    FORWARD(GetReal, vr, nvr, value);
+}
+
+fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[])
+{
+    FORWARD(GetInteger, vr, nvr, value);
+}
+
+fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
+{
+    FORWARD(GetBoolean, vr, nvr, value);
+}
+
+fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
+{
+    FORWARD(GetString, vr, nvr, value);
+}
+
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
+{
+    FORWARD(SetReal, vr, nvr, value);
+}
+
+fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[])
+{
+    FORWARD(SetInteger, vr, nvr, value);
+}
+
+fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
+{
+    FORWARD(SetBoolean, vr, nvr, value);
+}
+
+fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])
+{
+    FORWARD(SetString, vr, nvr, value);
+}
+
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) { FORWARD(GetFMUstate, FMUstate); }
+
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) { FORWARD(SetFMUstate, FMUstate); }
+
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) { FORWARD(FreeFMUstate, FMUstate); }
+
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
+{
+    FORWARD(SerializedFMUstateSize, FMUstate, size);
+}
+
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size)
+{
+    FORWARD(SerializeFMUstate, FMUstate, serializedState, size);
+}
+
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
+                                   fmi2FMUstate *FMUstate)
+{
+    FORWARD(DeSerializeFMUstate, serializedState, size, FMUstate);
+}
+
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
+                                        const fmi2ValueReference vKnown_ref[], size_t nKnown,
+                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[])
+{
+    FORWARD(GetDirectionalDerivative, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown, dvUnknown);
+}
+
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                       const fmi2Integer order[], const fmi2Real value[])
+{
+    FORWARD(SetRealInputDerivatives, vr, nvr, order, value);
+}
+
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                        const fmi2Integer order[], fmi2Real value[])
+{
+    FORWARD(GetRealOutputDerivatives, vr, nvr, order, value);
+}
+
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
+                      fmi2Boolean noSetFMUStatePriorToCurrentPoint)
+{
+    FORWARD(DoStep, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint);
+}
+
+fmi2Status fmi2CancelStep(fmi2Component c) { FORWARD0(CancelStep); }
+
+fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value)
+{
+    FORWARD(GetStatus, s, value);
+}
+
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
+{
+    FORWARD(GetRealStatus, s, value);
+}
+
+fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value)
+{
+    FORWARD(GetIntegerStatus, s, value);
+}
+
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
+{
+    FORWARD(GetBooleanStatus, s, value);
+}
+
+fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value)
+{
+    FORWARD(GetStringStatus, s, value);
+}

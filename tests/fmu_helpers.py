@@ -1,0 +1,124 @@
+"""Shared by the FMU tests: one FMU build per test session, and an FMU instance driven call by call."""
+
+from __future__ import annotations
+
+from ctypes import byref
+from pathlib import Path
+
+import numpy as np
+
+from bouncingball.physics import Ball
+from bouncingball.solvers.exact import ExactSolution
+from bouncingball.solvers.result import IMPACT
+
+_BUILT: dict[str, Path] = {}
+TIGHT = {"rtol": 1e-11, "atol": 1e-14}  # the tolerances the issue's accuracy numbers are measured at
+
+
+def session_fmu(tmp_path_factory) -> Path:
+    """The FMU, built once per session through `bouncingball build-fmu -o`."""
+    if "fmu" not in _BUILT:
+        from bouncingball.cli import main
+
+        path = tmp_path_factory.mktemp("fmu") / "BouncingBall.fmu"
+        assert main(["build-fmu", "-o", str(path)]) == 0
+        _BUILT["fmu"] = path
+    return _BUILT["fmu"]
+
+
+def session_unzipped(tmp_path_factory) -> Path:
+    """The FMU extracted once per session, for FMU2Slave and the C master."""
+    if "unzipped" not in _BUILT:
+        from fmpy import extract
+
+        _BUILT["unzipped"] = Path(extract(str(session_fmu(tmp_path_factory)),
+                                          str(tmp_path_factory.mktemp("unzipped"))))
+    return _BUILT["unzipped"]
+
+
+def exact_at(t, ball: Ball | None = None, h0: float = 2.0, v0: float = 0.0, t_start: float = 0.0,
+             F_ext: float = 0.0):
+    """Exact (h, v, impacts so far) at the times t, for the article's ball unless given another."""
+    t = np.asarray(t, dtype=float)
+    solution = ExactSolution(ball or Ball(), h0, v0, t_start, float(t[-1]), F_ext)
+    h, v = solution.state(t)
+    impact_times = [event.time for event in solution.events if event.kind == IMPACT]
+    return h, v, np.searchsorted(impact_times, t, side="right")
+
+
+class Instance:
+    """One FMU instance driven through FMPy's FMU2Slave, keeping every logged (status, message)."""
+
+    OUTPUTS = ("h", "v", "a", "contact", "contact_force", "impacts")
+
+    def __init__(self, unzipped: Path, name: str = "ball"):
+        from fmpy import calloc, free, read_model_description
+        from fmpy.fmi2 import (
+            FMU2Slave,
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+        )
+        from fmpy.logging import addLoggerProxy
+
+        description = read_model_description(str(unzipped))
+        self.variables = {v.name: v for v in description.modelVariables}
+        self.log: list[tuple[int, str]] = []
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(self._logger)
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(byref(callbacks))  # formats the FMU's printf-style messages
+        self._callbacks = callbacks
+        self.fmu = FMU2Slave(guid=description.guid, unzipDirectory=str(unzipped),
+                             modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
+        self.fmu.instantiate(callbacks=callbacks)
+        self.t = 0.0
+
+    def _logger(self, environment, instance_name, status, category, message):
+        self.log.append((status, message.decode("utf-8")))
+
+    def set(self, **values) -> None:
+        for name, value in values.items():
+            variable = self.variables[name]
+            setter = {"Real": self.fmu.setReal, "Integer": self.fmu.setInteger, "Boolean": self.fmu.setBoolean,
+                      "String": self.fmu.setString}[variable.type]
+            setter([variable.valueReference], [value])
+
+    def get(self, *names) -> list:
+        values = []
+        for name in names:
+            variable = self.variables[name]
+            getter = {"Real": self.fmu.getReal, "Integer": self.fmu.getInteger, "Boolean": self.fmu.getBoolean,
+                      "String": self.fmu.getString}[variable.type]
+            value = getter([variable.valueReference])[0]
+            values.append(value.decode("utf-8") if isinstance(value, bytes) else value)
+        return values
+
+    def outputs(self) -> tuple:
+        return tuple(self.get(*self.OUTPUTS))
+
+    def initialize(self, tolerance: float | None = None, **values) -> None:
+        self.set(**values)
+        self.fmu.setupExperiment(tolerance=tolerance, startTime=0.0)
+        self.fmu.enterInitializationMode()
+        self.fmu.exitInitializationMode()
+
+    def step_to(self, t_end: float, dt: float) -> list[tuple]:
+        """doStep from the current time to t_end in steps of dt; the outputs after each step."""
+        outputs = []
+        n = round((t_end - self.t) / dt)
+        t0 = self.t
+        for i in range(1, n + 1):
+            t_next = t0 + i * dt
+            self.fmu.doStep(self.t, t_next - self.t)
+            self.t = t_next
+            outputs.append(self.outputs())
+        return outputs
+
+    def errors(self) -> list[str]:
+        return [message for status, message in self.log if status >= 3]
+
+    def free(self) -> None:
+        self.fmu.freeInstance()

@@ -1,0 +1,331 @@
+"""The BouncingBall FMU through FMPy: model description, accuracy against the exact solution, state, errors."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bouncingball.fmu_build import SMALLEST_POSITIVE, UNITS, VARIABLES
+from bouncingball.physics import Ball
+from bouncingball.scenes import load_scene
+from bouncingball.solvers.cvode import CvodeSettings
+from fmu_helpers import TIGHT, Instance, exact_at, session_fmu, session_unzipped
+
+fmpy = pytest.importorskip("fmpy", reason="the FMU tests need the [fmu] extra")
+pytest.importorskip("pythonfmu", reason="the FMU tests need the [fmu] extra")
+
+BIN = Path(sys.executable).parent
+ARTICLE = load_scene("article")
+
+
+@pytest.fixture(scope="module")
+def fmu(tmp_path_factory) -> Path:
+    return session_fmu(tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def unzipped(tmp_path_factory) -> Path:
+    return session_unzipped(tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def article_runs(fmu) -> dict[float, np.ndarray]:
+    """The article through simulate_fmu at four communication steps, with rtol 1e-11 and atol 1e-14."""
+    return {dt: fmpy.simulate_fmu(str(fmu), stop_time=ARTICLE.t_end, output_interval=dt, start_values=TIGHT,
+                                  output=["h", "v", "impacts", "contact"])
+            for dt in (0.5, 0.1, 0.01, 0.001)}
+
+
+# --- the model description ------------------------------------------------------------------------
+def test_model_description_has_units_ranges_and_start_values(fmu):
+    md = fmpy.read_model_description(str(fmu))
+    variables = {v.name: v for v in md.modelVariables}
+    assert [v.name for v in md.modelVariables] == [v.name for v in VARIABLES]
+    for spec in VARIABLES:
+        variable = variables[spec.name]
+        assert variable.description == spec.description and variable.description
+        assert (variable.type, variable.causality, variable.variability) == (spec.type, spec.causality,
+                                                                             spec.variability)
+        assert (variable.unit or "") == spec.unit
+        assert variable.min == (None if spec.min is None else str(spec.min) if spec.type == "Real" else "0")
+    ball, settings = Ball(), CvodeSettings()
+    for name in ("m", "k", "b", "R", "g"):
+        assert float(variables[name].start) == getattr(ball, name)
+    assert (float(variables["h"].start), float(variables["v"].start)) == (2.0, 0.0)
+    assert (variables["h"].initial, variables["v"].initial) == ("exact", "exact")
+    assert float(variables["F_ext"].start) == 0.0
+    assert (float(variables["rtol"].start), float(variables["atol"].start), variables["method"].start) == (
+        settings.rtol, settings.atol, "auto")
+    assert float(variables["m"].min) == SMALLEST_POSITIVE and float(variables["rtol"].max) == 1.0
+    assert float(variables["b"].min) == 0.0 and float(variables["g"].min) == 0.0
+
+    assert {u.name: {k: getattr(u.baseUnit, k) for k in ("kg", "m", "s") if getattr(u.baseUnit, k)}
+            for u in md.unitDefinitions} == UNITS
+    assert (md.defaultExperiment.startTime, md.defaultExperiment.stopTime) == ("0", "8.0")
+    cs = md.coSimulation
+    assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate and not cs.needsExecutionTool
+    assert [u.variable.name for u in md.outputs] == ["h", "v", "a", "contact", "contact_force", "impacts"]
+    assert [u.variable.name for u in md.initialUnknowns] == ["a", "contact", "contact_force", "impacts"]
+
+
+def test_fmu_carries_the_package_and_a_linux_binary_only(fmu):
+    names = zipfile.ZipFile(fmu).namelist()
+    assert "resources/bouncingball_fmu_slave.py" in names
+    assert "resources/bouncingball/solvers/cvode.py" in names and "resources/bouncingball/data/scenes.toml" in names
+    assert sorted(n for n in names if n.startswith("binaries/")) == [
+        "binaries/linux64/BouncingBall.so", "binaries/linux64/BouncingBall_pythonfmu.so"]
+
+
+def test_fmpy_validate_reports_no_problem(fmu):
+    completed = subprocess.run([BIN / "fmpy", "validate", fmu], capture_output=True, text=True, check=False)
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    assert "No problems found" in completed.stdout
+
+
+def test_fmutool_check_passes(fmu):
+    pytest.importorskip("fmu_manipulation_toolbox", reason="fmutool comes with fmu-manipulation-toolbox")
+    completed = subprocess.run([BIN / "fmutool", "-input", fmu, "-check"], capture_output=True, text=True,
+                               check=False)
+    output = completed.stdout + completed.stderr
+    assert completed.returncode == 0, output
+    assert "compliant with FMI-2.0" in output and "No semantic error" in output and "ERROR" not in output
+
+
+def test_importing_the_fmu_modules_imports_no_fmu_tool():
+    code = ("import sys, bouncingball, bouncingball.fmu_build, bouncingball.fmu_validate, bouncingball.cli; "
+            "print(sorted(m for m in ('pythonfmu', 'fmpy', 'scipy', 'matplotlib') if m in sys.modules))")
+    completed = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert completed.stdout.strip() == "[]"
+
+
+# --- accuracy through FMPy --------------------------------------------------------------------------
+def test_article_at_1ms_matches_the_exact_solution_at_every_point(article_runs):
+    result = article_runs[0.001]
+    assert len(result) == 8001 and result["time"][-1] == 8.0
+    h, _, impacts = exact_at(result["time"])
+    assert np.max(np.abs(result["h"] - h)) < 1e-8  # measured 4.9e-10
+    np.testing.assert_array_equal(result["impacts"], impacts)
+    assert impacts[-1] == 21
+
+
+def test_answer_does_not_depend_on_the_communication_step(article_runs):
+    coarse = article_runs[0.5]
+    np.testing.assert_allclose(coarse["time"], np.arange(17) * 0.5, rtol=0, atol=1e-12)
+    h_exact, _, impacts = exact_at(coarse["time"])
+    for dt in (0.1, 0.01, 0.001):
+        fine = article_runs[dt]
+        common = np.searchsorted(fine["time"], coarse["time"] - 1e-9)
+        np.testing.assert_allclose(fine["time"][common], coarse["time"], rtol=0, atol=1e-12)
+        assert np.max(np.abs(fine["h"][common] - coarse["h"])) < 1e-8  # measured 0: bit-identical
+        np.testing.assert_array_equal(fine["impacts"][common], coarse["impacts"])
+    # one doStep of 0.5 s crosses up to three impacts, and still lands on the exact solution
+    assert np.max(np.abs(coarse["h"] - h_exact)) < 1e-8
+    np.testing.assert_array_equal(coarse["impacts"], impacts)
+
+
+def test_tolerance_from_setup_experiment_is_used_as_rtol(fmu):
+    def run(**options):
+        return fmpy.simulate_fmu(str(fmu), stop_time=2.0, output_interval=0.1, output=["h"], **options)
+
+    with_tolerance = run(relative_tolerance=1e-11, start_values={"atol": 1e-14})
+    with_rtol = run(start_values=TIGHT)
+    default_rtol = run(start_values={"atol": 1e-14})
+    np.testing.assert_array_equal(with_tolerance["h"], with_rtol["h"])
+    assert not np.array_equal(with_tolerance["h"], default_rtol["h"])
+
+
+# --- inputs: F_ext ---------------------------------------------------------------------------------
+def test_F_ext_equal_to_weight_gives_constant_velocity(fmu):
+    m, g = 2.5, 9.81
+    result = fmpy.simulate_fmu(str(fmu), stop_time=3.0, output_interval=0.1,
+                               start_values={"m": m, "g": g, "h": 2.0, "v": 1.0, "F_ext": m * g},
+                               output=["h", "v", "a", "impacts", "contact"])
+    t = result["time"]
+    np.testing.assert_allclose(result["h"], 2.0 + t, rtol=0, atol=1e-12)  # thrown up at 1 m/s, no net force
+    np.testing.assert_allclose(result["v"], 1.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(result["a"], 0.0, rtol=0, atol=1e-12)
+    assert not result["impacts"].any() and not result["contact"].any()
+
+
+def test_F_ext_step_change_mid_run(fmu):
+    """F_ext = m g until t = 1 s (h = 2 + t), then 0: free flight from (3 m, 1 m/s), with bounces."""
+    ball = Ball(m=2.0)
+    weight = ball.m * ball.g
+    signal = np.array([(0.0, weight), (1.0, weight), (1.0, 0.0), (4.0, 0.0)],
+                      dtype=[("time", np.float64), ("F_ext", np.float64)])
+    result = fmpy.simulate_fmu(str(fmu), stop_time=4.0, output_interval=0.01, input=signal,
+                               start_values={"m": ball.m, "h": 2.0, "v": 1.0, **TIGHT},
+                               output=["h", "v", "impacts"])
+    t = result["time"]
+    before = t <= 1.0
+    np.testing.assert_allclose(result["h"][before], 2.0 + t[before], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(result["v"][before], 1.0, rtol=0, atol=1e-12)
+    h, v, impacts = exact_at(t[~before], ball, h0=3.0, v0=1.0, t_start=1.0)
+    assert np.max(np.abs(result["h"][~before] - h)) < 1e-8
+    np.testing.assert_array_equal(result["impacts"][~before], impacts)
+    assert impacts[-1] == 2  # the flight from the switch state ends in real bounces
+
+
+# --- FMU state -----------------------------------------------------------------------------------------
+def test_rollback_gives_identical_outputs(unzipped):
+    ball = Instance(unzipped)
+    try:
+        ball.initialize(**TIGHT)
+        ball.step_to(0.62, 0.01)  # just before the first impact
+        saved_outputs = ball.outputs()
+        state = ball.fmu.getFMUstate()
+        first = ball.step_to(1.3, 0.01)  # through the contact and the departure
+        ball.fmu.setFMUstate(state)
+        assert ball.outputs() == saved_outputs
+        ball.t = 0.62
+        again = ball.step_to(1.3, 0.01)
+        ball.fmu.freeFMUstate(state)
+        assert again == first  # bit-identical
+        h, _, impacts = exact_at([0.62, 1.3])
+        assert impacts[0] == 0 and first[-1][5] == impacts[1] > 0 and any(outputs[3] for outputs in first)
+        assert abs(first[-1][0] - h[1]) < 1e-8
+    finally:
+        ball.free()
+
+
+def test_serialized_state_restores_in_a_fresh_instance(unzipped):
+    values = {"g": 3.71, "b": 5.0, "h": 1.5, "v": 0.5, "F_ext": 0.4, "method": "BDF", **TIGHT}
+    first = Instance(unzipped, "first")
+    fresh = Instance(unzipped, "fresh")
+    try:
+        first.initialize(**values)
+        first.step_to(1.3, 0.1)
+        state = first.fmu.getFMUstate()
+        serialized = first.fmu.serializeFMUstate(state)
+        first.fmu.freeFMUstate(state)
+        expected = first.step_to(3.0, 0.1)
+
+        state = fresh.fmu.deSerializeFMUstate(serialized)
+        fresh.fmu.setFMUstate(state)
+        fresh.fmu.freeFMUstate(state)
+        assert fresh.get("g", "b", "F_ext", "rtol", "atol", "method") == [3.71, 5.0, 0.4, 1e-11, 1e-14, "BDF"]
+        fresh.t = 1.3
+        assert fresh.step_to(3.0, 0.1) == expected  # bit-identical
+        h, _, impacts = exact_at([3.0], Ball(g=3.71, b=5.0), h0=1.5, v0=0.5, F_ext=0.4)
+        assert abs(expected[-1][0] - h[0]) < 1e-8 and expected[-1][5] == impacts[0] > 0
+    finally:
+        first.free()
+        fresh.free()
+
+
+# --- instances ----------------------------------------------------------------------------------------
+def test_two_instances_with_different_g_stay_independent(unzipped):
+    earth, moon = Instance(unzipped, "earth"), Instance(unzipped, "moon")
+    try:
+        earth.initialize(**TIGHT)
+        moon.initialize(g=1.62, **TIGHT)
+        t = np.arange(1, 301) * 0.01
+        earth_h, moon_h, moon_impacts = [], [], []
+        for _ in t:  # interleaved steps
+            earth_h.append(earth.step_to(earth.t + 0.01, 0.01)[0][0])
+            out = moon.step_to(moon.t + 0.01, 0.01)[0]
+            moon_h.append(out[0])
+            moon_impacts.append(out[5])
+        h, _, _ = exact_at(t)
+        assert np.max(np.abs(np.array(earth_h) - h)) < 1e-8
+        h, _, impacts = exact_at(t, Ball(g=1.62))
+        assert np.max(np.abs(np.array(moon_h) - h)) < 1e-8
+        np.testing.assert_array_equal(moon_impacts, impacts)
+        assert earth.get("g") == [9.81] and moon.get("g") == [1.62]
+    finally:
+        earth.free()
+        moon.free()
+
+
+# --- failures never kill the host ---------------------------------------------------------------------
+@pytest.mark.parametrize(("name", "value", "expected"), [
+    ("m", -1.0, "m = -1.0 kg is not allowed: it must be finite and > 0"),
+    ("k", 0.0, "k = 0.0 N/m is not allowed: it must be finite and > 0"),
+    ("b", -5.0, "b = -5.0 N s/m is not allowed: it must be finite and >= 0"),
+    ("R", math.nan, "R = nan m is not allowed: it must be finite and > 0"),
+    ("g", -9.81, "g = -9.81 m/s2 is not allowed: it must be finite and >= 0"),
+    ("h", math.inf, "h = inf m is not allowed: it must be a finite number"),
+    ("F_ext", math.nan, "F_ext = nan N is not allowed: it must be a finite number"),
+    ("rtol", 2.0, "rtol = 2.0 is not allowed: it must be in (0, 1]"),
+    ("atol", 0.0, "atol = 0.0 is not allowed: it must be finite and > 0"),
+    ("method", "RK4", "method = 'RK4' is not allowed: it must be one of auto, Adams, BDF"),
+])
+def test_invalid_parameter_gives_fmi2Error_with_a_message(unzipped, name, value, expected):
+    ball = Instance(unzipped, f"bad_{name}")
+    try:
+        ball.set(**{name: value})
+        ball.fmu.setupExperiment(startTime=0.0)
+        ball.fmu.enterInitializationMode()
+        with pytest.raises(fmpy.fmi1.FMICallException) as raised:
+            ball.fmu.exitInitializationMode()
+        assert raised.value.status == 3  # fmi2Error, not fmi2Fatal
+        assert ball.errors() == [expected]
+    finally:
+        ball.free()
+    healthy = Instance(unzipped, "healthy")  # the host carries on
+    healthy.initialize()
+    assert healthy.step_to(0.1, 0.1)[0][5] == 0
+    healthy.free()
+
+
+def test_invalid_tolerance_in_setup_experiment_gives_fmi2Error(unzipped):
+    ball = Instance(unzipped)
+    try:
+        with pytest.raises(fmpy.fmi1.FMICallException) as raised:
+            ball.initialize(tolerance=5.0)
+        assert raised.value.status == 3
+        assert ball.errors() == ["tolerance (fmi2SetupExperiment, used as rtol) = 5.0 is not allowed: "
+                                 "it must be in (0, 1]"]
+    finally:
+        ball.free()
+
+
+def test_cvode_failure_gives_fmi2Error_with_cvode_reason(unzipped):
+    ball = Instance(unzipped)
+    try:
+        ball.initialize(rtol=1e-20, atol=1e-30)  # more accuracy than double precision allows
+        with pytest.raises(fmpy.fmi1.FMICallException) as raised:
+            ball.fmu.doStep(0.0, 0.1)
+        assert raised.value.status == 3
+        [message] = ball.errors()
+        assert message.startswith("CVODE failed at t = 0.0 s") and "demanded accuracy" in message
+    finally:
+        ball.free()
+
+
+def test_changing_a_parameter_after_initialisation_is_an_error(unzipped):
+    ball = Instance(unzipped)
+    try:
+        ball.initialize()
+        with pytest.raises(fmpy.fmi1.FMICallException) as raised:
+            ball.set(g=1.0)
+        assert raised.value.status == 3
+        assert ball.errors() == ["g = 1.0 is not allowed: g cannot change after initialisation"]
+    finally:
+        ball.free()
+
+
+def test_an_exception_inside_pythonfmu_gives_fmi2Error_and_the_host_survives(unzipped):
+    ball = Instance(unzipped)
+    try:
+        ball.initialize()
+        method = ball.variables["method"].valueReference
+        with pytest.raises(fmpy.fmi1.FMICallException) as raised:
+            ball.fmu.setReal([method], [1.0])  # a master bug: pythonfmu raises TypeError, i.e. fmi2Fatal
+        assert raised.value.status == 3
+        assert "is not of type Real" in ball.errors()[0]
+        with pytest.raises(fmpy.fmi1.FMICallException) as raised:  # the instance is gone; it says so
+            ball.fmu.doStep(0.0, 0.1)
+        assert raised.value.status == 3 and "refused" in ball.errors()[-1]
+    finally:
+        ball.free()  # does not touch pythonfmu's released instance
+    healthy = Instance(unzipped, "healthy")
+    healthy.initialize()
+    assert healthy.step_to(1.0, 0.5)[-1][5] == 1
+    healthy.free()

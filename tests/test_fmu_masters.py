@@ -1,0 +1,163 @@
+"""The BouncingBall FMU in other masters: the fmpy command line, libcosim (C++), a plain C master; and the CLI."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bouncingball.cli import main
+from bouncingball.fmu_build import shared_libpython
+from bouncingball.physics import Ball
+from fmu_helpers import TIGHT, exact_at, session_fmu, session_unzipped
+
+fmpy = pytest.importorskip("fmpy", reason="the FMU tests need the [fmu] extra")
+pytest.importorskip("pythonfmu", reason="the FMU tests need the [fmu] extra")
+
+BIN = Path(sys.executable).parent
+C_MASTER = Path(__file__).parent / "c_master" / "fmi2_master.c"
+
+
+@pytest.fixture(scope="module")
+def fmu(tmp_path_factory) -> Path:
+    return session_fmu(tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def unzipped(tmp_path_factory) -> Path:
+    return session_unzipped(tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def references(fmu) -> dict[str, int]:
+    return {v.name: v.valueReference for v in fmpy.read_model_description(str(fmu)).modelVariables}
+
+
+def test_fmpy_simulate_command_line(fmu, tmp_path):
+    out = tmp_path / "moon.csv"
+    completed = subprocess.run(
+        [BIN / "fmpy", "simulate", fmu, "--output-file", out, "--stop-time", "6", "--output-interval", "0.01",
+         "--start-values", "g", "1.62", "h", "1.0", "rtol", "1e-11", "atol", "1e-14"],
+        capture_output=True, text=True, check=False)
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    with out.open() as file:
+        rows = list(csv.DictReader(file))
+    assert {"time", "h", "v", "a", "contact", "contact_force", "impacts"} <= set(rows[0])
+    t = np.array([float(row["time"]) for row in rows])
+    assert len(t) == 601 and t[-1] == 6.0
+    h, _, impacts = exact_at(t, Ball(g=1.62), h0=1.0)
+    assert np.max(np.abs(np.array([float(row["h"]) for row in rows]) - h)) < 1e-8
+    np.testing.assert_array_equal([int(row["impacts"]) for row in rows], impacts)
+
+
+def test_libcosim_runs_the_fmu(fmu, references):
+    cosim = pytest.importorskip("libcosimpy.CosimExecution", reason="libcosimpy is not installed")
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimObserver import CosimObserver
+    from libcosimpy.CosimSlave import CosimLocalSlave
+
+    log_output_level(CosimLogLevel.WARNING)
+    execution = cosim.CosimExecution.from_step_size(step_size=10_000_000)  # integer nanoseconds: 10 ms
+    index = execution.add_local_slave(CosimLocalSlave(fmu_path=str(fmu), instance_name="ball"))
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    for name, value in {"g": 3.71, "h": 1.5, **TIGHT}.items():
+        execution.real_initial_value(index, references[name], value)
+    t = np.arange(1, 801) * 0.01
+    h, impacts = [], []
+    for _ in t:
+        assert execution.step()
+        h.append(observer.last_real_values(index, [references["h"]])[0])
+        impacts.append(observer.last_integer_values(index, [references["impacts"]])[0])
+    assert execution.status().current_time == 8_000_000_000
+    h_exact, _, impacts_exact = exact_at(t, Ball(g=3.71), h0=1.5)
+    assert np.max(np.abs(np.array(h) - h_exact)) < 1e-8
+    np.testing.assert_array_equal(impacts, impacts_exact)
+
+
+@pytest.fixture(scope="module")
+def c_master(tmp_path_factory) -> Path:
+    compiler = shutil.which("cc") or shutil.which("gcc")
+    if compiler is None:
+        pytest.skip("no C compiler (cc or gcc) to build the C master")
+    if shared_libpython() is None:
+        pytest.skip("this Python has no shared libpython: its FMU can run only in a master that runs Python")
+    headers = Path(fmpy.__file__).parent / "c-code"
+    binary = tmp_path_factory.mktemp("c_master") / "fmi2_master"
+    subprocess.run([compiler, "-O1", "-Wall", "-Werror", f"-I{headers}", "-o", binary, C_MASTER, "-ldl"],
+                   check=True)
+    return binary
+
+
+def run_c_master(c_master, unzipped, references, *arguments) -> subprocess.CompletedProcess:
+    """The C master in an environment with no Python variables at all: no LD_PRELOAD, PYTHONPATH, PYTHONHOME."""
+    guid = fmpy.read_model_description(str(unzipped)).guid
+    environment = {"PATH": "/usr/bin:/bin"}
+    return subprocess.run([c_master, unzipped, "BouncingBall", guid, *map(str, arguments)], env=environment,
+                          capture_output=True, text=True, check=False, timeout=120)
+
+
+def test_c_master_has_no_python_in_it(c_master):
+    ldd = shutil.which("ldd")
+    if ldd is None:
+        pytest.skip("no ldd")
+    linked = subprocess.run([ldd, c_master], capture_output=True, text=True, check=True).stdout
+    assert "libpython" not in linked and "libc.so" in linked
+
+
+def test_c_master_runs_the_fmu_without_environment_variables(c_master, unzipped, references):
+    r = references
+    completed = run_c_master(c_master, unzipped, references, 8.0, 0.01, f"r{r['rtol']}=1e-11",
+                             f"r{r['atol']}=1e-14", f"o{r['h']}", f"o{r['v']}", f"i{r['impacts']}")
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    table = np.loadtxt(completed.stdout.splitlines())
+    assert table.shape == (801, 4)
+    h, v, impacts = exact_at(table[:, 0])
+    assert np.max(np.abs(table[:, 1] - h)) < 1e-8
+    np.testing.assert_array_equal(table[:, 3], impacts)
+    assert impacts[-1] == 21
+
+
+def test_c_master_gets_fmi2Error_for_a_bad_parameter(c_master, unzipped, references):
+    completed = run_c_master(c_master, unzipped, references, 1.0, 0.1, f"r{references['m']}=-1", "o5")
+    assert completed.returncode == 13, completed.stdout + completed.stderr  # 10 + fmi2Error
+    assert "fmi2ExitInitializationMode returned 3" in completed.stdout
+    assert "m = -1.0 kg is not allowed: it must be finite and > 0" in completed.stderr
+
+
+def test_validate_command_prints_the_four_runs(fmu, capsys):
+    assert main(["validate", "article", "--fmu", str(fmu)]) == 0
+    out = capsys.readouterr().out
+    rows = {line[:24].strip(): line[24:].split() for line in out.splitlines()[3:7]}
+    assert list(rows) == ["FMU (FMPy)", "CVODE (in-process)", "SciPy (article's RK45)", "exact"]
+    assert float(rows["FMU (FMPy)"][0]) < 1e-7 and rows["FMU (FMPy)"][1] == "n/a"
+    assert rows["FMU (FMPy)"][2:4] == ["41", "41"] and rows["CVODE (in-process)"][2:4] == ["41", "41"]
+    assert float(rows["SciPy (article's RK45)"][0]) > 1e-4  # the article's algorithm, as published
+    assert "FMU impact count equals the exact count at every communication point: yes" in out
+
+
+def test_build_fmu_refuses_an_output_that_is_not_an_fmu(tmp_path, capsys):
+    assert main(["build-fmu", "-o", str(tmp_path / "ball.zip")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "ball.zip" in err and "must end in .fmu" in err
+
+
+def test_repeated_simulations_in_a_fresh_python_process(fmu):
+    """FMPy unzips each run into a new directory and deletes it, while the process keeps pythonfmu's binary
+    and the modules of the first run; later runs must still work, and the process must exit cleanly
+    (pythonfmu 0.7.0 alone frees its interpreter state twice at exit, which crashed about one exit in four)."""
+    code = ("import sys\n"
+            "from fmpy import simulate_fmu\n"
+            "runs = [simulate_fmu(sys.argv[1], stop_time=2.0, output_interval=0.01)['h'] for _ in range(8)]\n"
+            "assert all((run == runs[0]).all() for run in runs)\n"
+            "assert '/resources/bouncingball/' in sys.modules['bouncingball'].__file__  # the FMU's copy\n"
+            "print('ok')\n")
+    for _ in range(2):
+        completed = subprocess.run([sys.executable, "-c", code, str(fmu)], capture_output=True, text=True,
+                                   check=False, timeout=300)
+        assert (completed.returncode, completed.stdout.strip()) == (0, "ok"), completed.stderr
