@@ -1,0 +1,198 @@
+"""The solvers the benchmarks compare, one call each, and their errors against the exact solution."""
+
+from __future__ import annotations
+
+import math
+import textwrap
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bouncingball.scenes import BALL_KEYS, Scene
+from bouncingball.solvers.exact import ExactSolution
+from bouncingball.solvers.result import IMPACT, Event
+
+SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau", "BDF")
+EXPLICIT_SCIPY_METHODS = ("RK45", "DOP853")
+
+
+@dataclass(frozen=True)
+class Solver:
+    """One solver configuration: kind is cvode, scipy, article, exact, fmu or empty (the empty pythonfmu slave)."""
+
+    label: str
+    kind: str
+    method: str = ""
+    comm_step: float = 0.0  # FMU communication step [s]
+
+    @property
+    def takes_tolerances(self) -> bool:
+        return self.kind in ("cvode", "scipy", "fmu")
+
+    @property
+    def is_fmu(self) -> bool:
+        return self.kind in ("fmu", "empty")
+
+
+def cvode(method: str) -> Solver:
+    return Solver(f"CVODE {method}", "cvode", method)
+
+
+def scipy(method: str) -> Solver:
+    return Solver(f"solve_ivp {method}", "scipy", method)
+
+
+def fmu(comm_step: float) -> Solver:
+    return Solver(f"FMU via FMPy, {comm_step * 1e3:g} ms", "fmu", comm_step=comm_step)
+
+
+def empty_slave(comm_step: float) -> Solver:
+    return Solver(f"empty pythonfmu slave, {comm_step * 1e3:g} ms", "empty", comm_step=comm_step)
+
+
+CVODE_AUTO = cvode("auto")
+ARTICLE = Solver("article (RK45, max_step 0.01)", "article", "RK45")
+EXACT = Solver("exact solution", "exact")
+
+
+@dataclass
+class Run:
+    """What one run produced: the grid t [s], h [m] and v [m/s] (None when not recorded), events, work, wall time."""
+
+    t: np.ndarray | None
+    h: np.ndarray | None
+    v: np.ndarray | None
+    events: list[Event] | None  # None: not observable (FMU); impacts says how many
+    impacts: int | None
+    rhs_calls: int | None
+    steps: int
+    wall_time: float
+
+
+@dataclass(frozen=True)
+class FmuPaths:
+    """Extracted FMUs: the ball, and the empty slave that measures the overhead floor; error if the build failed."""
+
+    ball: Path | None
+    empty: Path | None
+    error: str = ""
+
+
+def run_solver(solver: Solver, scene: Scene, output_interval: float, rtol: float | None = None,
+               atol: float | None = None, fmus: FmuPaths | None = None, record: bool = True) -> Run:
+    """Run scene with solver on a grid of output_interval [s] (the FMU: its communication step).
+
+    rtol/atol None means the solver's defaults. record=False asks the FMU for h only (a timed run).
+    """
+    tolerances = {} if rtol is None else {"rtol": rtol, "atol": atol}
+    if solver.is_fmu:
+        return _run_fmu(solver, scene, tolerances, fmus, record)
+    options = {"output_interval": output_interval}
+    if solver.kind == "cvode":
+        options.update(method=solver.method, **tolerances)
+    elif solver.kind == "scipy":
+        options.update(method=solver.method, max_step=0.0, **tolerances)
+    name = {"cvode": "cvode", "scipy": "scipy", "article": "scipy", "exact": "exact"}[solver.kind]
+    started = time.perf_counter()
+    result = scene.simulate(name, **options)
+    wall_time = time.perf_counter() - started
+    return Run(result.t, result.h, result.v, result.events, result.impacts, result.stats.rhs_calls,
+               result.stats.steps, wall_time)
+
+
+def _run_fmu(solver: Solver, scene: Scene, tolerances: dict, fmus: FmuPaths | None, record: bool) -> Run:
+    from fmpy import simulate_fmu
+
+    if fmus is None or fmus.error:
+        raise RuntimeError(f"the FMUs could not be built: {fmus.error if fmus else 'not built'}")
+    if solver.kind == "empty":
+        path, output, start_values = fmus.empty, ["x"], {}
+    else:
+        path, output = fmus.ball, ["h", "v", "impacts"] if record else ["h"]
+        start_values = {**{key: getattr(scene.ball, key) for key in BALL_KEYS}, "h": scene.h0, "v": scene.v0,
+                        "F_ext": scene.F_ext, **tolerances}
+    started = time.perf_counter()
+    result = simulate_fmu(str(path), start_time=0.0, stop_time=scene.t_end, output_interval=solver.comm_step,
+                          start_values=start_values, output=output)
+    wall_time = time.perf_counter() - started
+    names = result.dtype.names
+    return Run(result["time"], result["h"] if "h" in names else None, result["v"] if "v" in names else None,
+               None, int(result["impacts"][-1]) if "impacts" in names else None, None, len(result) - 1, wall_time)
+
+
+@dataclass(frozen=True)
+class Errors:
+    """max |h - h_exact| [m], max event time error [s] (nan: not observable), events (or impacts) found and exact,
+    and the relative energy drift max |E - E0| / E0 (nan without v)."""
+
+    max_height_error: float
+    max_event_time_error: float
+    events_found: int
+    events_exact: int
+    counted: str  # "events" or "impacts"
+    energy_drift: float
+
+    @property
+    def events_match(self) -> bool:
+        return self.events_found == self.events_exact
+
+
+def errors_against_exact(scene: Scene, run: Run) -> Errors:
+    """Compare run with the exact solution on the run's own grid."""
+    exact = ExactSolution(scene.ball, scene.h0, scene.v0, 0.0, float(run.t[-1]), scene.F_ext)
+    h_exact, _ = exact.state(run.t)
+    difference = np.abs(run.h - h_exact)
+    height_error = float("inf") if np.any(np.isnan(difference)) else float(np.max(difference))
+    if run.events is not None:
+        pairs = zip(run.events, exact.events, strict=False)
+        event_error = max((abs(a.time - b.time) for a, b in pairs), default=0.0)
+        found, expected, counted = len(run.events), len(exact.events), "events"
+    else:
+        event_error = math.nan
+        found, expected, counted = run.impacts, sum(e.kind == IMPACT for e in exact.events), "impacts"
+    drift = math.nan
+    if run.v is not None:
+        energy = scene.ball.energy(run.h, run.v, scene.F_ext)
+        drift = float(np.max(np.abs(energy - energy[0])) / abs(energy[0]))
+    return Errors(height_error, float(event_error), found, expected, counted, drift)
+
+
+EMPTY_SLAVE_SCRIPT = '''\
+"""An FMU that does nothing: the per-doStep cost any pythonfmu slave pays, stepped by the same master."""
+
+from pythonfmu import Fmi2Slave, Real
+from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Variability
+
+
+class BenchEmptySlave(Fmi2Slave):
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.x = 0.0
+        self.register_variable(Real("x", causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
+                                    initial=Fmi2Initial.exact))
+
+    def do_step(self, current_time, step_size):
+        return True
+'''
+# Two pythonfmu FMUs whose scripts share a module name cannot live in one process: keep this name distinctive.
+EMPTY_SLAVE_MODULE = "bouncingball_bench_empty_slave"
+
+
+def build_fmus(directory: Path) -> FmuPaths:
+    """Build the ball's FMU and the empty slave into directory and extract both."""
+    from fmpy import extract
+    from pythonfmu import FmuBuilder
+
+    from bouncingball.fmu_build import build_fmu
+
+    try:
+        ball = build_fmu(directory / "BouncingBall.fmu")
+        script = directory / f"{EMPTY_SLAVE_MODULE}.py"
+        script.write_text(textwrap.dedent(EMPTY_SLAVE_SCRIPT), encoding="utf-8")
+        empty = FmuBuilder.build_FMU(script, dest=directory)
+    except Exception as error:  # no compiler, unsupported platform...: the FMU rows say why
+        return FmuPaths(None, None, f"{type(error).__name__}: {error}")
+    return FmuPaths(Path(extract(str(ball), str(directory / "ball"))),
+                    Path(extract(str(empty), str(directory / "empty"))))

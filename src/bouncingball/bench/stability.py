@@ -1,0 +1,211 @@
+"""Stability: every scene with every solver, each run in a child process that is killed past a time cap."""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import statistics
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bouncingball.bench import runners
+from bouncingball.bench.runners import ARTICLE, CVODE_AUTO, EXACT, Errors, FmuPaths, Solver
+from bouncingball.physics import Ball
+from bouncingball.scenes import BUILTIN_SCENES, Scene, load_scene, scene_from_mapping
+
+_DEFAULT = Ball()
+# Extreme scenes beyond the built-in ones: each holds only what differs from the article's defaults.
+EXTRA_SCENES = {
+    "critical": {"description": "critical damping, b = 2 sqrt(k m) = 200 N s/m",
+                 "b": 2.0 * math.sqrt(_DEFAULT.k * _DEFAULT.m)},
+    "thrown-up": {"description": "thrown upwards, v0 = +5 m/s", "v0": 5.0},
+    "at-surface": {"description": "starts exactly at h0 = R, at rest", "h0": _DEFAULT.R},
+    "k1e14": {"description": "k = 1e14 N/m: contacts last ~0.3 us", "k": 1e14},
+    "undamped-10000s": {"description": "b = 0 for 10,000 s: energy drift and cost per event", "b": 0.0,
+                        "t_end": 10_000.0, "output_interval": 0.01},
+}
+STIFF_SCENES = ("stiff", "stiff-rest", "tiny-mass", "overdamped")
+STIFF_TARGET = 0.1  # CVODE finishes each stiff scene within this wall time [s]
+FULL_CAP = 30.0  # [s] per run in the stability matrix (CVODE needs ~15 s for the 10,000 s run)
+QUICK_CAP = 2.0
+CSV_FILE = "stability.csv"
+FMU_LABEL = "FMU via FMPy"
+
+
+def extra_scene(name: str) -> Scene:
+    return scene_from_mapping(name, EXTRA_SCENES[name])
+
+
+def all_scenes() -> list[Scene]:
+    return [*(load_scene(name) for name in BUILTIN_SCENES), *(extra_scene(name) for name in EXTRA_SCENES)]
+
+
+@dataclass(frozen=True)
+class Case:
+    """A scene, a solver and its tolerances (None: the solver's defaults), run `repeats` times in one child."""
+
+    scene: Scene
+    solver: Solver
+    rtol: float | None = None
+    atol: float | None = None
+    repeats: int = 1
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """status is finished, failed or timed out; wall_time [s] is the median over the case's repeats."""
+
+    case: Case
+    status: str
+    note: str = ""
+    errors: Errors | None = None
+    wall_time: float = math.nan
+    rhs_calls: int | None = None
+
+
+def stability_solvers(scene: Scene) -> list[Solver]:
+    """Every solver; the FMU communicates at the scene's output interval."""
+    ours = [runners.cvode(method) for method in ("auto", "Adams", "BDF")]
+    peers = [ARTICLE, *(runners.scipy(method) for method in ("DOP853", "LSODA", "Radau", "BDF"))]
+    fmu = Solver(FMU_LABEL, "fmu", comm_step=scene.output_interval)
+    return [*ours, EXACT, *peers, fmu]
+
+
+def stability_cases(scenes: list[Scene]) -> list[Case]:
+    """Every solver at CVODE's default tolerances (the article's algorithm as published)."""
+    from bouncingball.solvers.cvode import DEFAULT_ATOL, DEFAULT_RTOL
+
+    cases = []
+    for scene in scenes:
+        for solver in stability_solvers(scene):
+            tolerances = (DEFAULT_RTOL, DEFAULT_ATOL) if solver.takes_tolerances else (None, None)
+            cases.append(Case(scene, solver, *tolerances))
+    return cases
+
+
+def stiff_cases() -> list[Case]:
+    """The stiff scenes: CVODE (median of 3) and the explicit SciPy methods at their default tolerances."""
+    cases = []
+    for name in STIFF_SCENES:
+        scene = load_scene(name)
+        cases.append(Case(scene, CVODE_AUTO, repeats=3))
+        cases += [Case(scene, ARTICLE), *(Case(scene, runners.scipy(m)) for m in runners.EXPLICIT_SCIPY_METHODS)]
+    return cases
+
+
+def _child(case: Case, fmus: FmuPaths | None, connection) -> None:
+    try:
+        times = []
+        for _ in range(case.repeats):
+            run = runners.run_solver(case.solver, case.scene, case.scene.output_interval, case.rtol, case.atol, fmus)
+            times.append(run.wall_time)
+        connection.send(("solved", statistics.median(times), run.rhs_calls))
+        connection.send(("compared", runners.errors_against_exact(case.scene, run)))
+    except Exception as error:
+        connection.send(("failed", f"{type(error).__name__}: {error}".splitlines()[0][:200]))
+    finally:
+        connection.close()
+
+
+def run_case(case: Case, cap: float, fmus: FmuPaths | None = None) -> Outcome:
+    """Run case in a forked child; kill it if its runs have not finished within cap [s] each."""
+    context = multiprocessing.get_context("fork")
+    receiver, sender = context.Pipe(duplex=False)
+    process = context.Process(target=_child, args=(case, fmus, sender), daemon=True)
+    process.start()
+    sender.close()
+    try:
+        if not receiver.poll(cap * case.repeats):
+            return Outcome(case, "timed out", f"killed after {cap:g} s")
+        message = receiver.recv()
+        if message[0] == "failed":
+            return Outcome(case, "failed", message[1])
+        _, wall_time, rhs_calls = message
+        if not receiver.poll(600.0):  # comparing with the exact solution
+            return Outcome(case, "failed", "no comparison with the exact solution within 600 s")
+        return Outcome(case, "finished", errors=receiver.recv()[1], wall_time=wall_time, rhs_calls=rhs_calls)
+    except EOFError:
+        process.join()
+        return Outcome(case, "failed", f"the child process died (exit code {process.exitcode})")
+    finally:
+        if process.is_alive():
+            process.kill()
+        process.join()
+        receiver.close()
+
+
+def run_cases(cases: list[Case], cap: float, fmus: FmuPaths | None = None, desc: str = "stability") -> list[Outcome]:
+    """Each case in its own child process, one after another, with a progress bar."""
+    from tqdm import tqdm
+
+    outcomes = []
+    with tqdm(cases, desc=desc, unit="case") as bar:
+        for case in bar:
+            bar.set_postfix_str(f"{case.scene.name}: {case.solver.label}", refresh=False)
+            outcomes.append(run_case(case, cap, fmus))
+    return outcomes
+
+
+@dataclass(frozen=True)
+class CostPerEvent:
+    """Wall time [s] and events in the first and the last tenth of an undamped run of t_end [s]."""
+
+    t_end: float
+    events: int
+    first_time: float
+    first_events: int
+    last_time: float
+    last_events: int
+
+    @property
+    def first(self) -> float:
+        return self.first_time / self.first_events
+
+    @property
+    def last(self) -> float:
+        return self.last_time / self.last_events
+
+    @property
+    def ratio(self) -> float:
+        return self.last / self.first
+
+
+def cost_per_event(t_end: float, chunks: int = 100) -> CostPerEvent:
+    """The undamped ball for t_end [s] in one CVODE integrator, timed chunk by chunk (0.01 s output grid)."""
+    from tqdm import tqdm
+
+    from bouncingball.solvers.cvode import BallIntegrator
+    from bouncingball.solvers.result import output_grid
+
+    scene = extra_scene("undamped-10000s")
+    integrator = BallIntegrator(scene.ball, scene.h0, scene.v0)
+    edges = np.linspace(0.0, t_end, chunks + 1)
+    times, events = [], []
+    for start, end in tqdm(list(zip(edges[:-1], edges[1:], strict=True)), desc="cost per event", unit="chunk"):
+        grid = output_grid(float(start), float(end), scene.output_interval)
+        started = time.perf_counter()
+        found = integrator.integrate_grid(grid)[2]
+        times.append(time.perf_counter() - started)
+        events.append(len(found))
+    tenth = chunks // 10
+    return CostPerEvent(t_end, sum(events), sum(times[:tenth]), sum(events[:tenth]), sum(times[-tenth:]),
+                        sum(events[-tenth:]))
+
+
+def run_stability_study(output_dir: Path, quick: bool = False) -> list[Path]:
+    """`bouncingball bench --stability`: the matrix over all scenes and solvers; writes stability.md and .csv."""
+    from bouncingball.bench import report
+
+    cap = QUICK_CAP if quick else FULL_CAP
+    environment = report.environment()
+    load_scene("article").simulate("cvode", t_end=1.0)  # children inherit a warm scikit-sundae
+    scenes = all_scenes()
+    with tempfile.TemporaryDirectory(prefix="bouncingball_bench_") as temp:
+        fmus = runners.build_fmus(Path(temp))
+        outcomes = run_cases(stability_cases(scenes), cap, fmus)
+    return [report.write_stability_csv(outcomes, output_dir / CSV_FILE),
+            report.write_stability_md(scenes, outcomes, cap, quick, environment, output_dir / "stability.md")]

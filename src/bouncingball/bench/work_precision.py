@@ -1,0 +1,204 @@
+"""Work-precision on the article scene: every solver over a sweep of tolerances, timed side by side in one process.
+
+Each point runs once as a warm-up (its errors against the exact solution come from that run), then
+`repeats` more times; the repeats go round-robin over all points, so drift on a shared machine hits
+every solver alike. Time is the median (and min) wall time of the repeats.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bouncingball.bench import runners
+from bouncingball.bench.runners import ARTICLE, EXACT, Errors, FmuPaths, Run, Solver
+from bouncingball.scenes import Scene, load_scene
+
+DENSE = 1e-3  # the article's 1 ms output grid [s]
+SPARSE = 0.1  # a sparse grid, where output overhead does not dominate [s]
+ATOL_PER_RTOL = 1e-3  # atol = 1e-3 * rtol
+SAVED_RTOL = 1e-6  # on the dense grid, h is saved for the tolerance nearest this one (all points on the sparse grid)
+H_FILE = "work_precision_h.npz"
+CSV_FILE = "work_precision.csv"
+
+
+@dataclass(frozen=True)
+class Settings:
+    """How big a run is: tolerances, timed repeats, the per-run time budget [s] past which a solver's tighter
+    tolerances are skipped, FMU communication steps [s], the undamped run's length [s] and the stiff cases' cap [s]."""
+
+    rtols: tuple[float, ...]
+    repeats: int
+    budget: float
+    comm_steps: tuple[float, ...] = (1e-3, 1e-2)
+    undamped_t_end: float = 10_000.0
+    stiff_cap: float = 5.0
+
+
+FULL = Settings(rtols=tuple(10.0**-k for k in range(3, 13)), repeats=5, budget=2.0)
+QUICK = Settings(rtols=(1e-3, 1e-6, 1e-9, 1e-12), repeats=2, budget=0.3, undamped_t_end=1000.0, stiff_cap=0.5)
+
+
+@dataclass(eq=False)
+class Point:
+    """One solver at one tolerance on one grid; status ok, failed or skipped."""
+
+    section: str  # "dense" or "sparse"
+    solver: Solver
+    rtol: float | None
+    grid: float  # the output interval of the run [s] (the FMU: its communication step)
+    status: str = "pending"
+    note: str = ""
+    errors: Errors | None = None
+    rhs_calls: int | None = None
+    steps: int = 0
+    times: list[float] = field(default_factory=list)
+    h: np.ndarray | None = None  # kept for the points whose h values are saved
+
+    @property
+    def atol(self) -> float | None:
+        return None if self.rtol is None else ATOL_PER_RTOL * self.rtol
+
+    @property
+    def median(self) -> float:
+        return statistics.median(self.times) if self.times else math.nan
+
+    @property
+    def minimum(self) -> float:
+        return min(self.times) if self.times else math.nan
+
+    @property
+    def key(self) -> str:
+        """Names the point in the saved h values."""
+        return f"{self.section}|{self.solver.label}|{'default' if self.rtol is None else f'{self.rtol:.0e}'}"
+
+
+def solvers(section: str, settings: Settings) -> list[Solver]:
+    """The solvers of a section, in the order of the tables."""
+    ours = [runners.cvode(method) for method in ("Adams", "BDF", "auto")]
+    fmus = [runners.fmu(step) for step in settings.comm_steps] if section == "dense" else []
+    floors = [runners.empty_slave(step) for step in settings.comm_steps] if section == "dense" else []
+    peers = [ARTICLE, *(runners.scipy(method) for method in runners.SCIPY_METHODS)]
+    return [*ours, *fmus, *floors, *peers, EXACT]
+
+
+def make_points(settings: Settings) -> list[Point]:
+    points = []
+    for section, grid in (("dense", DENSE), ("sparse", SPARSE)):
+        for solver in solvers(section, settings):
+            rtols = settings.rtols if solver.takes_tolerances else (None,)
+            points += [Point(section, solver, rtol, solver.comm_step or grid) for rtol in rtols]
+    return points
+
+
+def sweep(scene: Scene, points: list[Point], settings: Settings, fmus: FmuPaths) -> None:
+    """Warm-up (and errors) for every point, then the timed repeats round-robin; fills in the points."""
+    from tqdm import tqdm
+
+    saved = _points_to_save(points)
+    over_budget: dict[tuple[str, str], str] = {}
+    with tqdm(total=len(points) * (1 + settings.repeats), desc="work-precision", unit="run") as bar:
+        for point in points:  # each solver from loose to tight tolerances
+            bar.set_postfix_str(f"{point.solver.label} {point.rtol or ''}", refresh=False)
+            group = (point.section, point.solver.label)
+            if group in over_budget:
+                point.status, point.note = "skipped", over_budget[group]
+                bar.total -= 1 + settings.repeats
+                bar.refresh()
+                continue
+            try:
+                run = runners.run_solver(point.solver, scene, point.grid, point.rtol, point.atol, fmus)
+            except Exception as error:  # a solver that fails is a result too
+                point.status, point.note = "failed", f"{type(error).__name__}: {error}".splitlines()[0][:200]
+                bar.total -= settings.repeats
+                bar.update()
+                continue
+            _record(point, scene, run, keep_h=point in saved)
+            if run.wall_time > settings.budget and point.solver.takes_tolerances:
+                over_budget[group] = (f"skipped: rtol {point.rtol:.0e} took {run.wall_time:.2f} s "
+                                      f"> budget {settings.budget:g} s")
+            bar.update()
+        ok = [point for point in points if point.status == "ok"]
+        for _ in range(settings.repeats):
+            for point in ok:
+                bar.set_postfix_str(f"{point.solver.label} {point.rtol or ''}", refresh=False)
+                point.times.append(runners.run_solver(point.solver, scene, point.grid, point.rtol, point.atol,
+                                                      fmus, record=False).wall_time)
+                bar.update()
+
+
+def _record(point: Point, scene: Scene, run: Run, keep_h: bool) -> None:
+    point.status = "ok"
+    point.rhs_calls, point.steps = run.rhs_calls, run.steps
+    if run.h is not None:
+        point.errors = runners.errors_against_exact(scene, run)
+        if keep_h:
+            point.h = np.asarray(run.h, dtype=float)
+
+
+def _points_to_save(points: list[Point]) -> list[Point]:
+    """Every point on the sparse grid; on the dense grid, one per solver: the tolerance nearest SAVED_RTOL."""
+    chosen = [point for point in points if point.section == "sparse"]
+    groups: dict[str, list[Point]] = {}
+    for point in points:
+        if point.section == "dense":
+            groups.setdefault(point.solver.label, []).append(point)
+    for group in groups.values():
+        chosen.append(min(group, key=lambda p: 0.0 if p.rtol is None else abs(math.log10(p.rtol / SAVED_RTOL))))
+    return chosen
+
+
+def time_at_error(points: list[Point], target: float, statistic: str = "median") -> tuple[float | None, bool]:
+    """Time [s] (the median, or with statistic="minimum" the min) at which a solver's height error reaches
+    target, interpolated log-log between tolerances.
+
+    Returns (time, upper_bound): upper_bound is True when already the loosest tolerance beats target
+    (its time is then an upper bound); time is None if no tolerance reached target.
+    """
+    ordered = sorted((p for p in points if p.status == "ok" and p.errors), key=lambda p: -(p.rtol or 0.0))
+    previous = None
+    for point in ordered:
+        error = point.errors.max_height_error
+        if error <= target:
+            if previous is None or error <= 0.0:
+                return getattr(point, statistic), previous is None
+            e0, e1 = math.log(previous.errors.max_height_error), math.log(error)
+            t0, t1 = math.log(getattr(previous, statistic)), math.log(getattr(point, statistic))
+            return math.exp(t0 + (math.log(target) - e0) / (e1 - e0) * (t1 - t0)), False
+        previous = point
+    return None, False
+
+
+def save_h(points: list[Point], path: Path) -> Path:
+    """The h values of the saved points, keyed by Point.key, so that errors can be recomputed."""
+    np.savez_compressed(path, **{point.key: point.h for point in points if point.h is not None})
+    return path
+
+
+def run_benchmark(output_dir: Path, quick: bool = False) -> list[Path]:
+    """The whole `bouncingball bench`: sweep, stiff scenes, cost per event; writes the docs and returns their paths."""
+    from bouncingball.bench import report, stability
+
+    settings = QUICK if quick else FULL
+    scene = load_scene("article")
+    environment = report.environment()
+    scene.simulate("cvode", t_end=1.0)  # load scikit-sundae before anything is timed
+    with tempfile.TemporaryDirectory(prefix="bouncingball_bench_") as temp:
+        fmus = runners.build_fmus(Path(temp))
+        points = make_points(settings)
+        sweep(scene, points, settings, fmus)
+    stiff = stability.run_cases(stability.stiff_cases(), settings.stiff_cap, desc="stiff scenes")
+    per_event = stability.cost_per_event(settings.undamped_t_end)
+    written = [
+        report.write_work_precision_csv(points, output_dir / CSV_FILE),
+        save_h(points, output_dir / H_FILE),
+        report.plot_work_precision(points, output_dir / "work_precision.png"),
+        report.write_benchmarks_md(points, stiff, per_event, settings, quick, environment,
+                                   output_dir / "benchmarks.md"),
+    ]
+    return written

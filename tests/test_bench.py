@@ -1,0 +1,133 @@
+"""`bouncingball bench --quick` writes complete, consistent results; errors are recomputed from the saved h values."""
+
+import csv
+import dataclasses
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from bouncingball.bench import report, runners
+from bouncingball.bench.stability import Case, run_case
+from bouncingball.bench.work_precision import CSV_FILE, H_FILE, QUICK, solvers
+from bouncingball.cli import main
+from bouncingball.scenes import load_scene
+from bouncingball.solvers.exact import ExactSolution
+from bouncingball.solvers.result import IMPACT, output_grid
+
+ARTICLE = load_scene("article")
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench")
+    assert main(["bench", "--quick", "--output-dir", str(out)]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def rows(quick):
+    with open(quick / CSV_FILE, newline="", encoding="utf-8") as file:
+        return list(csv.DictReader(file))
+
+
+@pytest.fixture(scope="module")
+def markdown(quick):
+    return (quick / "benchmarks.md").read_text(encoding="utf-8")
+
+
+def expected_labels(section):
+    return [solver.label for solver in solvers(section, QUICK)]
+
+
+def test_writes_every_file(quick):
+    for name in ("benchmarks.md", CSV_FILE, H_FILE, "work_precision.png"):
+        assert (quick / name).stat().st_size > 0, name
+    assert (quick / "work_precision.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_every_solver_in_every_section_of_the_csv(rows):
+    for section in ("dense", "sparse"):
+        found = [row["solver"] for row in rows if row["section"] == section]
+        assert set(found) == set(expected_labels(section))
+        for label in expected_labels(section):
+            solver = next(s for s in solvers(section, QUICK) if s.label == label)
+            assert found.count(label) == (len(QUICK.rtols) if solver.takes_tolerances else 1), label
+
+
+@pytest.mark.parametrize("label", expected_labels("dense"))
+def test_every_solver_ran_and_was_timed(rows, label):
+    ok = [row for row in rows if row["solver"] == label and row["status"] == "ok"]
+    assert ok, f"{label}: no run finished"
+    for row in ok:
+        times = [float(t) for t in row["times"].split(";")]
+        assert len(times) == QUICK.repeats and all(t > 0.0 for t in times)
+        assert float(row["median_time"]) == pytest.approx(float(np.median(times)))
+        assert float(row["min_time"]) == min(times)
+
+
+def test_errors_recomputed_from_the_saved_h_values_match_csv_and_table(quick, rows, markdown):
+    saved = np.load(quick / H_FILE)
+    dense_md, sparse_md = markdown.split("### Sparse output grid")
+    events = ExactSolution(ARTICLE.ball, ARTICLE.h0, ARTICLE.v0, 0.0, ARTICLE.t_end).events
+    exact_counts = {"events": len(events), "impacts": sum(e.kind == IMPACT for e in events)}
+    checked = set()
+    for row in rows:
+        if row["status"] != "ok" or not row["max_height_error"]:
+            continue
+        assert int(row["events_exact"]) == exact_counts[row["counted"]]
+        if not row["h_key"]:
+            continue
+        t = output_grid(0.0, ARTICLE.t_end, float(row["output_interval"]))
+        h = saved[row["h_key"]]
+        h_exact, _ = ExactSolution(ARTICLE.ball, ARTICLE.h0, ARTICLE.v0, 0.0, ARTICLE.t_end).state(t)
+        error = float(np.max(np.abs(h - h_exact)))
+        assert error == pytest.approx(float(row["max_height_error"]), rel=1e-12, abs=1e-300)
+        rtol = "default" if not row["rtol"] else f"{float(row['rtol']):.0e}"
+        table = dense_md if row["section"] == "dense" else sparse_md
+        assert f"| {row['solver']} | {rtol} | {error:.2e} |" in table
+        checked.add((row["section"], row["solver"]))
+    with_errors = {(row["section"], row["solver"]) for row in rows if row["max_height_error"]}
+    assert checked == with_errors  # every solver that has an error has saved h values
+
+
+def test_cvode_is_accurate_where_it_claims(rows):
+    """An independent check on the numbers: CVODE at rtol 1e-12 is within 1e-9 m of the exact solution."""
+    row = next(r for r in rows if r["solver"] == runners.CVODE_AUTO.label and r["section"] == "dense"
+               and r["rtol"] and float(r["rtol"]) == 1e-12)
+    assert float(row["max_height_error"]) < 1e-9
+    assert row["events_found"] == row["events_exact"]
+
+
+def test_markdown_states_machine_versions_and_every_target(markdown):
+    for word in ("cores", "Python 3", "numpy", "scikit-sundae", "scipy", "FMPy", "pythonfmu", "date:"):
+        assert word in markdown, word
+    for tag, count in (("a", 2), ("b", 1), ("c", 1), ("d", 1), ("e", 1)):
+        lines = re.findall(rf"^- \*\*\({tag}\)\*\* .*: \*\*(?:met|not met)\*\*\. \S.*$", markdown, re.M)
+        assert len(lines) == count, tag
+
+
+def test_a_run_over_the_cap_is_killed_and_a_failure_is_reported(tmp_path):
+    stiff_rest = load_scene("stiff-rest")
+    short = dataclasses.replace(ARTICLE, t_end=1.0)
+    finished = run_case(Case(short, runners.CVODE_AUTO), cap=30.0)
+    timed_out = run_case(Case(stiff_rest, runners.scipy("RK45")), cap=0.3)
+    failed = run_case(Case(short, runners.fmu(1e-3)), cap=30.0)  # no FMU built
+    assert finished.status == "finished" and finished.errors.events_match and finished.errors.events_exact == 2
+    assert finished.errors.max_height_error < 1e-6
+    assert timed_out.status == "timed out"
+    assert failed.status == "failed" and "could not be built" in failed.note
+    path = report.write_stability_md([short, stiff_rest], [finished, timed_out, failed], 0.3, True, {},
+                                     tmp_path / "stability.md")
+    text = path.read_text(encoding="utf-8")
+    assert "| ok 2/2 |" in text and "timed out" in text and "failed" in text
+
+
+def test_the_bench_package_imports_nothing_heavy():
+    code = ("import sys, bouncingball.bench.report\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+            "('scipy', 'matplotlib', 'fmpy', 'pythonfmu', 'tqdm')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
