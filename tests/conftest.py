@@ -1,8 +1,21 @@
+from pathlib import Path
+
 import pytest
 
-from bouncingball.physics import Ball
+
+@pytest.fixture(scope="session")
+def fmu(tmp_path_factory) -> Path:
+    """The FMU, built once per session through `bouncingball build-fmu -o`."""
+    from bouncingball.cli import main
+
+    path = tmp_path_factory.mktemp("fmu") / "BouncingBall.fmu"
+    assert main(["build-fmu", "-o", str(path)]) == 0
+    return path
 
 
-@pytest.fixture
-def article_ball() -> Ball:
-    return Ball()
+@pytest.fixture(scope="session")
+def unzipped(fmu, tmp_path_factory) -> Path:
+    """The FMU extracted once per session, for FMU2Slave and the C master."""
+    from fmpy import extract
+
+    return Path(extract(str(fmu), str(tmp_path_factory.mktemp("unzipped"))))

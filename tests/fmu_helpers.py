@@ -11,29 +11,7 @@ from bouncingball.physics import Ball
 from bouncingball.solvers.exact import ExactSolution
 from bouncingball.solvers.result import IMPACT
 
-_BUILT: dict[str, Path] = {}
 TIGHT = {"rtol": 1e-11, "atol": 1e-14}  # the tolerances the issue's accuracy numbers are measured at
-
-
-def session_fmu(tmp_path_factory) -> Path:
-    """The FMU, built once per session through `bouncingball build-fmu -o`."""
-    if "fmu" not in _BUILT:
-        from bouncingball.cli import main
-
-        path = tmp_path_factory.mktemp("fmu") / "BouncingBall.fmu"
-        assert main(["build-fmu", "-o", str(path)]) == 0
-        _BUILT["fmu"] = path
-    return _BUILT["fmu"]
-
-
-def session_unzipped(tmp_path_factory) -> Path:
-    """The FMU extracted once per session, for FMU2Slave and the C master."""
-    if "unzipped" not in _BUILT:
-        from fmpy import extract
-
-        _BUILT["unzipped"] = Path(extract(str(session_fmu(tmp_path_factory)),
-                                          str(tmp_path_factory.mktemp("unzipped"))))
-    return _BUILT["unzipped"]
 
 
 def exact_at(t, ball: Ball | None = None, h0: float = 2.0, v0: float = 0.0, t_start: float = 0.0,

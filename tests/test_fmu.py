@@ -15,23 +15,13 @@ from bouncingball.fmu_build import SMALLEST_POSITIVE, UNITS, VARIABLES
 from bouncingball.physics import Ball
 from bouncingball.scenes import load_scene
 from bouncingball.solvers.cvode import CvodeSettings
-from fmu_helpers import TIGHT, Instance, exact_at, session_fmu, session_unzipped
+from fmu_helpers import TIGHT, Instance, exact_at
 
 fmpy = pytest.importorskip("fmpy", reason="the FMU tests need the [fmu] extra")
 pytest.importorskip("pythonfmu", reason="the FMU tests need the [fmu] extra")
 
 BIN = Path(sys.executable).parent
 ARTICLE = load_scene("article")
-
-
-@pytest.fixture(scope="module")
-def fmu(tmp_path_factory) -> Path:
-    return session_fmu(tmp_path_factory)
-
-
-@pytest.fixture(scope="module")
-def unzipped(tmp_path_factory) -> Path:
-    return session_unzipped(tmp_path_factory)
 
 
 @pytest.fixture(scope="module")

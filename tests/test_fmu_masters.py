@@ -14,23 +14,13 @@ import pytest
 from bouncingball.cli import main
 from bouncingball.fmu_build import shared_libpython
 from bouncingball.physics import Ball
-from fmu_helpers import TIGHT, exact_at, session_fmu, session_unzipped
+from fmu_helpers import TIGHT, exact_at
 
 fmpy = pytest.importorskip("fmpy", reason="the FMU tests need the [fmu] extra")
 pytest.importorskip("pythonfmu", reason="the FMU tests need the [fmu] extra")
 
 BIN = Path(sys.executable).parent
 C_MASTER = Path(__file__).parent / "c_master" / "fmi2_master.c"
-
-
-@pytest.fixture(scope="module")
-def fmu(tmp_path_factory) -> Path:
-    return session_fmu(tmp_path_factory)
-
-
-@pytest.fixture(scope="module")
-def unzipped(tmp_path_factory) -> Path:
-    return session_unzipped(tmp_path_factory)
 
 
 @pytest.fixture(scope="module")
