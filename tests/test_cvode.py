@@ -189,12 +189,17 @@ def test_random_balls_against_the_exact_solution(m, k, zeta, R, g, h0, v0):
     ball = Ball(m=m, k=k, b=2.0 * zeta * math.sqrt(k * m), R=R, g=g)
     exact = ExactSolution(ball, h0, v0, 0.0, 3.0)
     times = [e.time for e in exact.events]
-    # a hop that barely clears the ground, or an event at the very end, is decided by round-off
+    # A grazing contact (a peak within a hair of R) is decided by round-off, not by the solver:
+    # keep the examples whose events survive moving the start by 1 um either way.
+    for dh in (-1e-6, 1e-6):
+        assume(len(ExactSolution(ball, h0 + dh, v0, 0.0, 3.0).events) == len(times))
     assume(all(later - earlier > 1e-4 for earlier, later in zip([0.0, *times], times, strict=False)))
     assume(all(abs(t - 3.0) > 1e-4 for t in times))
     result = bouncingball.simulate(ball, h0, v0, 3.0, 1e-3)
-    accuracy = compare(result, exact_counterpart(result, h0, v0))
+    exact_result = exact_counterpart(result, h0, v0)
+    accuracy = compare(result, exact_result)
     assert accuracy.events_match
-    scale = max(1.0, h0, v0 * v0 / g)
+    # a ball launched by a stiff spring can climb kilometres: the error bound is relative
+    scale = max(1.0, float(np.max(np.abs(exact_result.h))))
     assert accuracy.max_height_error <= 1e-5 * scale
 
