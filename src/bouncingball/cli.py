@@ -55,6 +55,10 @@ def _run(args: argparse.Namespace) -> int:
     from bouncingball.scenes import load_scene
 
     scene = load_scene(args.scene)
+    if args.plot:
+        from bouncingball.plotting import require_matplotlib
+
+        require_matplotlib()
     options = {name: getattr(args, name) for name in ("method", "rtol", "atol", "max_step")
                if getattr(args, name) is not None}
     if args.t_end is not None:

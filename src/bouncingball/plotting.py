@@ -10,10 +10,9 @@ from bouncingball.solvers.result import IMPACT, SimulationResult
 def plot_height(result: SimulationResult, path: str | Path, title: str = "", exact: SimulationResult | None = None
                 ) -> Path:
     """Save a PNG of h(t) with impacts and departures marked, and the exact solution if given."""
-    try:
-        import matplotlib
-    except ImportError as error:
-        raise ImportError("plotting needs matplotlib: pip install 'bouncingball[plot]'") from error
+    require_matplotlib()
+    import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -37,3 +36,11 @@ def plot_height(result: SimulationResult, path: str | Path, title: str = "", exa
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def require_matplotlib() -> None:
+    """Fail early, with the install command, where matplotlib is missing."""
+    from importlib.util import find_spec
+
+    if find_spec("matplotlib") is None:
+        raise ImportError("plotting needs matplotlib: pip install 'bouncingball[plot]'")
