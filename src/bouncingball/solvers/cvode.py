@@ -178,9 +178,6 @@ class BallIntegrator:
                        eventsfn=event, num_events=1, jacfn=jac, max_num_steps=_MAX_STEPS_PER_CALL)
         return solver, event
 
-    def _set_force(self, F_ext: float) -> None:
-        self._F_ext = F_ext
-
     # --- read-only view --------------------------------------------------------------------
     @property
     def t(self) -> float:
@@ -212,7 +209,7 @@ class BallIntegrator:
 
     @property
     def steps(self) -> int:
-        """Internal steps counted by integrate_grid (advance() cannot see them)."""
+        """CVODE's internal steps so far."""
         return self._steps
 
     @property
@@ -224,7 +221,7 @@ class BallIntegrator:
         value = validation.finite("F_ext", value, "N")
         if value != self._F_ext:
             self._reinit_needed()
-            self._set_force(value)
+            self._F_ext = value
 
     @property
     def acceleration(self) -> float:
@@ -253,7 +250,7 @@ class BallIntegrator:
     def set_state(self, state: IntegratorState) -> None:
         self._t, self._h, self._v = float(state.t), float(state.h), float(state.v)
         self._mode = Mode(state.mode)
-        self._set_force(float(state.F_ext))
+        self._F_ext = float(state.F_ext)
         self._impacts, self._departures = int(state.impacts), int(state.departures)
         self._last_impact_time, self._t_start = state.last_impact_time, float(state.t_start)
         self._rhs_calls, self._steps = int(state.rhs_calls), int(state.steps)
