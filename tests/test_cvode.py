@@ -203,3 +203,15 @@ def test_random_balls_against_the_exact_solution(m, k, zeta, R, g, h0, v0):
     scale = max(1.0, float(np.max(np.abs(exact_result.h))))
     assert accuracy.max_height_error <= 1e-5 * scale
 
+
+
+def test_a_method_fighting_stiffness_fails_with_a_reason(monkeypatch):
+    """Adams cannot hold a ball at rest on k = 1e12 (steps ~1e-6 s): it must stop, not run for hours."""
+    import bouncingball.solvers.cvode as cvode
+
+    monkeypatch.setattr(cvode, "MAX_STEPS_PER_PHASE", 2000)
+    scene = load_scene("stiff-rest")
+    with pytest.raises(cvode.SolverError, match="took more than 2000 steps in one contact phase.*use method 'BDF'"):
+        scene.simulate(method="Adams")
+    result = scene.simulate()  # auto takes BDF: a handful of steps
+    assert result.stats.steps < 100 and result.events == []

@@ -39,6 +39,9 @@ STIFF_NATURAL_FREQUENCY = 1e4  # rad/s
 _CV_ROOT_RETURN = 2
 _STEP_HORIZON = 1.0  # s; see advance()
 _MAX_STEPS_PER_CALL = 1_000_000
+# A phase that needs more steps than this is a method fighting stiffness (Adams holding a ball at
+# rest on a k = 1e12 spring): fail with a reason instead of running for hours.
+MAX_STEPS_PER_PHASE = 500_000
 
 
 class QuinticSegment:
@@ -170,6 +173,13 @@ class BallIntegrator:
 
         def event(t, y, out):
             out[0] = y[0] - R
+            # CVODE evaluates the root function once per step (and a few times per root found)
+            self._phase_evaluations += 1
+            if self._phase_evaluations > MAX_STEPS_PER_PHASE:
+                raise SolverError(
+                    f"CVODE ({self.methods[mode]}) took more than {MAX_STEPS_PER_PHASE} steps in one "
+                    f"{mode.name.lower()} phase, at t = {t!r} s: the problem is stiff for this method; "
+                    "use method 'BDF' (or 'auto')")
 
         event.terminal = [True]
         event.direction = [-1 if mode == Mode.FLIGHT else 1]
@@ -260,6 +270,7 @@ class BallIntegrator:
     def _reinit_needed(self) -> None:
         self._rhs_calls += self._nfev_since_init
         self._nfev_since_init = 0
+        self._phase_evaluations = 0
         self._needs_init = True
         self._segment = None
         self._root_pending = False
