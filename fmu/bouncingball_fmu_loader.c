@@ -188,7 +188,8 @@ static fmi2Status finish(Instance *c, fmi2Status status)
     return status;
 }
 
-/* Forward one call to pythonfmu and return the combined status. */
+/* Forward one call to pythonfmu and return the combined status (GNU ##__VA_ARGS__: gcc and clang
+ * drop the comma for calls without arguments). */
 #define FORWARD(function, ...)                        \
     do {                                              \
         Instance *c_ = (Instance *)c;                 \
@@ -196,18 +197,7 @@ static fmi2Status finish(Instance *c, fmi2Status status)
             return refuse(c_, "fmi2" #function);      \
         }                                             \
         c_->worst = fmi2OK;                           \
-        fmi2Status status_ = inner.function(c_->inner, __VA_ARGS__); \
-        return finish(c_, status_);                   \
-    } while (0)
-
-#define FORWARD0(function)                            \
-    do {                                              \
-        Instance *c_ = (Instance *)c;                 \
-        if (c_->dead) {                               \
-            return refuse(c_, "fmi2" #function);      \
-        }                                             \
-        c_->worst = fmi2OK;                           \
-        fmi2Status status_ = inner.function(c_->inner); \
+        fmi2Status status_ = inner.function(c_->inner, ##__VA_ARGS__); \
         return finish(c_, status_);                   \
     } while (0)
 
@@ -277,13 +267,13 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     FORWARD(SetupExperiment, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime);
 }
 
-fmi2Status fmi2EnterInitializationMode(fmi2Component c) { FORWARD0(EnterInitializationMode); }
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) { FORWARD(EnterInitializationMode); }
 
-fmi2Status fmi2ExitInitializationMode(fmi2Component c) { FORWARD0(ExitInitializationMode); }
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) { FORWARD(ExitInitializationMode); }
 
-fmi2Status fmi2Terminate(fmi2Component c) { FORWARD0(Terminate); }
+fmi2Status fmi2Terminate(fmi2Component c) { FORWARD(Terminate); }
 
-fmi2Status fmi2Reset(fmi2Component c) { FORWARD0(Reset); }
+fmi2Status fmi2Reset(fmi2Component c) { FORWARD(Reset); }
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
 {
@@ -372,7 +362,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     FORWARD(DoStep, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint);
 }
 
-fmi2Status fmi2CancelStep(fmi2Component c) { FORWARD0(CancelStep); }
+fmi2Status fmi2CancelStep(fmi2Component c) { FORWARD(CancelStep); }
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value)
 {
