@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bouncingball.accuracy import max_event_time_error, max_height_error
 from bouncingball.scenes import BALL_KEYS, Scene
 from bouncingball.solvers.exact import ExactSolution
 from bouncingball.solvers.result import IMPACT, Event
@@ -143,11 +144,9 @@ def errors_against_exact(scene: Scene, run: Run) -> Errors:
     """Compare run with the exact solution on the run's own grid."""
     exact = ExactSolution(scene.ball, scene.h0, scene.v0, 0.0, float(run.t[-1]), scene.F_ext)
     h_exact, _ = exact.state(run.t)
-    difference = np.abs(run.h - h_exact)
-    height_error = float("inf") if np.any(np.isnan(difference)) else float(np.max(difference))
+    height_error = max_height_error(run.h, h_exact)
     if run.events is not None:
-        pairs = zip(run.events, exact.events, strict=False)
-        event_error = max((abs(a.time - b.time) for a, b in pairs), default=0.0)
+        event_error = max_event_time_error(run.events, exact.events)
         found, expected, counted = len(run.events), len(exact.events), "events"
     else:
         event_error = math.nan
