@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from bouncingball.physics import Ball, Mode
-from bouncingball.solvers.exact import ExactSolution, oscillator_basis
+from bouncingball.physics import Ball, Mode, oscillator_basis
+from bouncingball.solvers.exact import ExactSolution
 
 
 def test_first_impact_is_free_fall():

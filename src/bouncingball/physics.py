@@ -75,6 +75,21 @@ class Ball:
             return np.array([[0.0, 1.0], [0.0, 0.0]])
         return np.array([[0.0, 1.0], [-self.k / self.m, -self.b / self.m]])
 
+    def flow(self, mode: Mode, h0, v0, tau, F_ext: float = 0.0):
+        """The exact state (h [m], v [m/s]) a time tau [s] after (h0, v0), the mode and F_ext held.
+
+        Both modes are linear with constant coefficients: a parabola in flight, a damped
+        oscillator about the rest height in contact. Arrays allowed (broadcast); tau may be < 0.
+        """
+        if mode == Mode.FLIGHT:
+            g_eff = self.effective_gravity(F_ext)
+            return h0 + tau * (v0 - 0.5 * g_eff * tau), v0 - g_eff * tau
+        sigma, w2 = self.b / (2.0 * self.m), self.k / self.m
+        rest = self.rest_height(F_ext)
+        y0 = h0 - rest
+        c, s = oscillator_basis(sigma, w2, tau)
+        return rest + y0 * c + (v0 + sigma * y0) * s, v0 * c - (sigma * v0 + w2 * y0) * s
+
     def contact_force(self, h: float, v: float, mode: Mode) -> float:
         """Force of the ground on the ball [N], positive upwards; zero in flight.
 
@@ -120,3 +135,26 @@ class Ball:
         w2 = self.k / self.m
         y = h - self.rest_height(F_ext)
         return v * v + w2 * y * y < w2 * d * d
+
+
+def oscillator_basis(sigma: float, w2: float, tau):
+    """C, S such that y'' + 2 sigma y' + w2 y = 0 gives y = y0 C + (v0 + sigma y0) S, y' = v0 C - (sigma v0 + w2 y0) S.
+
+    C = exp(-sigma tau) cos(omega tau) and S = exp(-sigma tau) sin(omega tau)/omega, continued
+    through critical damping (S = tau exp(-sigma tau)) into the over-damped cosh/sinh forms.
+    """
+    disc = sigma * sigma - w2
+    if disc < 0.0:
+        omega = math.sqrt(-disc)
+        decay = np.exp(-sigma * tau)
+        return decay * np.cos(omega * tau), decay * np.sin(omega * tau) / omega
+    if disc == 0.0:
+        decay = np.exp(-sigma * tau)
+        return decay, tau * decay
+    mu = math.sqrt(disc)
+    slow = np.exp(-w2 / (sigma + mu) * tau)  # the small root computed without cancellation
+    fast = np.exp(-(sigma + mu) * tau)
+    with np.errstate(over="ignore", invalid="ignore"):
+        near = fast * np.expm1(2.0 * mu * tau) / (2.0 * mu)
+        s = np.where(2.0 * mu * tau < 1.0, near, (slow - fast) / (2.0 * mu))
+    return 0.5 * (slow + fast), s

@@ -68,12 +68,7 @@ class ExactSolution:
                 ball.static_deflection(self.F_ext))
 
     def _contact_state(self, phase: Phase, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        sigma, w2, rest, _ = self._oscillator()
-        y0 = phase.h0 - rest
-        c, s = oscillator_basis(sigma, w2, tau)
-        y = y0 * c + (phase.v0 + sigma * y0) * s
-        v = phase.v0 * c - (sigma * phase.v0 + w2 * y0) * s
-        return rest + y, v
+        return self.ball.flow(Mode.CONTACT, phase.h0, phase.v0, tau, self.F_ext)
 
     def _time_to_departure(self, h0: float, v0: float) -> float:
         """Time from (h0, v0) in contact to the first upward crossing of h = R; inf if none."""
@@ -132,16 +127,10 @@ class ExactSolution:
         bounds = np.searchsorted(ts, starts[1:], side="left")
         first = np.concatenate(([0], bounds))
         last = np.concatenate((bounds, [len(ts)]))
-        g_eff = self.ball.effective_gravity(self.F_ext)
         for phase, i, j in zip(self.phases, first, last, strict=True):
             if i == j:
                 continue
-            tau = ts[i:j] - phase.t_start
-            if phase.mode == Mode.FLIGHT:
-                h[i:j] = phase.h0 + tau * (phase.v0 - 0.5 * g_eff * tau)
-                v[i:j] = phase.v0 - g_eff * tau
-            else:
-                h[i:j], v[i:j] = self._contact_state(phase, tau)
+            h[i:j], v[i:j] = self.ball.flow(phase.mode, phase.h0, phase.v0, ts[i:j] - phase.t_start, self.F_ext)
         if order is not None:
             h[order], v[order] = h.copy(), v.copy()
         return h, v
@@ -162,29 +151,6 @@ def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tupl
         s = math.sqrt(disc)
         return (v0 + s) / g_eff, -s
     return math.inf, math.nan
-
-
-def oscillator_basis(sigma: float, w2: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """C, S such that y'' + 2 sigma y' + w2 y = 0 gives y = y0 C + (v0 + sigma y0) S, y' = v0 C - (sigma v0 + w2 y0) S.
-
-    C = exp(-sigma tau) cos(omega tau) and S = exp(-sigma tau) sin(omega tau)/omega, continued
-    through critical damping (S = tau exp(-sigma tau)) into the over-damped cosh/sinh forms.
-    """
-    disc = sigma * sigma - w2
-    if disc < 0.0:
-        omega = math.sqrt(-disc)
-        decay = np.exp(-sigma * tau)
-        return decay * np.cos(omega * tau), decay * np.sin(omega * tau) / omega
-    if disc == 0.0:
-        decay = np.exp(-sigma * tau)
-        return decay, tau * decay
-    mu = math.sqrt(disc)
-    slow = np.exp(-w2 / (sigma + mu) * tau)  # the small root computed without cancellation
-    fast = np.exp(-(sigma + mu) * tau)
-    with np.errstate(over="ignore", invalid="ignore"):
-        near = fast * np.expm1(2.0 * mu * tau) / (2.0 * mu)
-        s = np.where(2.0 * mu * tau < 1.0, near, (slow - fast) / (2.0 * mu))
-    return 0.5 * (slow + fast), s
 
 
 def _overdamped_extremum(v0: float, q: float, mu: float) -> float | None:
