@@ -100,7 +100,6 @@ def sweep(scene: Scene, points: list[Point], settings: Settings, fmus: FmuPaths)
     """Warm-up (and errors) for every point, then the timed repeats round-robin; fills in the points."""
     from tqdm import tqdm
 
-    saved = _points_to_save(points)
     over_budget: dict[tuple[str, str], str] = {}
     with tqdm(total=len(points) * (1 + settings.repeats), desc="work-precision", unit="run") as bar:
         for point in points:  # each solver from loose to tight tolerances
@@ -118,12 +117,17 @@ def sweep(scene: Scene, points: list[Point], settings: Settings, fmus: FmuPaths)
                 bar.total -= settings.repeats
                 bar.update()
                 continue
-            _record(point, scene, run, keep_h=point in saved)
+            _record(point, scene, run)
             if run.wall_time > settings.budget and point.solver.takes_tolerances:
                 over_budget[group] = (f"skipped: rtol {point.rtol:.0e} took {run.wall_time:.2f} s "
                                       f"> budget {settings.budget:g} s")
             bar.update()
         ok = [point for point in points if point.status == "ok"]
+        # chosen among the points that ran: under load the budget may skip the one nearest SAVED_RTOL
+        saved = {id(point) for point in _points_to_save(ok)}
+        for point in ok:
+            if id(point) not in saved:
+                point.h = None
         for _ in range(settings.repeats):
             for point in ok:
                 bar.set_postfix_str(f"{point.solver.label} {point.rtol or ''}", refresh=False)
@@ -132,17 +136,16 @@ def sweep(scene: Scene, points: list[Point], settings: Settings, fmus: FmuPaths)
                 bar.update()
 
 
-def _record(point: Point, scene: Scene, run: Run, keep_h: bool) -> None:
+def _record(point: Point, scene: Scene, run: Run) -> None:
     point.status = "ok"
     point.rhs_calls, point.steps = run.rhs_calls, run.steps
     if run.h is not None:
         point.errors = runners.errors_against_exact(scene, run)
-        if keep_h:
-            point.h = np.asarray(run.h, dtype=float)
+        point.h = np.asarray(run.h, dtype=float)
 
 
 def _points_to_save(points: list[Point]) -> list[Point]:
-    """Every point on the sparse grid; on the dense grid, one per solver: the tolerance nearest SAVED_RTOL."""
+    """Of points: every one on the sparse grid; on the dense grid one per solver, the tolerance nearest SAVED_RTOL."""
     chosen = [point for point in points if point.section == "sparse"]
     groups: dict[str, list[Point]] = {}
     for point in points:
