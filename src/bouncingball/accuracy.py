@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from bouncingball.physics import Mode
 from bouncingball.solvers.exact import ExactSolution
-from bouncingball.solvers.result import Event, SimulationResult, SolverStats
+from bouncingball.solvers.result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats
 
 
 @dataclass(frozen=True)
@@ -48,3 +50,56 @@ def max_height_error(h: np.ndarray, h_exact: np.ndarray) -> float:
 def max_event_time_error(events: list[Event], exact_events: list[Event]) -> float:
     """max |t - t_exact| [s] over the events both lists have, paired in order."""
     return float(max((abs(a.time - b.time) for a, b in zip(events, exact_events, strict=False)), default=0.0))
+
+
+def height_scale(h_exact: np.ndarray, R: float) -> float:
+    """The scene's height scale [m]: max(|h_exact|, R). Errors are judged relative to it."""
+    return max(float(np.max(np.abs(h_exact))), R)
+
+
+def event_mismatches(events: list[Event], exact: ExactSolution, height_tolerance: float,
+                     min_hop: float) -> list[str]:
+    """How events differ from the exact solution's, beyond what the tolerances allow; [] if they agree.
+
+    Every exact event bounding a hop that rises more than min_hop [m] above R must be found, of
+    the same kind, at a time within height_tolerance / |v| of the exact one (the time in which
+    the ball moves by the height tolerance: a grazing event, v ~ 0, is located loosely). A
+    departure and the impact after it whose hop stays within min_hop of R may be missing (the
+    contact then goes on through the hop) or, the other way round, present in events alone.
+    """
+    g_eff = exact.ball.effective_gravity(exact.F_ext)
+    R = exact.ball.R
+
+    def hop(t0: float, h0: float, v0: float) -> float:
+        """Apex above R [m] of a flight starting at (h0, v0) at t0, up to the end of the run."""
+        if v0 > 0.0 and not g_eff > 0.0:  # it never comes back: how high it gets by t_end
+            return h0 - R + v0 * (exact.t_end - t0)
+        return h0 - R + (0.5 * v0 * v0 / g_eff if v0 > 0.0 else 0.0)
+
+    flight_hops = [hop(p.t_start, p.h0, p.v0) if p.mode == Mode.FLIGHT else 0.0 for p in exact.phases]
+    # exact.events[i] ends phase i and starts phase i + 1: the hop an event bounds is the flight on its side.
+    bounded_hop = [flight_hops[i] if e.kind == IMPACT else flight_hops[i + 1] for i, e in enumerate(exact.events)]
+    wanted, found = exact.events, events
+    problems: list[str] = []
+    i = j = 0
+    while i < len(wanted) or j < len(found):
+        if i < len(wanted) and j < len(found) and found[j].kind == wanted[i].kind:
+            allowed = height_tolerance / abs(wanted[i].velocity) if wanted[i].velocity else math.inf
+            if abs(found[j].time - wanted[i].time) <= allowed:
+                i, j = i + 1, j + 1
+                continue
+        if i < len(wanted) and bounded_hop[i] <= min_hop:
+            i += 2 if wanted[i].kind == DEPARTURE else 1  # a departure and its impact, or a first impact
+            continue
+        if (j < len(found) and found[j].kind == DEPARTURE and hop(found[j].time, R, found[j].velocity) <= min_hop
+                and (j + 1 == len(found) or found[j + 1].kind == IMPACT)):
+            j += 2
+            continue
+        if i < len(wanted):
+            got = f"found {found[j].kind} at t = {found[j].time!r} s" if j < len(found) else "found nothing"
+            problems.append(f"exact {wanted[i].kind} at t = {wanted[i].time!r} s (hop {bounded_hop[i]:.3g} m): {got}")
+            i += 1
+        else:
+            problems.append(f"extra {found[j].kind} at t = {found[j].time!r} s")
+            j += 1
+    return problems

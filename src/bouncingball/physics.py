@@ -122,19 +122,26 @@ class Ball:
             return Mode.CONTACT
         return Mode.FLIGHT
 
-    def contact_is_permanent(self, h: float, v: float, F_ext: float = 0.0) -> bool:
-        """True if a ball in contact at (h, v) can never reach h = R again.
+    def contact_is_permanent(self, h: float, v: float, F_ext: float = 0.0, hop_tolerance: float = 0.0) -> bool:
+        """True if a ball in contact at (h, v) can never again fly higher than hop_tolerance [m] above R.
+
+        With hop_tolerance = 0 this says the ball never reaches R. See rest_margin.
+        """
+        return self.static_deflection(F_ext) > 0.0 and self.rest_margin(h, v, F_ext, hop_tolerance) > 0.0
+
+    def rest_margin(self, h: float, v: float, F_ext: float = 0.0, hop_tolerance: float = 0.0) -> float:
+        """w^2 d (d + 2 hop_tolerance) - (v^2 + w^2 y^2) [m2/s2]: positive once a contact is permanent.
 
         The oscillator energy about the rest height, 0.5 v^2 + 0.5 w^2 y^2 with y = h - rest
-        height, never grows (b >= 0); below 0.5 w^2 d^2, with d the static deflection, y cannot
-        reach d, that is h cannot reach R.
+        height, never grows (b >= 0); so y stays within the amplitude A, A^2 = y^2 + v^2/w^2.
+        Reaching R (y = d, the static deflection) takes A > d, and the ball leaves at most at
+        v^2 = w^2 (A^2 - d^2) to fly v^2 / 2 g_eff = (A^2 - d^2) / 2d above R (g_eff = w^2 d > 0).
+        It only grows in contact, so it is a root function for the start of a rest.
         """
         d = self.static_deflection(F_ext)
-        if d <= 0.0:
-            return False
         w2 = self.k / self.m
         y = h - self.rest_height(F_ext)
-        return v * v + w2 * y * y < w2 * d * d
+        return w2 * d * (d + 2.0 * hop_tolerance) - (v * v + w2 * y * y)
 
 
 def oscillator_basis(sigma: float, w2: float, tau):

@@ -49,7 +49,7 @@ class ExactSolution:
                 tau, v_next = time_to_impact(h - R, v, ball.effective_gravity(self.F_ext))
                 kind, next_mode = IMPACT, Mode.CONTACT
             else:
-                tau = self._time_to_departure(h, v)
+                tau = time_to_departure(ball, h, v, self.F_ext)
                 if math.isinf(tau):
                     self.rest_time = t
                     return
@@ -60,60 +60,9 @@ class ExactSolution:
             t, h, v, mode = t + tau, R, v_next, next_mode
             self.events.append(Event(t, kind, v))
 
-    # --- contact ----------------------------------------------------------------------------
-    def _oscillator(self) -> tuple[float, float, float, float]:
-        """sigma = b/2m [1/s], w^2 = k/m [1/s2], rest height [m] and static deflection d [m]."""
-        ball = self.ball
-        return (ball.b / (2.0 * ball.m), ball.k / ball.m, ball.rest_height(self.F_ext),
-                ball.static_deflection(self.F_ext))
-
+    # --- contact -----------------------------------------------------------------------------
     def _contact_state(self, phase: Phase, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.ball.flow(Mode.CONTACT, phase.h0, phase.v0, tau, self.F_ext)
-
-    def _time_to_departure(self, h0: float, v0: float) -> float:
-        """Time from (h0, v0) in contact to the first upward crossing of h = R; inf if none."""
-        sigma, w2, rest, d = self._oscillator()
-        y0 = h0 - rest
-        q = sigma * v0 + w2 * y0  # v(tau) = v0 C(tau) - q S(tau)
-        phase = Phase(0.0, Mode.CONTACT, h0, v0)
-
-        def excess(tau: float) -> tuple[float, float]:
-            h, v = self._contact_state(phase, np.array([tau]))
-            return float(h[0] - self.ball.R), float(v[0])
-
-        rising = v0 > 0.0 or (v0 == 0.0 and q < 0.0)
-        disc = sigma * sigma - w2
-        if disc < 0.0:
-            # Under-damped: extrema every pi/omega; maxima are positive and decay, so the
-            # first maximum decides whether the ball ever leaves.
-            omega = math.sqrt(-disc)
-            first = math.atan2(omega * v0, q) % math.pi
-            tau1 = (first if first > 0.0 else math.pi) / omega
-            # Maxima lie above the rest height and minima below it; this decides robustly even
-            # when round-off puts an extremum at tau = 0.
-            is_maximum = self._contact_state(phase, np.array([tau1]))[0][0] > rest
-            a, b = (0.0, tau1) if is_maximum else (tau1, tau1 + math.pi / omega)
-        else:
-            # Critically or over-damped: at most one extremum, then a monotone approach to rest.
-            mu = math.sqrt(disc)
-            tau_ext = _overdamped_extremum(v0, q, mu)
-            slow_rate = w2 / (sigma + mu)
-            if rising and tau_ext is not None:
-                a, b = 0.0, tau_ext
-            elif d < 0.0 and (rising or tau_ext is not None):
-                a = 0.0 if rising else tau_ext
-                b = a + 1.0 / slow_rate
-                for _ in range(2000):
-                    if excess(b)[0] > 0.0:
-                        break
-                    b = a + 2.0 * (b - a)
-                else:
-                    return math.inf
-            else:
-                return math.inf
-        if excess(b)[0] <= 0.0:
-            return math.inf
-        return _polish_root(excess, a, b)
 
     # --- evaluation ---------------------------------------------------------------------------
     def state(self, t) -> tuple[np.ndarray, np.ndarray]:
@@ -151,6 +100,52 @@ def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tupl
         s = math.sqrt(disc)
         return (v0 + s) / g_eff, -s
     return math.inf, math.nan
+
+
+def time_to_departure(ball: Ball, h0: float, v0: float, F_ext: float = 0.0) -> float:
+    """Time from (h0, v0) in contact to the first upward crossing of h = R; inf if none."""
+    sigma, w2 = ball.b / (2.0 * ball.m), ball.k / ball.m
+    rest, d = ball.rest_height(F_ext), ball.static_deflection(F_ext)
+    y0 = h0 - rest
+    q = sigma * v0 + w2 * y0  # v(tau) = v0 C(tau) - q S(tau)
+
+    def excess(tau: float) -> tuple[float, float]:
+        h, v = ball.flow(Mode.CONTACT, h0, v0, tau, F_ext)
+        return float(h - ball.R), float(v)
+
+    rising = v0 > 0.0 or (v0 == 0.0 and q < 0.0)
+    disc = sigma * sigma - w2
+    if disc < 0.0:
+        # Under-damped: extrema every pi/omega; maxima are positive and decay, so the
+        # first maximum decides whether the ball ever leaves.
+        omega = math.sqrt(-disc)
+        first = math.atan2(omega * v0, q) % math.pi
+        tau1 = (first if first > 0.0 else math.pi) / omega
+        # Maxima lie above the rest height and minima below it; this decides robustly even
+        # when round-off puts an extremum at tau = 0.
+        is_maximum = float(ball.flow(Mode.CONTACT, h0, v0, tau1, F_ext)[0]) > rest
+        a, b = (0.0, tau1) if is_maximum else (tau1, tau1 + math.pi / omega)
+    else:
+        # Critically or over-damped: at most one extremum, then a monotone approach to rest.
+        mu = math.sqrt(disc)
+        tau_ext = _overdamped_extremum(v0, q, mu)
+        slow_rate = w2 / (sigma + mu)
+        if rising and tau_ext is not None:
+            a, b = 0.0, tau_ext
+        elif d < 0.0 and (rising or tau_ext is not None):
+            a = 0.0 if rising else tau_ext
+            b = a + 1.0 / slow_rate
+            for _ in range(2000):
+                if excess(b)[0] > 0.0:
+                    break
+                b = a + 2.0 * (b - a)
+            else:
+                return math.inf
+        else:
+            return math.inf
+    if excess(b)[0] <= 0.0:
+        return math.inf
+    return _polish_root(excess, a, b)
 
 
 def _overdamped_extremum(v0: float, q: float, mu: float) -> float | None:
