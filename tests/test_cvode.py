@@ -72,7 +72,8 @@ def test_every_builtin_scene_matches_the_exact_events(name):
 def test_auto_method_rule():
     assert choose_method(Ball()) == "Adams"
     assert choose_method(Ball(b=0.0)) == "Adams"
-    for stiff in (Ball(k=1e12), Ball(m=1e-6), Ball(b=1e4)):
+    assert choose_method(Ball(k=1e12)) == "Adams"  # stiff spring, but light damping: a bounce to resolve
+    for stiff in (Ball(m=1e-6), Ball(b=1e4)):  # damping ratio 50
         assert choose_method(stiff) == "BDF"
 
 
@@ -221,12 +222,20 @@ def test_random_balls_against_the_exact_solution(m, k, zeta, R, g, h0, v0):
 
 
 def test_a_method_fighting_stiffness_fails_with_a_reason(monkeypatch):
-    """Adams cannot hold a ball at rest on k = 1e12 (steps ~1e-6 s): it must stop, not run for hours."""
+    """Adams creeping a ball out of a k = 1e12, damping ratio 100 contact (steps ~1e-8 s) must stop, not run for hours.
+
+    F_ext = 2 m g pulls the compressed ball up: a contact that is never a rest, and whose slow
+    creep to R takes 3.7 ms at a fast rate of 2e8 1/s.
+    """
     import bouncingball.solvers.cvode as cvode
 
     monkeypatch.setattr(cvode, "MAX_STEPS_PER_PHASE", 2000)
-    scene = load_scene("stiff-rest")
+    ball = Ball(k=1e12, m=1.0, b=2e8)
+    h0, F_ext = ball.R - 1e-3, 2.0 * ball.m * ball.g
     with pytest.raises(cvode.SolverError, match="took more than 2000 steps in one contact phase.*use method 'BDF'"):
-        scene.simulate(method="Adams")
-    result = scene.simulate()  # auto takes BDF: a handful of steps
-    assert result.stats.steps < 100 and result.events == []
+        bouncingball.simulate(ball, h0, 0.0, 0.01, 1e-4, F_ext=F_ext, method="Adams")
+    result = bouncingball.simulate(ball, h0, 0.0, 0.01, 1e-4, F_ext=F_ext)  # auto takes BDF
+    exact = ExactSolution(ball, h0, 0.0, 0.0, 0.01, F_ext)
+    assert result.stats.steps < 2000 and [e.kind for e in result.events] == ["departure"]
+    # it leaves at 5e-8 m/s: 2e-8 s of event time is 1e-15 m of height
+    assert result.events[0].time == pytest.approx(exact.events[0].time, rel=1e-5)

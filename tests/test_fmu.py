@@ -123,8 +123,8 @@ def test_tolerance_from_setup_experiment_is_used_as_rtol(fmu):
     def run(**options):
         return fmpy.simulate_fmu(str(fmu), stop_time=2.0, output_interval=0.1, output=["h"], **options)
 
-    with_tolerance = run(relative_tolerance=1e-11, start_values={"atol": 1e-14})
-    with_rtol = run(start_values=TIGHT)
+    with_tolerance = run(relative_tolerance=1e-9, start_values={"atol": 1e-14})
+    with_rtol = run(start_values={"rtol": 1e-9, "atol": 1e-14})
     default_rtol = run(start_values={"atol": 1e-14})
     np.testing.assert_array_equal(with_tolerance["h"], with_rtol["h"])
     assert not np.array_equal(with_tolerance["h"], default_rtol["h"])

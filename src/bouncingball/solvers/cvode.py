@@ -18,7 +18,7 @@ from bouncingball import validation
 from bouncingball.physics import Ball, Mode
 from bouncingball.solvers import sksundae_events
 from bouncingball.solvers.dense_output import interpolate, step_state
-from bouncingball.solvers.exact import time_to_impact
+from bouncingball.solvers.exact import time_to_departure, time_to_impact
 from bouncingball.solvers.result import (
     DEPARTURE,
     IMPACT,
@@ -27,26 +27,32 @@ from bouncingball.solvers.result import (
     SolverStats,
     output_grid,
 )
+from bouncingball.solvers.sundials_log import SundialsLog
 
 METHODS = ("auto", "Adams", "BDF")
-# Chosen for the hardest built-in scene: at these values the article's height error is ~3e-8 m
-# (limit 1e-6), high-drop's ~1e-5 m and undamped's energy drift over 1000 s ~2e-6.
-DEFAULT_RTOL = 1e-10
+# At these values the article's height error is ~2e-10 m (limit 1e-6); an undamped ball keeps
+# its height error within 1e-6 of its scale over ~100 contacts (rtol 1e-10: ~1e-6 after 60), for
+# 10% more steps on the article than rtol 1e-10.
+DEFAULT_RTOL = 1e-11
 DEFAULT_ATOL = 1e-12
-# The contact oscillator is stiff for an explicit-like Adams method when it is strongly
-# over-damped (fast and slow rates far apart) or when its natural frequency is so high that
-# resolving it for stability, not accuracy, would cost many steps.
+# The contact oscillator is stiff for Adams when it is strongly over-damped (fast and slow rates
+# far apart). A high natural frequency alone is not: a bounce must be resolved for accuracy
+# anyway, where Adams beats BDF (an undamped k = 1e8 N/m ball over 39 contacts: 1.1e-9 m in 1707
+# steps against 5.7e-8 m in 3842), and a rest, where BDF's large steps paid off, is taken in
+# closed form.
 STIFF_DAMPING_RATIO = 2.0
-STIFF_NATURAL_FREQUENCY = 1e4  # rad/s
 
 _CV_ROOT_RETURN = 2
 _EPS = 2.0**-52
-# Chosen by the fault campaign: below this, CVODE at the default tolerances misses or invents events.
-MIN_CONTACT_ULPS = 1e6
+# Measured: at the default tolerances the departure speed stays within 1e-8 down to contacts of
+# 30 ulps of t (at 10 ulps CVODE fails its error test); 1e4 keeps a margin of 300.
+MIN_CONTACT_ULPS = 1e4
+# A contact deflecting the ball by less than this many tolerances of h is taken in closed form.
+CONTACT_RESOLUTION = 100.0
 _STEP_HORIZON = 1.0  # s; see advance()
 _MAX_STEPS_PER_CALL = 1_000_000
-# A phase that needs more steps than this is a method fighting stiffness (Adams holding a ball at
-# rest on a k = 1e12 spring): fail with a reason instead of running for hours.
+# A phase that needs more steps than this is a method fighting stiffness (Adams creeping through
+# an over-damped contact on a k = 1e12 spring): fail with a reason instead of running for hours.
 MAX_STEPS_PER_PHASE = 500_000
 
 
@@ -57,11 +63,10 @@ class SolverError(RuntimeError):
 def choose_method(ball: Ball) -> str:
     """The rule behind method="auto": BDF for a stiff contact, Adams otherwise.
 
-    Stiff means damping ratio >= 2 (over-damped, the fast and slow rates differ by >= 14x) or
-    natural frequency sqrt(k/m) >= 1e4 rad/s. Flight is never stiff.
+    Stiff means damping ratio >= 2 (over-damped, the fast and slow rates differ by >= 14x).
+    Flight is never stiff.
     """
-    stiff = ball.damping_ratio >= STIFF_DAMPING_RATIO or ball.natural_frequency >= STIFF_NATURAL_FREQUENCY
-    return "BDF" if stiff else "Adams"
+    return "BDF" if ball.damping_ratio >= STIFF_DAMPING_RATIO else "Adams"
 
 
 @dataclass(frozen=True)
@@ -103,10 +108,12 @@ class BallIntegrator:
     Each mode has its own CVODE object with two root functions: h - R, terminal, in the mode's
     direction (impact downwards, departure upwards), and v, non-terminal, which makes CVODE end a
     step at every extremum of h so that no step can hold both crossings of a hop (h leaving R
-    and coming back within one step shows no sign change of h - R). Once a contact can never end
-    (contact_is_permanent) the extremum root is switched off: it would only fire on the noise of a
-    ball at rest. At an impact or departure the event time CVODE located (to ~100 ulps of t) is
-    polished on the mode's flow to a few ulps, h is set to R, and CVODE restarts in the other mode.
+    and coming back within one step shows no sign change of h - R). Once a contact can never
+    again lift the ball more than hop_tolerance above R (contact_is_permanent), the extremum root
+    is switched off: it would only fire on the noise of a ball at rest, and a static deflection
+    below the tolerance makes that noise cross R. At an impact or departure the event time CVODE
+    located (to ~100 ulps of t) is polished on the mode's flow to a few ulps, h is set to R, and
+    CVODE restarts in the other mode.
 
     Change F_ext between advances; get_state()/set_state() roll back to within the tolerance.
     """
@@ -126,6 +133,13 @@ class BallIntegrator:
         F_ext = validation.finite("F_ext", F_ext, "N")
         self.resolvable_until = resolvable_until(ball)
         check_resolvable(ball, t0)
+        resolution = self.settings.atol + self.settings.rtol * ball.R  # CVODE's error of h near R [m]
+        # A hop lower than this above R is within CVODE's own error of h: it is taken in closed
+        # form, and a contact that can rise no higher than this is at rest.
+        self.hop_tolerance = 10.0 * resolution
+        self._min_contact_amplitude = CONTACT_RESOLUTION * resolution
+        self._logs = {mode: SundialsLog() for mode in Mode}
+        self._cvode_called = False
         self._solvers: dict[Mode, CVODE] = {}
         self._event_functions = {}
         for mode in Mode:
@@ -146,6 +160,7 @@ class BallIntegrator:
         # So h == R counts as the mode's own side: the crossing is where h truly leaves it.
         own_side = math.ulp(R) if mode == Mode.FLIGHT else -math.ulp(R)
         contact = mode == Mode.CONTACT
+        hop_tolerance = self.hop_tolerance
 
         def rhs(t, y, yp):
             # physics computes k (R - h): R - h is exact near R, whereas k R - k h would bury the
@@ -158,9 +173,11 @@ class BallIntegrator:
 
         def event(t, y, out):
             out[0] = y[0] - R if y[0] != R else own_side
-            # -1 once the contact can never end: a rising ball that turns permanent within a step
-            # still shows a sign change, so a peak above R inside that step is searched for.
-            out[1] = -1.0 if contact and ball.contact_is_permanent(y[0], y[1], self._F_ext) else y[1]
+            out[1] = y[1]
+            if contact and ball.static_deflection(self._F_ext) > 0.0:
+                out[2] = ball.rest_margin(y[0], y[1], self._F_ext, hop_tolerance)
+            else:
+                out[2] = -1.0
             # CVODE evaluates the root functions once per step (and a few times per root found)
             self._phase_evaluations += 1
             if self._phase_evaluations > MAX_STEPS_PER_PHASE:
@@ -169,11 +186,11 @@ class BallIntegrator:
                     f"{mode.name.lower()} phase, at t = {t!r} s: the problem is stiff for this method; "
                     "use method 'BDF' (or 'auto')")
 
-        event.terminal = [True, False]
-        event.direction = [-1 if mode == Mode.FLIGHT else 1, 0]
+        event.terminal = [True, False, True]
+        event.direction = [-1 if mode == Mode.FLIGHT else 1, 0, 1]
         s = self.settings
         solver = CVODE(rhs, method=self.methods[mode], rtol=s.rtol, atol=s.atol, max_step=s.max_step,
-                       eventsfn=event, num_events=2, jacfn=jac, max_num_steps=_MAX_STEPS_PER_CALL)
+                       eventsfn=event, num_events=3, jacfn=jac, max_num_steps=_MAX_STEPS_PER_CALL)
         return solver, event
 
     # --- read-only view --------------------------------------------------------------------
@@ -231,8 +248,12 @@ class BallIntegrator:
 
     @property
     def rest_time(self) -> float | None:
-        """Start of the current contact if it can never end (F_ext held constant), else None."""
-        if self._mode == Mode.CONTACT and self.ball.contact_is_permanent(self._h, self._v, self._F_ext):
+        """Start of the current contact if it can never again lift the ball above R + hop_tolerance, else None.
+
+        F_ext is taken as held constant from now on.
+        """
+        if self._mode == Mode.CONTACT and self.ball.contact_is_permanent(self._h, self._v, self._F_ext,
+                                                                          self.hop_tolerance):
             return self._last_impact_time if self._last_impact_time is not None else self._t_start
         return None
 
@@ -265,12 +286,15 @@ class BallIntegrator:
         self._needs_init = True
         self._segment = None
         self._event_pending = None
+        self._rest_from = None
 
     def _init_phase(self) -> CVODE:
         """Restart CVODE at the current state in the current mode."""
         solver = self._solvers[self._mode]
         sksundae_events.clear(self._event_functions[self._mode])
-        solver.init_step(self._t, np.array([self._h, self._v]))
+        with self._logs[self._mode].capturing():
+            solver.init_step(self._t, np.array([self._h, self._v]))
+        self._cvode_called = True
         self._needs_init = False
         self._step_start = (self._t, self._h, self._v)
         return solver
@@ -283,7 +307,12 @@ class BallIntegrator:
         targets; a target inside the last step is read off the step's dense output, so a short
         advance usually costs no CVODE call at all.
         """
-        t_target = float(t_target)
+        try:
+            return self._advance(float(t_target))
+        finally:
+            self._report_sundials_warnings()
+
+    def _advance(self, t_target: float) -> list[Event]:
         if not t_target >= self._t:
             raise ValueError(f"t_target = {t_target!r} s is not allowed: it must be >= the current time {self._t!r} s")
         if t_target > self.resolvable_until:
@@ -301,23 +330,32 @@ class BallIntegrator:
                     self._t, self._h, self._v = self._event_pending
                     events.append(self._switch_mode())
                     continue
+            if self._rest_from is None and self._needs_init and self._at_rest():
+                self._rest_from = (self._t, self._h, self._v)
+            if self._rest_from is not None:
+                self._t, self._h, self._v = t_target, *self._rest_state(t_target)
+                break
             if self._close_enough(t_target):
                 break
-            if self._needs_init and (impact := self._hop_below_tolerance()) is not None:
-                self._segment = (self._mode, (self._t, self._h, self._v), impact)
-                self._event_pending = impact
+            if self._needs_init and (event := self._event_in_closed_form()) is not None:
+                self._segment = (self._mode, (self._t, self._h, self._v), event)
+                self._event_pending = event
                 continue
             solver = self._init_phase() if self._needs_init else self._solvers[self._mode]
             # The far target only orients CVODE and bounds its first step: the same for every
             # way of cutting the interval.
             result = solver.step(self._step_start[0] + _STEP_HORIZON, method="onestep")
+            self._cvode_called = True
             self._check(result)
             self._nfev_since_init = result.nfev
             end = (float(result.t), float(result.y[0]), float(result.y[1]))
             if result.status == _CV_ROOT_RETURN:
                 event_function = self._event_functions[self._mode]
-                if sksundae_events.roots_found(event_function)[0]:
+                roots = sksundae_events.roots_found(event_function)
+                if roots[0]:
                     end = self._event_pending = self._polish_event(self._step_start, end)
+                elif roots[2]:
+                    self._rest_from = end
                 sksundae_events.clear(event_function)
             else:
                 self._steps += 1
@@ -334,30 +372,53 @@ class BallIntegrator:
         dense output as in advance(), evaluated for all grid points in one pass at the end,
         which costs far less per output point than asking CVODE for each one.
         """
-        grid = np.asarray(grid, dtype=float)
+        try:
+            return self._integrate_grid(np.asarray(grid, dtype=float))
+        finally:
+            self._report_sundials_warnings()
+
+    def _integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
         t_end = grid[-1]
         check_resolvable(self.ball, t_end)
         times, heights, velocities = [np.array([self._t])], [np.array([self._h])], [np.array([self._v])]
         modes = [np.array([self._mode])]
         events: list[Event] = []
         self._reinit_needed()
+        resting = False  # set when CVODE stops at the start of a rest
         while self._t < t_end and not self._close_enough(t_end):
             mode = self._mode
-            impact = self._hop_below_tolerance()
-            if impact is not None and impact[0] <= t_end:
-                times.append(np.array([self._t, impact[0]]))
-                heights.append(np.array([self._h, impact[1]]))
-                velocities.append(np.array([self._v, impact[2]]))
+            if resting or self._at_rest():
+                self._rest_from = (self._t, self._h, self._v)
+                h_end, v_end = self._rest_state(t_end)
+                times.append(np.array([self._t, t_end]))
+                heights.append(np.array([self._h, h_end]))
+                velocities.append(np.array([self._v, v_end]))
                 modes.append(np.full(2, mode))
-                self._t, self._h, self._v = impact
-                events.append(self._switch_mode())
+                self._t, self._h, self._v = t_end, h_end, v_end
+                break
+            event = self._event_in_closed_form()
+            if event is not None:
+                reached = event[0] <= t_end
+                if not reached:
+                    h_end, v_end = self.ball.flow(mode, self._h, self._v, t_end - self._t, self._F_ext)
+                    event = (t_end, float(h_end), float(v_end))
+                times.append(np.array([self._t, event[0]]))
+                heights.append(np.array([self._h, event[1]]))
+                velocities.append(np.array([self._v, event[2]]))
+                modes.append(np.full(2, mode))
+                self._t, self._h, self._v = event
+                if reached:
+                    events.append(self._switch_mode())
                 continue
             event_function = self._event_functions[mode]
             sksundae_events.clear(event_function)
-            result = self._solvers[mode].solve(np.array([self._t, t_end]), np.array([self._h, self._v]))
+            with self._logs[mode].capturing():
+                result = self._solvers[mode].solve(np.array([self._t, t_end]), np.array([self._h, self._v]))
+            self._cvode_called = True
             self._check(result)
             ts, hs, vs = result.t.copy(), result.y[:, 0].copy(), result.y[:, 1].copy()
-            root = result.status == _CV_ROOT_RETURN
+            roots = sksundae_events.roots_found(event_function) if result.status == _CV_ROOT_RETURN else [0, 0, 0]
+            root, resting = bool(roots[0]), bool(roots[2])
             if root:
                 t_root, h_root, v_root = self._polish_event((ts[-2], hs[-2], vs[-2]), (ts[-1], hs[-1], vs[-1]))
                 ts[-1], hs[-1], vs[-1] = t_root, h_root, v_root
@@ -385,25 +446,73 @@ class BallIntegrator:
                                    np.concatenate(velocities), np.concatenate(modes), grid)
         return h_out, v_out, events
 
-    def _hop_below_tolerance(self) -> tuple[float, float, float] | None:
-        """The impact (t, R, v) ending the current flight if its apex stays within the tolerance of R.
+    def _report_sundials_warnings(self) -> None:
+        if self._cvode_called:
+            self._cvode_called = False
+            for log in self._logs.values():
+                log.report(stacklevel=4)
 
-        CVODE cannot tell such a hop from its own error: its first steps after a restart are of
-        low order, and it may place the impact on the way up or miss it (chatter of false
-        events, or a fall through the floor). The parabola is exact, so the hop is taken in
-        closed form: events of the right kind at the right times, the trajectory within the
-        tolerance either way.
+    def _at_rest(self) -> bool:
+        """In a contact that can no longer lift the ball more than hop_tolerance above R, or never ends."""
+        if self._mode != Mode.CONTACT:
+            return False
+        if self.ball.contact_is_permanent(self._h, self._v, self._F_ext, self.hop_tolerance):
+            return True
+        return self._contact_below_resolution() and math.isinf(
+            time_to_departure(self.ball, self._h, self._v, self._F_ext))
+
+    def _rest_state(self, t: float) -> tuple[float, float]:
+        """h [m] and v [m/s] at t on a rest, on the contact's exact flow from where the rest began.
+
+        Once at rest the ball's motion is the linear oscillator decaying to the rest height,
+        which CVODE would only add its error to: where k/m ulp(R) is comparable to g, h cannot
+        even represent the rest height, and the quantised spring force keeps CVODE's steps tiny.
         """
-        if self._mode != Mode.FLIGHT or self._h < self.ball.R:
+        t0, h0, v0 = self._rest_from
+        h, v = self.ball.flow(Mode.CONTACT, h0, v0, t - t0, self._F_ext)
+        return float(h), float(v)
+
+    def _contact_below_resolution(self) -> bool:
+        """In a contact whose amplitude about the rest height is below CONTACT_RESOLUTION tolerances of h.
+
+        CVODE controls h to atol + rtol R; a contact that deflects the ball by little more than
+        that is integrated from noise (the departure speed of a k = 1e20 N/m, m = 1 g ball
+        landing at 1.7 m/s came out 2e-3 too fast), or not at all below ulp(R).
+        """
+        if self._mode != Mode.CONTACT:
+            return False
+        ball, y = self.ball, self._h - self.ball.rest_height(self._F_ext)
+        amplitude_squared = y * y + self._v * self._v * (ball.m / ball.k)
+        return amplitude_squared < self._min_contact_amplitude**2
+
+    def _event_in_closed_form(self) -> tuple[float, float, float] | None:
+        """The event (t, R, v) ending the current phase if CVODE cannot resolve the phase, else None.
+
+        A flight whose apex stays within hop_tolerance of R: CVODE cannot tell such a hop from its
+        own error (its first steps after a restart are of low order, and it may place the impact
+        on the way up or miss it: a chatter of false events, or a fall through the floor). A
+        contact below CVODE's resolution (_contact_below_resolution) that ends. Each mode's flow
+        is exact, so such a phase is taken in closed form: events of the right kind at the right
+        times, the trajectory within the tolerance either way.
+        """
+        ball, R = self.ball, self.ball.R
+        if self._mode == Mode.CONTACT:
+            if not self._contact_below_resolution():
+                return None
+            tau = time_to_departure(ball, self._h, self._v, self._F_ext)
+            if math.isinf(tau):
+                return None
+            return self._t + tau, R, float(ball.flow(Mode.CONTACT, self._h, self._v, tau, self._F_ext)[1])
+        if self._h < R:
             return None
-        g_eff = self.ball.effective_gravity(self._F_ext)
+        g_eff = ball.effective_gravity(self._F_ext)
         if not g_eff > 0.0:
             return None
-        apex = self._h - self.ball.R + 0.5 * max(self._v, 0.0) ** 2 / g_eff
-        if not apex < 10.0 * (self.settings.atol + self.settings.rtol * self.ball.R):
+        apex = self._h - R + 0.5 * max(self._v, 0.0) ** 2 / g_eff
+        if not apex < self.hop_tolerance:
             return None
-        tau, v_impact = time_to_impact(self._h - self.ball.R, self._v, g_eff)
-        return self._t + tau, self.ball.R, v_impact
+        tau, v_impact = time_to_impact(self._h - R, self._v, g_eff)
+        return self._t + tau, R, v_impact
 
     def _polish_event(self, start, root):
         """The crossing of h = R that CVODE located at root, to a few ulps of t; h set to R.
@@ -431,7 +540,7 @@ class BallIntegrator:
 
     def _check_side(self, t: float, lowest: float, highest: float) -> None:
         """Step ends must lie on the mode's side of R: else CVODE stepped over an event unseen."""
-        R, margin = self.ball.R, 10.0 * (self.settings.atol + self.settings.rtol * self.ball.R)
+        R, margin = self.ball.R, self.hop_tolerance
         flight = self._mode == Mode.FLIGHT
         if (lowest < R - margin) if flight else (highest > R + margin):
             raise SolverError(f"CVODE stepped over an {'impact' if flight else 'departure'} unseen near "

@@ -1,0 +1,103 @@
+"""The one place that keeps SUNDIALS' warnings off the host's stderr and turns them into Python warnings.
+
+SUNDIALS writes its warnings ("t + h = t on the next step", "root functions identically 0")
+with fprintf to stderr, hundreds of thousands of them on an extreme scene, where no caller can
+catch or filter them, and where they flood the log of a host that runs our FMU. Its logger reads
+the file to write them to from SUNLOGGER_WARNING_FILENAME when a solver's SUNDIALS context is
+created; scikit-sundae (checked on 1.2.0) creates it at a CVODE object's first solve or
+init_step, and keeps it, with that file open, for the object's life. So each solver gets its own
+file, set in the environment around its first call only, and read back after each call (after
+flushing C's stdio buffers, which SUNDIALS does not flush itself). Each cause (a message with its
+numbers taken out) is reported once per solver, as a SundialsWarning.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import re
+import tempfile
+import warnings
+import weakref
+
+ENVIRONMENT_VARIABLE = "SUNLOGGER_WARNING_FILENAME"
+_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+_MESSAGE = re.compile(r"^\[WARNING\]\[[^]]*\]\[[^]]*\]\[(?P<function>[^]]*)\] (?P<text>.*)$")
+
+try:
+    _fflush = ctypes.CDLL(None).fflush
+except (OSError, AttributeError):  # no process-wide C library to reach (Windows): read at the end
+    _fflush = None
+
+
+class SundialsWarning(RuntimeWarning):
+    """A warning SUNDIALS issued while integrating (its text, one per cause)."""
+
+
+class SundialsLog:
+    """The warnings file of one SUNDIALS solver.
+
+    Wrap the solver's calls in ``capturing()``, then call ``report()`` to turn what it wrote
+    into warnings.
+    """
+
+    def __init__(self) -> None:
+        descriptor, self.path = tempfile.mkstemp(prefix="bouncingball-sundials-", suffix=".log")
+        os.close(descriptor)
+        self._opened = False
+        self._offset = 0
+        self._causes: set[str] = set()
+        self._remove = weakref.finalize(self, _remove, self.path)
+
+    @contextlib.contextmanager
+    def capturing(self):
+        """Around a solver call: the first one makes SUNDIALS open this log's file."""
+        if self._opened:
+            yield
+            return
+        previous = os.environ.get(ENVIRONMENT_VARIABLE)
+        os.environ[ENVIRONMENT_VARIABLE] = self.path
+        try:
+            yield
+        finally:
+            self._opened = True
+            if previous is None:
+                del os.environ[ENVIRONMENT_VARIABLE]
+            else:
+                os.environ[ENVIRONMENT_VARIABLE] = previous
+
+    def new_messages(self) -> list[str]:
+        """The messages written since the last call, one per new cause."""
+        if _fflush is not None:
+            _fflush(None)
+        try:
+            if os.path.getsize(self.path) <= self._offset:
+                return []
+            with open(self.path, "rb") as log:
+                log.seek(self._offset)
+                data = log.read()
+        except OSError:
+            return []
+        complete = data.rfind(b"\n") + 1  # a line still being written is read next time
+        self._offset += complete
+        text = data[:complete].decode("utf-8", errors="replace")
+        messages = []
+        for line in text.splitlines():
+            match = _MESSAGE.match(line)
+            function, message = (match["function"], match["text"]) if match else ("", line)
+            cause = function + _NUMBER.sub("#", message)
+            if cause not in self._causes:
+                self._causes.add(cause)
+                messages.append(f"{function}: {message}" if function else message)
+        return messages
+
+    def report(self, stacklevel: int = 3) -> None:
+        """Issue each new cause as a SundialsWarning."""
+        for message in self.new_messages():
+            warnings.warn(f"SUNDIALS {message}", SundialsWarning, stacklevel=stacklevel)
+
+
+def _remove(path: str) -> None:
+    with contextlib.suppress(OSError):
+        os.remove(path)

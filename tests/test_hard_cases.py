@@ -1,0 +1,233 @@
+"""Where an integrator lies: grazing contacts, long and stiff rests, contacts too short for double precision.
+
+Every case is judged against the exact solution: events under the rule of accuracy.event_mismatches
+(every hop rising more than 100 (atol + rtol R) above R found, with the right kind and time), the height
+within 1e-6 of the scene's height scale on the whole output grid.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+import bouncingball as bb
+from bouncingball.accuracy import event_mismatches, height_scale, max_height_error
+from bouncingball.solvers.cvode import DEFAULT_ATOL, DEFAULT_RTOL, BallIntegrator, check_resolvable, resolvable_until
+from bouncingball.solvers.exact import ExactSolution
+
+RELATIVE_HEIGHT_TOLERANCE = 1e-6
+ARTICLE = bb.Ball()
+# The damping at which the article's first contact stops returning the ball to R (found by bisection
+# on the exact solution; test_threshold_damping_is_the_bounce_threshold checks it).
+BOUNCE_THRESHOLD_DAMPING = 145.21960354346564
+
+
+def min_hop(R):
+    """Hops higher than this above R [m] must be found: 100 times CVODE's absolute error of h near R."""
+    return 100.0 * (DEFAULT_ATOL + DEFAULT_RTOL * R)
+
+
+def assert_exact(result, h0, v0):
+    """The result's events and heights against the exact solution on its own grid."""
+    exact = ExactSolution(result.ball, h0, v0, float(result.t[0]), float(result.t[-1]), result.F_ext)
+    h_exact, _ = exact.state(result.t)
+    tolerance = RELATIVE_HEIGHT_TOLERANCE * height_scale(h_exact, result.ball.R)
+    assert event_mismatches(result.events, exact, tolerance, min_hop(result.ball.R)) == []
+    assert max_height_error(result.h, h_exact) <= tolerance
+    return exact
+
+
+# --- 1. grazing contacts ----------------------------------------------------------------------
+@pytest.mark.parametrize("v0", [1e-9, 1e-7, 1e-5])
+def test_leaving_the_ground_at_r_with_a_tiny_speed_comes_back(v0):
+    result = bb.simulate(ARTICLE, ARTICLE.R, v0, 1.0, 1e-3)
+    exact = assert_exact(result, ARTICLE.R, v0)
+    assert exact.events[0].kind == "impact" and exact.events[0].time == pytest.approx(2 * v0 / ARTICLE.g)
+    assert all(e.velocity < 0 for e in result.events if e.kind == "impact")
+    # from R with v ~ 0 the contact rings around the rest height, never lower than R - 2 d
+    assert result.h.min() >= ARTICLE.R - 2 * ARTICLE.static_deflection() - 1e-9
+
+
+def test_threshold_damping_is_the_bounce_threshold():
+    """Just below the threshold the ball bounces a third time; just above it does not."""
+    below = ExactSolution(bb.Ball(b=BOUNCE_THRESHOLD_DAMPING * (1 - 1e-8)), 2.0, 0.0, 0.0, 8.0)
+    above = ExactSolution(bb.Ball(b=BOUNCE_THRESHOLD_DAMPING * (1 + 1e-8)), 2.0, 0.0, 0.0, 8.0)
+    assert len(below.events) == 3 and len(above.events) == 1
+
+
+@pytest.mark.parametrize("relative", [-1e-4, -1e-6, -1e-8, -1e-10, 1e-10, 1e-8, 1e-6])
+def test_near_the_bounce_threshold(relative):
+    ball = bb.Ball(b=BOUNCE_THRESHOLD_DAMPING * (1 + relative))
+    assert_exact(bb.simulate(ball, 2.0, 0.0, 2.0, 1e-3), 2.0, 0.0)
+
+
+def _threshold_damping(ball, h0, v0):
+    """The damping b [N s/m] at which the first contact just fails to return the ball to R (bisection)."""
+    low, high = 0.0, 2.0 * math.sqrt(ball.k * ball.m)
+    for _ in range(200):
+        middle = 0.5 * (low + high)
+        trial = bb.Ball(m=ball.m, k=ball.k, b=middle, R=ball.R, g=ball.g)
+        if len(ExactSolution(trial, h0, v0, 0.0, 50.0).events) > 1:
+            low = middle
+        else:
+            high = middle
+    return high
+
+
+@pytest.mark.parametrize(("m", "k", "h0"), [(1.0, 1e4, 2.0), (1e-3, 1e6, 0.5), (10.0, 1e3, 0.2), (1e-6, 1e9, 5.0)])
+@pytest.mark.parametrize("relative", [-1e-9, -1e-6, 1e-9])
+def test_generated_near_threshold_family(m, k, h0, relative):
+    """Balls of other masses and stiffnesses damped within a hair of their own bounce threshold."""
+    ball = bb.Ball(m=m, k=k, R=0.05)
+    b = _threshold_damping(ball, h0, 0.0) * (1 + relative)
+    ball = bb.Ball(m=m, k=k, b=b, R=0.05)
+    t_end = 2.0 * math.sqrt(2.0 * h0 / ball.g) + 0.5
+    assert_exact(bb.simulate(ball, h0, 0.0, t_end, t_end / 2000), h0, 0.0)
+
+
+@pytest.mark.parametrize("relative", [1e-6, 1e-3, -1e-6])
+def test_from_rest_height_with_just_enough_speed_to_leave(relative):
+    """0.1058604129 m/s from the rest height brings the article's ball to R with v ~ 0."""
+    v0 = 0.1058604129 * (1 + relative)
+    rest = ARTICLE.rest_height()
+    exact = assert_exact(bb.simulate(ARTICLE, rest, v0, 2.0, 1e-3), rest, v0)
+    assert len(exact.events) == (2 if relative > 0 else 0)
+
+
+@pytest.mark.parametrize("relative", [1e-9, 1e-6, 1e-3])
+def test_undamped_ball_grazing_from_rest_height_keeps_hopping(relative):
+    """Each hop rises d * relative above R (d = 1 mm): 1e-12 m may merge into a rest, 1e-9 m may not."""
+    ball = bb.Ball(b=0.0)
+    v0 = ball.natural_frequency * ball.static_deflection() * (1 + relative)
+    rest = ball.rest_height()
+    result = bb.simulate(ball, rest, v0, 2.0, 1e-3)
+    exact = assert_exact(result, rest, v0)
+    assert len(exact.events) > 50
+    if ball.static_deflection() * relative > 2 * min_hop(ball.R):
+        assert result.rest_time is None and len(result.events) == len(exact.events)
+
+
+@pytest.mark.parametrize("v_departure", [1e-3, 1e-4, 3e-5, 1e-5])
+def test_small_hops_are_found_in_pairs(v_departure):
+    """Leaving R upwards at v: a hop of v^2/2g (5e-8 .. 5e-12 m) then a contact."""
+    result = bb.simulate(ARTICLE, ARTICLE.R, v_departure, 0.5, 1e-4)
+    assert_exact(result, ARTICLE.R, v_departure)
+
+
+# --- 2. long and stiff rests --------------------------------------------------------------------
+@pytest.mark.parametrize(("ball", "t_end"), [(ARTICLE, 1e6), (bb.Ball(m=1e-9), 1e5), (bb.Ball(m=1e-6), 1e4)],
+                         ids=["article-1e6s", "m1e-9-1e5s", "tiny-mass-1e4s"])
+def test_long_rests_at_one_second_output(ball, t_end):
+    result = bb.simulate(ball, 2.0, 0.0, t_end, 1.0)
+    exact = ExactSolution(ball, 2.0, 0.0, 0.0, t_end)
+    assert max_height_error(result.h, exact.state(result.t)[0]) <= 1e-6
+    assert len(result.events) == len(exact.events)
+
+
+@pytest.mark.parametrize("take_state", [False, True])
+def test_advancing_in_steps_with_a_state_taken_before_each(take_state):
+    ball = bb.Ball(m=1e-9)
+    integrator = BallIntegrator(ball, 2.0, 0.0)
+    exact = ExactSolution(ball, 2.0, 0.0, 0.0, 60.0)
+    for t in range(1, 61):
+        if take_state:
+            integrator.get_state()
+        integrator.advance(float(t))
+        h_exact, v_exact = exact.state(float(t))
+        assert abs(integrator.h - h_exact[0]) <= 1e-6, t
+    assert integrator.mode == bb.Mode.CONTACT and integrator.impacts == sum(e.kind == "impact" for e in exact.events)
+
+
+# --- 3. contacts too short for double precision ------------------------------------------------
+def test_a_contact_too_short_for_the_time_span_is_refused_before_any_work():
+    ball = bb.Ball(k=1e15, m=1e-9)
+    refusal = r"k = 1000000000000000.0 N/m with m = 1e-09 kg.*contact lasts 3.14e-12 s.*ulp"
+    with pytest.raises(ValueError, match=refusal):
+        bb.simulate(ball, 2.0, 0.0, 1e5, 1.0)
+    with pytest.raises(ValueError, match="k = 1000000000000000.0"):
+        BallIntegrator(ball, 2.0, 0.0, t0=1e5)
+    integrator = BallIntegrator(ball, 2.0, 0.0)
+    with pytest.raises(ValueError, match="Shorten the run"):
+        integrator.advance(1e5)
+    assert integrator.t == 0.0 and integrator.h == 2.0  # nothing was done
+
+
+def test_a_stiff_contact_within_the_resolvable_span_stays_exact():
+    ball = bb.Ball(k=1e15, m=1e-9, b=1e-3)
+    t_end = min(1.0, 0.5 * resolvable_until(ball))
+    check_resolvable(ball, t_end)
+    assert_exact(bb.simulate(ball, 0.1, 0.0, t_end, t_end / 1000), 0.1, 0.0)
+
+
+# --- 4. the failures with the wrong reason ----------------------------------------------------
+def test_stiff_tiny_ball_finishes_with_the_exact_events():
+    ball = bb.Ball(m=7.845629028153048e-06, k=1273664406.973477, b=131.07385603248107, R=0.016349292318303628,
+                   g=5.745576497079252)
+    h0, v0, t_end = 0.01761906428125259, 26.39033834877121, 25.48148283754829
+    assert_exact(bb.simulate(ball, h0, v0, t_end, t_end / 2000), h0, v0)
+
+
+def test_stiff_launch_to_a_kilometre_within_its_height_scale():
+    ball = bb.Ball(m=1.061978669547503e-06, k=50252528378.98195, b=63.6285912403694, R=0.02896884121095645,
+                   g=42.94743356597073)
+    h0, v0, t_end = 924.8938356173458, 37.81348468340714, 24.35498984703338
+    assert_exact(bb.simulate(ball, h0, v0, t_end, t_end / 2000), h0, v0)
+
+
+# --- the property: random balls over wide ranges, grazing included ------------------------------
+def _log_uniform(low, high):
+    return st.floats(math.log10(low), math.log10(high)).map(lambda x: 10.0**x)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(
+    m=_log_uniform(1e-6, 1e3), k=_log_uniform(1e1, 1e12),
+    zeta=st.one_of(st.just(0.0), _log_uniform(1e-4, 10.0)), R=_log_uniform(1e-4, 1.0), g=st.floats(0.0, 100.0),
+    lift=st.one_of(st.just(0.0), _log_uniform(1e-12, 1e3)), v0=st.floats(-50.0, 50.0),
+)
+def test_random_balls_against_the_exact_solution(m, k, zeta, R, g, lift, v0):
+    ball = bb.Ball(m=m, k=k, b=2.0 * zeta * math.sqrt(k * m), R=R, g=g)
+    h0 = ball.rest_height() + lift
+    t_end = 3.0
+    exact = ExactSolution(ball, h0, v0, 0.0, t_end)
+    assume(len(exact.events) <= 400)  # cost, not difficulty: a test must stay seconds long
+    assume(resolvable_until(ball) >= t_end)
+    result = bb.simulate(ball, h0, v0, t_end, t_end / 2000)
+    assert_exact(result, h0, v0)
+    assert np.all(np.isfinite(result.h))
+
+
+# --- 5. SUNDIALS warnings -------------------------------------------------------------------------
+def test_sundials_warnings_become_python_warnings_once_per_cause_and_stay_off_stderr(capfd):
+    """Starting at t0 = 1e6 s, CVODE's first step guess is below one ulp of t: SUNDIALS warns each step."""
+    from bouncingball.solvers.sundials_log import SundialsWarning
+
+    integrator = BallIntegrator(ARTICLE, 2.0, 0.0, t0=1e6)
+    with pytest.warns(SundialsWarning, match=r"t \+ h = t") as caught:
+        integrator.advance(1e6 + 2.0)
+    assert len([w for w in caught if "t + h = t" in str(w.message)]) == 1
+    assert "WARNING" not in capfd.readouterr().err
+    exact = ExactSolution(ARTICLE, 2.0, 0.0, 1e6, 1e6 + 2.0)
+    assert abs(integrator.h - exact.state(1e6 + 2.0)[0][0]) <= 1e-6
+    assert integrator.impacts == sum(e.kind == "impact" for e in exact.events)
+
+
+def test_a_sundials_log_reports_each_cause_once():
+    """The log on its own: a raw scikit-sundae CVODE object created under capturing()."""
+    from sksundae.cvode import CVODE
+
+    from bouncingball.solvers.sundials_log import SundialsLog
+
+    def rhs(t, y, yp):
+        yp[0], yp[1] = y[1], -y[0]
+
+    log, solver = SundialsLog(), CVODE(rhs, rtol=1e-10, atol=1e-12)
+    with log.capturing():
+        solver.solve(np.array([1e9, 1e9 + 1.0]), np.array([1.0, 0.0]))
+    messages = log.new_messages()
+    assert len(messages) >= 1 and all(m.startswith("CVode: ") for m in messages)
+    assert len({m.split(" t = ")[0] for m in messages}) == len(messages)  # one per cause
+    solver.solve(np.array([2e9, 2e9 + 1.0]), np.array([1.0, 0.0]))  # same file, same causes
+    assert log.new_messages() == []
