@@ -43,12 +43,12 @@ class SundialsLog:
     """
 
     def __init__(self) -> None:
-        descriptor, self.path = tempfile.mkstemp(prefix="bouncingball-sundials-", suffix=".log")
-        os.close(descriptor)
+        # Kept open to read back: seeking an open descriptor costs far less than a stat of the path.
+        self._descriptor, self.path = tempfile.mkstemp(prefix="bouncingball-sundials-", suffix=".log")
         self._opened = False
         self._offset = 0
         self._causes: set[str] = set()
-        self._remove = weakref.finalize(self, _remove, self.path)
+        self._remove = weakref.finalize(self, _remove, self._descriptor, self.path)
 
     @contextlib.contextmanager
     def capturing(self):
@@ -72,11 +72,11 @@ class SundialsLog:
         if _fflush is not None:
             _fflush(None)
         try:
-            if os.path.getsize(self.path) <= self._offset:
+            size = os.lseek(self._descriptor, 0, os.SEEK_END)
+            if size <= self._offset:
                 return []
-            with open(self.path, "rb") as log:
-                log.seek(self._offset)
-                data = log.read()
+            os.lseek(self._descriptor, self._offset, os.SEEK_SET)
+            data = os.read(self._descriptor, size - self._offset)
         except OSError:
             return []
         complete = data.rfind(b"\n") + 1  # a line still being written is read next time
@@ -98,6 +98,8 @@ class SundialsLog:
             warnings.warn(f"SUNDIALS {message}", SundialsWarning, stacklevel=stacklevel)
 
 
-def _remove(path: str) -> None:
+def _remove(descriptor: int, path: str) -> None:
+    with contextlib.suppress(OSError):
+        os.close(descriptor)
     with contextlib.suppress(OSError):
         os.remove(path)
