@@ -231,3 +231,16 @@ def test_a_sundials_log_reports_each_cause_once():
     assert len({m.split(" t = ")[0] for m in messages}) == len(messages)  # one per cause
     solver.solve(np.array([2e9, 2e9 + 1.0]), np.array([1.0, 0.0]))  # same file, same causes
     assert log.new_messages() == []
+
+
+@pytest.mark.parametrize(("g", "h0", "F_ext"), [(0.0, 1.0, 0.0), (9.81, 1.0, 9.81), (9.81, 0.06, 9.81)],
+                         ids=["no-gravity", "lifted-by-its-weight", "lifted-at-the-ground"])
+def test_a_hovering_ball_stays_put_without_a_warning(g, h0, F_ext):
+    """Zero net force in flight: nothing moves, and no root function may sit at 0 (SUNDIALS would warn)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        result = bb.simulate(bb.Ball(g=g), h0, 0.0, 1.0, 0.1, F_ext=F_ext)
+    assert np.all(result.h == h0) and np.all(result.v == 0.0)
+    assert result.events == []

@@ -173,7 +173,9 @@ class BallIntegrator:
 
         def event(t, y, out):
             out[0] = y[0] - R if y[0] != R else own_side
-            out[1] = y[1]
+            # Under zero net gravity v never changes in flight: a root function identically 0 would
+            # only make CVODE warn.
+            out[1] = y[1] if contact or ball.effective_gravity(self._F_ext) != 0.0 else 1.0
             if contact and ball.static_deflection(self._F_ext) > 0.0:
                 out[2] = ball.rest_margin(y[0], y[1], self._F_ext, hop_tolerance)
             else:
