@@ -6,8 +6,9 @@ catch or filter them, and where they flood the log of a host that runs our FMU. 
 the file to write them to from SUNLOGGER_WARNING_FILENAME when a solver's SUNDIALS context is
 created; scikit-sundae (checked on 1.2.0) creates it at a CVODE object's first solve or
 init_step, and keeps it, with that file open, for the object's life. So each solver gets its own
-file, set in the environment around its first call only, and read back after each call (after
-flushing C's stdio buffers, which SUNDIALS does not flush itself). Each cause (a message with its
+file (on Linux one without a name, reached through /proc/self/fd), set in the environment around
+its first call only, and read back after each call (after flushing C's stdio buffers, which SUNDIALS
+does not flush itself). Each cause (a message with its
 numbers taken out) is reported once per solver, as a SundialsWarning.
 """
 
@@ -22,6 +23,7 @@ import warnings
 import weakref
 
 ENVIRONMENT_VARIABLE = "SUNLOGGER_WARNING_FILENAME"
+_OWN_DESCRIPTORS = "/proc/self/fd"
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 _MESSAGE = re.compile(r"^\[WARNING\]\[[^]]*\]\[[^]]*\]\[(?P<function>[^]]*)\] (?P<text>.*)$")
 
@@ -45,6 +47,11 @@ class SundialsLog:
     def __init__(self) -> None:
         # Kept open to read back: seeking an open descriptor costs far less than a stat of the path.
         self._descriptor, self.path = tempfile.mkstemp(prefix="bouncingball-sundials-", suffix=".log")
+        if os.path.isdir(_OWN_DESCRIPTORS):
+            # Linux: SUNDIALS opens the file through our descriptor, so it needs no name at all and
+            # nothing is left behind by a process that ends without finalising (a killed worker).
+            os.remove(self.path)
+            self.path = os.path.join(_OWN_DESCRIPTORS, str(self._descriptor))
         self._opened = False
         self._offset = 0
         self._causes: set[str] = set()
@@ -101,5 +108,6 @@ class SundialsLog:
 def _remove(descriptor: int, path: str) -> None:
     with contextlib.suppress(OSError):
         os.close(descriptor)
-    with contextlib.suppress(OSError):
-        os.remove(path)
+    if not path.startswith(_OWN_DESCRIPTORS):
+        with contextlib.suppress(OSError):
+            os.remove(path)
