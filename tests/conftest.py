@@ -4,10 +4,11 @@ from pathlib import Path
 import pytest
 from hypothesis import settings
 
-# CI replays the same examples every run, so that a red run is reproducible; locally hypothesis explores.
-settings.register_profile("ci", derandomize=True)
-if os.environ.get("CI"):
-    settings.load_profile("ci")
+# Every run replays the same examples, so that a red run is reproducible anywhere (CI included).
+# BOUNCINGBALL_HYPOTHESIS=explore draws new ones each run, to look for more.
+settings.register_profile("replay", derandomize=True)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("BOUNCINGBALL_HYPOTHESIS", "replay"))
 
 
 @pytest.fixture(scope="session")

@@ -184,6 +184,29 @@ def test_rollback_gives_the_same_outputs_within_tolerance(unzipped):
         ball.free()
 
 
+@pytest.mark.parametrize("take_state", [False, True], ids=["plain", "state-every-step"])
+@pytest.mark.parametrize("m", [1e-6, 1e-9])
+def test_tiny_mass_at_one_second_steps_stays_exact(unzipped, m, take_state):
+    """Steps of many contact periods, with fmi2GetFMUstate before each (what a master that can reject
+    steps does): at every communication point within 1e-6 m of the exact solution, at rest at the end."""
+    ball = Instance(unzipped)
+    try:
+        ball.initialize(m=m)
+        heights, states = [], []
+        for t in range(60):
+            if take_state:
+                states.append(ball.fmu.getFMUstate())
+            ball.fmu.doStep(float(t), 1.0)
+            heights.append(ball.get("h")[0])
+        for state in states:
+            ball.fmu.freeFMUstate(state)
+        h_exact, _, _ = exact_at(np.arange(1.0, 61.0), Ball(m=m))
+        assert np.max(np.abs(np.array(heights) - h_exact)) <= 1e-6
+        assert ball.errors() == []
+    finally:
+        ball.free()
+
+
 def assert_same_run(outputs, expected):
     """Same contact flags and impact counts at every step; h within 1e-9 m and v within 1e-7 m/s."""
     assert [(row[3], row[5]) for row in outputs] == [(row[3], row[5]) for row in expected]
@@ -292,6 +315,31 @@ def test_cvode_failure_gives_fmi2Error_with_cvode_reason(unzipped):
         assert raised.value.status == 3
         [message] = ball.errors()
         assert message.startswith("CVODE failed at t = 0.0 s") and "demanded accuracy" in message
+    finally:
+        ball.free()
+
+
+def test_a_contact_too_short_for_double_precision_gives_fmi2Error_and_changes_nothing(unzipped):
+    """k = 1e15 N/m, m = 1e-9 kg: a contact lasts 3 ps, below what double precision resolves at 1e5 s."""
+    from bouncingball.solvers.cvode import resolvable_until
+
+    ball_model = Ball(k=1e15, m=1e-9)
+    limit = resolvable_until(ball_model)
+    ball = Instance(unzipped)
+    try:
+        ball.initialize(k=1e15, m=1e-9)
+        assert 1.0 < limit < 2.0
+        ball.fmu.doStep(0.0, 0.5)
+        before = ball.outputs()
+        with pytest.raises(fmpy.fmi1.FMICallException) as raised:
+            ball.fmu.doStep(0.5, 1e5)
+        assert raised.value.status == 3
+        [message] = ball.errors()
+        assert "k = 1000000000000000.0 N/m with m = 1e-09 kg is not allowed up to t = 100000.5 s" in message
+        assert f"t <= {limit:.4g} s" in message
+        assert ball.outputs() == before  # refused before any work: the instance carries on from t = 0.5 s
+        ball.fmu.doStep(0.5, 0.5)
+        assert abs(ball.get("h")[0] - exact_at([1.0], ball_model)[0][0]) <= 1e-6
     finally:
         ball.free()
 

@@ -6,10 +6,11 @@ within 1e-6 of the scene's height scale on the whole output grid.
 """
 
 import math
+import os
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
 import bouncingball as bb
@@ -181,18 +182,29 @@ def _log_uniform(low, high):
     return st.floats(math.log10(low), math.log10(high)).map(lambda x: 10.0**x)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(
     m=_log_uniform(1e-6, 1e3), k=_log_uniform(1e1, 1e12),
     zeta=st.one_of(st.just(0.0), _log_uniform(1e-4, 10.0)), R=_log_uniform(1e-4, 1.0), g=st.floats(0.0, 100.0),
     lift=st.one_of(st.just(0.0), _log_uniform(1e-12, 1e3)), v0=st.floats(-50.0, 50.0),
 )
+# Found by exploring, replayed always: contacts creeping to rest (critical damping, (almost) no
+# weight), undamped small balls (error growing bounce by bounce), an impact at the end of the run.
+@example(m=2.317700043930019e-4, k=57428147.75181946, zeta=1.0, R=1.0, g=0.0, lift=0.0, v0=-12.5)
+@example(m=4.07758074925151e-3, k=32647608265.54553, zeta=1.000000137244776, R=10.0**-2.00001,
+         g=1.3810799475959544e-183, lift=1.0, v0=-18.906758504311465)
+@example(m=10.0**0.09375, k=79147554394.1116, zeta=0.0, R=1e-3, g=36.0, lift=0.0, v0=1.0)
+@example(m=1.0, k=1e8, zeta=0.0, R=1e-3, g=34.0, lift=0.0, v0=1.0)
+@example(m=1.0, k=1e8, zeta=0.0, R=0.1, g=1.0, lift=0.0, v0=1.5)
 def test_random_balls_against_the_exact_solution(m, k, zeta, R, g, lift, v0):
     ball = bb.Ball(m=m, k=k, b=2.0 * zeta * math.sqrt(k * m), R=R, g=g)
     h0 = ball.rest_height() + lift
     t_end = 3.0
     exact = ExactSolution(ball, h0, v0, 0.0, t_end)
-    assume(len(exact.events) <= 400)  # cost, not difficulty: a test must stay seconds long
+    # An undamped ball keeps every error it makes: each contact's departure speed is off by a few
+    # rtol, so event times drift with the square of the number of bounces (50 at the defaults:
+    # within 1e-6 of the height scale; the 1000 s `undamped` scene measures the long run).
+    assume(len(exact.events) <= 100)
     assume(resolvable_until(ball) >= t_end)
     result = bb.simulate(ball, h0, v0, t_end, t_end / 2000)
     assert_exact(result, h0, v0)
@@ -244,3 +256,20 @@ def test_a_hovering_ball_stays_put_without_a_warning(g, h0, F_ext):
         result = bb.simulate(bb.Ball(g=g), h0, 0.0, 1.0, 0.1, F_ext=F_ext)
     assert np.all(result.h == h0) and np.all(result.v == 0.0)
     assert result.events == []
+
+
+def test_a_killed_process_leaves_no_sundials_log_behind(tmp_path):
+    """A worker killed mid-run (a time cap, a lost node) must not litter the temporary folder."""
+    import subprocess
+    import sys
+
+    code = ("import os, signal\n"
+            "from bouncingball.solvers.cvode import BallIntegrator\n"
+            "from bouncingball.physics import Ball\n"
+            "integrator = BallIntegrator(Ball(), 2.0, 0.0, t0=1e6)\n"
+            "integrator.advance(1e6 + 1.0)\n"
+            "os.kill(os.getpid(), signal.SIGKILL)\n")
+    run = subprocess.run([sys.executable, "-W", "ignore", "-c", code], env={**os.environ, "TMPDIR": str(tmp_path)},
+                         capture_output=True, text=True)
+    assert run.returncode == -9, run.stderr
+    assert list(tmp_path.iterdir()) == []
