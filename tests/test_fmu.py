@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bouncingball.fmu_build import SMALLEST_POSITIVE, UNITS, VARIABLES
+from bouncingball.fmu.variables import SMALLEST_POSITIVE, UNITS, VARIABLES
 from bouncingball.physics import Ball
 from bouncingball.scenes import load_scene
 from bouncingball.solvers.cvode import CvodeSettings
@@ -65,9 +65,14 @@ def test_model_description_has_units_ranges_and_start_values(fmu):
 
 
 def test_fmu_carries_the_package_and_a_linux_binary_only(fmu):
+    """The package travels under a name of its own: bouncingball_fmu_<16 hex digits of its sources>."""
+    import re
+
     names = zipfile.ZipFile(fmu).namelist()
-    assert "resources/bouncingball_fmu_slave.py" in names
-    assert "resources/bouncingball/solvers/cvode.py" in names and "resources/bouncingball/data/scenes.toml" in names
+    [script] = [n for n in names if re.fullmatch(r"resources/bouncingball_fmu_[0-9a-f]{16}_slave\.py", n)]
+    package = script.removesuffix("_slave.py")
+    assert f"{package}/solvers/cvode.py" in names and f"{package}/data/scenes.toml" in names
+    assert not any(n.startswith("resources/bouncingball/") for n in names)
     assert sorted(n for n in names if n.startswith("binaries/")) == [
         "binaries/linux64/BouncingBall.so", "binaries/linux64/BouncingBall_pythonfmu.so"]
 
@@ -88,7 +93,7 @@ def test_fmutool_check_passes(fmu):
 
 
 def test_importing_the_fmu_modules_imports_no_fmu_tool():
-    code = ("import sys, bouncingball, bouncingball.fmu_build, bouncingball.fmu_validate, bouncingball.cli; "
+    code = ("import sys, bouncingball, bouncingball.fmu.build, bouncingball.fmu.validate, bouncingball.cli; "
             "print(sorted(m for m in ('pythonfmu', 'fmpy', 'scipy', 'matplotlib') if m in sys.modules))")
     completed = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert completed.stdout.strip() == "[]"

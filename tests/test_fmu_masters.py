@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from bouncingball.cli import main
-from bouncingball.fmu_build import shared_libpython
+from bouncingball.fmu.build import shared_libpython
 from bouncingball.physics import Ball
 from fmu_helpers import TIGHT, exact_at
 
@@ -145,9 +145,72 @@ def test_repeated_simulations_in_a_fresh_python_process(fmu):
             "from fmpy import simulate_fmu\n"
             "runs = [simulate_fmu(sys.argv[1], stop_time=2.0, output_interval=0.01)['h'] for _ in range(8)]\n"
             "assert all((run == runs[0]).all() for run in runs)\n"
-            "assert '/resources/bouncingball/' in sys.modules['bouncingball'].__file__  # the FMU's copy\n"
+            "assert 'bouncingball' not in sys.modules  # the FMU's copy has a name of its own\n"
             "print('ok')\n")
     for _ in range(2):
         completed = subprocess.run([sys.executable, "-c", code, str(fmu)], capture_output=True, text=True,
                                    check=False, timeout=300)
         assert (completed.returncode, completed.stdout.strip()) == (0, "ok"), completed.stderr
+
+
+# --- the FMU in a Python process that also uses the package -----------------------------------------
+HOST_USES_THE_PACKAGE = """
+import sys
+import numpy as np
+from fmpy import simulate_fmu
+
+def use_the_package():
+    import bouncingball as bb
+    import bouncingball.solvers.exact
+    exact = bb.simulate(bb.Ball(), 2.0, 0.0, 2.0, 0.01, solver="exact")
+    cvode = bb.simulate(bb.Ball(), 2.0, 0.0, 2.0, 0.01)
+    assert np.max(np.abs(cvode.h - exact.h)) < 1e-8
+    assert "/site-packages/" in bb.__file__ or "/src/bouncingball/" in bb.__file__, bb.__file__
+    return exact
+
+def run_the_fmu():
+    return simulate_fmu(sys.argv[1], stop_time=2.0, output_interval=0.01)
+
+if sys.argv[2] == "fmu-first":
+    fmu = run_the_fmu()
+    exact = use_the_package()
+else:
+    exact = use_the_package()
+    fmu = run_the_fmu()
+assert np.max(np.abs(fmu["h"] - exact.h)) < 1e-8
+again = run_the_fmu()  # its unzipped folder is gone: the FMU's modules must not depend on it
+assert np.array_equal(again["h"], fmu["h"])
+use_the_package()
+print("ok")
+"""
+
+
+@pytest.mark.parametrize("order", ["fmu-first", "package-first"])
+def test_the_fmu_and_the_package_in_one_python_process(fmu, order):
+    completed = subprocess.run([sys.executable, "-c", HOST_USES_THE_PACKAGE, str(fmu), order], capture_output=True,
+                               text=True, check=False, timeout=300)
+    assert (completed.returncode, completed.stdout.strip()) == (0, "ok"), completed.stderr
+
+
+def test_two_different_builds_in_one_process(fmu, tmp_path, monkeypatch):
+    """A second build from other sources (here: a slave script one comment longer) gets other names."""
+    from bouncingball.fmu import build
+
+    changed = tmp_path / "bouncingball_fmu_slave.py"
+    changed.write_text(build.SLAVE_SCRIPT.read_text() + "# another build\n")
+    monkeypatch.setattr(build, "SLAVE_SCRIPT", changed)
+    other = build.build_fmu(tmp_path / "Other.fmu")
+    code = ("import sys\n"
+            "from fmpy import simulate_fmu\n"
+            "first = simulate_fmu(sys.argv[1], stop_time=1.0, output_interval=0.1)\n"
+            "second = simulate_fmu(sys.argv[2], stop_time=1.0, output_interval=0.1, start_values={'g': 1.62})\n"
+            "third = simulate_fmu(sys.argv[1], stop_time=1.0, output_interval=0.1)\n"
+            "copies = sorted(n for n in sys.modules if n.startswith('bouncingball_fmu_') and n.count('.') == 0"
+            " and not n.endswith('_slave'))\n"
+            "print(len(copies), (first['h'] == third['h']).all(), second['h'][-1])\n")
+    completed = subprocess.run([sys.executable, "-c", code, str(fmu), str(other)], capture_output=True, text=True,
+                               check=False, timeout=300)
+    assert completed.returncode == 0, completed.stderr
+    count, same, h_moon = completed.stdout.split()
+    assert (count, same) == ("2", "True")
+    assert abs(float(h_moon) - (2.0 - 0.5 * 1.62 * 1.0**2)) < 1e-9  # free fall on the Moon, no impact yet

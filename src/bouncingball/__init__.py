@@ -1,8 +1,8 @@
 """bouncingball: a ball with compliant contact, integrated by SUNDIALS CVODE with exact events."""
 
-from bouncingball.physics import Ball, Mode
-from bouncingball.solvers import SOLVERS, simulate
-from bouncingball.solvers.result import Event, SimulationResult, SolverStats
+from .physics import Ball, Mode
+from .solvers import SOLVERS, simulate
+from .solvers.result import Event, SimulationResult, SolverStats
 
 __version__ = "0.1.0"
 

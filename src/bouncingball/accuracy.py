@@ -7,9 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bouncingball.physics import Mode
-from bouncingball.solvers.exact import ExactSolution
-from bouncingball.solvers.result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats
+from .physics import Mode
+from .solvers.exact import ExactSolution
+from .solvers.result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from bouncingball import SOLVERS
+from . import SOLVERS
 
 EXIT_BAD_INPUT = 2
 EXIT_SOLVER_FAILED = 1
@@ -50,13 +50,13 @@ def _build_parser() -> argparse.ArgumentParser:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from bouncingball.accuracy import compare, exact_counterpart
-    from bouncingball.output import write_events_csv, write_solution_csv
-    from bouncingball.scenes import load_scene
+    from .accuracy import compare, exact_counterpart
+    from .output import write_events_csv, write_solution_csv
+    from .scenes import load_scene
 
     scene = load_scene(args.scene)
     if args.plot:
-        from bouncingball.plotting import require_matplotlib
+        from .plotting import require_matplotlib
 
         require_matplotlib()
     options = {name: getattr(args, name) for name in ("method", "rtol", "atol", "max_step")
@@ -94,7 +94,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.events:
         print(f"  wrote {write_events_csv(result, args.events)}")
     if args.plot:
-        from bouncingball.plotting import plot_height
+        from .plotting import plot_height
 
         title = f"scene {scene.name}: {result.solver}, {len(result.events)} events"
         print(f"  wrote {plot_height(result, args.plot, title, exact=exact)}")
@@ -102,7 +102,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _scenes() -> int:
-    from bouncingball.scenes import BUILTIN_SCENES, load_scene
+    from .scenes import BUILTIN_SCENES, load_scene
 
     header = f"{'scene':14s}{'m [kg]':>9s}{'k [N/m]':>9s}{'b [N s/m]':>11s}{'R [m]':>7s}{'g [m/s2]':>10s}" \
              f"{'h0 [m]':>10s}{'v0 [m/s]':>10s}{'t_end [s]':>11s}  description"
@@ -122,15 +122,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "run":
             return _run(args)
         if args.command == "build-fmu":
-            from bouncingball.fmu_build import build_command
+            from .fmu.build import build_command
 
             return build_command(args.output)
         if args.command == "validate":
-            from bouncingball.fmu_validate import validate_command
+            from .fmu.validate import validate_command
 
             return validate_command(args.scene, args.fmu)
         if args.command == "bench":
-            from bouncingball.bench import bench_command
+            from .bench import bench_command
 
             return bench_command(args.output_dir, args.quick, args.stability)
         return _scenes()

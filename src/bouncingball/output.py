@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bouncingball.solvers.result import SimulationResult
+from .solvers.result import SimulationResult
 
 
 def write_solution_csv(result: SimulationResult, path: str | Path) -> Path:

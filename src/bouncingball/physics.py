@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bouncingball import validation
+from . import validation
 
 
 class Mode(enum.IntEnum):

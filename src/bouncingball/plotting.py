@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bouncingball.solvers.result import IMPACT, SimulationResult
+from .solvers.result import IMPACT, SimulationResult
 
 
 def plot_height(result: SimulationResult, path: str | Path, title: str = "", exact: SimulationResult | None = None

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from bouncingball import validation
-from bouncingball.physics import Ball
+from . import validation
+from .physics import Ball
 
 BALL_KEYS = ("m", "k", "b", "R", "g")
 SCENE_DEFAULTS = {"h0": 2.0, "v0": 0.0, "t_end": 8.0, "output_interval": 1e-3, "F_ext": 0.0}
@@ -31,7 +31,7 @@ class Scene:
 
     def simulate(self, solver: str = "cvode", **options):
         """Run this scene with bouncingball.simulate; t_end and output_interval may be overridden."""
-        from bouncingball.solvers import simulate
+        from .solvers import simulate
 
         t_end = options.pop("t_end", self.t_end)
         output_interval = options.pop("output_interval", min(self.output_interval, t_end))
@@ -39,7 +39,7 @@ class Scene:
 
 
 def _builtin_table() -> dict[str, dict]:
-    text = resources.files("bouncingball").joinpath("data/scenes.toml").read_text(encoding="utf-8")
+    text = resources.files(__package__).joinpath("data/scenes.toml").read_text(encoding="utf-8")
     return tomllib.loads(text)
 
 

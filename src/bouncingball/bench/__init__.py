@@ -18,11 +18,11 @@ def bench_command(output_dir: str | Path = "docs", quick: bool = False, stabilit
     output_dir.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     if stability:
-        from bouncingball.bench.stability import run_stability_study
+        from .stability import run_stability_study
 
         written = run_stability_study(output_dir, quick=quick)
     else:
-        from bouncingball.bench.work_precision import run_benchmark
+        from .work_precision import run_benchmark
 
         written = run_benchmark(output_dir, quick=quick)
     for path in written:

@@ -12,15 +12,16 @@ from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 
-from bouncingball.bench import runners
-from bouncingball.bench.stability import (
+from ..scenes import Scene
+from . import runners
+from .stability import (
     EXTRA_SCENES,
     STIFF_TARGET,
     CostPerEvent,
     Outcome,
     stability_solvers,
 )
-from bouncingball.bench.work_precision import (
+from .work_precision import (
     ATOL_PER_RTOL,
     DENSE,
     H_FILE,
@@ -29,7 +30,6 @@ from bouncingball.bench.work_precision import (
     Settings,
     time_at_error,
 )
-from bouncingball.scenes import Scene
 
 MATCHED_ERRORS = (1e-6, 1e-9)  # [m]
 ARTICLE_SPEEDUP = 3.0  # CVODE at least this much faster than the article's algorithm
@@ -440,7 +440,7 @@ def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: Co
         f"A solver's tighter tolerances are skipped once one run takes over {settings.budget:g} s. "
         "solve_ivp methods use the article's event restart without max_step; the article's algorithm is RK45 with "
         "max_step 0.01 at SciPy's default tolerances. The FMU rows run the FMU built by "
-        "`bouncingball.fmu_build.build_fmu` (into a temporary directory) through `fmpy.simulate_fmu` (output h) "
+        "`bouncingball.fmu.build.build_fmu` (into a temporary directory) through `fmpy.simulate_fmu` (output h) "
         "with the communication step shown; their error is measured on that grid "
         "and they count impacts (the FMU's `impacts` output), not events.",
         "",

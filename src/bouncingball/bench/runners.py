@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
-from bouncingball.accuracy import max_event_time_error, max_height_error
-from bouncingball.scenes import BALL_KEYS, Scene
-from bouncingball.solvers.exact import ExactSolution
-from bouncingball.solvers.result import IMPACT, Event
+from ..accuracy import max_event_time_error, max_height_error
+from ..scenes import BALL_KEYS, Scene
+from ..solvers.exact import ExactSolution
+from ..solvers.result import IMPACT, Event
 
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau", "BDF")
 EXPLICIT_SCIPY_METHODS = ("RK45", "DOP853")
@@ -184,7 +184,7 @@ def build_fmus(directory: Path) -> FmuPaths:
     from fmpy import extract
     from pythonfmu import FmuBuilder
 
-    from bouncingball.fmu_build import build_fmu
+    from ..fmu.build import build_fmu
 
     try:
         ball = build_fmu(directory / "BouncingBall.fmu")

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from bouncingball.bench import runners
-from bouncingball.bench.runners import ARTICLE, CVODE_AUTO, EXACT, Errors, FmuPaths, Solver
-from bouncingball.physics import Ball
-from bouncingball.scenes import BUILTIN_SCENES, Scene, load_scene, scene_from_mapping
+from ..physics import Ball
+from ..scenes import BUILTIN_SCENES, Scene, load_scene, scene_from_mapping
+from . import runners
+from .runners import ARTICLE, CVODE_AUTO, EXACT, Errors, FmuPaths, Solver
 
 _DEFAULT = Ball()
 # Extreme scenes beyond the built-in ones: each holds only what differs from the article's defaults.
@@ -77,7 +77,7 @@ def stability_solvers(scene: Scene) -> list[Solver]:
 
 def stability_cases(scenes: list[Scene]) -> list[Case]:
     """Every solver at CVODE's default tolerances (the article's algorithm as published)."""
-    from bouncingball.solvers.cvode import DEFAULT_ATOL, DEFAULT_RTOL
+    from ..solvers.cvode import DEFAULT_ATOL, DEFAULT_RTOL
 
     cases = []
     for scene in scenes:
@@ -178,8 +178,8 @@ def cost_per_event(t_end: float, chunks: int = 100) -> CostPerEvent:
     """The undamped ball for t_end [s] in one CVODE integrator, timed chunk by chunk (0.01 s output grid)."""
     from tqdm import tqdm
 
-    from bouncingball.solvers.cvode import BallIntegrator
-    from bouncingball.solvers.result import output_grid
+    from ..solvers.cvode import BallIntegrator
+    from ..solvers.result import output_grid
 
     scene = extra_scene("undamped-10000s")
     integrator = BallIntegrator(scene.ball, scene.h0, scene.v0)
@@ -198,7 +198,7 @@ def cost_per_event(t_end: float, chunks: int = 100) -> CostPerEvent:
 
 def run_stability_study(output_dir: Path, quick: bool = False) -> list[Path]:
     """`bouncingball bench --stability`: the matrix over all scenes and solvers; writes stability.md and .csv."""
-    from bouncingball.bench import report
+    from . import report
 
     cap = QUICK_CAP if quick else FULL_CAP
     environment = report.environment()

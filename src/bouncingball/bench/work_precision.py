@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bouncingball.bench import runners
-from bouncingball.bench.runners import ARTICLE, EXACT, Errors, FmuPaths, Run, Solver
-from bouncingball.scenes import Scene, load_scene
+from ..scenes import Scene, load_scene
+from . import runners
+from .runners import ARTICLE, EXACT, Errors, FmuPaths, Run, Solver
 
 DENSE = 1e-3  # the article's 1 ms output grid [s]
 SPARSE = 0.1  # a sparse grid, where output overhead does not dominate [s]
@@ -185,7 +185,7 @@ def save_h(points: list[Point], path: Path) -> Path:
 
 def run_benchmark(output_dir: Path, quick: bool = False) -> list[Path]:
     """The whole `bouncingball bench`: sweep, stiff scenes, cost per event; writes the docs and returns their paths."""
-    from bouncingball.bench import report, stability
+    from . import report, stability
 
     settings = QUICK if quick else FULL
     scene = load_scene("article")

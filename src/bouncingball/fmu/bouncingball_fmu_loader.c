@@ -15,7 +15,7 @@
  *      refused further calls (pythonfmu has already released its Python objects).
  *   3. pythonfmu 0.7.0 releases its interpreter state twice at process exit; the loader
  *      releases it once, first (see load()).
- * Everything else is forwarded unchanged. Built by bouncingball.fmu_build with
+ * Everything else is forwarded unchanged. Built by bouncingball.fmu.build with
  * -DBB_LIBPYTHON="path of libpython", -DBB_PYTHON="path of the python executable" and
  * -DBB_INNER="file name of pythonfmu's binary, next to this one".
  */

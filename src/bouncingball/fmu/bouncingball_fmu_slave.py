@@ -1,28 +1,64 @@
 """BouncingBall: the bouncing ball as an FMI 2.0 co-simulation slave, a thin adapter for pythonfmu.
 
 Every number comes from bouncingball's CVODE integrator (BallIntegrator); the interface is
-bouncingball.fmu_build.VARIABLES. Nothing here raises: pythonfmu would turn an exception into
+bouncingball.fmu.variables.VARIABLES. Nothing here raises: pythonfmu would turn an exception into
 fmi2Fatal and release the instance. Errors are logged with status error instead, and the FMU's
-binary (fmu/bouncingball_fmu_loader.c) returns fmi2Error for a call that logged one.
+binary (bouncingball_fmu_loader.c) returns fmi2Error for a call that logged one.
+
+The FMU carries its own copy of bouncingball under a name of its own (PACKAGE, set by the build
+to bouncingball_fmu_<digest of its sources>), so that it neither replaces nor uses a bouncingball
+the host process imports, and two different builds in one process do not meet.
 """
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
+import os
+import sys
 from dataclasses import asdict
 
 from pythonfmu import Boolean, Fmi2Slave, Integer, Real, String
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
 
-from bouncingball import validation
-from bouncingball.fmu_build import VARIABLES
-from bouncingball.physics import Ball, Mode
-from bouncingball.scenes import BALL_KEYS, SCENE_DEFAULTS
-from bouncingball.solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, SolverError
+PACKAGE = "bouncingball"
+
+
+def _import_sundials_for_this_fmu():
+    """Import scikit-sundae so that its SUNDIALS calls bind to its own SUNDIALS libraries.
+
+    A host that carries another SUNDIALS (a C master linked to a system SUNDIALS 6) would
+    otherwise capture scikit-sundae's calls into its own, different library and crash. Where
+    scikit-sundae is already loaded (a Python host imported it), it is used as it is.
+    """
+    deep_bind = getattr(os, "RTLD_DEEPBIND", 0)
+    flags = sys.getdlopenflags()
+    if deep_bind and "sksundae" not in sys.modules:
+        import numpy  # noqa: F401  (numpy resolves as usual; only SUNDIALS is bound deep)
+
+        sys.setdlopenflags(flags | deep_bind)
+    try:
+        importlib.import_module("sksundae.cvode")
+    finally:
+        sys.setdlopenflags(flags)
+
+
+_import_sundials_for_this_fmu()
+validation = importlib.import_module(f"{PACKAGE}.validation")
+VARIABLES = importlib.import_module(f"{PACKAGE}.fmu.variables").VARIABLES
+_physics = importlib.import_module(f"{PACKAGE}.physics")
+_scenes = importlib.import_module(f"{PACKAGE}.scenes")
+_cvode = importlib.import_module(f"{PACKAGE}.solvers.cvode")
+Ball, Mode = _physics.Ball, _physics.Mode
+BALL_KEYS, SCENE_DEFAULTS = _scenes.BALL_KEYS, _scenes.SCENE_DEFAULTS
+BallIntegrator, CvodeSettings = _cvode.BallIntegrator, _cvode.CvodeSettings
+IntegratorState, SolverError = _cvode.IntegratorState, _cvode.SolverError
 
 STATE_FORMAT = "bouncingball-fmu-state-1"
 SETTABLE_AFTER_INITIALISATION = ("F_ext",)
+# Outputs the slave computes: a master may set the start values of h and v (initial="exact"), not these.
+COMPUTED_OUTPUTS = tuple(v.name for v in VARIABLES if v.causality == "output" and v.initial != "exact")
 TYPES = {"Real": Real, "Integer": Integer, "Boolean": Boolean, "String": String}
 
 
@@ -45,10 +81,11 @@ class BouncingBall(Fmi2Slave):
         self._start_time = 0.0
         self._tolerance: float | None = None
         self._integrator: BallIntegrator | None = None
-        outputs = {"h": self._h, "v": self._v, "a": self._a, "contact": self._contact,
-                   "contact_force": self._contact_force, "impacts": self._impacts}
         for variable in VARIABLES:
-            getter = outputs.get(variable.name) or (lambda name=variable.name: self._values[name])
+            if variable.causality == "output":  # each output is read by the method of its name
+                getter = getattr(self, f"_{variable.name}")
+            else:
+                getter = lambda name=variable.name: self._values[name]  # noqa: E731
             self.register_variable(TYPES[variable.type](
                 variable.name, causality=Fmi2Causality[variable.causality],
                 variability=Fmi2Variability[variable.variability], description=variable.description,
@@ -123,7 +160,7 @@ class BouncingBall(Fmi2Slave):
 
     # --- variables ------------------------------------------------------------------------------
     def _set(self, name, value):
-        if name in ("a", "contact", "contact_force", "impacts"):
+        if name in COMPUTED_OUTPUTS:
             self._error(f"{name} is an output: it cannot be set")
         elif self._integrator is not None and name not in SETTABLE_AFTER_INITIALISATION:
             self._error(f"{name} = {value!r} is not allowed: {name} cannot change after initialisation")

@@ -1,15 +1,18 @@
 """Build the BouncingBall FMI 2.0 co-simulation FMU with pythonfmu, and complete what it leaves out.
 
-pythonfmu packs the slave script (fmu/bouncingball_fmu_slave.py) and this package into the FMU's
-resources. Its modelDescription.xml has no units, min/max, InitialUnknowns or DefaultExperiment;
-build_fmu() adds them from VARIABLES. Its Linux binary cannot run in a master without Python and
-cannot return fmi2Error; build_fmu() compiles fmu/bouncingball_fmu_loader.c, which fixes both, and
-puts it in front of pythonfmu's binary (docs/fmu.md explains why and what it costs).
+pythonfmu packs the slave script (bouncingball_fmu_slave.py, beside this module) and a copy of
+this package into the FMU's resources. The copy gets a name of its own, bouncingball_fmu_<digest
+of its sources>, so that the FMU neither replaces nor uses the bouncingball of a Python host, and
+two different builds can run in one process. pythonfmu's modelDescription.xml has no units,
+min/max, InitialUnknowns or DefaultExperiment; build_fmu() adds them from variables.VARIABLES. Its
+Linux binary cannot run in a master without Python and cannot return fmi2Error; build_fmu()
+compiles bouncingball_fmu_loader.c, which fixes both, and puts it in front of pythonfmu's binary
+(docs/fmu.md explains why and what it costs). Everything it needs ships in the wheel.
 """
 
 from __future__ import annotations
 
-import math
+import hashlib
 import os
 import platform
 import shutil
@@ -19,71 +22,18 @@ import sysconfig
 import tempfile
 import xml.etree.ElementTree as ET
 import zipfile
-from dataclasses import dataclass
 from pathlib import Path
 
-MODEL_NAME = "BouncingBall"
+from .variables import MODEL_NAME, UNITS, VARIABLES
+
 DEFAULT_OUTPUT = Path("dist") / f"{MODEL_NAME}.fmu"
-PROJECT_ROOT = Path(__file__).resolve().parents[2]
-SLAVE_SCRIPT = PROJECT_ROOT / "fmu" / "bouncingball_fmu_slave.py"
-LOADER_SOURCE = PROJECT_ROOT / "fmu" / "bouncingball_fmu_loader.c"
-PACKAGE_DIR = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parent
+SLAVE_SCRIPT = HERE / "bouncingball_fmu_slave.py"
+LOADER_SOURCE = HERE / "bouncingball_fmu_loader.c"
+PACKAGE_DIR = HERE.parent  # the bouncingball package, copied into the FMU
+PACKAGE_FILES = ("*.py", "data/*.toml")
 PLATFORM = "linux64"
 PYTHONFMU_BINARY = f"{MODEL_NAME}_pythonfmu.so"  # pythonfmu's binary, loaded by ours
-SMALLEST_POSITIVE = math.ulp(0.0)  # FMI's min is inclusive: "> 0" is ">= 5e-324"
-
-# SI units as exponents of the base units
-UNITS = {
-    "m": {"m": 1},
-    "m/s": {"m": 1, "s": -1},
-    "m/s2": {"m": 1, "s": -2},
-    "kg": {"kg": 1},
-    "N": {"kg": 1, "m": 1, "s": -2},
-    "N/m": {"kg": 1, "s": -2},
-    "N.s/m": {"kg": 1, "s": -1},
-}
-
-
-@dataclass(frozen=True)
-class FmuVariable:
-    """One variable of the FMU's interface; the slave registers these, the build adds unit/min/max."""
-
-    name: str
-    type: str  # Real, Integer, Boolean or String
-    causality: str  # parameter, input or output
-    variability: str  # fixed, continuous or discrete
-    description: str
-    unit: str = ""
-    min: float | None = None
-    max: float | None = None
-    initial: str = ""  # "exact" for outputs whose start value is the initial state
-
-
-VARIABLES = (
-    FmuVariable("m", "Real", "parameter", "fixed", "mass of the ball (> 0)", "kg", SMALLEST_POSITIVE),
-    FmuVariable("k", "Real", "parameter", "fixed", "contact spring stiffness (> 0)", "N/m", SMALLEST_POSITIVE),
-    FmuVariable("b", "Real", "parameter", "fixed", "contact damping coefficient (>= 0)", "N.s/m", 0.0),
-    FmuVariable("R", "Real", "parameter", "fixed", "radius of the ball: contact while h < R (> 0)", "m",
-                SMALLEST_POSITIVE),
-    FmuVariable("g", "Real", "parameter", "fixed", "gravitational acceleration (>= 0)", "m/s2", 0.0),
-    FmuVariable("h", "Real", "output", "continuous", "height of the ball's centre; its start value is the "
-                "initial height", "m", initial="exact"),
-    FmuVariable("v", "Real", "output", "continuous", "vertical velocity dh/dt, upwards positive; its start "
-                "value is the initial velocity", "m/s", initial="exact"),
-    FmuVariable("a", "Real", "output", "continuous", "vertical acceleration dv/dt", "m/s2"),
-    FmuVariable("contact", "Boolean", "output", "discrete", "true while the ball touches the ground"),
-    FmuVariable("contact_force", "Real", "output", "continuous", "force of the ground on the ball, upwards "
-                "positive (the damper can pull just before departure)", "N"),
-    FmuVariable("impacts", "Integer", "output", "discrete", "number of impacts since the start", min=0),
-    FmuVariable("F_ext", "Real", "input", "continuous", "external vertical force on the ball, upwards "
-                "positive, held constant over each communication step", "N"),
-    FmuVariable("rtol", "Real", "parameter", "fixed", "CVODE relative tolerance, in (0, 1]; a tolerance "
-                "given in fmi2SetupExperiment replaces it", min=SMALLEST_POSITIVE, max=1.0),
-    FmuVariable("atol", "Real", "parameter", "fixed", "CVODE absolute tolerance on h [m] and v [m/s] (> 0)",
-                min=SMALLEST_POSITIVE),
-    FmuVariable("method", "String", "parameter", "fixed", "CVODE method: auto (Adams in flight, BDF for a "
-                "stiff contact), Adams or BDF"),
-)
 
 
 class FmuBuildError(RuntimeError):
@@ -105,9 +55,19 @@ def build_fmu(output: str | Path = DEFAULT_OUTPUT) -> Path:
     with tempfile.TemporaryDirectory(prefix="bouncingball_fmu_") as temp:
         temp = Path(temp)
         loader = _compile_loader(temp / f"{MODEL_NAME}.so")
-        built = FmuBuilder.build_FMU(SLAVE_SCRIPT, dest=temp / "pythonfmu", project_files=[PACKAGE_DIR],
-                                     needsExecutionTool=False, canGetAndSetFMUstate=True,
-                                     canSerializeFMUstate=True)
+        script, package = _stage(temp / "stage")
+        # pythonfmu imports the script, and with it the package's copy, into this process to read
+        # its variables, and leaves its folder on sys.path: undo both once it is done.
+        path, modules = list(sys.path), set(sys.modules)
+        try:
+            built = FmuBuilder.build_FMU(script, dest=temp / "pythonfmu", project_files=[package],
+                                         needsExecutionTool=False, canGetAndSetFMUstate=True,
+                                         canSerializeFMUstate=True)
+        finally:
+            sys.path[:] = path
+            for name in set(sys.modules) - modules:
+                if name == script.stem or name.split(".")[0] == package.name:
+                    del sys.modules[name]
         output.parent.mkdir(parents=True, exist_ok=True)
         partial = output.with_name(output.name + ".partial")
         _repack(Path(built), loader, partial)
@@ -115,12 +75,39 @@ def build_fmu(output: str | Path = DEFAULT_OUTPUT) -> Path:
     return output
 
 
+def package_sources() -> list[Path]:
+    """The files of this package that the FMU carries (paths relative to the package)."""
+    return sorted({path.relative_to(PACKAGE_DIR) for pattern in PACKAGE_FILES for path in PACKAGE_DIR.rglob(pattern)
+                   if "__pycache__" not in path.parts})
+
+
+def _stage(folder: Path) -> tuple[Path, Path]:
+    """The slave script and the package's copy, both named after the digest of what they contain."""
+    digest = hashlib.sha256()
+    for relative in package_sources():
+        digest.update(str(relative).encode() + b"\0" + (PACKAGE_DIR / relative).read_bytes() + b"\0")
+    digest.update(SLAVE_SCRIPT.read_bytes())
+    name = f"bouncingball_fmu_{digest.hexdigest()[:16]}"
+    package = folder / name
+    for relative in package_sources():
+        (package / relative).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(PACKAGE_DIR / relative, package / relative)
+    source = SLAVE_SCRIPT.read_text(encoding="utf-8")
+    marker = 'PACKAGE = "bouncingball"\n'
+    if source.count(marker) != 1:
+        raise FmuBuildError(f"{SLAVE_SCRIPT.name} must set {marker.strip()} exactly once")
+    # pythonfmu names the slave's module after the script: two builds must not share it either.
+    script = folder / f"{name}_slave.py"
+    script.write_text(source.replace(marker, f'PACKAGE = "{name}"\n'), encoding="utf-8")
+    return script, package
+
+
 def is_stale(fmu: str | Path) -> bool:
     """True if fmu does not exist or is older than a source it is built from."""
     fmu = Path(fmu)
     if not fmu.is_file():
         return True
-    sources = [SLAVE_SCRIPT, LOADER_SOURCE, *PACKAGE_DIR.rglob("*.py"), *PACKAGE_DIR.rglob("*.toml")]
+    sources = [SLAVE_SCRIPT, LOADER_SOURCE, *(PACKAGE_DIR / relative for relative in package_sources())]
     return max(path.stat().st_mtime for path in sources if path.exists()) > fmu.stat().st_mtime
 
 
@@ -142,7 +129,8 @@ def _check_build_host() -> None:
                             f"this is {sys.platform} {platform.machine()}")
     for path in (SLAVE_SCRIPT, LOADER_SOURCE):
         if not path.is_file():
-            raise FmuBuildError(f"{path} not found: build-fmu runs from a source checkout of bouncingball")
+            raise FmuBuildError(f"{path} not found: this installation of bouncingball is incomplete; "
+                                "reinstall it with pip install 'bouncingball[fmu]'")
 
 
 def _compiler() -> str:
@@ -157,7 +145,7 @@ def _c_string(text: str) -> str:
 
 
 def _compile_loader(target: Path) -> Path:
-    """Compile fmu/bouncingball_fmu_loader.c for the Python running this build."""
+    """Compile bouncingball_fmu_loader.c for the Python running this build."""
     from importlib.resources import files
 
     headers = Path(str(files("fmpy") / "c-code"))  # FMPy ships the FMI 2.0 headers
@@ -199,7 +187,7 @@ def _repack(built: Path, loader: Path, target: Path) -> None:
 
 def complete_model_description(xml: bytes) -> bytes:
     """Add units, min/max, DefaultExperiment and InitialUnknowns to pythonfmu's modelDescription.xml."""
-    from bouncingball.scenes import load_scene
+    from ..scenes import load_scene
 
     root = ET.fromstring(xml)
     children = list(root)

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bouncingball.accuracy import compare, exact_counterpart, max_height_error
-from bouncingball.scenes import BALL_KEYS, Scene, load_scene
-from bouncingball.solvers.result import IMPACT, SimulationResult
+from ..accuracy import compare, exact_counterpart, max_height_error
+from ..scenes import BALL_KEYS, Scene, load_scene
+from ..solvers.result import IMPACT, SimulationResult
 
 SCIPY_CAP = 60.0  # s: the article's explicit method takes many minutes on the stiffest scenes
 
@@ -70,7 +70,7 @@ def run_fmu(fmu: str | Path, scene: Scene, **start_values):
 
 def validate(scene_name: str = "article", fmu: str | Path | None = None) -> Report:
     """Run the scene four ways; the FMU is (re)built first if it is missing or older than its sources."""
-    from bouncingball.fmu_build import DEFAULT_OUTPUT, build_fmu, is_stale
+    from .build import DEFAULT_OUTPUT, build_fmu, is_stale
 
     scene = load_scene(scene_name)
     fmu = Path(fmu) if fmu is not None else DEFAULT_OUTPUT
@@ -141,7 +141,7 @@ def _simulate_into(scene: Scene, solver: str, sender) -> None:
 
 def exact_solution_at(scene: Scene, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The exact (h, v) of the scene at the times t."""
-    from bouncingball.solvers.exact import ExactSolution
+    from ..solvers.exact import ExactSolution
 
     solution = ExactSolution(scene.ball, scene.h0, scene.v0, 0.0, float(t[-1]), scene.F_ext)
     return solution.state(t)
@@ -165,7 +165,7 @@ def format_report(report: Report) -> str:
 
 def validate_command(scene: str = "article", fmu: str | None = None) -> int:
     """`bouncingball validate [SCENE] [--fmu PATH]`."""
-    from bouncingball.fmu_build import FmuBuildError
+    from .build import FmuBuildError
 
     try:
         report = validate(scene, fmu)

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import time
 
-from bouncingball import validation
-from bouncingball.physics import Ball
-from bouncingball.solvers.result import Event, SimulationResult, SolverStats, output_grid
+from .. import validation
+from ..physics import Ball
+from .result import Event, SimulationResult, SolverStats, output_grid
 
 SOLVERS = ("cvode", "exact", "scipy")
 DEFAULT_OUTPUT_INTERVAL = 1e-3
@@ -31,10 +31,10 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
         raise ValueError(f"t_end = {t_end!r} s is not allowed: it must be > t_start = {t_start!r} s")
     output_interval = validation.in_range("output_interval", output_interval, 0.0, t_end - t_start, "s")
     if solver == "cvode":
-        from bouncingball.solvers.cvode import simulate_cvode as run
+        from .cvode import simulate_cvode as run
     elif solver == "scipy":
         try:
-            from bouncingball.solvers.scipy_ref import simulate_scipy as run
+            from .scipy_ref import simulate_scipy as run
         except ImportError as error:  # scipy is an optional extra
             raise ImportError("solver 'scipy' needs SciPy: pip install 'bouncingball[reference]'") from error
     else:
@@ -57,7 +57,7 @@ _OPTIONS = {
 def simulate_exact(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
                    t_start: float = 0.0, F_ext: float = 0.0) -> SimulationResult:
     """The piecewise-analytic solution on the output grid."""
-    from bouncingball.solvers.exact import ExactSolution
+    from .exact import ExactSolution
 
     started = time.perf_counter()
     grid = output_grid(t_start, t_end, output_interval)

@@ -14,12 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 from sksundae.cvode import CVODE
 
-from bouncingball import validation
-from bouncingball.physics import Ball, Mode
-from bouncingball.solvers import sksundae_events
-from bouncingball.solvers.dense_output import interpolate, step_state
-from bouncingball.solvers.exact import time_to_departure, time_to_impact
-from bouncingball.solvers.result import (
+from .. import validation
+from ..physics import Ball, Mode
+from . import sksundae_events
+from .dense_output import interpolate, step_state
+from .exact import time_to_departure, time_to_impact
+from .result import (
     DEPARTURE,
     IMPACT,
     Event,
@@ -27,7 +27,7 @@ from bouncingball.solvers.result import (
     SolverStats,
     output_grid,
 )
-from bouncingball.solvers.sundials_log import SundialsLog
+from .sundials_log import SundialsLog
 
 METHODS = ("auto", "Adams", "BDF")
 # At these values the article's height error is ~2e-10 m (limit 1e-6); an undamped ball keeps

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bouncingball.physics import Ball, Mode
+from ..physics import Ball, Mode
 
 
 def step_state(ball: Ball, F_ext: float, mode: Mode, start, end, t):

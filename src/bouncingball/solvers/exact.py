@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bouncingball.physics import Ball, Mode
-from bouncingball.solvers.result import DEPARTURE, IMPACT, Event
+from ..physics import Ball, Mode
+from .result import DEPARTURE, IMPACT, Event
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bouncingball.physics import Ball
+from ..physics import Ball
 
 IMPACT = "impact"
 DEPARTURE = "departure"

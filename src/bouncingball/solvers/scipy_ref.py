@@ -7,9 +7,9 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from bouncingball import validation
-from bouncingball.physics import Ball, Mode
-from bouncingball.solvers.result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
+from .. import validation
+from ..physics import Ball, Mode
+from .result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
 
 METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 IMPLICIT = ("Radau", "BDF", "LSODA")

@@ -1,0 +1,68 @@
+"""The FMU's interface in one table: read by the build (units, min/max in the XML) and by the slave.
+
+The slave script imports this module at run time, so it imports nothing beyond the standard library.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+MODEL_NAME = "BouncingBall"
+SMALLEST_POSITIVE = math.ulp(0.0)  # FMI's min is inclusive: "> 0" is ">= 5e-324"
+
+# SI units as exponents of the base units
+UNITS = {
+    "m": {"m": 1},
+    "m/s": {"m": 1, "s": -1},
+    "m/s2": {"m": 1, "s": -2},
+    "kg": {"kg": 1},
+    "N": {"kg": 1, "m": 1, "s": -2},
+    "N/m": {"kg": 1, "s": -2},
+    "N.s/m": {"kg": 1, "s": -1},
+}
+
+
+@dataclass(frozen=True)
+class FmuVariable:
+    """One variable of the FMU's interface; the slave registers these, the build adds unit/min/max."""
+
+    name: str
+    type: str  # Real, Integer, Boolean or String
+    causality: str  # parameter, input or output
+    variability: str  # fixed, continuous or discrete
+    description: str
+    unit: str = ""
+    min: float | None = None
+    max: float | None = None
+    initial: str = ""  # "exact" for outputs whose start value is the initial state
+
+
+VARIABLES = (
+    FmuVariable("m", "Real", "parameter", "fixed", "mass of the ball (> 0)", "kg", SMALLEST_POSITIVE),
+    FmuVariable("k", "Real", "parameter", "fixed", "contact spring stiffness (> 0)", "N/m", SMALLEST_POSITIVE),
+    FmuVariable("b", "Real", "parameter", "fixed", "contact damping coefficient (>= 0)", "N.s/m", 0.0),
+    FmuVariable("R", "Real", "parameter", "fixed", "radius of the ball: contact while h < R (> 0)", "m",
+                SMALLEST_POSITIVE),
+    FmuVariable("g", "Real", "parameter", "fixed", "gravitational acceleration (>= 0)", "m/s2", 0.0),
+    FmuVariable("h", "Real", "output", "continuous", "height of the ball's centre; its start value is the "
+                "initial height", "m", initial="exact"),
+    FmuVariable("v", "Real", "output", "continuous", "vertical velocity dh/dt, upwards positive; its start "
+                "value is the initial velocity", "m/s", initial="exact"),
+    FmuVariable("a", "Real", "output", "continuous", "vertical acceleration dv/dt", "m/s2"),
+    FmuVariable("contact", "Boolean", "output", "discrete", "true while the ball touches the ground"),
+    FmuVariable("contact_force", "Real", "output", "continuous", "force of the ground on the ball, upwards "
+                "positive (the damper can pull just before departure)", "N"),
+    FmuVariable("impacts", "Integer", "output", "discrete", "number of impacts since the start", min=0),
+    FmuVariable("F_ext", "Real", "input", "continuous", "external vertical force on the ball, upwards "
+                "positive, held constant over each communication step", "N"),
+    FmuVariable("rtol", "Real", "parameter", "fixed", "CVODE relative tolerance, in (0, 1]; a tolerance "
+                "given in fmi2SetupExperiment replaces it", min=SMALLEST_POSITIVE, max=1.0),
+    FmuVariable("atol", "Real", "parameter", "fixed", "CVODE absolute tolerance on h [m] and v [m/s] (> 0)",
+                min=SMALLEST_POSITIVE),
+    FmuVariable("method", "String", "parameter", "fixed", "CVODE method: auto (Adams in flight, BDF for a "
+                "stiff contact), Adams or BDF"),
+)
+
+
+OUTPUTS = tuple(variable.name for variable in VARIABLES if variable.causality == "output")
