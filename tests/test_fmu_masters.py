@@ -84,6 +84,34 @@ def c_master(tmp_path_factory) -> Path:
     return binary
 
 
+HOST_SUNDIALS = Path("/usr/include/sundials/sundials_version.h")  # Debian's libsundials-dev (SUNDIALS 6)
+
+
+@pytest.fixture(scope="module")
+def c_master_with_sundials(tmp_path_factory) -> Path:
+    """The C master linked to the system's shared SUNDIALS, whose symbols then sit in the global scope."""
+    compiler = shutil.which("cc") or shutil.which("gcc")
+    if compiler is None or shared_libpython() is None or not HOST_SUNDIALS.is_file():
+        pytest.skip("needs a C compiler, a shared libpython and libsundials-dev (.ci/run installs them)")
+    headers = Path(fmpy.__file__).parent / "c-code"
+    binary = tmp_path_factory.mktemp("c_master") / "fmi2_master_sundials"
+    subprocess.run([compiler, "-O1", "-Wall", "-Werror", "-DHOST_SUNDIALS", f"-I{headers}", "-o", binary, C_MASTER,
+                    "-Wl,--no-as-needed", "-lsundials_cvode", "-lsundials_nvecserial", "-ldl"], check=True)
+    return binary
+
+
+def test_a_host_with_its_own_sundials_runs_the_fmu(c_master_with_sundials, unzipped, references):
+    """scikit-sundae's SUNDIALS 7 calls must not bind to the host's SUNDIALS 6 (it crashed in SUNContext_*)."""
+    r = references
+    completed = run_c_master(c_master_with_sundials, unzipped, references, 2.0, 0.01, f"o{r['h']}", f"i{r['impacts']}")
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    assert "host SUNDIALS 6." in completed.stderr
+    table = np.loadtxt(completed.stdout.splitlines())
+    h, _, impacts = exact_at(table[:, 0])
+    assert np.max(np.abs(table[:, 1] - h)) < 1e-6
+    np.testing.assert_array_equal(table[:, 2], impacts)
+
+
 def run_c_master(c_master, unzipped, references, *arguments) -> subprocess.CompletedProcess:
     """The C master in an environment with no Python variables at all: no LD_PRELOAD, PYTHONPATH, PYTHONHOME."""
     guid = fmpy.read_model_description(str(unzipped)).guid

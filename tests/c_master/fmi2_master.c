@@ -6,6 +6,8 @@
  *   oVR, iVR          Real and Integer outputs printed at every communication point
  * Prints "t out1 out2 ..." per communication point on stdout and the FMU's log on stderr.
  * The exit code is 0, or 10 + the status of the first call that did not return fmi2OK.
+ * Built with -DHOST_SUNDIALS and linked to a SUNDIALS library, it is a host that carries its own
+ * SUNDIALS (as fmusim or OpenModelica do): its symbols are in the process's global scope.
  */
 #include <dlfcn.h>
 #include <stdarg.h>
@@ -14,6 +16,9 @@
 #include <string.h>
 
 #include "fmi2Functions.h"
+#ifdef HOST_SUNDIALS
+#include <sundials/sundials_version.h>
+#endif
 
 #define MAX_VARIABLES 64
 
@@ -62,6 +67,11 @@ int main(int argc, char *argv[])
                 argv[0]);
         return 2;
     }
+#ifdef HOST_SUNDIALS
+    char version[64];
+    SUNDIALSGetVersion(version, sizeof version);
+    fprintf(stderr, "host SUNDIALS %s\n", version);
+#endif
     double stop_time = atof(argv[4]);
     double step = atof(argv[5]);
     for (int i = 6; i < argc && n_set < MAX_VARIABLES && n_real < MAX_VARIABLES && n_int < MAX_VARIABLES; i++) {
