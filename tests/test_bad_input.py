@@ -27,6 +27,10 @@ BALL = Ball()
     (dict(max_step=-1.0), "max_step = -1.0 s is not allowed"),
     (dict(solver="exact", rtol=1e-6), "option rtol = 1e-06 is not allowed for solver 'exact': it takes no options"),
     (dict(tolerance=1e-6), "option tolerance = 1e-06 is not allowed for solver 'cvode': it takes rtol, atol"),
+    (dict(t_end=1e6), "it gives 1e+09 output points, more than 5e+07; choose output_interval >= 0.02 s"),
+    (dict(t_end=1e6, solver="exact"), "it gives 1e+09 output points"),
+    (dict(h0=True), "h0 = True is not allowed: it must be a number"),
+    (dict(v0="1"), "v0 = '1' is not allowed: it must be a number"),
 ])
 def test_simulate_rejects_bad_input(kwargs, message):
     arguments = dict(h0=2.0, v0=0.0, t_end=8.0)

@@ -69,3 +69,66 @@ def test_bad_input_is_one_line_and_exit_code_2():
         assert len(lines) == 1 and lines[0].startswith("bouncingball: error: ")
         assert fragment in completed.stderr
         assert "Traceback" not in completed.stderr
+
+
+def test_output_paths_are_checked_before_the_run_and_nothing_partial_is_left(tmp_path):
+    folder = tmp_path / "a-folder"
+    folder.mkdir()
+    for option in ("--output", "--events", "--plot"):
+        for path, reason in [(tmp_path / "missing" / "out.csv", "does not exist"), (folder, "it is a folder")]:
+            completed = _cli("run", "undamped", option, str(path))  # 1000 s: a run would take seconds
+            assert completed.returncode == 2, completed.stderr
+            [line] = completed.stderr.strip().splitlines()
+            assert line.startswith(f"bouncingball: error: {option} = {str(path)!r} is not allowed") and reason in line
+            assert completed.stdout == ""  # refused before the run printed anything
+    assert list(tmp_path.iterdir()) == [folder] and list(folder.iterdir()) == []
+
+
+def test_a_grid_too_large_for_memory_is_refused_with_the_interval_that_fits():
+    completed = _cli("run", "article", "--t-end", "1e6")
+    assert completed.returncode == 2
+    [line] = completed.stderr.strip().splitlines()
+    assert "1e+09 output points, more than 5e+07" in line and "output_interval >= 0.02 s" in line
+
+
+def test_a_boolean_or_text_in_a_scene_file_is_not_a_number(tmp_path):
+    for value, shown in [("true", "True"), ('"1e4"', "'1e4'")]:
+        scene = tmp_path / "scene.toml"
+        scene.write_text(f"m = {value}\n")
+        completed = _cli("run", str(scene))
+        assert completed.returncode == 2, completed.stdout
+        assert f"m = {shown} is not allowed: it must be a number" in completed.stderr
+
+
+def test_a_missing_extra_names_the_pip_install_that_adds_it(tmp_path):
+    """fmpy hidden from the process (as if [fmu] were not installed): validate says what to install."""
+    code = ("import sys; sys.modules['fmpy'] = None\n"
+            "from bouncingball.cli import main\n"
+            f"sys.exit(main(['validate', 'article', '--fmu', {str(tmp_path / 'x.fmu')!r}]))\n")
+    (tmp_path / "x.fmu").write_bytes(b"")
+    completed = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert completed.returncode == 2, completed.stderr
+    [line] = completed.stderr.strip().splitlines()  # before any work: no progress line either
+    assert "fmpy" in line and "pip install 'bouncingball[fmu]'" in line
+
+
+def test_ctrl_c_is_one_line_and_exit_code_130():
+    import signal
+    import time
+
+    process = subprocess.Popen([sys.executable, "-m", "bouncingball.cli", "run", "undamped", "--solver", "scipy"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        time.sleep(3.0)  # well inside the run: the article's algorithm takes minutes on 1000 s of bouncing
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    finally:
+        process.kill()
+    assert process.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "bouncingball: interrupted" and "Traceback" not in err
+
+
+def test_bench_writes_to_a_folder_of_its_own_unless_told():
+    from bouncingball.cli import _build_parser
+
+    assert _build_parser().parse_args(["bench", "--quick"]).output_dir == "bench-results"

@@ -150,7 +150,11 @@ def test_c_master_gets_fmi2Error_for_a_bad_parameter(c_master, unzipped, referen
 
 def test_validate_command_prints_the_four_runs(fmu, capsys):
     assert main(["validate", "article", "--fmu", str(fmu)]) == 0
-    out = capsys.readouterr().out
+    captured = capsys.readouterr()
+    out = captured.out
+    assert [line.split(" (")[0] for line in captured.err.splitlines()] == [  # a sign of life before each stage
+        "validate: the exact solution ...", "validate: the article's SciPy algorithm",
+        "validate: CVODE in this process ...", "validate: the FMU through FMPy ..."]
     rows = {line[:24].strip(): line[24:].split() for line in out.splitlines()[3:7]}
     assert list(rows) == ["FMU (FMPy)", "CVODE (in-process)", "SciPy (article's RK45)", "exact"]
     assert float(rows["FMU (FMPy)"][0]) < 1e-7 and rows["FMU (FMPy)"][1] == "n/a"

@@ -10,6 +10,9 @@ from . import SOLVERS
 
 EXIT_BAD_INPUT = 2
 EXIT_SOLVER_FAILED = 1
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
+# The optional modules a command may need, and the extra that installs each.
+EXTRA_OF_MODULE = {"fmpy": "fmu", "pythonfmu": "fmu", "scipy": "reference", "matplotlib": "plot", "tqdm": "bench"}
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -45,16 +48,20 @@ def _build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--quick", action="store_true", help="a small run that CI can afford")
     bench.add_argument("--stability", action="store_true", help="run every scene with every solver under a time "
                                                                 "cap and write stability.md")
-    bench.add_argument("--output-dir", default="docs", help="where to write the results (default: docs)")
+    bench.add_argument("--output-dir", default="bench-results",
+                       help="where to write the results (default: bench-results; docs regenerates the committed ones)")
     return parser
 
 
 def _run(args: argparse.Namespace) -> int:
     from .accuracy import compare, exact_counterpart
-    from .output import write_events_csv, write_solution_csv
+    from .output import check_output_path, write_events_csv, write_solution_csv
     from .scenes import load_scene
 
     scene = load_scene(args.scene)
+    for option in ("output", "events", "plot"):  # before the work, so that none of it is lost
+        if getattr(args, option):
+            check_output_path(f"--{option}", getattr(args, option))
     if args.plot:
         from .plotting import require_matplotlib
 
@@ -65,6 +72,9 @@ def _run(args: argparse.Namespace) -> int:
         options["t_end"] = args.t_end
     if args.output_interval is not None:
         options["output_interval"] = args.output_interval
+    if args.solver == "scipy":
+        print(f"bouncingball: running the article's SciPy algorithm on {scene.name} (minutes on a stiff scene; "
+              "Ctrl-C stops it)", file=sys.stderr)
     result = scene.simulate(args.solver, **options)
     exact = result if result.solver == "exact" else exact_counterpart(result, scene.h0, scene.v0)
 
@@ -134,9 +144,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             return bench_command(args.output_dir, args.quick, args.stability)
         return _scenes()
-    except (ValueError, ImportError) as error:
+    except ImportError as error:
+        extra = EXTRA_OF_MODULE.get((error.name or "").split(".")[0])
+        hint = f" (pip install 'bouncingball[{extra}]')" if extra and "pip install" not in str(error) else ""
+        print(f"bouncingball: error: {error}{hint}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except ValueError as error:
         print(f"bouncingball: error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("bouncingball: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except RuntimeError as error:  # a solver that failed says why
         print(f"bouncingball: solver failed: {error}", file=sys.stderr)
         return EXIT_SOLVER_FAILED

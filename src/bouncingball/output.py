@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -10,23 +13,51 @@ import numpy as np
 from .solvers.result import SimulationResult
 
 
+def check_output_path(name: str, path: str | Path) -> Path:
+    """path if a file can be written there; else ValueError naming the option, the path and why."""
+    path = Path(path)
+    folder = path.parent
+    if path.is_dir():
+        reason = "it is a folder"
+    elif not folder.is_dir():
+        reason = f"its folder {str(folder)!r} does not exist"
+    elif not os.access(folder, os.W_OK):
+        reason = f"its folder {str(folder)!r} is not writable"
+    else:
+        return path
+    raise ValueError(f"{name} = {str(path)!r} is not allowed: {reason}")
+
+
+@contextlib.contextmanager
+def atomic_write(path: str | Path):
+    """A temporary file beside path, renamed onto it only once written: no partial file is ever left."""
+    path = Path(path)
+    descriptor, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    os.close(descriptor)
+    try:
+        yield Path(temporary)
+        os.replace(temporary, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(temporary)
+
+
 def write_solution_csv(result: SimulationResult, path: str | Path) -> Path:
     """time,h,v with full double precision, one row per output point."""
-    path = Path(path)
     data = np.column_stack((result.t, result.h, result.v))
-    np.savetxt(path, data, delimiter=",", header="time,h,v", comments="", fmt="%.17g")
-    return path
+    with atomic_write(path) as temporary:
+        np.savetxt(temporary, data, delimiter=",", header="time,h,v", comments="", fmt="%.17g")
+    return Path(path)
 
 
 def write_events_csv(result: SimulationResult, path: str | Path) -> Path:
     """time,kind,v, one row per event."""
-    path = Path(path)
-    with path.open("w", newline="") as file:
+    with atomic_write(path) as temporary, temporary.open("w", newline="") as file:
         writer = csv.writer(file)
         writer.writerow(["time", "kind", "v"])
         for event in result.events:
             writer.writerow([repr(event.time), event.kind, repr(event.velocity)])
-    return path
+    return Path(path)
 
 
 def read_solution_csv(path: str | Path) -> dict[str, np.ndarray]:

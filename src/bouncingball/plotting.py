@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from .output import atomic_write
 from .solvers.result import IMPACT, SimulationResult
 
 
@@ -33,7 +34,8 @@ def plot_height(result: SimulationResult, path: str | Path, title: str = "", exa
     ax.set_title(title or f"bouncing ball, {result.solver}")
     ax.legend(loc="upper right", fontsize=8)
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    with atomic_write(path) as temporary:
+        fig.savefig(temporary, dpi=110, format=path.suffix.lstrip(".").lower() or "png")
     plt.close(fig)
     return path
 

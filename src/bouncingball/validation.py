@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Iterable
 
 
 def _as_float(name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        try:
-            return float(value)  # numpy scalars, numeric strings from a TOML file
-        except (TypeError, ValueError):
-            raise ValueError(f"{name} = {value!r} is not a number") from None
+    # bool is an int to Python and TOML's true would pass as 1; text ("1e4" in quotes) is not a number either.
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} = {value!r} is not allowed: it must be a number")
     return float(value)
 
 

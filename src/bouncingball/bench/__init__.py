@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 
-def bench_command(output_dir: str | Path = "docs", quick: bool = False, stability: bool = False) -> int:
+def bench_command(output_dir: str | Path = "bench-results", quick: bool = False, stability: bool = False) -> int:
     """`bouncingball bench`: run the work-precision study (or, with stability, the stability matrix)."""
     output_dir = Path(output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)

@@ -38,7 +38,7 @@ FMU_FLOOR_RATIO = 2.0  # FMU doStep at most this multiple of the empty slave's
 FMU_TARGET_RTOL = 1e-10  # the FMU's doStep is compared at the swept tolerance nearest this one (its default)
 FLAT_RATIO = 1.5  # cost per event "flat": last tenth at most this multiple of the first tenth
 PACKAGES = ("numpy", "scikit-sundae", "scipy", "FMPy", "pythonfmu", "matplotlib", "tqdm")
-REGENERATE = "bouncingball bench && bouncingball bench --stability"
+REGENERATE = "bouncingball bench --output-dir docs && bouncingball bench --stability --output-dir docs"
 
 
 # --- the machine ----------------------------------------------------------------------------------
@@ -179,7 +179,7 @@ def plot_work_precision(points: list[Point], path: Path) -> Path:
 # --- targets -----------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Target:
-    """One target of the issue: its tag, what it asks, whether it is met and the measured numbers."""
+    """One goal the benchmark is held against: its tag, what it asks, whether it is met and the measured numbers."""
 
     tag: str
     goal: str
@@ -245,7 +245,7 @@ def target_versus_peers(points: list[Point], error: float) -> Target:
             reasons.append(f"the article's algorithm makes {article.rhs_calls} right-hand-side calls, CVODE auto "
                            f"{nearest.rhs_calls} (rtol {_rtol(nearest.rtol)}), but the wall time per call is about the "
                            f"same ({_per_call(article)} against {_per_call(nearest)} us): CVODE's cost is dominated by "
-                           "its Python callbacks and per-step and per-event overheads (NOTES.md), not by the "
+                           "its Python callbacks (~4 us each in scikit-sundae) and per-event overheads, not by the "
                            "integration, so fewer calls buy only that ratio")
     measured = f"CVODE auto {_ms(ours)} ms (interpolated); " + "; ".join(parts) + "."
     names = [(method, runners.scipy(method).label) for method in runners.SCIPY_METHODS]
@@ -295,7 +295,7 @@ def target_versus_exact(points: list[Point]) -> Target:
     measured = "; ".join(parts) + "."
     if not met:
         measured += (" Reason: the exact solution evaluates closed forms on the grid in a few numpy calls, while "
-                     "CVODE pays a Python callback per right-hand-side call (~4-5 us, NOTES.md) and a Python "
+                     "CVODE pays a Python callback per right-hand-side call (~4-5 us in scikit-sundae) and a Python "
                      "round trip per event; " + _work_note(groups, runners.CVODE_AUTO.label, MATCHED_ERRORS[-1]))
     return Target("b", goal, met, measured)
 
@@ -444,7 +444,7 @@ def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: Co
         "with the communication step shown; their error is measured on that grid "
         "and they count impacts (the FMU's `impacts` output), not events.",
         "",
-        "## Targets",
+        "## Goals and measurements",
         "",
         *(target.line() for target in targets),
         "",

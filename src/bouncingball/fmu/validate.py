@@ -7,6 +7,7 @@ import multiprocessing
 import shutil
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -68,23 +69,34 @@ def run_fmu(fmu: str | Path, scene: Scene, **start_values):
     return result, finished - loaded, loaded - started
 
 
-def validate(scene_name: str = "article", fmu: str | Path | None = None) -> Report:
-    """Run the scene four ways; the FMU is (re)built first if it is missing or older than its sources."""
+def validate(scene_name: str = "article", fmu: str | Path | None = None,
+             progress: Callable[[str], None] = lambda stage: None) -> Report:
+    """Run the scene four ways; the FMU is (re)built first if it is missing or older than its sources.
+
+    progress is told each stage as it starts (the SciPy run alone may take up to SCIPY_CAP seconds).
+    """
+    import fmpy  # noqa: F401  (before any work: without the [fmu] extra, say so now)
+
     from .build import DEFAULT_OUTPUT, build_fmu, is_stale
 
     scene = load_scene(scene_name)
     fmu = Path(fmu) if fmu is not None else DEFAULT_OUTPUT
     if fmu == DEFAULT_OUTPUT and is_stale(fmu):
+        progress(f"building {fmu}")
         build_fmu(fmu)
     elif not fmu.is_file():
         raise ValueError(f"fmu = {str(fmu)!r} is not allowed: no such file")
 
+    progress("the exact solution")
     exact = scene.simulate("exact")
     n_exact = len(exact.events)
     # SciPy first, in a child process that is killed past the cap (before the FMU starts Python threads).
-    runs = {"SciPy (article's RK45)": run_capped(scene, "scipy", SCIPY_CAP),
-            "CVODE (in-process)": scene.simulate("cvode")}
+    progress(f"the article's SciPy algorithm (stopped after {SCIPY_CAP:g} s if it has not finished)")
+    runs = {"SciPy (article's RK45)": run_capped(scene, "scipy", SCIPY_CAP)}
+    progress("CVODE in this process")
+    runs["CVODE (in-process)"] = scene.simulate("cvode")
     rows = []
+    progress("the FMU through FMPy")
     result, wall_time, load_time = run_fmu(fmu, scene)
     t = result["time"]
     h_exact, _ = exact_solution_at(scene, t)
@@ -168,7 +180,7 @@ def validate_command(scene: str = "article", fmu: str | None = None) -> int:
     from .build import FmuBuildError
 
     try:
-        report = validate(scene, fmu)
+        report = validate(scene, fmu, progress=lambda stage: print(f"validate: {stage} ...", file=sys.stderr))
     except FmuBuildError as error:
         print(f"bouncingball: cannot build the FMU: {error}", file=sys.stderr)
         return 1

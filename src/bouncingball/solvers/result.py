@@ -61,9 +61,16 @@ class SimulationResult:
         return self.ball.energy(self.h, self.v, self.F_ext)
 
 
+MAX_OUTPUT_POINTS = 50_000_000  # 1.2 GB of t, h and v: more would exhaust a workstation's memory
+
+
 def output_grid(t_start: float, t_end: float, output_interval: float) -> np.ndarray:
-    """t_start, t_start + dt, ... and t_end exactly as the last point."""
+    """t_start, t_start + dt, ... and t_end exactly as the last point; ValueError beyond MAX_OUTPUT_POINTS."""
     n = math.floor((t_end - t_start) / output_interval * (1.0 + 1e-12))
+    if n + 1 > MAX_OUTPUT_POINTS:
+        raise ValueError(f"output_interval = {output_interval!r} s is not allowed from {t_start!r} to {t_end!r} s: "
+                         f"it gives {n + 1:.4g} output points, more than {MAX_OUTPUT_POINTS:.0e}; "
+                         f"choose output_interval >= {(t_end - t_start) / (MAX_OUTPUT_POINTS - 1):.3g} s")
     grid = t_start + output_interval * np.arange(n + 1)
     if t_end - grid[-1] > 1e-9 * output_interval:
         grid = np.append(grid, t_end)
