@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import shutil
+import subprocess
 from ctypes import byref
 from pathlib import Path
 
@@ -12,6 +14,23 @@ from bouncingball.solvers.exact import ExactSolution
 from bouncingball.solvers.result import IMPACT
 
 TIGHT = {"rtol": 1e-11, "atol": 1e-14}  # the tolerances the issue's accuracy numbers are measured at
+
+
+C_MASTER = Path(__file__).parent / "c_master" / "fmi2_master.c"
+
+
+def compile_c_master(target: Path, *flags: str) -> Path | None:
+    """The plain C master of tests/c_master, compiled to target; None without a C compiler."""
+    import fmpy
+
+    compiler = shutil.which("cc") or shutil.which("gcc")
+    if compiler is None:
+        return None
+    headers = Path(fmpy.__file__).parent / "c-code"
+    subprocess.run([compiler, "-O1", "-Wall", "-Werror", *flags, f"-I{headers}", "-o", str(target), str(C_MASTER),
+                    *(["-Wl,--no-as-needed", "-lsundials_cvode", "-lsundials_nvecserial"]
+                      if "-DHOST_SUNDIALS" in flags else []), "-ldl"], check=True)
+    return target
 
 
 def exact_at(t, ball: Ball | None = None, h0: float = 2.0, v0: float = 0.0, t_start: float = 0.0,

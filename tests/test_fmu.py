@@ -59,7 +59,14 @@ def test_model_description_has_units_ranges_and_start_values(fmu):
             for u in md.unitDefinitions} == UNITS
     assert (md.defaultExperiment.startTime, md.defaultExperiment.stopTime) == ("0", "8.0")
     cs = md.coSimulation
-    assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate and not cs.needsExecutionTool
+    assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
+    assert cs.needsExecutionTool  # a Python installation with numpy and scikit-sundae runs it
+    import pythonfmu
+
+    import bouncingball
+
+    assert md.version == bouncingball.__version__
+    assert md.generationTool == f"bouncingball {bouncingball.__version__} (pythonfmu {pythonfmu.__version__})"
     assert [u.variable.name for u in md.outputs] == ["h", "v", "a", "contact", "contact_force", "impacts"]
     assert [u.variable.name for u in md.initialUnknowns] == ["a", "contact", "contact_force", "impacts"]
 
@@ -75,6 +82,18 @@ def test_fmu_carries_the_package_and_a_linux_binary_only(fmu):
     assert not any(n.startswith("resources/bouncingball/") for n in names)
     assert sorted(n for n in names if n.startswith("binaries/")) == [
         "binaries/linux64/BouncingBall.so", "binaries/linux64/BouncingBall_pythonfmu.so"]
+
+
+def test_the_loader_compiles_without_a_warning(tmp_path):
+    import shutil
+
+    from bouncingball.fmu.build import LOADER_SOURCE, loader_flags
+
+    compiler = shutil.which("cc") or shutil.which("gcc")
+    completed = subprocess.run([compiler, "-shared", "-fPIC", "-O2", *loader_flags(), "-Werror", "-o",
+                                tmp_path / "loader.so", LOADER_SOURCE, "-ldl", "-lpthread"], capture_output=True,
+                               text=True, check=False)
+    assert completed.returncode == 0 and completed.stderr == "", completed.stderr
 
 
 def test_fmpy_validate_reports_no_problem(fmu):

@@ -14,13 +14,12 @@ import pytest
 from bouncingball.cli import main
 from bouncingball.fmu.build import shared_libpython
 from bouncingball.physics import Ball
-from fmu_helpers import TIGHT, exact_at
+from fmu_helpers import TIGHT, compile_c_master, exact_at
 
 fmpy = pytest.importorskip("fmpy", reason="the FMU tests need the [fmu] extra")
 pytest.importorskip("pythonfmu", reason="the FMU tests need the [fmu] extra")
 
 BIN = Path(sys.executable).parent
-C_MASTER = Path(__file__).parent / "c_master" / "fmi2_master.c"
 
 
 @pytest.fixture(scope="module")
@@ -72,15 +71,11 @@ def test_libcosim_runs_the_fmu(fmu, references):
 
 @pytest.fixture(scope="module")
 def c_master(tmp_path_factory) -> Path:
-    compiler = shutil.which("cc") or shutil.which("gcc")
-    if compiler is None:
-        pytest.skip("no C compiler (cc or gcc) to build the C master")
     if shared_libpython() is None:
         pytest.skip("this Python has no shared libpython: its FMU can run only in a master that runs Python")
-    headers = Path(fmpy.__file__).parent / "c-code"
-    binary = tmp_path_factory.mktemp("c_master") / "fmi2_master"
-    subprocess.run([compiler, "-O1", "-Wall", "-Werror", f"-I{headers}", "-o", binary, C_MASTER, "-ldl"],
-                   check=True)
+    binary = compile_c_master(tmp_path_factory.mktemp("c_master") / "fmi2_master")
+    if binary is None:
+        pytest.skip("no C compiler (cc or gcc) to build the C master")
     return binary
 
 
@@ -90,13 +85,11 @@ HOST_SUNDIALS = Path("/usr/include/sundials/sundials_version.h")  # Debian's lib
 @pytest.fixture(scope="module")
 def c_master_with_sundials(tmp_path_factory) -> Path:
     """The C master linked to the system's shared SUNDIALS, whose symbols then sit in the global scope."""
-    compiler = shutil.which("cc") or shutil.which("gcc")
-    if compiler is None or shared_libpython() is None or not HOST_SUNDIALS.is_file():
-        pytest.skip("needs a C compiler, a shared libpython and libsundials-dev (.ci/run installs them)")
-    headers = Path(fmpy.__file__).parent / "c-code"
-    binary = tmp_path_factory.mktemp("c_master") / "fmi2_master_sundials"
-    subprocess.run([compiler, "-O1", "-Wall", "-Werror", "-DHOST_SUNDIALS", f"-I{headers}", "-o", binary, C_MASTER,
-                    "-Wl,--no-as-needed", "-lsundials_cvode", "-lsundials_nvecserial", "-ldl"], check=True)
+    if shared_libpython() is None or not HOST_SUNDIALS.is_file():
+        pytest.skip("needs a shared libpython and libsundials-dev (.ci/run installs it)")
+    binary = compile_c_master(tmp_path_factory.mktemp("c_master") / "fmi2_master_sundials", "-DHOST_SUNDIALS")
+    if binary is None:
+        pytest.skip("no C compiler (cc or gcc) to build the C master")
     return binary
 
 

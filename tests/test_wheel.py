@@ -55,3 +55,48 @@ def test_the_wheel_builds_and_runs_the_fmu_outside_the_checkout(installed, tmp_p
 def test_the_main_job_runs_from_the_wheel(installed, tmp_path):
     completed = run([installed / "bouncingball", "run", "article", "--output", "article.csv"], cwd=tmp_path)
     assert (tmp_path / "article.csv").is_file(), completed.stdout
+
+
+def test_the_fmu_travels_to_another_python_with_numpy_and_scikit_sundae(installed, tmp_path):
+    """A plain C master, the build venv moved away: the FMU finds another venv's python3 on PATH (one
+    with numpy and scikit-sundae, nothing else); with none on PATH it fails in fmi2Instantiate with one
+    log line that says what it needs."""
+    import fmpy
+
+    from bouncingball.fmu.build import shared_libpython
+    from fmu_helpers import compile_c_master
+
+    if shared_libpython() is None:
+        pytest.skip("this Python has no shared libpython: its FMU runs only in a master that runs Python")
+    master = compile_c_master(tmp_path / "fmi2_master")
+    if master is None:
+        pytest.skip("no C compiler (cc or gcc) to build the C master")
+    run([installed / "bouncingball", "build-fmu", "-o", "BouncingBall.fmu"], cwd=tmp_path)
+    unzipped = fmpy.extract(str(tmp_path / "BouncingBall.fmu"), str(tmp_path / "unzipped"))
+    description = fmpy.read_model_description(unzipped)
+    h_reference = {v.name: v.valueReference for v in description.modelVariables}["h"]
+    other = tmp_path / "other-venv"
+    run([sys.executable, "-m", "venv", other], cwd=tmp_path)
+    run([other / "bin" / "python", "-m", "pip", "install", "--quiet", "numpy", "scikit-sundae"], cwd=tmp_path)
+
+    def c_master(path: str) -> subprocess.CompletedProcess:
+        return subprocess.run([master, unzipped, "BouncingBall", description.guid, "2.0", "0.01", f"o{h_reference}"],
+                              env={"PATH": path}, capture_output=True, text=True, timeout=120, check=False)
+
+    build_venv = installed.parent
+    moved = build_venv.with_name("moved-away")
+    build_venv.rename(moved)
+    try:
+        travelled = c_master(f"{other / 'bin'}:/usr/bin:/bin")
+        stranded = c_master("/nonexistent")
+    finally:
+        moved.rename(build_venv)
+    assert travelled.returncode == 0, travelled.stdout + travelled.stderr
+    table = np.loadtxt(travelled.stdout.splitlines())
+    h_exact, _, _ = exact_at(table[:, 0])
+    assert np.max(np.abs(table[:, 1] - h_exact)) < 1e-7
+    assert stranded.returncode != 0
+    [line] = [line for line in stranded.stderr.splitlines() if "status 3" in line]
+    version = f"{sys.version_info.major}.{sys.version_info.minor}"
+    assert f"this FMU needs Python {version} with a shared libpython, numpy and scikit-sundae" in line
+    assert "on PATH (/nonexistent)" in line

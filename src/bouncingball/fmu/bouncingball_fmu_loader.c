@@ -1,13 +1,14 @@
 /* The BouncingBall FMU's binary: a thin FMI 2.0 layer in front of pythonfmu's binary.
  *
  * It does three things pythonfmu's Linux binary does not (see docs/fmu.md):
- *   1. In a master without Python (a plain C or C++ master) it starts the Python the FMU was
- *      built with before pythonfmu's binary is loaded: it loads that libpython with RTLD_GLOBAL,
+ *   1. In a master without Python (a plain C or C++ master) it starts a Python before pythonfmu's
+ *      binary is loaded: the one the FMU was built with, or else one on PATH with the same
+ *      version, numpy and scikit-sundae (find_python). It loads that libpython with RTLD_GLOBAL,
  *      so the Py* symbols of pythonfmu's binary and of every extension module (math, numpy,
- *      scikit-sundae) resolve, and initialises it as the build environment's python executable,
- *      so that its sys.path (standard library, site-packages of the virtual environment) is the
- *      one the FMU was built and tested with. No LD_PRELOAD, PYTHONPATH or PYTHONHOME needed.
- *      In a master that runs Python itself (FMPy, libcosimpy) that Python is used as it is.
+ *      scikit-sundae) resolve, and initialises it as that python executable, so that its
+ *      sys.path (standard library, site-packages of its virtual environment) is that Python's.
+ *      No LD_PRELOAD, PYTHONPATH or PYTHONHOME needed. In a master that runs Python itself
+ *      (FMPy, libcosimpy) that Python is used as it is.
  *   2. pythonfmu reports a Python exception as fmi2Fatal and has no way to return fmi2Error.
  *      Here, the status of each call is the worst of what pythonfmu returns and what the slave
  *      logged during the call, so a slave that logs an error makes the call return fmi2Error.
@@ -17,7 +18,7 @@
  *      releases it once, first (see load()).
  * Everything else is forwarded unchanged. Built by bouncingball.fmu.build with
  * -DBB_LIBPYTHON="path of libpython", -DBB_PYTHON="path of the python executable" and
- * -DBB_INNER="file name of pythonfmu's binary, next to this one".
+ * -DBB_INNER="file name of pythonfmu's binary, next to this one" and -DBB_PYTHON_VERSION="3.X".
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
@@ -39,6 +40,9 @@
 #endif
 #ifndef BB_INNER
 #error "define BB_INNER, the file name of pythonfmu's binary next to this one"
+#endif
+#ifndef BB_PYTHON_VERSION
+#error "define BB_PYTHON_VERSION, the Python version (3.X) pythonfmu's binary was built for"
 #endif
 
 /* pythonfmu's functions, loaded once per process */
@@ -78,41 +82,99 @@ static void *symbol(void *library, const char *name)
     return address;
 }
 
-/* Start the build environment's Python in a process that has none. */
+/* Copy the output of `command` (at most size - 1 bytes) into out; 1 if it exited with status 0. */
+static int run_command(const char *command, char *out, size_t size)
+{
+    FILE *pipe = popen(command, "r");
+    size_t n;
+    if (pipe == NULL) {
+        return 0;
+    }
+    n = fread(out, 1, size - 1, pipe);
+    out[n] = '\0';
+    return pclose(pipe) == 0;
+}
+
+/* Which Python runs the FMU in a master that has none, in this order:
+ *   1. the one it was built with (BB_PYTHON, with BB_LIBPYTHON), if it is still there;
+ *   2. else the first python3.X (the minor version pythonfmu's binary was built for), then python3,
+ *      on PATH whose version is 3.X, that has a shared libpython and imports numpy and scikit-sundae.
+ * Fills python and libpython and returns 1, or writes load_error and returns 0. */
+static int find_python(char *python, size_t python_size, char *libpython, size_t libpython_size)
+{
+    static const char *const names[] = {"python" BB_PYTHON_VERSION, "python3"};
+    const char *query = "import os, sys, sysconfig, numpy, sksundae.cvode; "
+                        "print('%d.%d' % sys.version_info[:2]); "
+                        "print(os.path.join(sysconfig.get_config_var('LIBDIR') or '', "
+                        "sysconfig.get_config_var('INSTSONAME') or ''))";
+    const char *path = getenv("PATH");
+    char directories[4096], command[8192], answer[8192];
+
+    if (BB_LIBPYTHON[0] != '\0' && access(BB_PYTHON, X_OK) == 0 && access(BB_LIBPYTHON, R_OK) == 0) {
+        snprintf(python, python_size, "%s", BB_PYTHON);
+        snprintf(libpython, libpython_size, "%s", BB_LIBPYTHON);
+        return 1;
+    }
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
+        snprintf(directories, sizeof directories, "%s", path != NULL ? path : "/usr/bin:/bin");
+        for (char *save = NULL, *directory = strtok_r(directories, ":", &save); directory != NULL;
+             directory = strtok_r(NULL, ":", &save)) {
+            char *newline;
+            snprintf(python, python_size, "%s/%s", directory, names[i]);
+            if (access(python, X_OK) != 0 || strchr(python, '\'') != NULL) {
+                continue;
+            }
+            snprintf(command, sizeof command, "'%s' -c \"%s\" 2>/dev/null", python, query);
+            if (!run_command(command, answer, sizeof answer) || strncmp(answer, BB_PYTHON_VERSION "\n",
+                                                                       strlen(BB_PYTHON_VERSION "\n")) != 0) {
+                continue;
+            }
+            snprintf(libpython, libpython_size, "%.4000s", answer + strlen(BB_PYTHON_VERSION "\n"));
+            if ((newline = strchr(libpython, '\n')) != NULL) {
+                *newline = '\0';
+            }
+            if (strstr(libpython, ".so") != NULL && access(libpython, R_OK) == 0) {
+                return 1;
+            }
+        }
+    }
+    snprintf(load_error, sizeof load_error,
+             "this FMU needs Python " BB_PYTHON_VERSION " with a shared libpython, numpy and scikit-sundae: it was "
+             "built with " BB_PYTHON ", which is not there (or has no shared libpython), and no python"
+             BB_PYTHON_VERSION " or python3 on PATH (%.2048s) has them",
+             path != NULL ? path : "unset");
+    return 0;
+}
+
+/* Start a Python (see find_python) in a process that has none. */
 static int start_python(void)
 {
-    void *python;
+    void *library;
     wchar_t *(*decode_locale)(const char *, size_t *);
     void (*set_program_name)(const wchar_t *);
     void (*initialize)(int);
     void *(*save_thread)(void);
     wchar_t *program;
+    static char python[4096], libpython[4096];
 
-    if (BB_LIBPYTHON[0] == '\0') {
-        snprintf(load_error, sizeof load_error, "this FMU was built with a Python that has no shared libpython: "
-                 "it runs only in a master that runs Python itself");
+    if (!find_python(python, sizeof python, libpython, sizeof libpython)) {
         return 0;
     }
-    if (access(BB_PYTHON, X_OK) != 0) {
-        snprintf(load_error, sizeof load_error,
-                 "this FMU runs the Python it was built with, " BB_PYTHON ", which is not there");
+    library = dlopen(libpython, RTLD_NOW | RTLD_GLOBAL);
+    if (library == NULL) {
+        snprintf(load_error, sizeof load_error, "this FMU runs %.1024s, and cannot load its libpython: %.2048s",
+                 python, dlerror());
         return 0;
     }
-    python = dlopen(BB_LIBPYTHON, RTLD_NOW | RTLD_GLOBAL);
-    if (python == NULL) {
-        snprintf(load_error, sizeof load_error, "this FMU runs the Python it was built with, and cannot load it: %s",
-                 dlerror());
-        return 0;
-    }
-    *(void **)&decode_locale = dlsym(python, "Py_DecodeLocale");
-    *(void **)&set_program_name = dlsym(python, "Py_SetProgramName");
-    *(void **)&initialize = dlsym(python, "Py_InitializeEx");
-    *(void **)&save_thread = dlsym(python, "PyEval_SaveThread");
+    *(void **)&decode_locale = dlsym(library, "Py_DecodeLocale");
+    *(void **)&set_program_name = dlsym(library, "Py_SetProgramName");
+    *(void **)&initialize = dlsym(library, "Py_InitializeEx");
+    *(void **)&save_thread = dlsym(library, "PyEval_SaveThread");
     if (decode_locale == NULL || set_program_name == NULL || initialize == NULL || save_thread == NULL) {
-        snprintf(load_error, sizeof load_error, BB_LIBPYTHON " lacks Py_SetProgramName or Py_InitializeEx");
+        snprintf(load_error, sizeof load_error, "%.2048s lacks Py_SetProgramName or Py_InitializeEx", libpython);
         return 0;
     }
-    program = decode_locale(BB_PYTHON, NULL); /* Python keeps using it: never freed */
+    program = decode_locale(python, NULL); /* Python keeps using it: never freed */
     set_program_name(program);
     initialize(0); /* 0: leave the master's signal handlers alone */
     save_thread(); /* release the GIL; pythonfmu takes it for each call */

@@ -60,8 +60,9 @@ def build_fmu(output: str | Path = DEFAULT_OUTPUT) -> Path:
         # its variables, and leaves its folder on sys.path: undo both once it is done.
         path, modules = list(sys.path), set(sys.modules)
         try:
+            # needsExecutionTool: the FMU runs on a Python installation with numpy and scikit-sundae.
             built = FmuBuilder.build_FMU(script, dest=temp / "pythonfmu", project_files=[package],
-                                         needsExecutionTool=False, canGetAndSetFMUstate=True,
+                                         needsExecutionTool=True, canGetAndSetFMUstate=True,
                                          canSerializeFMUstate=True)
         finally:
             sys.path[:] = path
@@ -146,20 +147,25 @@ def _c_string(text: str) -> str:
 
 def _compile_loader(target: Path) -> Path:
     """Compile bouncingball_fmu_loader.c for the Python running this build."""
+    command = [_compiler(), "-shared", "-fPIC", "-O2", *loader_flags(), "-o", str(target), str(LOADER_SOURCE),
+               "-ldl", "-lpthread"]
+    completed = subprocess.run(command, capture_output=True, text=True, check=False)
+    if completed.returncode != 0:
+        raise FmuBuildError(f"compiling {LOADER_SOURCE.name} failed:\n{completed.stderr.strip()}")
+    return target
+
+
+def loader_flags() -> list[str]:
+    """Compiler flags for the loader: warnings on, FMPy's FMI 2.0 headers, the Python the FMU is built for."""
     from importlib.resources import files
 
     headers = Path(str(files("fmpy") / "c-code"))  # FMPy ships the FMI 2.0 headers
     libpython = shared_libpython()
     if not sys.executable:
         raise FmuBuildError("sys.executable is empty: run the build from a python executable")
-    command = [_compiler(), "-shared", "-fPIC", "-O2", "-Wall", "-fvisibility=hidden", f"-I{headers}",
-               f"-DBB_LIBPYTHON={_c_string(str(libpython or ''))}", f"-DBB_PYTHON={_c_string(sys.executable)}",
-               f"-DBB_INNER={_c_string(PYTHONFMU_BINARY)}", "-o", str(target), str(LOADER_SOURCE),
-               "-ldl", "-lpthread"]
-    completed = subprocess.run(command, capture_output=True, text=True, check=False)
-    if completed.returncode != 0:
-        raise FmuBuildError(f"compiling {LOADER_SOURCE.name} failed:\n{completed.stderr.strip()}")
-    return target
+    return ["-Wall", "-Wextra", f"-I{headers}", f"-DBB_LIBPYTHON={_c_string(str(libpython or ''))}",
+            f"-DBB_PYTHON={_c_string(sys.executable)}", f"-DBB_INNER={_c_string(PYTHONFMU_BINARY)}",
+            f"-DBB_PYTHON_VERSION={_c_string(f'{sys.version_info.major}.{sys.version_info.minor}')}"]
 
 
 def shared_libpython() -> Path | None:
@@ -187,9 +193,14 @@ def _repack(built: Path, loader: Path, target: Path) -> None:
 
 def complete_model_description(xml: bytes) -> bytes:
     """Add units, min/max, DefaultExperiment and InitialUnknowns to pythonfmu's modelDescription.xml."""
+    from importlib.metadata import version as installed_version
+
+    from .. import __version__
     from ..scenes import load_scene
 
     root = ET.fromstring(xml)
+    root.set("version", __version__)
+    root.set("generationTool", f"bouncingball {__version__} (pythonfmu {installed_version('pythonfmu')})")
     children = list(root)
     co_simulation = root.find("CoSimulation")
     units = ET.Element("UnitDefinitions")
