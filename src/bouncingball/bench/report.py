@@ -13,6 +13,7 @@ from importlib import metadata
 from pathlib import Path
 
 from ..scenes import Scene
+from ..solvers.cvode import DEFAULT_ATOL, DEFAULT_RTOL
 from . import runners
 from .stability import (
     EXTRA_SCENES,
@@ -35,7 +36,7 @@ MATCHED_ERRORS = (1e-6, 1e-9)  # [m]
 ARTICLE_SPEEDUP = 3.0  # CVODE at least this much faster than the article's algorithm
 EXACT_RATIO = 10.0  # CVODE within this factor of the exact solution's time
 FMU_FLOOR_RATIO = 2.0  # FMU doStep at most this multiple of the empty slave's
-FMU_TARGET_RTOL = 1e-10  # the FMU's doStep is compared at the swept tolerance nearest this one (its default)
+FMU_TARGET_RTOL = DEFAULT_RTOL  # the FMU's doStep is compared at the swept tolerance nearest this one (its default)
 FLAT_RATIO = 1.5  # cost per event "flat": last tenth at most this multiple of the first tenth
 PACKAGES = ("numpy", "scikit-sundae", "scipy", "FMPy", "pythonfmu", "matplotlib", "tqdm")
 REGENERATE = "bouncingball bench --output-dir docs && bouncingball bench --stability --output-dir docs"
@@ -567,10 +568,10 @@ def write_stability_md(scenes: list[Scene], outcomes: list[Outcome], cap: float,
         *_environment_lines(environment),
         "",
         f"Every scene with every solver, each run in its own child process, killed after {cap:g} s. The numerical "
-        "solvers run at CVODE's default tolerances (rtol 1e-10, atol 1e-12), solve_ivp without max_step and with "
-        "the article's event restart; the article's algorithm runs as published (RK45, max_step 0.01, rtol 1e-3, "
-        "atol 1e-6); the FMU runs through `fmpy.simulate_fmu` with the scene's output interval as communication "
-        "step and counts impacts. Errors are against the exact solution on the output grid.",
+        f"solvers run at CVODE's default tolerances (rtol {DEFAULT_RTOL:g}, atol {DEFAULT_ATOL:g}), solve_ivp "
+        "without max_step and with the article's event restart; the article's algorithm runs as published (RK45, "
+        "max_step 0.01, rtol 1e-3, atol 1e-6); the FMU runs through `fmpy.simulate_fmu` with the scene's output "
+        "interval as communication step and counts impacts. Errors are against the exact solution on the output grid.",
         "",
         "## Scenes",
         "",
