@@ -380,18 +380,24 @@ def test_changing_a_parameter_after_initialisation_is_an_error(unzipped):
         ball.free()
 
 
-def test_an_exception_inside_pythonfmu_gives_fmi2Error_and_the_host_survives(unzipped):
+def test_an_unknown_or_mistyped_value_reference_is_an_error_and_the_instance_carries_on(unzipped):
     ball = Instance(unzipped)
     try:
         ball.initialize()
-        method = ball.variables["method"].valueReference
-        with pytest.raises(fmpy.fmi1.FMICallException) as raised:
-            ball.fmu.setReal([method], [1.0])  # a master bug: pythonfmu raises TypeError, i.e. fmi2Fatal
-        assert raised.value.status == 3
-        assert "is not of type Real" in ball.errors()[0]
-        with pytest.raises(fmpy.fmi1.FMICallException) as raised:  # the instance is gone; it says so
-            ball.fmu.doStep(0.0, 0.1)
-        assert raised.value.status == 3 and "refused" in ball.errors()[-1]
+        method, impacts = ball.variables["method"].valueReference, ball.variables["impacts"].valueReference
+        for call, arguments, message in [
+            (ball.fmu.setReal, ([method], [1.0]), f"fmi2SetReal: value reference {method} is not a variable of type R"),
+            (ball.fmu.getReal, ([99],), "fmi2GetReal: value reference 99 is not a variable of type Real"),
+            (ball.fmu.setReal, ([impacts], [1.0]), f"fmi2SetReal: value reference {impacts} is not a variable of type"),
+            (ball.fmu.getInteger, ([0],), "fmi2GetInteger: value reference 0 is not a variable of type Integer"),
+        ]:
+            with pytest.raises(fmpy.fmi1.FMICallException) as raised:
+                call(*arguments)
+            assert raised.value.status == 3  # fmi2Error, not fmi2Fatal
+            assert ball.errors()[-1].startswith(message)
+        assert ball.get("method") == ["auto"]
+        ball.fmu.doStep(0.0, 0.7)  # the instance carries on
+        assert abs(ball.get("h")[0] - exact_at([0.7])[0][0]) < 1e-8
     finally:
         ball.free()  # does not touch pythonfmu's released instance
     healthy = Instance(unzipped, "healthy")

@@ -16,9 +16,15 @@
  *      refused further calls (pythonfmu has already released its Python objects).
  *   3. pythonfmu 0.7.0 releases its interpreter state twice at process exit; the loader
  *      releases it once, first (see load()).
+ *   4. pythonfmu does not keep FMI 2.0's co-simulation state machine, and an unknown value
+ *      reference raises inside it (fmi2Fatal, the instance is gone). The loader keeps the state
+ *      machine (ALLOWED, one row per call) and checks value references against the variable
+ *      table (BB_VARIABLE_TYPES): a call not allowed in the current state, or a reference that is
+ *      not a variable of that type, gets fmi2Error and a log line, and changes nothing.
  * Everything else is forwarded unchanged. Built by bouncingball.fmu.build with
  * -DBB_LIBPYTHON="path of libpython", -DBB_PYTHON="path of the python executable" and
- * -DBB_INNER="file name of pythonfmu's binary, next to this one" and -DBB_PYTHON_VERSION="3.X".
+ * -DBB_INNER="file name of pythonfmu's binary, next to this one", -DBB_PYTHON_VERSION="3.X" and
+ * -DBB_VARIABLE_TYPES="RRI..." (the type of each value reference, from the variable table).
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
@@ -44,6 +50,9 @@
 #ifndef BB_PYTHON_VERSION
 #error "define BB_PYTHON_VERSION, the Python version (3.X) pythonfmu's binary was built for"
 #endif
+#ifndef BB_VARIABLE_TYPES
+#error "define BB_VARIABLE_TYPES, the type (R, I, B or S) of each value reference 0, 1, ... in order"
+#endif
 
 /* pythonfmu's functions, loaded once per process */
 #define INNER_FUNCTIONS(X) \
@@ -63,15 +72,64 @@ static void (*release_python_state)(void); /* pythonfmu's finalizePythonInterpre
 static pthread_once_t load_once = PTHREAD_ONCE_INIT;
 static char load_error[4096];
 
-typedef struct {
+/* FMI 2.0 co-simulation states (FMI 2.0.4, section 4.2.4). A slave that completes its steps
+ * synchronously is never "step in progress"; the error state is not entered, because a refused
+ * call or bad input changes nothing and the instance stays usable. */
+typedef enum { INSTANTIATED, INITIALIZATION_MODE, STEP_COMPLETE, TERMINATED } State;
+static const char *const STATE_NAMES[] = {"instantiated", "initialization mode", "step complete", "terminated"};
+#define IN(state) (1u << (state))
+#define ANY (IN(INSTANTIATED) | IN(INITIALIZATION_MODE) | IN(STEP_COMPLETE) | IN(TERMINATED))
+#define INITIALIZED (IN(INITIALIZATION_MODE) | IN(STEP_COMPLETE) | IN(TERMINATED))
+#define SETTABLE (IN(INSTANTIATED) | IN(INITIALIZATION_MODE) | IN(STEP_COMPLETE))
+
+/* The states each call is allowed in: the table of FMI 2.0.4 section 4.2.4, without the states
+ * this slave never enters. */
+#define ALLOWED_SetDebugLogging ANY
+#define ALLOWED_SetupExperiment IN(INSTANTIATED)
+#define ALLOWED_EnterInitializationMode IN(INSTANTIATED)
+#define ALLOWED_ExitInitializationMode IN(INITIALIZATION_MODE)
+#define ALLOWED_Terminate IN(STEP_COMPLETE)
+#define ALLOWED_Reset ANY
+#define ALLOWED_GetReal INITIALIZED
+#define ALLOWED_GetInteger INITIALIZED
+#define ALLOWED_GetBoolean INITIALIZED
+#define ALLOWED_GetString INITIALIZED
+#define ALLOWED_SetReal SETTABLE
+#define ALLOWED_SetInteger SETTABLE
+#define ALLOWED_SetBoolean SETTABLE
+#define ALLOWED_SetString SETTABLE
+#define ALLOWED_GetFMUstate ANY
+#define ALLOWED_SetFMUstate ANY
+#define ALLOWED_FreeFMUstate ANY
+#define ALLOWED_SerializedFMUstateSize ANY
+#define ALLOWED_SerializeFMUstate ANY
+#define ALLOWED_DeSerializeFMUstate ANY
+#define ALLOWED_GetDirectionalDerivative INITIALIZED
+#define ALLOWED_SetRealInputDerivatives SETTABLE
+#define ALLOWED_GetRealOutputDerivatives (IN(STEP_COMPLETE) | IN(TERMINATED))
+#define ALLOWED_DoStep IN(STEP_COMPLETE)
+#define ALLOWED_CancelStep 0u /* only while a step is in progress, which never happens here */
+#define ALLOWED_GetStatus (IN(STEP_COMPLETE) | IN(TERMINATED))
+#define ALLOWED_GetRealStatus (IN(STEP_COMPLETE) | IN(TERMINATED))
+#define ALLOWED_GetIntegerStatus (IN(STEP_COMPLETE) | IN(TERMINATED))
+#define ALLOWED_GetBooleanStatus (IN(STEP_COMPLETE) | IN(TERMINATED))
+#define ALLOWED_GetStringStatus (IN(STEP_COMPLETE) | IN(TERMINATED))
+
+typedef struct Instance {
     fmi2Component inner;
     fmi2CallbackFunctions master; /* the master's callbacks */
     fmi2CallbackFunctions own;    /* handed to pythonfmu: our logger, the master's memory functions */
-    fmi2String name;
+    char *name;
     fmi2Boolean logging_on;
     fmi2Status worst;             /* worst status logged during the current call */
     int dead;                     /* pythonfmu returned fmi2Fatal: its instance is gone */
+    State state;
+    struct Instance *next;        /* the list of live instances */
 } Instance;
+
+/* The live instances, so that a second fmi2FreeInstance of one is refused instead of freeing it twice. */
+static Instance *live;
+static pthread_mutex_t live_lock = PTHREAD_MUTEX_INITIALIZER;
 
 static void *symbol(void *library, const char *name)
 {
@@ -238,6 +296,42 @@ static fmi2Status refuse(Instance *c, const char *function)
     return fmi2Error;
 }
 
+static fmi2Status not_allowed(Instance *c, const char *function)
+{
+    if (c->master.logger != NULL) {
+        c->master.logger(c->master.componentEnvironment, c->name, fmi2Error, "logStatusError",
+                         "%s is not allowed in state %s (FMI 2.0 co-simulation): nothing was done", function,
+                         STATE_NAMES[c->state]);
+    }
+    return fmi2Error;
+}
+
+/* 1 if every vr[i] is a variable of the given type ('R', 'I', 'B' or 'S'); else logs the first that is not. */
+static int known_references(Instance *c, const char *function, const fmi2ValueReference vr[], size_t nvr, char type)
+{
+    static const char types[] = BB_VARIABLE_TYPES;
+    static const char *const type_names[] = {"Real", "Integer", "Boolean", "String"};
+    const char *type_name = type_names[strchr("RIBS", type) - "RIBS"];
+    if (nvr > 0 && vr == NULL) {
+        if (c->master.logger != NULL) {
+            c->master.logger(c->master.componentEnvironment, c->name, fmi2Error, "logStatusError",
+                             "%s: vr is NULL for %zu value references", function, nvr);
+        }
+        return 0;
+    }
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] >= sizeof types - 1 || types[vr[i]] != type) {
+            if (c->master.logger != NULL) {
+                c->master.logger(c->master.componentEnvironment, c->name, fmi2Error, "logStatusError",
+                                 "%s: value reference %u is not a variable of type %s in this FMU: nothing was done",
+                                 function, (unsigned)vr[i], type_name);
+            }
+            return 0;
+        }
+    }
+    return 1;
+}
+
 static fmi2Status finish(Instance *c, fmi2Status status)
 {
     if (status == fmi2Fatal) {
@@ -252,15 +346,53 @@ static fmi2Status finish(Instance *c, fmi2Status status)
 
 /* Forward one call to pythonfmu and return the combined status (GNU ##__VA_ARGS__: gcc and clang
  * drop the comma for calls without arguments). */
-#define FORWARD(function, ...)                        \
-    do {                                              \
-        Instance *c_ = (Instance *)c;                 \
-        if (c_->dead) {                               \
-            return refuse(c_, "fmi2" #function);      \
-        }                                             \
-        c_->worst = fmi2OK;                           \
-        fmi2Status status_ = inner.function(c_->inner, ##__VA_ARGS__); \
-        return finish(c_, status_);                   \
+#define FORWARD(function, ...)                                          \
+    do {                                                                \
+        Instance *c_ = (Instance *)c;                                   \
+        if (c_ == NULL) {                                               \
+            return fmi2Error;                                           \
+        }                                                               \
+        if (c_->dead) {                                                 \
+            return refuse(c_, "fmi2" #function);                        \
+        }                                                               \
+        if (!(ALLOWED_##function & IN(c_->state))) {                    \
+            return not_allowed(c_, "fmi2" #function);                   \
+        }                                                               \
+        c_->worst = fmi2OK;                                             \
+        fmi2Status status_ = inner.function(c_->inner, ##__VA_ARGS__);  \
+        return finish(c_, status_);                                     \
+    } while (0)
+
+/* FORWARD for a call that moves the instance to state `next` when it succeeds. */
+#define FORWARD_TO(next, function, ...)                                 \
+    do {                                                                \
+        Instance *c_ = (Instance *)c;                                   \
+        if (c_ == NULL) {                                               \
+            return fmi2Error;                                           \
+        }                                                               \
+        if (c_->dead) {                                                 \
+            return refuse(c_, "fmi2" #function);                        \
+        }                                                               \
+        if (!(ALLOWED_##function & IN(c_->state))) {                    \
+            return not_allowed(c_, "fmi2" #function);                   \
+        }                                                               \
+        c_->worst = fmi2OK;                                             \
+        fmi2Status status_ = finish(c_, inner.function(c_->inner, ##__VA_ARGS__)); \
+        if (status_ <= fmi2Warning) {                                   \
+            c_->state = (next);                                         \
+        }                                                               \
+        return status_;                                                 \
+    } while (0)
+
+/* FORWARD for a getter or setter of one type: its value references are checked first. */
+#define FORWARD_VALUES(function, type, vr, nvr, ...)                    \
+    do {                                                                \
+        Instance *c_ = (Instance *)c;                                   \
+        if (c_ != NULL && !c_->dead && (ALLOWED_##function & IN(c_->state)) && \
+            !known_references(c_, "fmi2" #function, vr, nvr, type)) {   \
+            return fmi2Error;                                           \
+        }                                                               \
+        FORWARD(function, vr, nvr, ##__VA_ARGS__);                      \
     } while (0)
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -280,37 +412,68 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         }
         return NULL;
     }
+    if (functions == NULL) {
+        return NULL; /* FMI requires the callbacks; without a logger there is no one to tell */
+    }
     c = calloc(1, sizeof *c);
     if (c == NULL) {
         return NULL;
     }
-    if (functions != NULL) {
-        c->master = *functions;
-    }
+    c->master = *functions;
     c->own = c->master;
     c->own.logger = log_message;
     c->own.componentEnvironment = c;
+    if (c->own.allocateMemory == NULL || c->own.freeMemory == NULL) { /* never hand pythonfmu a NULL allocator */
+        c->own.allocateMemory = calloc;
+        c->own.freeMemory = free;
+    }
     c->name = strdup(instanceName != NULL ? instanceName : "");
-    c->logging_on = loggingOn;
-    c->inner = inner.Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, &c->own, visible, fmi2True);
-    if (c->inner == NULL) {
-        free((void *)c->name);
+    if (c->name == NULL) {
         free(c);
         return NULL;
     }
+    c->logging_on = loggingOn;
+    c->state = INSTANTIATED;
+    c->inner = inner.Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, &c->own, visible, fmi2True);
+    if (c->inner == NULL) {
+        free(c->name);
+        free(c);
+        return NULL;
+    }
+    pthread_mutex_lock(&live_lock);
+    c->next = live;
+    live = c;
+    pthread_mutex_unlock(&live_lock);
     return c;
+}
+
+/* Remove instance from the list of live instances; 0 if it was not there (freed already). */
+static int unlink_live(Instance *instance)
+{
+    Instance **link;
+    pthread_mutex_lock(&live_lock);
+    for (link = &live; *link != NULL && *link != instance; link = &(*link)->next) {
+    }
+    int found = *link != NULL;
+    if (found) {
+        *link = instance->next;
+    }
+    pthread_mutex_unlock(&live_lock);
+    return found;
 }
 
 void fmi2FreeInstance(fmi2Component c)
 {
     Instance *instance = (Instance *)c;
-    if (instance == NULL) {
+    /* A second call for the same instance is undefined by the standard: do nothing rather than
+     * free it twice (its memory, and with it the master's logger, is gone: nothing to log to). */
+    if (instance == NULL || !unlink_live(instance)) {
         return;
     }
     if (!instance->dead) { /* a dead pythonfmu instance has released its objects already */
         inner.FreeInstance(instance->inner);
     }
-    free((void *)instance->name);
+    free(instance->name);
     free(instance);
 }
 
@@ -319,6 +482,9 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
 {
     (void)nCategories;
     (void)categories;
+    if (c == NULL) {
+        return fmi2Error;
+    }
     ((Instance *)c)->logging_on = loggingOn; /* pythonfmu keeps logging everything to us */
     return fmi2OK;
 }
@@ -329,74 +495,182 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     FORWARD(SetupExperiment, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime);
 }
 
-fmi2Status fmi2EnterInitializationMode(fmi2Component c) { FORWARD(EnterInitializationMode); }
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) { FORWARD_TO(INITIALIZATION_MODE, EnterInitializationMode); }
 
-fmi2Status fmi2ExitInitializationMode(fmi2Component c) { FORWARD(ExitInitializationMode); }
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) { FORWARD_TO(STEP_COMPLETE, ExitInitializationMode); }
 
-fmi2Status fmi2Terminate(fmi2Component c) { FORWARD(Terminate); }
+fmi2Status fmi2Terminate(fmi2Component c) { FORWARD_TO(TERMINATED, Terminate); }
 
-fmi2Status fmi2Reset(fmi2Component c) { FORWARD(Reset); }
+fmi2Status fmi2Reset(fmi2Component c) { FORWARD_TO(INSTANTIATED, Reset); }
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
 {
-    FORWARD(GetReal, vr, nvr, value);
+    FORWARD_VALUES(GetReal, 'R', vr, nvr, value);
 }
 
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[])
 {
-    FORWARD(GetInteger, vr, nvr, value);
+    FORWARD_VALUES(GetInteger, 'I', vr, nvr, value);
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
 {
-    FORWARD(GetBoolean, vr, nvr, value);
+    FORWARD_VALUES(GetBoolean, 'B', vr, nvr, value);
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
 {
-    FORWARD(GetString, vr, nvr, value);
+    FORWARD_VALUES(GetString, 'S', vr, nvr, value);
 }
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
 {
-    FORWARD(SetReal, vr, nvr, value);
+    FORWARD_VALUES(SetReal, 'R', vr, nvr, value);
 }
 
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[])
 {
-    FORWARD(SetInteger, vr, nvr, value);
+    FORWARD_VALUES(SetInteger, 'I', vr, nvr, value);
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
 {
-    FORWARD(SetBoolean, vr, nvr, value);
+    FORWARD_VALUES(SetBoolean, 'B', vr, nvr, value);
 }
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])
 {
-    FORWARD(SetString, vr, nvr, value);
+    FORWARD_VALUES(SetString, 'S', vr, nvr, value);
 }
 
-fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) { FORWARD(GetFMUstate, FMUstate); }
+/* An FMU state is pythonfmu's state and the state-machine state it was taken in: restoring it
+ * restores both (a fresh instance given the state of an initialised one is initialised). Serialized,
+ * the state-machine state is one byte in front of pythonfmu's bytes. */
+typedef struct {
+    fmi2FMUstate inner;
+    State state;
+} FmuState;
 
-fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) { FORWARD(SetFMUstate, FMUstate); }
+static fmi2Status get_state_inner(fmi2Component c, fmi2FMUstate *FMUstate) { FORWARD(GetFMUstate, FMUstate); }
 
-fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) { FORWARD(FreeFMUstate, FMUstate); }
-
-fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
+static fmi2Status size_inner(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
 {
     FORWARD(SerializedFMUstateSize, FMUstate, size);
 }
 
+static fmi2Status serialize_inner(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte bytes[], size_t size)
+{
+    FORWARD(SerializeFMUstate, FMUstate, bytes, size);
+}
+
+static fmi2Status deserialize_inner(fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *FMUstate)
+{
+    FORWARD(DeSerializeFMUstate, bytes, size, FMUstate);
+}
+
+/* Hand saved back in *FMUstate once pythonfmu's part is in it; a new one is freed if that failed. */
+static fmi2Status into_state(fmi2Status status, FmuState *saved, fmi2FMUstate *FMUstate, State state)
+{
+    if (status > fmi2Warning) {
+        if (*FMUstate == NULL) {
+            free(saved);
+        }
+        return status;
+    }
+    saved->state = state;
+    *FMUstate = saved;
+    return status;
+}
+
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
+{
+    FmuState *saved;
+    if (c == NULL || FMUstate == NULL) {
+        return fmi2Error;
+    }
+    saved = *FMUstate != NULL ? (FmuState *)*FMUstate : calloc(1, sizeof *saved);
+    if (saved == NULL) {
+        return fmi2Error;
+    }
+    return into_state(get_state_inner(c, &saved->inner), saved, FMUstate, ((Instance *)c)->state);
+}
+
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
+{
+    FmuState *saved = (FmuState *)FMUstate;
+    if (saved == NULL) {
+        return fmi2Error;
+    }
+    FORWARD_TO(saved->state, SetFMUstate, saved->inner);
+}
+
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
+{
+    Instance *instance = (Instance *)c;
+    FmuState *saved;
+    fmi2Status status = fmi2OK;
+    if (instance == NULL || FMUstate == NULL) {
+        return fmi2Error;
+    }
+    saved = (FmuState *)*FMUstate;
+    if (saved == NULL) {
+        return fmi2OK; /* freeing nothing is allowed */
+    }
+    if (!instance->dead) {
+        instance->worst = fmi2OK;
+        status = finish(instance, inner.FreeFMUstate(instance->inner, &saved->inner));
+    }
+    free(saved);
+    *FMUstate = NULL;
+    return status;
+}
+
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
+{
+    FmuState *saved = (FmuState *)FMUstate;
+    fmi2Status status;
+    if (saved == NULL || size == NULL) {
+        return fmi2Error;
+    }
+    status = size_inner(c, saved->inner, size);
+    if (status <= fmi2Warning) {
+        *size += 1;
+    }
+    return status;
+}
+
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size)
 {
-    FORWARD(SerializeFMUstate, FMUstate, serializedState, size);
+    FmuState *saved = (FmuState *)FMUstate;
+    if (saved == NULL || serializedState == NULL || size < 1) {
+        return fmi2Error;
+    }
+    serializedState[0] = (fmi2Byte)saved->state;
+    return serialize_inner(c, saved->inner, serializedState + 1, size - 1);
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate)
 {
-    FORWARD(DeSerializeFMUstate, serializedState, size, FMUstate);
+    Instance *instance = (Instance *)c;
+    FmuState *saved;
+    if (instance == NULL || FMUstate == NULL) {
+        return fmi2Error;
+    }
+    if (serializedState == NULL || size < 1 || (unsigned char)serializedState[0] > TERMINATED) {
+        if (instance->master.logger != NULL) {
+            instance->master.logger(instance->master.componentEnvironment, instance->name, fmi2Error,
+                                    "logStatusError", "fmi2DeSerializeFMUstate: these bytes are not a state of this "
+                                    "FMU: nothing was done");
+        }
+        return fmi2Error;
+    }
+    saved = *FMUstate != NULL ? (FmuState *)*FMUstate : calloc(1, sizeof *saved);
+    if (saved == NULL) {
+        return fmi2Error;
+    }
+    return into_state(deserialize_inner(c, serializedState + 1, size - 1, &saved->inner), saved, FMUstate,
+                      (State)(unsigned char)serializedState[0]);
 }
 
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,

@@ -17,6 +17,7 @@ import json
 import math
 import os
 import sys
+import warnings
 from dataclasses import asdict
 
 from pythonfmu import Boolean, Fmi2Slave, Integer, Real, String
@@ -53,9 +54,10 @@ _cvode = importlib.import_module(f"{PACKAGE}.solvers.cvode")
 Ball, Mode = _physics.Ball, _physics.Mode
 BALL_KEYS, SCENE_DEFAULTS = _scenes.BALL_KEYS, _scenes.SCENE_DEFAULTS
 BallIntegrator, CvodeSettings = _cvode.BallIntegrator, _cvode.CvodeSettings
-IntegratorState, SolverError = _cvode.IntegratorState, _cvode.SolverError
+IntegratorState, SolverError, check_resolvable = _cvode.IntegratorState, _cvode.SolverError, _cvode.check_resolvable
+SundialsWarning = importlib.import_module(f"{PACKAGE}.solvers.sundials_log").SundialsWarning
 
-STATE_FORMAT = "bouncingball-fmu-state-1"
+STATE_FORMAT = "bouncingball-fmu-state-2"
 SETTABLE_AFTER_INITIALISATION = ("F_ext",)
 # Outputs the slave computes: a master may set the start values of h and v (initial="exact"), not these.
 COMPUTED_OUTPUTS = tuple(v.name for v in VARIABLES if v.causality == "output" and v.initial != "exact")
@@ -71,6 +73,10 @@ class BouncingBall(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        # pythonfmu 0.7 appends the FMU's resources folder to sys.path for each instance: keep one.
+        resources = kwargs.get("resources")
+        while resources is not None and sys.path.count(resources) > 1:
+            sys.path.remove(resources)
         # The values set by the master: parameters, start values of h and v, and the input F_ext. The
         # defaults are the article's; they are not read from the package's data files, because a master
         # (FMPy) may delete the unzipped FMU whose modules this process keeps using.
@@ -79,6 +85,7 @@ class BouncingBall(Fmi2Slave):
                         "v": SCENE_DEFAULTS["v0"], "F_ext": SCENE_DEFAULTS["F_ext"], "rtol": settings.rtol,
                         "atol": settings.atol, "method": settings.method}
         self._start_time = 0.0
+        self._stop_time: float | None = None
         self._tolerance: float | None = None
         self._integrator: BallIntegrator | None = None
         for variable in VARIABLES:
@@ -95,11 +102,15 @@ class BouncingBall(Fmi2Slave):
     # --- FMI calls ------------------------------------------------------------------------------
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
         self._start_time = start_time
+        self._stop_time = stop_time
         self._tolerance = tolerance
 
     def exit_initialization_mode(self):
         try:
-            self._integrator = self._make_integrator()
+            integrator = self._make_integrator()
+            if self._stop_time is not None:  # refuse now what could not be integrated up to the stop time
+                check_resolvable(integrator.ball, validation.finite("stopTime", self._stop_time, "s"))
+            self._integrator = integrator
         except ValueError as error:
             self._error(error)
 
@@ -114,9 +125,14 @@ class BouncingBall(Fmi2Slave):
             if not abs(current_time - integrator.t) <= 1e-9 * max(1.0, abs(integrator.t)):
                 raise ValueError(f"currentCommunicationPoint = {current_time!r} s is not allowed: "
                                  f"the FMU is at t = {integrator.t!r} s")
-            if not step_size >= 0.0:
-                raise ValueError(f"communicationStepSize = {step_size!r} s is not allowed: it must be >= 0")
-            integrator.advance(max(current_time + step_size, integrator.t))
+            if not (step_size >= 0.0 and math.isfinite(current_time + step_size)):
+                raise ValueError(f"communicationStepSize = {step_size!r} s is not allowed: it must be >= 0 and "
+                                 "end the step at a finite time")
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", SundialsWarning)
+                integrator.advance(max(current_time + step_size, integrator.t))
+            for warning in caught:  # to the master's log, not the host's stderr; SundialsLog keeps one per cause
+                self.log(str(warning.message), Fmi2Status.warning)
         except (ValueError, SolverError) as error:
             self._error(error)
             return False
@@ -129,27 +145,33 @@ class BouncingBall(Fmi2Slave):
             state = self._integrator.get_state()
             integrator = {**asdict(state), "mode": int(state.mode)}
         return {"format": STATE_FORMAT, "values": dict(self._values), "start_time": self._start_time,
-                "tolerance": self._tolerance, "integrator": integrator}
+                "stop_time": self._stop_time, "tolerance": self._tolerance, "integrator": integrator}
 
     def _set_fmu_state(self, state):
+        """All or nothing: the whole state is checked (parameters, start values, integrator) first."""
         try:
             if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
                 reason = state.get("invalid", "") if isinstance(state, dict) else ""
                 raise ValueError(f"it is not a {self.modelName} state ({STATE_FORMAT}) {reason}")
-            self._values = dict(state["values"])
-            self._start_time, self._tolerance = state["start_time"], state["tolerance"]
-            saved = state["integrator"]
-            if saved is None:
-                self._integrator = None
-                return
-            ball, settings = self._ball_and_settings()
-            current = self._integrator
-            if current is None or (current.ball, current.settings) != (ball, settings):
-                current = BallIntegrator(ball, saved["h"], saved["v"], saved["t"], saved["F_ext"], settings)
-            current.set_state(IntegratorState(**{**saved, "mode": Mode(saved["mode"])}))
-            self._integrator = current
+            values = dict(state["values"])
+            if set(values) != set(self._values):
+                raise ValueError(f"its variables {sorted(values)} are not this FMU's")
+            start_time = validation.finite("start_time", state["start_time"], "s")
+            stop_time, tolerance = state["stop_time"], state["tolerance"]
+            ball, settings = self._ball_and_settings(values, tolerance)
+            for name in ("h", "v", "F_ext"):
+                validation.finite(name, values[name])
+            saved, integrator = state["integrator"], None
+            if saved is not None:
+                integrator = self._integrator
+                if integrator is None or (integrator.ball, integrator.settings) != (ball, settings):
+                    integrator = BallIntegrator(ball, values["h"], values["v"], start_time, values["F_ext"], settings)
+                integrator.set_state(IntegratorState(**saved))  # checks every field before it changes any
         except (KeyError, TypeError, ValueError) as error:
-            self._error(f"fmi2SetFMUstate failed: {error}")
+            self._error(f"fmi2SetFMUstate failed, nothing was changed: {error}")
+            return
+        self._values, self._start_time, self._stop_time, self._tolerance = values, start_time, stop_time, tolerance
+        self._integrator = integrator
 
     @staticmethod
     def _fmu_state_from_bytes(state: bytes):
@@ -164,13 +186,15 @@ class BouncingBall(Fmi2Slave):
             self._error(f"{name} is an output: it cannot be set")
         elif self._integrator is not None and name not in SETTABLE_AFTER_INITIALISATION:
             self._error(f"{name} = {value!r} is not allowed: {name} cannot change after initialisation")
-        else:
+        elif name == "F_ext" and self._integrator is not None:
+            try:
+                self._integrator.F_ext = value  # checks it first: a rejected value changes nothing
+            except ValueError as error:
+                self._error(error)
+                return
             self._values[name] = value
-            if name == "F_ext" and self._integrator is not None:
-                try:
-                    self._integrator.F_ext = value
-                except ValueError as error:
-                    self._error(error)
+        else:
+            self._values[name] = value  # a parameter or start value: checked, as a whole, at initialisation
 
     def _h(self):
         return self._values["h"] if self._integrator is None else self._integrator.h
@@ -194,13 +218,14 @@ class BouncingBall(Fmi2Slave):
         return 0 if self._integrator is None else self._integrator.impacts
 
     # --- helpers ----------------------------------------------------------------------------------
-    def _ball_and_settings(self) -> tuple[Ball, CvodeSettings]:
-        """The ball and CVODE settings from the current values; ValueError names a bad value."""
-        values = self._values
+    def _ball_and_settings(self, values=None, tolerance=None) -> tuple[Ball, CvodeSettings]:
+        """The ball and CVODE settings from values (default: the current ones); ValueError names a bad value."""
+        if values is None:
+            values, tolerance = self._values, self._tolerance
         ball = Ball(**{key: values[key] for key in BALL_KEYS})
         rtol = values["rtol"]
-        if self._tolerance is not None:
-            rtol = validation.in_range("tolerance (fmi2SetupExperiment, used as rtol)", self._tolerance, 0.0, 1.0)
+        if tolerance is not None:
+            rtol = validation.in_range("tolerance (fmi2SetupExperiment, used as rtol)", tolerance, 0.0, 1.0)
         return ball, CvodeSettings(rtol=rtol, atol=values["atol"], method=values["method"])
 
     def _make_integrator(self) -> BallIntegrator:

@@ -165,7 +165,8 @@ def loader_flags() -> list[str]:
         raise FmuBuildError("sys.executable is empty: run the build from a python executable")
     return ["-Wall", "-Wextra", f"-I{headers}", f"-DBB_LIBPYTHON={_c_string(str(libpython or ''))}",
             f"-DBB_PYTHON={_c_string(sys.executable)}", f"-DBB_INNER={_c_string(PYTHONFMU_BINARY)}",
-            f"-DBB_PYTHON_VERSION={_c_string(f'{sys.version_info.major}.{sys.version_info.minor}')}"]
+            f"-DBB_PYTHON_VERSION={_c_string(f'{sys.version_info.major}.{sys.version_info.minor}')}",
+            f"-DBB_VARIABLE_TYPES={_c_string(''.join(variable.type[0] for variable in VARIABLES))}"]
 
 
 def shared_libpython() -> Path | None:
@@ -216,6 +217,10 @@ def complete_model_description(xml: bytes) -> bytes:
 
     scalars = root.find("ModelVariables").findall("ScalarVariable")
     index = {scalar.get("name"): i + 1 for i, scalar in enumerate(scalars)}
+    # The loader checks value references against VARIABLES' order (BB_VARIABLE_TYPES): pythonfmu must agree.
+    if [(s.get("name"), s.get("valueReference")) for s in scalars] != [(v.name, str(i)) for i, v in
+                                                                           enumerate(VARIABLES)]:
+        raise FmuBuildError("pythonfmu numbered the variables other than in VARIABLES' order")
     for variable in VARIABLES:
         typed = scalars[index[variable.name] - 1].find(variable.type)
         if variable.unit:

@@ -8,6 +8,7 @@ re-initialises CVODE at the event, so no step ever straddles the discontinuity.
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from dataclasses import dataclass
 
@@ -278,11 +279,26 @@ class BallIntegrator:
                                rhs_calls=self.rhs_calls, steps=self._steps)
 
     def set_state(self, state: IntegratorState) -> None:
-        self._t, self._h, self._v = float(state.t), float(state.h), float(state.v)
-        self._mode = Mode(state.mode)
-        self._F_ext = float(state.F_ext)
+        """Resume from state (one of get_state()); ValueError names a bad field, and then nothing changed."""
+        t = validation.finite("state t", state.t, "s")
+        h, v = validation.finite("state h", state.h, "m"), validation.finite("state v", state.v, "m/s")
+        F_ext = validation.finite("state F_ext", state.F_ext, "N")
+        t_start = validation.finite("state t_start", state.t_start, "s")
+        last_impact = None if state.last_impact_time is None else validation.finite(
+            "state last_impact_time", state.last_impact_time, "s")
+        counts = [state.impacts, state.departures, state.rhs_calls, state.steps]
+        if not all(isinstance(n, numbers.Integral) and not isinstance(n, bool) and n >= 0 for n in counts):
+            raise ValueError(f"state counts (impacts, departures, rhs_calls, steps) = {counts} are not allowed: "
+                             "they must be integers >= 0")
+        try:
+            mode = Mode(state.mode)
+        except ValueError:
+            raise ValueError(f"state mode = {state.mode!r} is not allowed: it must be one of "
+                             f"{', '.join(f'{m.value} ({m.name})' for m in Mode)}") from None
+        check_resolvable(self.ball, t)
+        self._t, self._h, self._v, self._mode, self._F_ext = t, h, v, mode, F_ext
         self._impacts, self._departures = int(state.impacts), int(state.departures)
-        self._last_impact_time, self._t_start = state.last_impact_time, float(state.t_start)
+        self._last_impact_time, self._t_start = last_impact, t_start
         self._rhs_calls, self._steps = int(state.rhs_calls), int(state.steps)
         self._nfev_since_init = 0
         self._reinit_needed()

@@ -1,0 +1,242 @@
+"""The FMU keeps the FMI 2.0 co-simulation state machine (FMI 2.0.4, section 4.2.4) and survives wrong calls.
+
+Every case runs in its own Python process through FMPy's FMU2Slave (fmu_helpers.Instance), so that a
+crash fails that test and not the suite. Expected values come from the standard's table and the exact
+solution, not from the FMU.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+TESTS = Path(__file__).parent
+
+# Each FMI 2.0 co-simulation call that takes an instance, as FMU2Slave makes it (f: the FMU2Slave,
+# vr: a Real value reference), and the states FMI 2.0.4 section 4.2.4 allows it in.
+CALLS = {
+    "fmi2SetupExperiment": ("f.setupExperiment(startTime=0.0)", {"instantiated"}),
+    "fmi2EnterInitializationMode": ("f.enterInitializationMode()", {"instantiated"}),
+    "fmi2ExitInitializationMode": ("f.exitInitializationMode()", {"initialization mode"}),
+    "fmi2Terminate": ("f.terminate()", {"step complete"}),
+    "fmi2GetReal": ("f.getReal([vr])", {"initialization mode", "step complete", "terminated"}),
+    "fmi2GetInteger": ("f.getInteger([ir])", {"initialization mode", "step complete", "terminated"}),
+    "fmi2GetBoolean": ("f.getBoolean([br])", {"initialization mode", "step complete", "terminated"}),
+    "fmi2GetString": ("f.getString([sr])", {"initialization mode", "step complete", "terminated"}),
+    "fmi2SetReal": ("f.setReal([fr], [0.0])", {"instantiated", "initialization mode", "step complete"}),
+    "fmi2SetString": ("f.setString([sr], ['auto'])", {"instantiated", "initialization mode", "step complete"}),
+    "fmi2GetDirectionalDerivative": ("f.getDirectionalDerivative([vr], [fr], [1.0])",
+                                     {"initialization mode", "step complete", "terminated"}),
+    "fmi2SetRealInputDerivatives": ("f.setRealInputDerivatives([fr], [1], [0.0])",
+                                    {"instantiated", "initialization mode", "step complete"}),
+    "fmi2GetRealOutputDerivatives": ("f.getRealOutputDerivatives([vr], [1])", {"step complete", "terminated"}),
+    "fmi2DoStep": ("f.doStep(ball.t, 0.1)", {"step complete"}),
+    "fmi2CancelStep": ("f.cancelStep()", set()),
+    "fmi2GetStatus": ("f.getStatus(0)", {"step complete", "terminated"}),
+    "fmi2GetRealStatus": ("f.getRealStatus(2)", {"step complete", "terminated"}),
+}
+# How to reach each state from a fresh instance.
+REACH = {
+    "instantiated": "",
+    "initialization mode": "f.setupExperiment(startTime=0.0); f.enterInitializationMode()",
+    "step complete": "f.setupExperiment(startTime=0.0); f.enterInitializationMode(); f.exitInitializationMode(); "
+                     "f.doStep(0.0, 0.5); ball.t = 0.5",
+    "terminated": "f.setupExperiment(startTime=0.0); f.enterInitializationMode(); f.exitInitializationMode(); "
+                  "f.doStep(0.0, 0.5); ball.t = 0.5; f.terminate()",
+}
+
+
+def run_case(unzipped: Path, body: str) -> subprocess.CompletedProcess:
+    code = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {str(TESTS)!r})
+        import fmpy
+        from fmu_helpers import Instance, exact_at
+        ball = Instance(sys.argv[1])
+        f = ball.fmu
+        vr, fr, ir, br, sr = (ball.variables[name].valueReference for name in ("h", "F_ext", "impacts", "contact",
+                                                                               "method"))
+
+        def refused(call, expected):
+            try:
+                call()
+            except fmpy.fmi1.FMICallException as error:
+                assert error.status == 3, (expected, error.status)  # fmi2Error
+            else:
+                raise AssertionError(f"{{expected}} was accepted")
+            assert ball.errors()[-1].startswith(expected), (expected, ball.errors()[-1])
+    """) + textwrap.dedent(body) + "\nprint('ok')\n"
+    return subprocess.run([sys.executable, "-c", code, str(unzipped)], capture_output=True, text=True, timeout=120,
+                          check=False)
+
+
+def assert_ok(completed: subprocess.CompletedProcess) -> None:
+    assert (completed.returncode, completed.stdout.strip().splitlines()[-1:]) == (0, ["ok"]), (
+        completed.stdout + completed.stderr)
+
+
+@pytest.mark.parametrize("state", list(REACH))
+def test_every_call_not_allowed_in_a_state_is_refused_and_changes_nothing(unzipped, state):
+    refused = [name for name, (_, allowed) in CALLS.items() if state not in allowed]
+    assert refused
+    body = REACH[state] + "\n"
+    body += "before = f.getReal([vr]) if '" + state + "' != 'instantiated' else None\n"
+    for name in refused:
+        call, _ = CALLS[name]
+        body += f"refused(lambda: {call}, {name + ' is not allowed in state ' + state!r})\n"
+    # nothing changed: the state's own allowed calls still work, from where the instance was
+    body += {
+        "instantiated": "f.setupExperiment(startTime=0.0); f.enterInitializationMode(); f.exitInitializationMode()\n"
+                        "f.doStep(0.0, 0.5)\nassert abs(f.getReal([vr])[0] - exact_at([0.5])[0][0]) < 1e-8\n",
+        "initialization mode": "f.exitInitializationMode(); f.doStep(0.0, 0.5)\n"
+                               "assert abs(f.getReal([vr])[0] - exact_at([0.5])[0][0]) < 1e-8\n",
+        "step complete": "assert f.getReal([vr]) == before\nf.doStep(0.5, 0.5)\n"
+                         "assert abs(f.getReal([vr])[0] - exact_at([1.0])[0][0]) < 1e-8\n",
+        "terminated": "assert f.getReal([vr]) == before\nf.reset()\n"
+                      "f.setupExperiment(startTime=0.0); f.enterInitializationMode(); f.exitInitializationMode()\n"
+                      "f.doStep(0.0, 0.5)\nassert abs(f.getReal([vr])[0] - exact_at([0.5])[0][0]) < 1e-8\n",
+    }[state]
+    body += "ball.free()\n"
+    assert_ok(run_case(unzipped, body))
+
+
+def test_non_finite_or_absurd_step_ends_are_refused_and_change_nothing(unzipped):
+    assert_ok(run_case(unzipped, """
+        ball.initialize()
+        f.doStep(0.0, 0.5)
+        before = f.getReal([vr])
+        refused(lambda: f.doStep(0.5, float('inf')), "communicationStepSize = inf s is not allowed")
+        refused(lambda: f.doStep(0.5, float('nan')), "communicationStepSize = nan s is not allowed")
+        refused(lambda: f.doStep(0.5, 1e308), "k = 10000.0 N/m with m = 1.0 kg is not allowed up to t = 1e+308 s")
+        refused(lambda: f.doStep(7.0, 0.5), "currentCommunicationPoint = 7.0 s is not allowed")
+        assert f.getReal([vr]) == before
+        f.doStep(0.5, 0.5)
+        assert abs(f.getReal([vr])[0] - exact_at([1.0])[0][0]) < 1e-8
+        ball.free()
+    """))
+
+
+def test_a_corrupted_state_is_refused_whole_and_the_instance_keeps_its_own(unzipped):
+    assert_ok(run_case(unzipped, """
+        import json
+        ball.initialize()
+        f.doStep(0.0, 0.7)
+        good = f.serializeFMUstate(f.getFMUstate())
+        before = ball.outputs()
+        m = ball.variables["m"].valueReference
+
+        def corrupted(change):
+            state = json.loads(bytes(good[1:]).decode())
+            change(state)
+            return bytes(good[:1]) + json.dumps(state).encode()
+
+        for change, expected in [
+            (lambda s: s["values"].update(m=-1.0), "m = -1.0 kg is not allowed"),
+            (lambda s: s["integrator"].update(t=float("nan")), "state t = nan s is not allowed"),
+            (lambda s: s["integrator"].update(h=float("nan")), "state h = nan m is not allowed"),
+            (lambda s: s["integrator"].update(F_ext=float("inf")), "state F_ext = inf N is not allowed"),
+            (lambda s: s["integrator"].update(mode=7), "state mode = 7 is not allowed"),
+        ]:
+            bad = f.deSerializeFMUstate(corrupted(change))
+            refused(lambda: f.setFMUstate(bad), "fmi2SetFMUstate failed, nothing was changed: " + expected)
+            f.freeFMUstate(bad)
+            assert ball.outputs() == before and f.getReal([m]) == [1.0]
+        own = f.getFMUstate()  # the instance's own state can still be taken and restored
+        f.doStep(0.7, 0.3)
+        f.setFMUstate(own)
+        assert ball.outputs() == before
+        f.doStep(0.7, 0.3)
+        assert abs(f.getReal([vr])[0] - exact_at([1.0])[0][0]) < 1e-8
+        ball.free()
+    """))
+
+
+def test_a_state_carries_the_state_machine_into_a_fresh_instance(unzipped):
+    assert_ok(run_case(unzipped, """
+        ball.initialize()
+        f.doStep(0.0, 0.7)
+        saved = f.serializeFMUstate(f.getFMUstate())
+        fresh = Instance(sys.argv[1], "fresh")
+        g = fresh.fmu
+        g.setFMUstate(g.deSerializeFMUstate(saved))  # a fresh instance becomes an initialised one
+        g.doStep(0.7, 0.3)
+        assert abs(g.getReal([vr])[0] - exact_at([1.0])[0][0]) < 1e-8
+        fresh.log.clear()
+        try:
+            g.deSerializeFMUstate(b"\\x09" + bytes(saved[1:]))
+        except fmpy.fmi1.FMICallException as error:
+            assert error.status == 3
+        assert fresh.errors()[-1].startswith("fmi2DeSerializeFMUstate: these bytes are not a state of this FMU")
+        fresh.free()
+        ball.free()
+    """))
+
+
+def test_a_rejected_input_reads_back_as_it_was(unzipped):
+    assert_ok(run_case(unzipped, """
+        ball.initialize()
+        f.setReal([fr], [0.25])
+        refused(lambda: f.setReal([fr], [float('nan')]), "F_ext = nan N is not allowed")
+        assert f.getReal([fr]) == [0.25]
+        f.doStep(0.0, 0.5)
+        h_exact, _, _ = exact_at([0.5], F_ext=0.25)
+        assert abs(f.getReal([vr])[0] - h_exact[0]) < 1e-8  # the integrator kept 0.25 too
+        ball.free()
+    """))
+
+
+def test_freeing_an_instance_twice_does_not_crash(unzipped):
+    assert_ok(run_case(unzipped, """
+        ball.initialize()
+        f.fmi2FreeInstance(f.component)
+        f.fmi2FreeInstance(f.component)  # undefined by the standard: refused quietly instead of freeing twice
+        f.freeLibrary()  # (FMPy's freeInstance also unloads the library, so it cannot be called twice)
+        other = Instance(sys.argv[1], "other")
+        other.initialize()
+        other.fmu.doStep(0.0, 0.5)
+        assert abs(other.get("h")[0] - exact_at([0.5])[0][0]) < 1e-8
+        other.free()
+    """))
+
+
+def test_sundials_warnings_reach_the_master_log_once_per_cause(unzipped):
+    """Started at t = 1e6 s, CVODE's first step is below one ulp of t: SUNDIALS warns at every step."""
+    assert_ok(run_case(unzipped, """
+        f.setupExperiment(startTime=1e6)
+        f.enterInitializationMode(); f.exitInitializationMode()
+        for i in range(20):
+            f.doStep(1e6 + 0.1 * i, 0.1)
+        warnings = [message for status, message in ball.log if status == 1]
+        assert len([w for w in warnings if "t + h = t" in w]) == 1, warnings
+        h_exact, _, _ = exact_at([1e6 + 2.0], t_start=1e6)
+        assert abs(f.getReal([vr])[0] - h_exact[0]) < 1e-6
+        ball.free()
+    """))
+
+
+def test_a_stop_time_beyond_what_double_precision_resolves_is_refused_at_initialisation(unzipped):
+    assert_ok(run_case(unzipped, """
+        ball.set(k=1e15, m=1e-9)
+        f.setupExperiment(startTime=0.0, stopTime=1e5)
+        f.enterInitializationMode()
+        refused(lambda: f.exitInitializationMode(), "k = 1000000000000000.0 N/m with m = 1e-09 kg is not allowed "
+                                                    "up to t = 100000.0 s")
+        ball.free()
+    """))
+
+
+def test_repeated_instantiation_keeps_sys_path_flat(unzipped):
+    assert_ok(run_case(unzipped, """
+        ball.initialize()
+        ball.free()
+        before = list(sys.path)
+        for i in range(50):
+            other = Instance(sys.argv[1], f"run{i}")
+            other.initialize()
+            other.fmu.fmi2FreeInstance(other.fmu.component)
+        assert sys.path == before, len(sys.path) - len(before)
+    """))
