@@ -344,26 +344,9 @@ static fmi2Status finish(Instance *c, fmi2Status status)
     return status;
 }
 
-/* Forward one call to pythonfmu and return the combined status (GNU ##__VA_ARGS__: gcc and clang
- * drop the comma for calls without arguments). */
-#define FORWARD(function, ...)                                          \
-    do {                                                                \
-        Instance *c_ = (Instance *)c;                                   \
-        if (c_ == NULL) {                                               \
-            return fmi2Error;                                           \
-        }                                                               \
-        if (c_->dead) {                                                 \
-            return refuse(c_, "fmi2" #function);                        \
-        }                                                               \
-        if (!(ALLOWED_##function & IN(c_->state))) {                    \
-            return not_allowed(c_, "fmi2" #function);                   \
-        }                                                               \
-        c_->worst = fmi2OK;                                             \
-        fmi2Status status_ = inner.function(c_->inner, ##__VA_ARGS__);  \
-        return finish(c_, status_);                                     \
-    } while (0)
-
-/* FORWARD for a call that moves the instance to state `next` when it succeeds. */
+/* Forward one call to pythonfmu if the state machine allows it, return the combined status, and move
+ * the instance to state `next` if it succeeded (GNU ##__VA_ARGS__: gcc and clang drop the comma for
+ * calls without arguments). */
 #define FORWARD_TO(next, function, ...)                                 \
     do {                                                                \
         Instance *c_ = (Instance *)c;                                   \
@@ -383,6 +366,9 @@ static fmi2Status finish(Instance *c, fmi2Status status)
         }                                                               \
         return status_;                                                 \
     } while (0)
+
+/* A call that leaves the state as it is. */
+#define FORWARD(function, ...) FORWARD_TO(c_->state, function, ##__VA_ARGS__)
 
 /* FORWARD for a getter or setter of one type: its value references are checked first. */
 #define FORWARD_VALUES(function, type, vr, nvr, ...)                    \
