@@ -1,0 +1,25 @@
+"""The shipped code and the docs stand on their own: no reference to notes or threads a reader cannot see."""
+
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PRIVATE = re.compile(r"NOTES\.md|\bthe issue\b|\bissue's\b", re.IGNORECASE)
+
+
+def shipped_files() -> list[Path]:
+    package = ROOT / "src" / "bouncingball"
+    return [*package.rglob("*.py"), *package.rglob("*.c"), *package.rglob("*.toml"), ROOT / "README.md",
+            *(ROOT / "docs").glob("*.md"), *(ROOT / "fmu").glob("*.md")]
+
+
+def test_code_and_docs_cite_nothing_private():
+    if not (ROOT / "pyproject.toml").is_file():
+        pytest.skip("runs in a source checkout")
+    files = shipped_files()
+    assert len(files) > 20
+    cited = [f"{path.relative_to(ROOT)}: {match.group(0)}" for path in files
+             for match in PRIVATE.finditer(path.read_text(encoding="utf-8"))]
+    assert cited == []
