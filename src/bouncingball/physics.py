@@ -56,7 +56,7 @@ class Ball:
 
     def static_deflection(self, F_ext: float = 0.0) -> float:
         """(m g - F_ext)/k [m]: how far below R the centre rests; negative if F_ext lifts the ball."""
-        return (self.m * self.g - F_ext) / self.k
+        return static_deflection_value(F_ext, self.m, self.k, self.g)
 
     def rest_height(self, F_ext: float = 0.0) -> float:
         """R - (m g - F_ext)/k [m]: the equilibrium height of the centre in contact."""
@@ -65,9 +65,7 @@ class Ball:
     # --- equations of motion ---------------------------------------------------------------
     def acceleration(self, h: float, v: float, mode: Mode, F_ext: float = 0.0) -> float:
         """dv/dt [m/s2] in the given mode."""
-        if mode == Mode.FLIGHT:
-            return -self.g + F_ext / self.m
-        return (-self.b * v + self.k * (self.R - h) + F_ext) / self.m - self.g
+        return mode_acceleration(h, v, mode, F_ext, self.m, self.k, self.b, self.R, self.g)
 
     def jacobian(self, mode: Mode) -> np.ndarray:
         """d(h', v')/d(h, v): constant in each mode."""
@@ -138,10 +136,31 @@ class Ball:
         v^2 = w^2 (A^2 - d^2) to fly v^2 / 2 g_eff = (A^2 - d^2) / 2d above R (g_eff = w^2 d > 0).
         It only grows in contact, so it is a root function for the start of a rest.
         """
-        d = self.static_deflection(F_ext)
-        w2 = self.k / self.m
-        y = h - self.rest_height(F_ext)
-        return w2 * d * (d + 2.0 * hop_tolerance) - (v * v + w2 * y * y)
+        return rest_margin_value(h, v, self.static_deflection(F_ext), hop_tolerance, self.k / self.m, self.R)
+
+
+# The equations as functions of plain floats: Ball's methods call them, and the compiled CVODE
+# engine compiles these same functions, so the physics has one definition.
+def mode_acceleration(h, v, mode, F_ext, m, k, b, R, g):
+    """dv/dt [m/s2] in mode (0 or Mode.FLIGHT: flight, 1 or Mode.CONTACT: contact).
+
+    k (R - h), not k R - k h: R - h is exact near R, whereas the two products of a stiff ball
+    (k = 1e12) would bury its deflection in their round-off.
+    """
+    if mode == 0:
+        return -g + F_ext / m
+    return (-b * v + k * (R - h) + F_ext) / m - g
+
+
+def static_deflection_value(F_ext, m, k, g):
+    """(m g - F_ext)/k [m]; see Ball.static_deflection."""
+    return (m * g - F_ext) / k
+
+
+def rest_margin_value(h, v, d, hop_tolerance, w2, R):
+    """w2 d (d + 2 hop_tolerance) - (v^2 + w2 y^2) [m2/s2], d the static deflection; see Ball.rest_margin."""
+    y = h - (R - d)
+    return w2 * d * (d + 2.0 * hop_tolerance) - (v * v + w2 * y * y)
 
 
 def oscillator_basis(sigma: float, w2: float, tau):
