@@ -278,3 +278,8 @@ def test_the_index_type_scikit_sundae_was_built_with_is_the_one_we_pass():
     _, typedefs = _pxd_declarations()
     assert typedefs["sunindextype"] == "int"
     assert compiled._CTYPES["sunindextype"] is __import__("ctypes").c_int
+
+
+def test_phases_longer_than_the_step_buffer_are_complete(monkeypatch):
+    monkeypatch.setattr(compiled, "_BUFFER", 7)  # the article's phases take up to ~100 steps
+    assert_engines_agree(*run_both(ARTICLE, 2.0, 0.0, 8.0, 1e-3))

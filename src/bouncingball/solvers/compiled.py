@@ -214,6 +214,11 @@ def _call_i2(typingctx, address, a, b):
 
 
 @intrinsic
+def _call_i3(typingctx, address, a, b, c):
+    return types.int32(types.intp, a, b, c), _codegen
+
+
+@intrinsic
 def _call_i5(typingctx, address, a, b, c, d, e):
     return types.int32(types.intp, a, b, c, d, e), _codegen
 
@@ -285,35 +290,76 @@ def _jacobian(t, y, fy, matrix, user_data, tmp1, tmp2, tmp3):
     return 0
 
 
+# The C functions the compiled loop calls, by their place in the address array it receives.
+_LOOP_FUNCTIONS = ("CVode", "CVodeGetRootInfo", "CVodeReInit", "CVodeSetStopTime", "CVodeClearStopTime",
+                   "CVodeGetNumRhsEvals")
+_CVODE, _ROOT_INFO, _REINIT, _SET_STOP, _CLEAR_STOP, _NUM_RHS = range(len(_LOOP_FUNCTIONS))
+_BUFFER_FULL = 99
+
+
 @njit(cache=True)
-def _run(f, mem, t_end, vector, state, t_out, h_out, v_out, count, one_step, scratch):
+def _steps(f, memory, vector, state, t_end, out, count, one_step, work):
     """CVODE steps from its current point towards t_end until a terminal root, t_end, an error or a full buffer.
 
-    Like scikit-sundae's solve(): each step end is stored; a root of only the extremum root
-    function (non-terminal) is stepped through without storing it. With one_step, one call of
-    CVode (scikit-sundae's step(method="onestep")). Returns (CVode's flag or 99 for a full
-    buffer, the new count). scratch: [tret, root info x3 as int32 in float slots] work space.
+    Like scikit-sundae's solve(): each step end (t, h, v) is stored in out[count]; a root of
+    only the extremum root function (non-terminal) is stepped through without storing it. With
+    one_step, a single call of CVode (scikit-sundae's step(method="onestep")). work[0] receives
+    CVode's time, work[1:4] the root information of the last root. Returns (CVode's flag, or
+    _BUFFER_FULL, and the new count).
     """
-    tret = scratch[:1]
     info = np.zeros(_NUM_ROOTS, dtype=np.int32)
     while True:
-        flag = _call_i5(f[0], mem, t_end, vector, tret.ctypes.data, CV_ONE_STEP)
+        flag = _call_i5(f[_CVODE], memory, t_end, vector, work.ctypes.data, CV_ONE_STEP)
         if flag == CV_ROOT_RETURN:
-            check = _call_i2(f[1], mem, info.ctypes.data)
+            check = _call_i2(f[_ROOT_INFO], memory, info.ctypes.data)
             if check < 0:
                 return check, count
-            scratch[1], scratch[2], scratch[3] = info[0], info[1], info[2]
+            work[1], work[2], work[3] = info[0], info[1], info[2]
             if info[0] == 0 and info[2] == 0 and not one_step:
                 continue
-        t_out[count], h_out[count], v_out[count] = tret[0], state[0], state[1]
+        out[count, 0], out[count, 1], out[count, 2] = work[0], state[0], state[1]
         count += 1
         if flag != CV_SUCCESS or one_step:
             return flag, count
-        if count == t_out.size:
-            return 99, count
+        if count == out.shape[0]:
+            return _BUFFER_FULL, count
 
 
-_BUFFER_FULL = 99
+@njit(cache=True)
+def _start_phase(f, memory, vector, state, t0, h0, v0, t_end, reinit, out, work, counter):
+    """Restart CVODE at (t0, h0, v0) with t_end as stop time and take its steps, as _steps.
+
+    Unless the buffer filled up, also clears the stop time and reads the right-hand-side count
+    into counter[0] (_finish_phase). Returns (the flag, the count stored, and which call failed:
+    0 none, 1 CVodeReInit, 2 CVodeSetStopTime, 3 CVodeClearStopTime or CVodeGetNumRhsEvals).
+    """
+    state[0], state[1] = h0, v0
+    work[1], work[2], work[3] = 0.0, 0.0, 0.0
+    if reinit:
+        flag = _call_i3(f[_REINIT], memory, t0, vector)
+        if flag < 0:
+            return flag, 0, 1
+    flag = _call_i2(f[_SET_STOP], memory, t_end)
+    if flag < 0:
+        return flag, 0, 2
+    out[0, 0], out[0, 1], out[0, 2] = t0, h0, v0
+    flag, count = _steps(f, memory, vector, state, t_end, out, 1, False, work)
+    if flag != _BUFFER_FULL:
+        finished = _finish_phase(f, memory, counter)
+        if finished < 0:
+            return finished, count, 3
+    return flag, count, 0
+
+
+@njit(cache=True)
+def _finish_phase(f, memory, counter):
+    """Clear the stop time; returns its flag and CVODE's right-hand-side evaluations in counter[0]."""
+    flag = _call_i1(f[_CLEAR_STOP], memory)
+    if flag < 0:
+        return flag
+    return _call_i2(f[_NUM_RHS], memory, counter.ctypes.data)
+
+
 # What CVode's failures mean (SUNDIALS' CVODE documentation); others get their name only.
 _FAILURES = {
     -1: "could not reach the end point within the maximum number of steps",
@@ -380,9 +426,11 @@ class PhaseSolver:
         self._user_data[[_U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS]] = (
             self.parameters.ctypes.data, addresses["N_VGetArrayPointer"], addresses["SUNDenseMatrix_Cols"])
         self._user_data[_U_MAX_EVALUATIONS] = max_evaluations
-        self._calls = np.array([addresses["CVode"], addresses["CVodeGetRootInfo"]], dtype=np.intp)
-        self._scratch = np.zeros(1 + _NUM_ROOTS)
-        self._buffers = (np.empty(_BUFFER), np.empty(_BUFFER), np.empty(_BUFFER))
+        self._calls = np.array([addresses[name] for name in _LOOP_FUNCTIONS], dtype=np.intp)
+        self._work = np.zeros(1 + _NUM_ROOTS)
+        self._counter = np.zeros(1, dtype=np.int64)  # a C long
+        self._out = np.empty((_BUFFER, 3))
+        self._roots = [0, 0, 0]
         self._handles = {}
         self._state = None
 
@@ -458,12 +506,12 @@ class PhaseSolver:
 
     def roots_found(self) -> list[int]:
         """CVodeGetRootInfo of the last root return: per root function, 0 or the crossing's sign."""
-        return [int(x) for x in self._scratch[1:]]
+        return self._roots
 
     def init_step(self, t0: float, y0) -> None:
         """(Re)start CVODE at t0 from y0 (new history, statistics and root-evaluation count)."""
         self._user_data[_U_EVALUATIONS] = 0
-        self._scratch[1:] = 0.0
+        self._roots = [0, 0, 0]
         if not self._handles:
             self._setup(t0, y0)
             return
@@ -472,35 +520,43 @@ class PhaseSolver:
 
     def step(self, t_toward: float, method: str = "onestep") -> PhaseResult:
         """One internal step toward t_toward; its end, or the root it stopped at."""
-        t_out, h_out, v_out = self._buffers
-        flag, _ = _run(self._calls, self._memory, t_toward, self._handles["vector"], self._state, t_out, h_out,
-                       v_out, 0, True, self._scratch)
-        return PhaseResult(float(t_out[0]), np.array([h_out[0], v_out[0]]), flag, self._message(flag), self._nfev())
+        out = self._out
+        flag, _ = _steps(self._calls, self._memory, self._handles["vector"], self._state, t_toward, out, 0, True,
+                         self._work)
+        self._read_roots(flag)
+        return PhaseResult(float(out[0, 0]), out[0, 1:].copy(), flag, self._message(flag), self._nfev())
 
     def solve(self, tspan, y0) -> PhaseResult:
         """From y0 at tspan[0] to tspan[-1] (a stop time) or the first terminal root: every step end."""
         t0, t_end = float(tspan[0]), float(tspan[-1])
-        self.init_step(t0, y0)
-        f = self._lib.functions
-        self._check("CVodeSetStopTime", f["CVodeSetStopTime"](self._memory, t_end))
-        t_out, h_out, v_out = (np.empty(_BUFFER) for _ in range(3))
-        t_out[0], h_out[0], v_out[0] = t0, self._state[0], self._state[1]
-        count = 1
-        while True:
-            flag, count = _run(self._calls, self._memory, t_end, self._handles["vector"], self._state, t_out, h_out,
-                               v_out, count, False, self._scratch)
-            if flag != _BUFFER_FULL:
-                break
-            t_out, h_out, v_out = (np.concatenate((a, np.empty(a.size))) for a in (t_out, h_out, v_out))
-        self._check("CVodeClearStopTime", f["CVodeClearStopTime"](self._memory))
-        y = np.column_stack((h_out[:count], v_out[:count]))
-        return PhaseResult(t_out[:count], y, flag, self._message(flag), self._nfev())
+        self._user_data[_U_EVALUATIONS] = 0
+        reinit = bool(self._handles)
+        if not reinit:
+            self._setup(t0, y0)
+        out, vector = self._out, self._handles["vector"]
+        flag, count, failed = _start_phase(self._calls, self._memory, vector, self._state, t0, float(y0[0]),
+                                           float(y0[1]), t_end, reinit, out, self._work, self._counter)
+        if failed:
+            self._check(("CVodeReInit", "CVodeSetStopTime", "CVodeClearStopTime or CVodeGetNumRhsEvals")[failed - 1],
+                        flag)
+        if flag == _BUFFER_FULL:
+            while flag == _BUFFER_FULL:
+                out = self._out = np.concatenate((out, np.empty_like(out)))
+                flag, count = _steps(self._calls, self._memory, vector, self._state, t_end, out, count, False,
+                                     self._work)
+            self._check("CVodeClearStopTime or CVodeGetNumRhsEvals",
+                        _finish_phase(self._calls, self._memory, self._counter))
+        self._read_roots(flag)
+        return PhaseResult(out[:count, 0].copy(), out[:count, 1:].copy(), flag, self._message(flag),
+                           int(self._counter[0]))
+
+    def _read_roots(self, flag: int) -> None:
+        self._roots = [int(x) for x in self._work[1:]] if flag == CV_ROOT_RETURN else [0, 0, 0]
 
     def _nfev(self) -> int:
-        count = ctypes.c_long()
-        self._check("CVodeGetNumRhsEvals", self._lib.functions["CVodeGetNumRhsEvals"](self._memory,
-                                                                                     ctypes.byref(count)))
-        return count.value
+        self._check("CVodeGetNumRhsEvals", self._lib.functions["CVodeGetNumRhsEvals"](
+            self._memory, self._counter.ctypes.data))
+        return int(self._counter[0])
 
     def _message(self, flag: int) -> str:
         if flag >= 0:
