@@ -283,3 +283,12 @@ def test_the_index_type_scikit_sundae_was_built_with_is_the_one_we_pass():
 def test_phases_longer_than_the_step_buffer_are_complete(monkeypatch):
     monkeypatch.setattr(compiled, "_BUFFER", 7)  # the article's phases take up to ~100 steps
     assert_engines_agree(*run_both(ARTICLE, 2.0, 0.0, 8.0, 1e-3))
+
+
+@pytest.mark.parametrize("engine", ["compiled", "sksundae"])
+def test_the_cli_runs_either_engine_and_says_which(engine, capsys):
+    from bouncingball.cli import main
+
+    assert main(["run", "article", "--t-end", "2", "--engine", engine]) == 0
+    text = capsys.readouterr().out
+    assert f"  engine      {engine} (requested)" in text and "engine " + engine in text
