@@ -168,18 +168,33 @@ def oscillator_basis(sigma: float, w2: float, tau):
 
     C = exp(-sigma tau) cos(omega tau) and S = exp(-sigma tau) sin(omega tau)/omega, continued
     through critical damping (S = tau exp(-sigma tau)) into the over-damped cosh/sinh forms.
+    tau a float or an array; a float is evaluated with the math module (a few times faster than
+    numpy on one number, which the event searches evaluate hundreds of times per run).
     """
+    if isinstance(tau, float):
+        try:
+            return _oscillator_basis(math, sigma, w2, tau)
+        except OverflowError:  # numpy's inf, as for an array
+            pass
+    return _oscillator_basis(np, sigma, w2, tau)
+
+
+def _oscillator_basis(xp, sigma: float, w2: float, tau):
     disc = sigma * sigma - w2
     if disc < 0.0:
         omega = math.sqrt(-disc)
-        decay = np.exp(-sigma * tau)
-        return decay * np.cos(omega * tau), decay * np.sin(omega * tau) / omega
+        decay = xp.exp(-sigma * tau)
+        return decay * xp.cos(omega * tau), decay * xp.sin(omega * tau) / omega
     if disc == 0.0:
-        decay = np.exp(-sigma * tau)
+        decay = xp.exp(-sigma * tau)
         return decay, tau * decay
     mu = math.sqrt(disc)
-    slow = np.exp(-w2 / (sigma + mu) * tau)  # the small root computed without cancellation
-    fast = np.exp(-(sigma + mu) * tau)
+    slow = xp.exp(-w2 / (sigma + mu) * tau)  # the small root computed without cancellation
+    fast = xp.exp(-(sigma + mu) * tau)
+    if xp is math:
+        if 2.0 * mu * tau < 1.0:
+            return 0.5 * (slow + fast), fast * math.expm1(2.0 * mu * tau) / (2.0 * mu)
+        return 0.5 * (slow + fast), (slow - fast) / (2.0 * mu)
     with np.errstate(over="ignore", invalid="ignore"):
         near = fast * np.expm1(2.0 * mu * tau) / (2.0 * mu)
         s = np.where(2.0 * mu * tau < 1.0, near, (slow - fast) / (2.0 * mu))
