@@ -60,6 +60,7 @@ def test_bad_input_is_one_line_and_exit_code_2():
         (["run", "--rtol", "-1"], "rtol = -1.0 is not allowed: it must be in (0, 1]"),
         (["run", "--solver", "euler"], "solver = 'euler' is not allowed"),
         (["run", "--method", "RK4"], "method = 'RK4' is not allowed"),
+        (["run", "--engine", "fast"], "engine = 'fast' is not allowed"),
         (["run", "--t-end", "0"], "t_end = 0.0 s is not allowed"),
         (["run", "--output-interval", "100"], "output_interval = 100.0 s is not allowed"),
     ]:

@@ -171,7 +171,7 @@ def test_constant_external_force_in_simulate():
 
 def test_event_history_is_not_kept():
     """scikit-sundae's per-call rebuild of the event history made each event cost more than the last."""
-    integrator = BallIntegrator(Ball(b=0.0), 2.0, 0.0)
+    integrator = BallIntegrator(Ball(b=0.0), 2.0, 0.0, settings=CvodeSettings(engine="sksundae"))
     integrator.advance(1000.0)
     assert integrator.impacts + integrator.departures == 1550
     for event_function in integrator._event_functions.values():

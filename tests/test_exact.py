@@ -167,3 +167,16 @@ def test_extremum_at_the_start_found_by_round_off():
     # undamped: leaves at the speed sqrt(w^2 (y0^2 - d^2)) from energy conservation
     w2, d, y0 = 100.0, 0.01, -0.49
     assert nudged.events[0].velocity == pytest.approx(math.sqrt(w2 * (y0**2 - d**2)), rel=1e-12)
+
+
+def test_state_at_the_events_is_the_event_and_continuous_across_it():
+    """Each event time belongs to the phase it starts (h = R, the event's velocity); just before it, the previous
+    phase's flow reaches the same state."""
+    ball = Ball()
+    exact = ExactSolution(ball, 2.0, 0.0, 0.0, 8.0)
+    times = np.array([e.time for e in exact.events])
+    h, v = exact.state(times)
+    assert np.all(h == ball.R)
+    assert np.array_equal(v, [e.velocity for e in exact.events])
+    h_before, v_before = exact.state(times - 1e-9)
+    assert np.max(np.abs(h_before - ball.R)) <= 1e-8 and np.max(np.abs(v_before - v)) <= 1e-4

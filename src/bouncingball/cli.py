@@ -27,6 +27,8 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--rtol", type=float, help="relative tolerance")
     run.add_argument("--atol", type=float, help="absolute tolerance")
     run.add_argument("--max-step", type=float, help="maximum step size [s] (0: unbounded)")
+    run.add_argument("--engine", help="cvode: auto (default), compiled (needs numba: pip install "
+                                      "'bouncingball[fast]') or sksundae")
     run.add_argument("--t-end", type=float, help="end time [s] (default: the scene's)")
     run.add_argument("--output-interval", type=float, help="output interval [s] (default: the scene's)")
     run.add_argument("--output", metavar="CSV", help="write time,h,v to this file")
@@ -66,7 +68,7 @@ def _run(args: argparse.Namespace) -> int:
         from .plotting import require_matplotlib
 
         require_matplotlib()
-    options = {name: getattr(args, name) for name in ("method", "rtol", "atol", "max_step")
+    options = {name: getattr(args, name) for name in ("method", "rtol", "atol", "max_step", "engine")
                if getattr(args, name) is not None}
     if args.t_end is not None:
         options["t_end"] = args.t_end
@@ -95,6 +97,8 @@ def _run(args: argparse.Namespace) -> int:
     stats = result.stats
     print(f"  wall time   {stats.wall_time * 1e3:.2f} ms ({stats.steps} steps, {stats.rhs_calls} "
           "right-hand-side calls)")
+    if stats.engine:
+        print(f"  engine      {stats.engine} ({stats.engine_reason})")
     if exact is not result:
         accuracy = compare(result, exact)
         print(f"  max |h - h_exact|          {accuracy.max_height_error:.3e} m")

@@ -52,11 +52,11 @@ class Ball:
 
     def effective_gravity(self, F_ext: float = 0.0) -> float:
         """g - F_ext/m [m/s2]: the net downward acceleration in flight."""
-        return self.g - F_ext / self.m
+        return effective_gravity_value(F_ext, self.m, self.g)
 
     def static_deflection(self, F_ext: float = 0.0) -> float:
         """(m g - F_ext)/k [m]: how far below R the centre rests; negative if F_ext lifts the ball."""
-        return (self.m * self.g - F_ext) / self.k
+        return static_deflection_value(F_ext, self.m, self.k, self.g)
 
     def rest_height(self, F_ext: float = 0.0) -> float:
         """R - (m g - F_ext)/k [m]: the equilibrium height of the centre in contact."""
@@ -65,9 +65,7 @@ class Ball:
     # --- equations of motion ---------------------------------------------------------------
     def acceleration(self, h: float, v: float, mode: Mode, F_ext: float = 0.0) -> float:
         """dv/dt [m/s2] in the given mode."""
-        if mode == Mode.FLIGHT:
-            return -self.g + F_ext / self.m
-        return (-self.b * v + self.k * (self.R - h) + F_ext) / self.m - self.g
+        return mode_acceleration(h, v, mode, F_ext, self.m, self.k, self.b, self.R, self.g)
 
     def jacobian(self, mode: Mode) -> np.ndarray:
         """d(h', v')/d(h, v): constant in each mode."""
@@ -138,10 +136,36 @@ class Ball:
         v^2 = w^2 (A^2 - d^2) to fly v^2 / 2 g_eff = (A^2 - d^2) / 2d above R (g_eff = w^2 d > 0).
         It only grows in contact, so it is a root function for the start of a rest.
         """
-        d = self.static_deflection(F_ext)
-        w2 = self.k / self.m
-        y = h - self.rest_height(F_ext)
-        return w2 * d * (d + 2.0 * hop_tolerance) - (v * v + w2 * y * y)
+        return rest_margin_value(h, v, self.static_deflection(F_ext), hop_tolerance, self.k / self.m, self.R)
+
+
+# The equations as functions of plain floats: Ball's methods call them, and the compiled CVODE
+# engine compiles these same functions, so the physics has one definition.
+def mode_acceleration(h, v, mode, F_ext, m, k, b, R, g):
+    """dv/dt [m/s2] in mode (0 or Mode.FLIGHT: flight, 1 or Mode.CONTACT: contact).
+
+    k (R - h), not k R - k h: R - h is exact near R, whereas the two products of a stiff ball
+    (k = 1e12) would bury its deflection in their round-off.
+    """
+    if mode == 0:
+        return -g + F_ext / m
+    return (-b * v + k * (R - h) + F_ext) / m - g
+
+
+def effective_gravity_value(F_ext, m, g):
+    """g - F_ext/m [m/s2]; see Ball.effective_gravity."""
+    return g - F_ext / m
+
+
+def static_deflection_value(F_ext, m, k, g):
+    """(m g - F_ext)/k [m]; see Ball.static_deflection."""
+    return (m * g - F_ext) / k
+
+
+def rest_margin_value(h, v, d, hop_tolerance, w2, R):
+    """w2 d (d + 2 hop_tolerance) - (v^2 + w2 y^2) [m2/s2], d the static deflection; see Ball.rest_margin."""
+    y = h - (R - d)
+    return w2 * d * (d + 2.0 * hop_tolerance) - (v * v + w2 * y * y)
 
 
 def oscillator_basis(sigma: float, w2: float, tau):
@@ -149,18 +173,33 @@ def oscillator_basis(sigma: float, w2: float, tau):
 
     C = exp(-sigma tau) cos(omega tau) and S = exp(-sigma tau) sin(omega tau)/omega, continued
     through critical damping (S = tau exp(-sigma tau)) into the over-damped cosh/sinh forms.
+    tau a float or an array; a float is evaluated with the math module (a few times faster than
+    numpy on one number, which the event searches evaluate hundreds of times per run).
     """
+    if isinstance(tau, float):
+        try:
+            return _oscillator_basis(math, sigma, w2, tau)
+        except OverflowError:  # numpy's inf, as for an array
+            pass
+    return _oscillator_basis(np, sigma, w2, tau)
+
+
+def _oscillator_basis(xp, sigma: float, w2: float, tau):
     disc = sigma * sigma - w2
     if disc < 0.0:
         omega = math.sqrt(-disc)
-        decay = np.exp(-sigma * tau)
-        return decay * np.cos(omega * tau), decay * np.sin(omega * tau) / omega
+        decay = xp.exp(-sigma * tau)
+        return decay * xp.cos(omega * tau), decay * xp.sin(omega * tau) / omega
     if disc == 0.0:
-        decay = np.exp(-sigma * tau)
+        decay = xp.exp(-sigma * tau)
         return decay, tau * decay
     mu = math.sqrt(disc)
-    slow = np.exp(-w2 / (sigma + mu) * tau)  # the small root computed without cancellation
-    fast = np.exp(-(sigma + mu) * tau)
+    slow = xp.exp(-w2 / (sigma + mu) * tau)  # the small root computed without cancellation
+    fast = xp.exp(-(sigma + mu) * tau)
+    if xp is math:
+        if 2.0 * mu * tau < 1.0:
+            return 0.5 * (slow + fast), fast * math.expm1(2.0 * mu * tau) / (2.0 * mu)
+        return 0.5 * (slow + fast), (slow - fast) / (2.0 * mu)
     with np.errstate(over="ignore", invalid="ignore"):
         near = fast * np.expm1(2.0 * mu * tau) / (2.0 * mu)
         s = np.where(2.0 * mu * tau < 1.0, near, (slow - fast) / (2.0 * mu))

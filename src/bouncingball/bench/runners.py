@@ -27,6 +27,7 @@ class Solver:
     kind: str
     method: str = ""
     comm_step: float = 0.0  # FMU communication step [s]
+    engine: str = ""  # CVODE: "sksundae" or "compiled"
 
     @property
     def takes_tolerances(self) -> bool:
@@ -37,8 +38,10 @@ class Solver:
         return self.kind in ("fmu", "empty")
 
 
-def cvode(method: str) -> Solver:
-    return Solver(f"CVODE {method}", "cvode", method)
+def cvode(method: str, engine: str = "sksundae") -> Solver:
+    """CVODE with method; the label names the engine unless it is scikit-sundae's."""
+    suffix = "" if engine == "sksundae" else f" ({engine})"
+    return Solver(f"CVODE {method}{suffix}", "cvode", method, engine=engine)
 
 
 def scipy(method: str) -> Solver:
@@ -54,6 +57,7 @@ def empty_slave(comm_step: float) -> Solver:
 
 
 CVODE_AUTO = cvode("auto")
+CVODE_COMPILED = cvode("auto", "compiled")
 ARTICLE = Solver("article (RK45, max_step 0.01)", "article", "RK45")
 EXACT = Solver("exact solution", "exact")
 
@@ -92,7 +96,7 @@ def run_solver(solver: Solver, scene: Scene, output_interval: float, rtol: float
         return _run_fmu(solver, scene, tolerances, fmus, record)
     options = {"output_interval": output_interval}
     if solver.kind == "cvode":
-        options.update(method=solver.method, **tolerances)
+        options.update(method=solver.method, engine=solver.engine, **tolerances)
     elif solver.kind == "scipy":
         options.update(method=solver.method, max_step=0.0, **tolerances)
     name = {"cvode": "cvode", "scipy": "scipy", "article": "scipy", "exact": "exact"}[solver.kind]

@@ -69,7 +69,7 @@ class Outcome:
 
 def stability_solvers(scene: Scene) -> list[Solver]:
     """Every solver; the FMU communicates at the scene's output interval."""
-    ours = [runners.cvode(method) for method in ("auto", "Adams", "BDF")]
+    ours = [runners.cvode(method) for method in ("auto", "Adams", "BDF")] + [runners.CVODE_COMPILED]
     peers = [ARTICLE, *(runners.scipy(method) for method in ("DOP853", "LSODA", "Radau", "BDF"))]
     fmu = Solver(FMU_LABEL, "fmu", comm_step=scene.output_interval)
     return [*ours, EXACT, *peers, fmu]
@@ -92,7 +92,7 @@ def stiff_cases() -> list[Case]:
     cases = []
     for name in STIFF_SCENES:
         scene = load_scene(name)
-        cases.append(Case(scene, CVODE_AUTO, repeats=3))
+        cases += [Case(scene, CVODE_AUTO, repeats=3), Case(scene, runners.CVODE_COMPILED, repeats=3)]
         cases += [Case(scene, ARTICLE), *(Case(scene, runners.scipy(m)) for m in runners.EXPLICIT_SCIPY_METHODS)]
     return cases
 

@@ -80,7 +80,7 @@ class Point:
 
 def solvers(section: str, settings: Settings) -> list[Solver]:
     """The solvers of a section, in the order of the tables."""
-    ours = [runners.cvode(method) for method in ("Adams", "BDF", "auto")]
+    ours = [runners.cvode(method) for method in ("Adams", "BDF", "auto")] + [runners.CVODE_COMPILED]
     fmus = [runners.fmu(step) for step in settings.comm_steps] if section == "dense" else []
     floors = [runners.empty_slave(step) for step in settings.comm_steps] if section == "dense" else []
     peers = [ARTICLE, *(runners.scipy(method) for method in runners.SCIPY_METHODS)]
@@ -190,7 +190,11 @@ def run_benchmark(output_dir: Path, quick: bool = False) -> list[Path]:
     settings = QUICK if quick else FULL
     scene = load_scene("article")
     environment = report.environment()
-    scene.simulate("cvode", t_end=1.0)  # load scikit-sundae before anything is timed
+    scene.simulate("cvode", t_end=1.0, engine="sksundae")  # load scikit-sundae before anything is timed
+    try:  # and compile (or load from numba's cache) the compiled engine
+        scene.simulate("cvode", t_end=1.0, engine="compiled")
+    except ImportError:
+        pass  # its rows say why
     with tempfile.TemporaryDirectory(prefix="bouncingball_bench_") as temp:
         fmus = runners.build_fmus(Path(temp))
         points = make_points(settings)

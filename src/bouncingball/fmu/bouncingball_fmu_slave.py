@@ -226,7 +226,7 @@ class BouncingBall(Fmi2Slave):
         rtol = values["rtol"]
         if tolerance is not None:
             rtol = validation.in_range("tolerance (fmi2SetupExperiment, used as rtol)", tolerance, 0.0, 1.0)
-        return ball, CvodeSettings(rtol=rtol, atol=values["atol"], method=values["method"])
+        return ball, CvodeSettings(rtol=rtol, atol=values["atol"], method=values["method"], engine="sksundae")
 
     def _make_integrator(self) -> BallIntegrator:
         """An integrator at the start state; ValueError names a bad value."""

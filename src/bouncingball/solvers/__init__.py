@@ -17,7 +17,8 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     """Simulate the ball from (h0 [m], v0 [m/s]) at t_start to t_end [s] on a grid of output_interval [s].
 
     options go to the solver: cvode takes rtol, atol, method ("auto", "Adams", "BDF"),
-    max_step; scipy takes method, rtol, atol, max_step, max_events; exact takes none.
+    max_step, engine ("auto", "compiled", "sksundae"); scipy takes method, rtol, atol, max_step,
+    max_events; exact takes none.
     """
     if not isinstance(ball, Ball):
         raise ValueError(f"ball = {ball!r} is not allowed: it must be a bouncingball.Ball")
@@ -48,7 +49,7 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
 
 
 _OPTIONS = {
-    "cvode": ("rtol", "atol", "method", "max_step"),
+    "cvode": ("rtol", "atol", "method", "max_step", "engine"),
     "scipy": ("method", "rtol", "atol", "max_step", "max_events"),
     "exact": (),
 }

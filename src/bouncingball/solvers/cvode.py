@@ -31,6 +31,7 @@ from .result import (
 from .sundials_log import SundialsLog
 
 METHODS = ("auto", "Adams", "BDF")
+ENGINES = ("auto", "compiled", "sksundae")
 # At these values the article's height error is ~2e-10 m (limit 1e-6); an undamped ball keeps
 # its height error within 1e-6 of its scale over ~100 contacts (rtol 1e-10: ~1e-6 after 60), for
 # 10% more steps on the article than rtol 1e-10.
@@ -61,6 +62,29 @@ class SolverError(RuntimeError):
     """CVODE failed; the message carries its reason."""
 
 
+def choose_engine(engine: str = "auto") -> tuple[str, str]:
+    """The engine that runs ("compiled" or "sksundae") and why.
+
+    "auto" takes the compiled engine when numba is installed and scikit-sundae's SUNDIALS library
+    can be bound, else scikit-sundae's own; "compiled" raises ImportError where it cannot run.
+    """
+    engine = validation.choice("engine", engine, ENGINES)
+    if engine == "sksundae":
+        return "sksundae", "requested"
+    try:
+        from . import compiled
+    except ImportError as error:
+        reason = f"numba is not installed ({error}): pip install 'bouncingball[fast]'"
+    else:
+        reason = compiled.unavailable_reason()
+        if reason is None:
+            version = compiled.library().version
+            return "compiled", "requested" if engine == "compiled" else f"numba and SUNDIALS {version} available"
+    if engine == "compiled":
+        raise ImportError(f"engine 'compiled' is not available: {reason}")
+    return "sksundae", f"compiled engine unavailable: {reason}"
+
+
 def choose_method(ball: Ball) -> str:
     """The rule behind method="auto": BDF for a stiff contact, Adams otherwise.
 
@@ -72,18 +96,25 @@ def choose_method(ball: Ball) -> str:
 
 @dataclass(frozen=True)
 class CvodeSettings:
-    """rtol, atol [-, m or m/s], method ("auto", "Adams", "BDF") and max_step [s] (0: unbounded)."""
+    """rtol, atol [-, m or m/s], method ("auto", "Adams", "BDF"), max_step [s] (0: unbounded) and engine.
+
+    engine: "sksundae" (scikit-sundae's CVODE with Python callbacks), "compiled" (the same CVODE
+    library driven by compiled callbacks and a compiled stepping loop, needs numba) or "auto"
+    (compiled where it can run); see choose_engine.
+    """
 
     rtol: float = DEFAULT_RTOL
     atol: float = DEFAULT_ATOL
     method: str = "auto"
     max_step: float = 0.0
+    engine: str = "auto"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "rtol", validation.in_range("rtol", self.rtol, 0.0, 1.0))
         object.__setattr__(self, "atol", validation.positive("atol", self.atol))
         object.__setattr__(self, "method", validation.choice("method", self.method, METHODS))
         object.__setattr__(self, "max_step", validation.non_negative("max_step", self.max_step, "s"))
+        object.__setattr__(self, "engine", validation.choice("engine", self.engine, ENGINES))
 
 
 @dataclass(frozen=True)
@@ -141,25 +172,56 @@ class BallIntegrator:
         self._min_contact_amplitude = CONTACT_RESOLUTION * resolution
         self._logs = {mode: SundialsLog() for mode in Mode}
         self._cvode_called = False
+        self.engine, self.engine_reason = choose_engine(self.settings.engine)
         self._solvers: dict[Mode, CVODE] = {}
         self._event_functions = {}
         for mode in Mode:
-            self._solvers[mode], self._event_functions[mode] = self._make_solver(mode)
+            make = self._make_compiled_solver if self.engine == "compiled" else self._make_solver
+            self._solvers[mode], self._event_functions[mode] = make(mode)
         self.set_state(IntegratorState(t=t0, h=h0, v=v0, mode=ball.initial_mode(h0, v0, F_ext), F_ext=F_ext,
                                        t_start=t0))
 
     # --- CVODE set-up ---------------------------------------------------------------------
-    def _make_solver(self, mode: Mode):
-        ball = self.ball
-        jacobian = ball.jacobian(mode)
-        R = ball.R
-        acceleration = ball.acceleration
+    def _own_side(self, mode: Mode) -> float:
         # h - R is exactly 0 where a phase starts (h is set to R at each event), and stays 0 over a
         # hop too small to move h off R in double precision. CVODE takes a root function that is 0
         # at the start as inactive until it turns non-zero, and then misses the crossing (the ball
         # fell through the floor); one that turns 0 later is a root (an "impact" on the way up).
         # So h == R counts as the mode's own side: the crossing is where h truly leaves it.
-        own_side = math.ulp(R) if mode == Mode.FLIGHT else -math.ulp(R)
+        return math.ulp(self.ball.R) if mode == Mode.FLIGHT else -math.ulp(self.ball.R)
+
+    def _too_many_steps(self, mode: Mode, t: float) -> SolverError:
+        return SolverError(
+            f"CVODE ({self.methods[mode]}) took more than {MAX_STEPS_PER_PHASE} steps in one "
+            f"{mode.name.lower()} phase, at t = {t!r} s: the problem is stiff for this method; "
+            "use method 'BDF' (or 'auto')")
+
+    def _atol(self, mode: Mode) -> float:
+        """CVODE's absolute tolerance in a mode [m and m/s]."""
+        s = self.settings
+        if mode == Mode.FLIGHT:
+            return s.atol
+        # In contact h stays within a deflection of R, so rtol alone asks CVODE for rtol R on h.
+        # An atol above that would loosen every contact of a small ball: each departure speed
+        # then carries an error that an undamped ball accumulates from bounce to bounce (R = 1
+        # mm, 50 bounces: 1.6e-8 m, 1e-6 of its height; 6e-9 m with this bound on h and v).
+        return min(s.atol, s.rtol * self.ball.R)
+
+    def _make_compiled_solver(self, mode: Mode):
+        """The same CVODE set-up as _make_solver, with the callbacks compiled from physics.py."""
+        from .compiled import PhaseSolver
+
+        s = self.settings
+        solver = PhaseSolver(self.ball, mode, self.methods[mode], s.rtol, self._atol(mode), s.max_step,
+                             _MAX_STEPS_PER_CALL, self.hop_tolerance, self._own_side(mode), MAX_STEPS_PER_PHASE)
+        return solver, None
+
+    def _make_solver(self, mode: Mode):
+        ball = self.ball
+        jacobian = ball.jacobian(mode)
+        R = ball.R
+        acceleration = ball.acceleration
+        own_side = self._own_side(mode)
         contact = mode == Mode.CONTACT
         hop_tolerance = self.hop_tolerance
 
@@ -184,22 +246,12 @@ class BallIntegrator:
             # CVODE evaluates the root functions once per step (and a few times per root found)
             self._phase_evaluations += 1
             if self._phase_evaluations > MAX_STEPS_PER_PHASE:
-                raise SolverError(
-                    f"CVODE ({self.methods[mode]}) took more than {MAX_STEPS_PER_PHASE} steps in one "
-                    f"{mode.name.lower()} phase, at t = {t!r} s: the problem is stiff for this method; "
-                    "use method 'BDF' (or 'auto')")
+                raise self._too_many_steps(mode, t)
 
         event.terminal = [True, False, True]
         event.direction = [-1 if mode == Mode.FLIGHT else 1, 0, 1]
         s = self.settings
-        atol = s.atol
-        if contact:
-            # In contact h stays within a deflection of R, so rtol alone asks CVODE for rtol R on h.
-            # An atol above that would loosen every contact of a small ball: each departure speed
-            # then carries an error that an undamped ball accumulates from bounce to bounce (R = 1
-            # mm, 50 bounces: 1.6e-8 m, 1e-6 of its height; 6e-9 m with this bound on h and v).
-            atol = min(s.atol, s.rtol * R)
-        solver = CVODE(rhs, method=self.methods[mode], rtol=s.rtol, atol=atol, max_step=s.max_step,
+        solver = CVODE(rhs, method=self.methods[mode], rtol=s.rtol, atol=self._atol(mode), max_step=s.max_step,
                        eventsfn=event, num_events=3, jacfn=jac, max_num_steps=_MAX_STEPS_PER_CALL)
         return solver, event
 
@@ -247,6 +299,7 @@ class BallIntegrator:
         if value != self._F_ext:
             self._reinit_needed()
             self._F_ext = value
+            self._sync_F_ext()
 
     @property
     def acceleration(self) -> float:
@@ -301,7 +354,23 @@ class BallIntegrator:
         self._last_impact_time, self._t_start = last_impact, t_start
         self._rhs_calls, self._steps = int(state.rhs_calls), int(state.steps)
         self._nfev_since_init = 0
+        self._sync_F_ext()
         self._reinit_needed()
+
+    def _sync_F_ext(self) -> None:
+        """The compiled callbacks read F_ext from their solver's parameters (the Python ones from self)."""
+        if self.engine == "compiled":
+            for solver in self._solvers.values():
+                solver.F_ext = self._F_ext
+
+    def _roots_found(self, mode: Mode) -> list[int]:
+        if self.engine == "compiled":
+            return self._solvers[mode].roots_found()
+        return sksundae_events.roots_found(self._event_functions[mode])
+
+    def _clear_roots(self, mode: Mode) -> None:
+        if self.engine != "compiled":
+            sksundae_events.clear(self._event_functions[mode])
 
     def _reinit_needed(self) -> None:
         self._rhs_calls += self._nfev_since_init
@@ -315,7 +384,7 @@ class BallIntegrator:
     def _init_phase(self) -> CVODE:
         """Restart CVODE at the current state in the current mode."""
         solver = self._solvers[self._mode]
-        sksundae_events.clear(self._event_functions[self._mode])
+        self._clear_roots(self._mode)
         with self._logs[self._mode].capturing():
             solver.init_step(self._t, np.array([self._h, self._v]))
         self._cvode_called = True
@@ -374,13 +443,12 @@ class BallIntegrator:
             self._nfev_since_init = result.nfev
             end = (float(result.t), float(result.y[0]), float(result.y[1]))
             if result.status == _CV_ROOT_RETURN:
-                event_function = self._event_functions[self._mode]
-                roots = sksundae_events.roots_found(event_function)
+                roots = self._roots_found(self._mode)
                 if roots[0]:
                     end = self._event_pending = self._polish_event(self._step_start, end)
                 elif roots[2]:
                     self._rest_from = end
-                sksundae_events.clear(event_function)
+                self._clear_roots(self._mode)
             else:
                 self._steps += 1
             if self._event_pending is None:
@@ -434,14 +502,13 @@ class BallIntegrator:
                 if reached:
                     events.append(self._switch_mode())
                 continue
-            event_function = self._event_functions[mode]
-            sksundae_events.clear(event_function)
+            self._clear_roots(mode)
             with self._logs[mode].capturing():
                 result = self._solvers[mode].solve(np.array([self._t, t_end]), np.array([self._h, self._v]))
             self._cvode_called = True
             self._check(result)
             ts, hs, vs = result.t.copy(), result.y[:, 0].copy(), result.y[:, 1].copy()
-            roots = sksundae_events.roots_found(event_function) if result.status == _CV_ROOT_RETURN else [0, 0, 0]
+            roots = self._roots_found(mode) if result.status == _CV_ROOT_RETURN else [0, 0, 0]
             root, resting = bool(roots[0]), bool(roots[2])
             if root:
                 t_root, h_root, v_root = self._polish_event((ts[-2], hs[-2], vs[-2]), (ts[-1], hs[-1], vs[-1]))
@@ -449,7 +516,7 @@ class BallIntegrator:
                 self._check_side(ts[-2], np.min(hs[:-1]), np.max(hs[:-1]))
             else:
                 self._check_side(ts[-1], np.min(hs), np.max(hs))
-            sksundae_events.clear(event_function)
+            self._clear_roots(mode)
             # A phase's first point is the previous phase's last: one copy per mode, so that no
             # dense-output segment straddles the switch.
             times.append(ts)
@@ -591,8 +658,11 @@ class BallIntegrator:
         return True
 
     def _check(self, result) -> None:
+        if result.status < 0 and self.engine == "compiled" and self._solvers[self._mode].exceeded:
+            raise self._too_many_steps(self._mode, float(np.atleast_1d(result.t)[-1]))
         if result.status < 0:
-            raise SolverError(f"CVODE failed at t = {float(result.t)!r} s ({self._mode.name.lower()}, "
+            t = float(np.atleast_1d(result.t)[-1])
+            raise SolverError(f"CVODE failed at t = {t!r} s ({self._mode.name.lower()}, "
                               f"h = {self._h!r} m, v = {self._v!r} m/s): {result.message}")
 
     def _switch_mode(self) -> Event:
@@ -638,9 +708,13 @@ def check_resolvable(ball: Ball, t: float) -> None:
 
 def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
                    t_start: float = 0.0, F_ext: float = 0.0, rtol: float = DEFAULT_RTOL,
-                   atol: float = DEFAULT_ATOL, method: str = "auto", max_step: float = 0.0) -> SimulationResult:
-    """Integrate with CVODE from t_start to t_end and return the solution on the output grid."""
-    settings = CvodeSettings(rtol=rtol, atol=atol, method=method, max_step=max_step)
+                   atol: float = DEFAULT_ATOL, method: str = "auto", max_step: float = 0.0,
+                   engine: str = "auto") -> SimulationResult:
+    """Integrate with CVODE from t_start to t_end and return the solution on the output grid.
+
+    engine: see CvodeSettings; the engine that ran and why are in result.stats.
+    """
+    settings = CvodeSettings(rtol=rtol, atol=atol, method=method, max_step=max_step, engine=engine)
     check_resolvable(ball, t_end)
     grid = output_grid(t_start, t_end, output_interval)
     started = time.perf_counter()
@@ -648,7 +722,8 @@ def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     h, v, events = integrator.integrate_grid(grid)
     wall_time = time.perf_counter() - started
     stats = SolverStats(steps=integrator.steps, rhs_calls=integrator.rhs_calls, events=len(events),
-                        wall_time=wall_time)
+                        wall_time=wall_time, engine=integrator.engine, engine_reason=integrator.engine_reason)
     options = {"rtol": settings.rtol, "atol": settings.atol, "method": settings.method,
-               "contact_method": integrator.methods[Mode.CONTACT], "max_step": settings.max_step}
+               "contact_method": integrator.methods[Mode.CONTACT], "max_step": settings.max_step,
+               "engine": settings.engine}
     return SimulationResult("cvode", ball, grid, h, v, events, integrator.rest_time, stats, F_ext, options)

@@ -66,22 +66,28 @@ class ExactSolution:
 
     # --- evaluation ---------------------------------------------------------------------------
     def state(self, t) -> tuple[np.ndarray, np.ndarray]:
-        """Height [m] and velocity [m/s] at the times t [s] (t_start <= t <= t_end)."""
+        """Height [m] and velocity [m/s] at the times t [s] (t_start <= t <= t_end).
+
+        One vectorised evaluation per mode: each time takes the start state of the phase it lies
+        in, and the mode's flow is evaluated for all of them at once.
+        """
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        order = None if np.all(t[1:] >= t[:-1]) else np.argsort(t, kind="stable")
-        ts = t if order is None else t[order]
-        h = np.empty_like(ts)
-        v = np.empty_like(ts)
         starts = np.array([p.t_start for p in self.phases])
-        bounds = np.searchsorted(ts, starts[1:], side="left")
-        first = np.concatenate(([0], bounds))
-        last = np.concatenate((bounds, [len(ts)]))
-        for phase, i, j in zip(self.phases, first, last, strict=True):
-            if i == j:
-                continue
-            h[i:j], v[i:j] = self.ball.flow(phase.mode, phase.h0, phase.v0, ts[i:j] - phase.t_start, self.F_ext)
-        if order is not None:
-            h[order], v[order] = h.copy(), v.copy()
+        # a time equal to a phase's start belongs to that phase (its state there is the event's)
+        index = np.searchsorted(starts, t, side="right") - 1
+        np.clip(index, 0, len(starts) - 1, out=index)
+        h = np.empty_like(t)
+        v = np.empty_like(t)
+        modes = np.array([int(p.mode) for p in self.phases])
+        h_start = np.array([p.h0 for p in self.phases])
+        v_start = np.array([p.v0 for p in self.phases])
+        point_modes = modes[index]
+        for mode in Mode:
+            selected = point_modes == mode
+            if np.any(selected):
+                i = index[selected]
+                h[selected], v[selected] = self.ball.flow(mode, h_start[i], v_start[i], t[selected] - starts[i],
+                                                          self.F_ext)
         return h, v
 
 

@@ -24,12 +24,17 @@ class Event:
 
 @dataclass
 class SolverStats:
-    """Work done: internal steps, right-hand-side calls, events and wall time [s]."""
+    """Work done: internal steps, right-hand-side calls, events and wall time [s].
+
+    For CVODE also the engine that ran ("compiled" or "sksundae") and why it was chosen.
+    """
 
     steps: int = 0
     rhs_calls: int = 0
     events: int = 0
     wall_time: float = 0.0
+    engine: str = ""
+    engine_reason: str = ""
 
 
 @dataclass

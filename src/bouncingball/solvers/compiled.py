@@ -1,0 +1,583 @@
+"""The compiled CVODE engine: the SUNDIALS CVODE library scikit-sundae installs, driven without Python callbacks.
+
+scikit-sundae wraps SUNDIALS' vectors into new numpy arrays on every callback, which costs far
+more than the ball's equations. Here the right-hand side, the root functions and the Jacobian are
+numba ``cfunc`` s compiled from physics.py's own plain-float definitions, and a numba loop takes
+CVODE's internal steps of one phase, so Python is entered only once per phase (at each event).
+``PhaseSolver`` offers the calls BallIntegrator makes on a scikit-sundae CVODE object
+(init_step, step, solve), with the same settings and the same step sequence, so the event logic
+of cvode.py (mode switches, rests and hops in closed form, polishing, dense output) serves both
+engines unchanged.
+
+The library is the one in scikit-sundae's wheel (``scikit_sundae.libs``), so the process holds one
+SUNDIALS. It is opened with RTLD_DEEPBIND where the platform has it, so that a host process that
+exports SUNDIALS symbols of its own cannot capture our calls, and its version is checked
+(SUNDIALSGetVersion) before anything else. Every return code is checked, and every SUNDIALS object
+is freed with its solver. C function addresses are passed to the compiled code as arguments, never
+baked into it, so the compiled code is cached on disk (numba ``cache=True``) and loads in a
+fraction of a second after the first run.
+
+Import this module only to use the engine: it imports numba. ``unavailable_reason()`` says why the
+engine cannot run here (numba missing, a library not found or of another version), or None.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import glob
+import importlib.util
+import os
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+from llvmlite import ir
+from numba import carray, cfunc, njit, types
+from numba.extending import intrinsic
+
+from .. import physics
+
+# SUNDIALS' major version we bind: its C API (the declarations below) is stable within a major.
+SUPPORTED_MAJOR = 7
+CV_ADAMS, CV_BDF = 1, 2
+CV_ONE_STEP = 2
+CV_SUCCESS, CV_TSTOP_RETURN, CV_ROOT_RETURN = 0, 1, 2
+CV_RTFUNC_FAIL = -12
+# cvode.py's defaults for scikit-sundae's options that CVODE would otherwise take from itself.
+_MAX_NONLIN_ITERS = 3
+_MAX_CONV_FAILS = 10
+_MAX_ORDER = {CV_ADAMS: 12, CV_BDF: 5}
+_NUM_ROOTS = 3
+_BUFFER = 4096  # step ends stored per call of the compiled loop before it returns for more room
+
+# The C functions we call, as C declares them: (return type, argument types). tests/test_compiled.py
+# checks each against the declarations scikit-sundae ships (sksundae/*.pxd) where it has one.
+FUNCTIONS = {
+    "core": {
+        "SUNDIALSGetVersion": ("int", ("char*", "int")),
+        "SUNContext_Create": ("int", ("SUNComm", "SUNContext*")),
+        "SUNContext_Free": ("void", ("SUNContext*",)),
+        "SUNContext_ClearErrHandlers": ("int", ("SUNContext",)),
+        "N_VGetArrayPointer": ("sunrealtype*", ("N_Vector",)),
+        "N_VDestroy": ("void", ("N_Vector",)),
+        "SUNMatDestroy": ("void", ("SUNMatrix",)),
+        "SUNLinSolFree": ("int", ("SUNLinearSolver",)),
+    },
+    "cvode": {
+        "N_VNew_Serial": ("N_Vector", ("sunindextype", "SUNContext")),
+        "SUNDenseMatrix": ("SUNMatrix", ("sunindextype", "sunindextype", "SUNContext")),
+        "SUNDenseMatrix_Cols": ("sunrealtype**", ("SUNMatrix",)),
+        "SUNLinSol_Dense": ("SUNLinearSolver", ("N_Vector", "SUNMatrix", "SUNContext")),
+        "CVodeCreate": ("void*", ("int", "SUNContext")),
+        "CVodeInit": ("int", ("void*", "CVRhsFn", "sunrealtype", "N_Vector")),
+        "CVodeReInit": ("int", ("void*", "sunrealtype", "N_Vector")),
+        "CVodeSStolerances": ("int", ("void*", "sunrealtype", "sunrealtype")),
+        "CVodeSetUserData": ("int", ("void*", "void*")),
+        "CVodeSetLinearSolver": ("int", ("void*", "SUNLinearSolver", "SUNMatrix")),
+        "CVodeSetJacFn": ("int", ("void*", "CVLsJacFn")),
+        "CVodeSetMaxNonlinIters": ("int", ("void*", "int")),
+        "CVodeSetMaxConvFails": ("int", ("void*", "int")),
+        "CVodeRootInit": ("int", ("void*", "int", "CVRootFn")),
+        "CVodeSetRootDirection": ("int", ("void*", "int*")),
+        "CVodeSetInitStep": ("int", ("void*", "sunrealtype")),
+        "CVodeSetMinStep": ("int", ("void*", "sunrealtype")),
+        "CVodeSetMaxStep": ("int", ("void*", "sunrealtype")),
+        "CVodeSetMaxOrd": ("int", ("void*", "int")),
+        "CVodeSetMaxNumSteps": ("int", ("void*", "long int")),
+        "CVodeSetStopTime": ("int", ("void*", "sunrealtype")),
+        "CVodeClearStopTime": ("int", ("void*",)),
+        "CVode": ("int", ("void*", "sunrealtype", "N_Vector", "sunrealtype*", "int")),
+        "CVodeGetRootInfo": ("int", ("void*", "int*")),
+        "CVodeGetNumRhsEvals": ("int", ("void*", "long int*")),
+        "CVodeGetReturnFlagName": ("char*", ("long int",)),
+        "CVodeFree": ("void", ("void**",)),
+    },
+}
+_CTYPES = {"int": ctypes.c_int, "long int": ctypes.c_long, "sunrealtype": ctypes.c_double,
+           "sunindextype": ctypes.c_int, "SUNComm": ctypes.c_int, "void": None, "char*": ctypes.c_char_p}
+
+
+def _ctype(name: str):
+    return _CTYPES[name] if name in _CTYPES else ctypes.c_void_p  # every pointer and handle
+
+
+class EngineUnavailable(RuntimeError):
+    """The compiled engine cannot run here; the message says why."""
+
+
+@dataclass(frozen=True)
+class Library:
+    """The bound SUNDIALS functions (ctypes) and their addresses, with the version found."""
+
+    version: str
+    path: str
+    functions: dict
+    addresses: dict
+
+
+def _library_paths() -> dict[str, str]:
+    spec = importlib.util.find_spec("sksundae")
+    if spec is None or not spec.submodule_search_locations:
+        raise EngineUnavailable("scikit-sundae is not installed")
+    site = os.path.dirname(list(spec.submodule_search_locations)[0])
+    folder = os.path.join(site, "scikit_sundae.libs")
+    paths = {}
+    for part in FUNCTIONS:
+        found = sorted(glob.glob(os.path.join(folder, f"libsundials_{part}-*.so*")))
+        if len(found) != 1:
+            raise EngineUnavailable(f"scikit-sundae's SUNDIALS {part} library was not found as one file in {folder} "
+                                    f"(found {len(found)}); the compiled engine binds the Linux wheel's libraries")
+        paths[part] = found[0]
+    return paths
+
+
+_LIBRARY: Library | None = None
+_UNAVAILABLE: str | None = None
+
+
+def library() -> Library:
+    """Open (once) the SUNDIALS libraries of scikit-sundae's wheel; raise EngineUnavailable if not usable."""
+    global _LIBRARY, _UNAVAILABLE
+    if _LIBRARY is not None:
+        return _LIBRARY
+    if _UNAVAILABLE is not None:
+        raise EngineUnavailable(_UNAVAILABLE)
+    try:
+        _LIBRARY = _open()
+    except EngineUnavailable as error:
+        _UNAVAILABLE = str(error)
+        raise
+    return _LIBRARY
+
+
+def _open() -> Library:
+    paths = _library_paths()
+    mode = ctypes.RTLD_LOCAL | getattr(os, "RTLD_DEEPBIND", 0) | getattr(os, "RTLD_NOW", 0)
+    handles = {}
+    for part in ("core", "cvode"):  # cvode needs core; a library already loaded is shared, not loaded twice
+        try:
+            handles[part] = ctypes.CDLL(paths[part], mode=mode)
+        except OSError as error:
+            raise EngineUnavailable(f"cannot load {paths[part]}: {error}") from error
+    functions, addresses = {}, {}
+    for part, declarations in FUNCTIONS.items():
+        for name, (restype, argtypes) in declarations.items():
+            try:
+                function = getattr(handles[part], name)
+            except AttributeError as error:
+                raise EngineUnavailable(f"{paths[part]} has no {name}") from error
+            function.restype = _ctype(restype)
+            function.argtypes = [_ctype(a) for a in argtypes]
+            functions[name] = function
+            addresses[name] = ctypes.cast(function, ctypes.c_void_p).value
+    buffer = ctypes.create_string_buffer(64)
+    if functions["SUNDIALSGetVersion"](buffer, len(buffer)) != 0:
+        raise EngineUnavailable("SUNDIALSGetVersion failed")
+    version = buffer.value.decode()
+    if version.split(".")[0] != str(SUPPORTED_MAJOR):
+        raise EngineUnavailable(f"scikit-sundae ships SUNDIALS {version}; the compiled engine supports "
+                                f"SUNDIALS {SUPPORTED_MAJOR}.x only")
+    return Library(version, paths["cvode"], functions, addresses)
+
+
+def unavailable_reason() -> str | None:
+    """Why the compiled engine cannot run in this process, or None if it can."""
+    try:
+        library()
+    except EngineUnavailable as error:
+        return str(error)
+    return None
+
+
+# --- calls to C functions whose address is a run-time argument ---------------------------------------
+# numba caches compiled code on disk only if it holds no process-specific constant, so the
+# addresses of SUNDIALS' functions travel as plain integers and are called through these.
+def _codegen(context, builder, signature, args):
+    return_type = context.get_value_type(signature.return_type)
+    function_type = ir.FunctionType(return_type, [context.get_value_type(a) for a in signature.args[1:]])
+    return builder.call(builder.inttoptr(args[0], function_type.as_pointer()), args[1:])
+
+
+@intrinsic
+def _call_i1(typingctx, address, a):
+    return types.int32(types.intp, a), _codegen
+
+
+@intrinsic
+def _call_p1(typingctx, address, a):
+    return types.intp(types.intp, a), _codegen
+
+
+@intrinsic
+def _call_i2(typingctx, address, a, b):
+    return types.int32(types.intp, a, b), _codegen
+
+
+@intrinsic
+def _call_i3(typingctx, address, a, b, c):
+    return types.int32(types.intp, a, b, c), _codegen
+
+
+@intrinsic
+def _call_i5(typingctx, address, a, b, c, d, e):
+    return types.int32(types.intp, a, b, c, d, e), _codegen
+
+
+@intrinsic
+def _doubles(typingctx, address):
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(signature.return_type))
+    return types.CPointer(types.float64)(types.intp), codegen
+
+
+@intrinsic
+def _addresses(typingctx, address):
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(signature.return_type))
+    return types.CPointer(types.intp)(types.intp), codegen
+
+
+# The block user_data points to (int64): what the callbacks need besides the state.
+_U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_SIZE = range(6)
+# The parameters (float64) the callbacks read.
+_P_M, _P_K, _P_B, _P_R, _P_G, _P_F_EXT, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J10, _P_J11, _P_SIZE = range(12)
+
+_acceleration = njit(physics.mode_acceleration, cache=True)
+_rest_margin = njit(physics.rest_margin_value, cache=True)
+_static_deflection = njit(physics.static_deflection_value, cache=True)
+_effective_gravity = njit(physics.effective_gravity_value, cache=True)
+
+_callback_data = types.CPointer(types.intp)
+
+
+@cfunc(types.int32(types.float64, types.intp, types.intp, _callback_data), cache=True)
+def _rhs(t, y, ydot, user_data):
+    u = carray(user_data, _U_SIZE)
+    p = carray(_doubles(u[_U_PARAMETERS]), _P_SIZE)
+    state = carray(_doubles(_call_p1(u[_U_GET_ARRAY], y)), 2)
+    out = carray(_doubles(_call_p1(u[_U_GET_ARRAY], ydot)), 2)
+    out[0] = state[1]
+    out[1] = _acceleration(state[0], state[1], p[_P_MODE], p[_P_F_EXT], p[_P_M], p[_P_K], p[_P_B], p[_P_R], p[_P_G])
+    return 0
+
+
+@cfunc(types.int32(types.float64, types.intp, types.CPointer(types.float64), _callback_data), cache=True)
+def _roots(t, y, gout, user_data):
+    u = carray(user_data, _U_SIZE)
+    p = carray(_doubles(u[_U_PARAMETERS]), _P_SIZE)
+    state = carray(_doubles(_call_p1(u[_U_GET_ARRAY], y)), 2)
+    out = carray(gout, 3)
+    h, v, R = state[0], state[1], p[_P_R]
+    out[0] = h - R if h != R else p[_P_OWN_SIDE]
+    # as in BallIntegrator._make_solver: under zero net gravity v never changes in flight
+    out[1] = v if p[_P_MODE] == 1.0 or _effective_gravity(p[_P_F_EXT], p[_P_M], p[_P_G]) != 0.0 else 1.0
+    d = _static_deflection(p[_P_F_EXT], p[_P_M], p[_P_K], p[_P_G])
+    if p[_P_MODE] == 1.0 and d > 0.0:
+        out[2] = _rest_margin(h, v, d, p[_P_HOP], p[_P_K] / p[_P_M], R)
+    else:
+        out[2] = -1.0
+    u[_U_EVALUATIONS] += 1
+    return 1 if u[_U_EVALUATIONS] > u[_U_MAX_EVALUATIONS] else 0
+
+
+@cfunc(types.int32(types.float64, types.intp, types.intp, types.intp, _callback_data, types.intp, types.intp,
+                   types.intp), cache=True)
+def _jacobian(t, y, fy, matrix, user_data, tmp1, tmp2, tmp3):
+    u = carray(user_data, _U_SIZE)
+    p = carray(_doubles(u[_U_PARAMETERS]), _P_SIZE)
+    columns = carray(_addresses(_call_p1(u[_U_COLUMNS], matrix)), 2)
+    first, second = carray(_doubles(columns[0]), 2), carray(_doubles(columns[1]), 2)
+    first[0], first[1] = 0.0, p[_P_J10]
+    second[0], second[1] = 1.0, p[_P_J11]
+    return 0
+
+
+# The C functions the compiled loop calls, by their place in the address array it receives.
+_LOOP_FUNCTIONS = ("CVode", "CVodeGetRootInfo", "CVodeReInit", "CVodeSetStopTime", "CVodeClearStopTime",
+                   "CVodeGetNumRhsEvals")
+_CVODE, _ROOT_INFO, _REINIT, _SET_STOP, _CLEAR_STOP, _NUM_RHS = range(len(_LOOP_FUNCTIONS))
+_BUFFER_FULL = 99
+
+
+@njit(cache=True)
+def _steps(f, memory, vector, state, t_end, out, count, one_step, work):
+    """CVODE steps from its current point towards t_end until a terminal root, t_end, an error or a full buffer.
+
+    Like scikit-sundae's solve(): each step end (t, h, v) is stored in out[count]; a root of
+    only the extremum root function (non-terminal) is stepped through without storing it. With
+    one_step, a single call of CVode (scikit-sundae's step(method="onestep")). work[0] receives
+    CVode's time, work[1:4] the root information of the last root. Returns (CVode's flag, or
+    _BUFFER_FULL, and the new count).
+    """
+    info = np.zeros(_NUM_ROOTS, dtype=np.int32)
+    while True:
+        flag = _call_i5(f[_CVODE], memory, t_end, vector, work.ctypes.data, CV_ONE_STEP)
+        if flag == CV_ROOT_RETURN:
+            check = _call_i2(f[_ROOT_INFO], memory, info.ctypes.data)
+            if check < 0:
+                return check, count
+            work[1], work[2], work[3] = info[0], info[1], info[2]
+            if info[0] == 0 and info[2] == 0 and not one_step:
+                continue
+        out[count, 0], out[count, 1], out[count, 2] = work[0], state[0], state[1]
+        count += 1
+        if flag != CV_SUCCESS or one_step:
+            return flag, count
+        if count == out.shape[0]:
+            return _BUFFER_FULL, count
+
+
+@njit(cache=True)
+def _start_phase(f, memory, vector, state, t0, h0, v0, t_end, reinit, out, work, counter):
+    """Restart CVODE at (t0, h0, v0) with t_end as stop time and take its steps, as _steps.
+
+    Unless the buffer filled up, also clears the stop time and reads the right-hand-side count
+    into counter[0] (_finish_phase). Returns (the flag, the count stored, and which call failed:
+    0 none, 1 CVodeReInit, 2 CVodeSetStopTime, 3 CVodeClearStopTime or CVodeGetNumRhsEvals).
+    """
+    state[0], state[1] = h0, v0
+    work[1], work[2], work[3] = 0.0, 0.0, 0.0
+    if reinit:
+        flag = _call_i3(f[_REINIT], memory, t0, vector)
+        if flag < 0:
+            return flag, 0, 1
+    flag = _call_i2(f[_SET_STOP], memory, t_end)
+    if flag < 0:
+        return flag, 0, 2
+    out[0, 0], out[0, 1], out[0, 2] = t0, h0, v0
+    flag, count = _steps(f, memory, vector, state, t_end, out, 1, False, work)
+    if flag != _BUFFER_FULL:
+        finished = _finish_phase(f, memory, counter)
+        if finished < 0:
+            return finished, count, 3
+    return flag, count, 0
+
+
+@njit(cache=True)
+def _finish_phase(f, memory, counter):
+    """Clear the stop time; returns its flag and CVODE's right-hand-side evaluations in counter[0]."""
+    flag = _call_i1(f[_CLEAR_STOP], memory)
+    if flag < 0:
+        return flag
+    return _call_i2(f[_NUM_RHS], memory, counter.ctypes.data)
+
+
+# What CVode's failures mean (SUNDIALS' CVODE documentation); others get their name only.
+_FAILURES = {
+    -1: "could not reach the end point within the maximum number of steps",
+    -2: "could not satisfy the accuracy demanded for an internal step",
+    -3: "error tests failed too many times, or the step reached its minimum",
+    -4: "convergence tests failed too many times, or the step reached its minimum",
+    -8: "the right-hand side failed unrecoverably",
+    -12: "the root function failed",
+    -27: "the output and initial times are too close to each other",
+}
+
+
+@dataclass
+class PhaseResult:
+    """What BallIntegrator reads from a CVODE call: the step ends, CVode's flag and its message, RHS calls."""
+
+    t: np.ndarray | float
+    y: np.ndarray
+    status: int
+    message: str
+    nfev: int
+
+
+class PhaseSolver:
+    """CVODE for one mode of the ball, with scikit-sundae's CVODE calls that BallIntegrator uses.
+
+    Parameters
+    ----------
+    ball : Ball
+        The ball.
+    mode : Mode
+        The mode whose equations this solver integrates.
+    method : str
+        "Adams" or "BDF".
+    rtol, atol : float
+        CVODE's tolerances.
+    max_step : float
+        The largest step [s]; 0 for none.
+    max_num_steps : int
+        CVODE's limit of steps per call.
+    hop_tolerance : float
+        The rest root's margin [m] (see Ball.rest_margin).
+    own_side : float
+        The value of h - R the root function reports at h == R (the mode's own side).
+    max_evaluations : int
+        Root-function evaluations allowed per phase; beyond, CVode fails with CV_RTFUNC_FAIL
+        (see ``exceeded``).
+    """
+
+    def __init__(self, ball, mode, method: str, rtol: float, atol: float, max_step: float, max_num_steps: int,
+                 hop_tolerance: float, own_side: float, max_evaluations: int) -> None:
+        self._lib = library()
+        self._method = CV_ADAMS if method == "Adams" else CV_BDF
+        self._settings = (rtol, atol, max_step, max_num_steps)
+        jacobian = ball.jacobian(mode)
+        self.parameters = np.zeros(_P_SIZE)
+        self.parameters[[_P_M, _P_K, _P_B, _P_R, _P_G]] = ball.m, ball.k, ball.b, ball.R, ball.g
+        self.parameters[[_P_MODE, _P_OWN_SIDE, _P_HOP]] = int(mode), own_side, hop_tolerance
+        self.parameters[[_P_J10, _P_J11]] = jacobian[1, 0], jacobian[1, 1]
+        if jacobian[0, 0] != 0.0 or jacobian[0, 1] != 1.0:
+            raise ValueError("the compiled Jacobian assumes h' = v")
+        addresses = self._lib.addresses
+        self._user_data = np.zeros(_U_SIZE, dtype=np.intp)
+        self._user_data[[_U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS]] = (
+            self.parameters.ctypes.data, addresses["N_VGetArrayPointer"], addresses["SUNDenseMatrix_Cols"])
+        self._user_data[_U_MAX_EVALUATIONS] = max_evaluations
+        self._calls = np.array([addresses[name] for name in _LOOP_FUNCTIONS], dtype=np.intp)
+        self._work = np.zeros(1 + _NUM_ROOTS)
+        self._counter = np.zeros(1, dtype=np.int64)  # a C long
+        self._out = np.empty((_BUFFER, 3))
+        self._roots = [0, 0, 0]
+        self._handles = {}
+        self._state = None
+
+    # --- set-up and clean-up ----------------------------------------------------------------------
+    def _check(self, name: str, flag: int) -> None:
+        if flag < 0:
+            raise RuntimeError(f"{name} failed: {self._flag_name(flag)}")
+
+    def _flag_name(self, flag: int) -> str:
+        return self._lib.functions["CVodeGetReturnFlagName"](flag).decode()
+
+    def _create(self, name, *args):
+        handle = self._lib.functions[name](*args)
+        if not handle:
+            raise MemoryError(f"{name} returned NULL")
+        return handle
+
+    def _setup(self, t0: float, y0) -> None:
+        f = self._lib.functions
+        context = ctypes.c_void_p()
+        self._check("SUNContext_Create", f["SUNContext_Create"](0, ctypes.byref(context)))
+        handles = self._handles
+        handles["context"] = context
+        # Freed in reverse order of creation, even if a step below fails.
+        self._finalizer = weakref.finalize(self, _free, f, handles)
+        self._check("SUNContext_ClearErrHandlers", f["SUNContext_ClearErrHandlers"](context))
+        handles["vector"] = vector = self._create("N_VNew_Serial", 2, context)
+        data = f["N_VGetArrayPointer"](vector)
+        self._state = np.ctypeslib.as_array(ctypes.cast(data, ctypes.POINTER(ctypes.c_double)), shape=(2,))
+        self._state[:] = y0
+        handles["matrix"] = matrix = self._create("SUNDenseMatrix", 2, 2, context)
+        handles["linear_solver"] = linear_solver = self._create("SUNLinSol_Dense", vector, matrix, context)
+        handles["memory"] = memory = self._create("CVodeCreate", self._method, context)
+        self._memory = memory
+        rtol, atol, max_step, max_num_steps = self._settings
+        directions = (ctypes.c_int * 3)(-1 if self.parameters[_P_MODE] == 0 else 1, 0, 1)
+        for name, *args in (
+            ("CVodeSetUserData", self._user_data.ctypes.data),
+            ("CVodeInit", _rhs.address, t0, vector),
+            ("CVodeSStolerances", rtol, atol),
+            ("CVodeSetLinearSolver", linear_solver, matrix),
+            ("CVodeSetJacFn", _jacobian.address),
+            ("CVodeSetMaxNonlinIters", _MAX_NONLIN_ITERS),
+            ("CVodeSetMaxConvFails", _MAX_CONV_FAILS),
+            ("CVodeRootInit", _NUM_ROOTS, _roots.address),
+            ("CVodeSetRootDirection", directions),
+            ("CVodeSetInitStep", 0.0),
+            ("CVodeSetMinStep", 0.0),
+            ("CVodeSetMaxStep", max_step),
+            ("CVodeSetMaxOrd", _MAX_ORDER[self._method]),
+            ("CVodeSetMaxNumSteps", max_num_steps),
+        ):
+            self._check(name, f[name](memory, *args))
+
+    def close(self) -> None:
+        """Free every SUNDIALS object now (also done when the solver is garbage-collected)."""
+        if self._handles:
+            self._finalizer()
+
+    # --- the calls BallIntegrator makes ------------------------------------------------------------
+    @property
+    def F_ext(self) -> float:
+        return self.parameters[_P_F_EXT]
+
+    @F_ext.setter
+    def F_ext(self, value: float) -> None:
+        self.parameters[_P_F_EXT] = value
+
+    @property
+    def exceeded(self) -> bool:
+        """True if the last call failed because the phase took more root evaluations than allowed."""
+        return self._user_data[_U_EVALUATIONS] > self._user_data[_U_MAX_EVALUATIONS]
+
+    def roots_found(self) -> list[int]:
+        """CVodeGetRootInfo of the last root return: per root function, 0 or the crossing's sign."""
+        return self._roots
+
+    def init_step(self, t0: float, y0) -> None:
+        """(Re)start CVODE at t0 from y0 (new history, statistics and root-evaluation count)."""
+        self._user_data[_U_EVALUATIONS] = 0
+        self._roots = [0, 0, 0]
+        if not self._handles:
+            self._setup(t0, y0)
+            return
+        self._state[:] = y0
+        self._check("CVodeReInit", self._lib.functions["CVodeReInit"](self._memory, t0, self._handles["vector"]))
+
+    def step(self, t_toward: float, method: str = "onestep") -> PhaseResult:
+        """One internal step toward t_toward; its end, or the root it stopped at."""
+        out = self._out
+        flag, _ = _steps(self._calls, self._memory, self._handles["vector"], self._state, t_toward, out, 0, True,
+                         self._work)
+        self._read_roots(flag)
+        return PhaseResult(float(out[0, 0]), out[0, 1:].copy(), flag, self._message(flag), self._nfev())
+
+    def solve(self, tspan, y0) -> PhaseResult:
+        """From y0 at tspan[0] to tspan[-1] (a stop time) or the first terminal root: every step end."""
+        t0, t_end = float(tspan[0]), float(tspan[-1])
+        self._user_data[_U_EVALUATIONS] = 0
+        reinit = bool(self._handles)
+        if not reinit:
+            self._setup(t0, y0)
+        out, vector = self._out, self._handles["vector"]
+        flag, count, failed = _start_phase(self._calls, self._memory, vector, self._state, t0, float(y0[0]),
+                                           float(y0[1]), t_end, reinit, out, self._work, self._counter)
+        if failed:
+            self._check(("CVodeReInit", "CVodeSetStopTime", "CVodeClearStopTime or CVodeGetNumRhsEvals")[failed - 1],
+                        flag)
+        if flag == _BUFFER_FULL:
+            while flag == _BUFFER_FULL:
+                out = self._out = np.concatenate((out, np.empty_like(out)))
+                flag, count = _steps(self._calls, self._memory, vector, self._state, t_end, out, count, False,
+                                     self._work)
+            self._check("CVodeClearStopTime or CVodeGetNumRhsEvals",
+                        _finish_phase(self._calls, self._memory, self._counter))
+        self._read_roots(flag)
+        return PhaseResult(out[:count, 0].copy(), out[:count, 1:].copy(), flag, self._message(flag),
+                           int(self._counter[0]))
+
+    def _read_roots(self, flag: int) -> None:
+        self._roots = [int(x) for x in self._work[1:]] if flag == CV_ROOT_RETURN else [0, 0, 0]
+
+    def _nfev(self) -> int:
+        self._check("CVodeGetNumRhsEvals", self._lib.functions["CVodeGetNumRhsEvals"](
+            self._memory, self._counter.ctypes.data))
+        return int(self._counter[0])
+
+    def _message(self, flag: int) -> str:
+        if flag >= 0:
+            return "success"
+        name = self._flag_name(flag)
+        return f"{name}: {_FAILURES[flag]}" if flag in _FAILURES else name
+
+
+def _free(functions, handles: dict) -> None:
+    if "memory" in handles:
+        functions["CVodeFree"](ctypes.byref(ctypes.c_void_p(handles.pop("memory"))))
+    if "linear_solver" in handles:
+        functions["SUNLinSolFree"](handles.pop("linear_solver"))
+    if "matrix" in handles:
+        functions["SUNMatDestroy"](handles.pop("matrix"))
+    if "vector" in handles:
+        functions["N_VDestroy"](handles.pop("vector"))
+    if "context" in handles:
+        functions["SUNContext_Free"](ctypes.byref(handles.pop("context")))
+
+
+__all__ = ["EngineUnavailable", "PhaseResult", "PhaseSolver", "library", "unavailable_reason"]

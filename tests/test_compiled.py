@@ -1,0 +1,301 @@
+"""The compiled CVODE engine against scikit-sundae's: the same CVODE library, the same steps, the same numbers.
+
+Both engines drive the same SUNDIALS CVODE with the same settings and share cvode.py's event
+logic, so they must take the same internal steps; the heights are compared to 1e-12 m and the
+event times to 1e-12 s. The scikit-sundae engine is itself checked against the exact solution in
+test_cvode.py and test_hard_cases.py (which run whichever engine "auto" picks).
+"""
+
+import glob
+import math
+import os
+import re
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+import bouncingball as bb
+from bouncingball.scenes import BUILTIN_SCENES, load_scene
+from bouncingball.solvers.cvode import BallIntegrator, CvodeSettings, choose_engine
+
+compiled = pytest.importorskip("bouncingball.solvers.compiled", reason="the compiled engine needs numba ([fast])")
+if compiled.unavailable_reason() is not None:
+    pytest.skip(f"compiled engine unavailable: {compiled.unavailable_reason()}", allow_module_level=True)
+
+HEIGHT_AGREEMENT = 1e-12  # m
+TIME_AGREEMENT = 1e-12  # s
+ARTICLE = bb.Ball()
+
+
+def assert_engines_agree(sksundae, fast):
+    assert sksundae.stats.engine == "sksundae" and fast.stats.engine == "compiled"
+    assert [e.kind for e in fast.events] == [e.kind for e in sksundae.events]
+    for a, b in zip(sksundae.events, fast.events, strict=True):
+        assert abs(a.time - b.time) <= TIME_AGREEMENT * max(1.0, abs(a.time))
+        assert abs(a.velocity - b.velocity) <= 1e-9 * max(1.0, abs(a.velocity))
+    assert (fast.stats.steps, fast.stats.rhs_calls) == (sksundae.stats.steps, sksundae.stats.rhs_calls)
+    assert np.max(np.abs(fast.h - sksundae.h)) <= HEIGHT_AGREEMENT
+    assert fast.rest_time == sksundae.rest_time
+
+
+def run_both(*args, **options):
+    return [bb.simulate(*args, engine=engine, **options) for engine in ("sksundae", "compiled")]
+
+
+@pytest.mark.parametrize("name", BUILTIN_SCENES)
+def test_every_builtin_scene_gives_the_same_steps_events_and_heights(name):
+    scene = load_scene(name)
+    assert_engines_agree(*(scene.simulate("cvode", engine=engine) for engine in ("sksundae", "compiled")))
+
+
+@pytest.mark.parametrize("method", ["Adams", "BDF"])
+def test_both_methods_and_a_max_step(method):
+    assert_engines_agree(*run_both(ARTICLE, 2.0, 0.0, 3.0, 1e-3, method=method, max_step=0.05))
+
+
+# The hard cases of test_hard_cases.py: grazing starts, the bounce threshold, tiny hops, long and
+# stiff rests, the stiff failures found by the property test.
+HARD_CASES = {
+    "graze-1e-9": (ARTICLE, ARTICLE.R, 1e-9, 1.0, 1e-3, 0.0),
+    "graze-1e-5": (ARTICLE, ARTICLE.R, 1e-5, 1.0, 1e-3, 0.0),
+    "threshold": (bb.Ball(b=145.21960354346564 * (1 - 1e-8)), 2.0, 0.0, 2.0, 1e-3, 0.0),
+    "rest-height-leave": (ARTICLE, ARTICLE.rest_height(), 0.1058604129 * (1 + 1e-6), 2.0, 1e-3, 0.0),
+    "undamped-grazing": (bb.Ball(b=0.0), bb.Ball(b=0.0).rest_height(),
+                         math.sqrt(1e4) * bb.Ball(b=0.0).static_deflection() * (1 + 1e-6), 2.0, 1e-3, 0.0),
+    "hop-3e-5": (ARTICLE, ARTICLE.R, 3e-5, 0.5, 1e-4, 0.0),
+    "long-rest": (ARTICLE, 2.0, 0.0, 1e6, 1.0, 0.0),
+    "tiny-mass-rest": (bb.Ball(m=1e-6), 2.0, 0.0, 1e4, 1.0, 0.0),
+    "stiff-short-contact": (bb.Ball(k=1e15, m=1e-9, b=1e-3), 0.1, 0.0, 0.01, 1e-5, 0.0),
+    "stiff-tiny-ball": (bb.Ball(m=7.845629028153048e-06, k=1273664406.973477, b=131.07385603248107,
+                                R=0.016349292318303628, g=5.745576497079252),
+                        0.01761906428125259, 26.39033834877121, 25.48148283754829, 25.48148283754829 / 2000, 0.0),
+    "lifted-by-F_ext": (bb.Ball(k=1e12, m=1.0, b=2e8), bb.Ball().R - 1e-3, 0.0, 0.01, 1e-4, 2.0 * 9.81),
+    "hover-no-gravity": (bb.Ball(g=0.0), 1.0, 0.0, 1.0, 0.1, 0.0),
+    "hover-lifted-at-R": (ARTICLE, ARTICLE.R, 0.0, 1.0, 0.1, ARTICLE.m * ARTICLE.g),
+    "critical-creep-no-gravity": (bb.Ball(m=2.317700043930019e-4, k=57428147.75181946,
+                                          b=2.0 * math.sqrt(57428147.75181946 * 2.317700043930019e-4), R=1.0, g=0.0),
+                                  1.0, -12.5, 3.0, 3.0 / 2000, 0.0),
+    "undamped-small-ball": (bb.Ball(m=1.0, k=1e8, b=0.0, R=1e-3, g=34.0), 1e-3 - 34.0 / 1e8, 1.0, 3.0, 3.0 / 2000,
+                            0.0),
+}
+
+
+@pytest.mark.parametrize("case", HARD_CASES)
+def test_the_hard_cases_give_the_same_steps_events_and_heights(case):
+    ball, h0, v0, t_end, dt, F_ext = HARD_CASES[case]
+    assert_engines_agree(*run_both(ball, h0, v0, t_end, dt, F_ext=F_ext))
+
+
+def test_advance_with_states_and_a_changing_force_matches():
+    """The FMU's path: advance() step by step, F_ext changed, a state taken and restored."""
+    runs = []
+    for engine in ("sksundae", "compiled"):
+        integrator = BallIntegrator(ARTICLE, 2.0, 0.0, settings=CvodeSettings(engine=engine))
+        trace = []
+        for i in range(1, 3001):
+            if i == 1000:
+                integrator.F_ext = -3.0
+            if i == 2000:
+                saved = integrator.get_state()
+            trace.append((integrator.advance(i * 1e-3), integrator.h, integrator.v))
+        integrator.set_state(saved)
+        integrator.advance(2.5)
+        runs.append((trace, integrator.get_state()))
+    (trace_a, state_a), (trace_b, state_b) = runs
+    for (events_a, h_a, _), (events_b, h_b, _) in zip(trace_a, trace_b, strict=True):
+        assert [e.kind for e in events_a] == [e.kind for e in events_b]
+        assert abs(h_a - h_b) <= HEIGHT_AGREEMENT
+    assert (state_a.steps, state_a.rhs_calls, state_a.impacts) == (state_b.steps, state_b.rhs_calls, state_b.impacts)
+    assert abs(state_a.h - state_b.h) <= HEIGHT_AGREEMENT
+
+
+def test_a_method_fighting_stiffness_fails_with_the_same_reason(monkeypatch):
+    import bouncingball.solvers.cvode as cvode
+
+    monkeypatch.setattr(cvode, "MAX_STEPS_PER_PHASE", 2000)
+    ball = bb.Ball(k=1e12, m=1.0, b=2e8)
+    with pytest.raises(cvode.SolverError, match="took more than 2000 steps in one contact phase.*use method 'BDF'"):
+        bb.simulate(ball, ball.R - 1e-3, 0.0, 0.01, 1e-4, F_ext=2.0 * ball.m * ball.g, method="Adams",
+                    engine="compiled")
+
+
+def test_a_cvode_failure_is_a_clear_error():
+    integrator = BallIntegrator(ARTICLE, 2.0, 0.0, settings=CvodeSettings(rtol=1e-300, atol=1e-300, engine="compiled"))
+    with pytest.raises(RuntimeError, match=r"CVODE failed at t = 0.0 s \(flight, h = 2.0 m.*CV_TOO_MUCH_ACC.*accuracy"):
+        integrator.advance(0.5)
+
+
+# --- choosing the engine ---------------------------------------------------------------------------
+def test_auto_takes_the_compiled_engine_and_says_why():
+    result = bb.simulate(ARTICLE, 2.0, 0.0, 1.0)
+    assert result.stats.engine == "compiled" and "SUNDIALS 7." in result.stats.engine_reason
+
+
+def test_an_unknown_engine_is_refused_by_name():
+    with pytest.raises(ValueError, match="engine = 'fast' is not allowed: it must be one of auto, compiled, sksundae"):
+        bb.simulate(ARTICLE, 2.0, 0.0, 1.0, engine="fast")
+
+
+def test_another_sundials_version_falls_back_with_the_reason(monkeypatch):
+    monkeypatch.setattr(compiled, "SUPPORTED_MAJOR", 99)
+    monkeypatch.setattr(compiled, "_LIBRARY", None)
+    monkeypatch.setattr(compiled, "_UNAVAILABLE", None)
+    engine, reason = choose_engine("auto")
+    assert engine == "sksundae" and re.search(r"ships SUNDIALS 7\.\d+\.\d+.*supports SUNDIALS 99\.x", reason)
+    with pytest.raises(ImportError, match="engine 'compiled' is not available: .*SUNDIALS 99"):
+        bb.simulate(ARTICLE, 2.0, 0.0, 1.0, engine="compiled")
+    result = bb.simulate(ARTICLE, 2.0, 0.0, 1.0)
+    assert result.stats.engine == "sksundae" and "SUNDIALS 99" in result.stats.engine_reason
+
+
+def _run_python(code: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, timeout=300)
+
+
+def test_without_numba_auto_falls_back_and_compiled_is_refused():
+    completed = _run_python("""
+        import sys
+        sys.modules["numba"] = None  # as if not installed
+        import bouncingball as bb
+        r = bb.simulate(bb.Ball(), 2.0, 0.0, 1.0)
+        print(r.stats.engine, "|", r.stats.engine_reason)
+        try:
+            bb.simulate(bb.Ball(), 2.0, 0.0, 1.0, engine="compiled")
+        except ImportError as error:
+            print(error)
+    """)
+    assert completed.returncode == 0, completed.stderr
+    lines = completed.stdout.splitlines()
+    assert lines[0].startswith("sksundae | compiled engine unavailable: numba is not installed")
+    assert "pip install 'bouncingball[fast]'" in lines[0]
+    assert lines[1].startswith("engine 'compiled' is not available: numba is not installed")
+
+
+def test_the_sksundae_engine_and_import_never_load_numba():
+    completed = _run_python("""
+        import sys
+        import bouncingball as bb
+        assert "numba" not in sys.modules
+        bb.simulate(bb.Ball(), 2.0, 0.0, 1.0, engine="sksundae")
+        assert "numba" not in sys.modules
+    """)
+    assert completed.returncode == 0, completed.stderr
+
+
+def test_many_solvers_created_run_and_freed_in_a_separate_process():
+    """A wrong binding crashes the interpreter: so this one runs in its own process, scikit-sundae loaded first."""
+    completed = _run_python("""
+        import gc
+        import sksundae.cvode  # the library scikit-sundae loaded is the one the engine binds
+        import bouncingball as bb
+        from bouncingball.solvers.cvode import BallIntegrator, CvodeSettings
+        for i in range(100):
+            integrator = BallIntegrator(bb.Ball(), 2.0, 0.0, settings=CvodeSettings(engine="compiled"))
+            integrator.advance(0.7)
+            if i % 2:
+                for solver in integrator._solvers.values():
+                    solver.close()  # freed now; the rest when collected
+            del integrator
+            gc.collect()
+        r = bb.simulate(bb.Ball(), 2.0, 0.0, 8.0, engine="compiled")
+        print(len(r.events), r.stats.steps)
+    """)
+    assert completed.returncode == 0, completed.stderr
+    events, _ = completed.stdout.split()
+    assert int(events) == len(bb.simulate(ARTICLE, 2.0, 0.0, 8.0, engine="sksundae").events)
+
+
+# --- the binding against scikit-sundae's own declarations ------------------------------------------
+def _pxd_declarations() -> dict[str, tuple[str, tuple[str, ...]]]:
+    """name -> (return type, argument types) from the .pxd files scikit-sundae ships, typedefs resolved."""
+    import sksundae
+
+    folder = os.path.dirname(sksundae.__file__)
+    text = ""
+    for path in sorted(glob.glob(os.path.join(folder, "*.pxd")) + glob.glob(os.path.join(folder, "*.pxi"))):
+        with open(path) as source:
+            text += source.read() + "\n"
+    text = re.sub(r"#.*", "", text)
+    text = re.sub(r"\s+", " ", text)
+    typedefs = {name: base for base, name in re.findall(r"ctypedef ([\w ]+?) (\w+)(?=[ ;\n]|$)", text)
+                if base not in ("struct",)}
+    declarations = {}
+    for restype, name, arguments in re.findall(r"ctypedef (\w+) \(\*(\w+)\)\(([^()]*)\)", text):
+        declarations[name] = (restype, tuple(re.sub(r"\s*\w+$", "", a.strip()) for a in arguments.split(",")))
+    pattern = re.compile(r"(?:^|[ :])((?:const )?(?:long )?\w+\**) (\w+)\(([^()]*)\)")
+    for restype, name, arguments in pattern.findall(text):
+        if restype in ("ctypedef", "return", "cdef"):
+            continue
+        types = []
+        for argument in arguments.split(","):
+            argument = argument.strip().replace("const ", "")
+            if not argument:
+                continue
+            match = re.fullmatch(r"([\w ]+?)\s*(\**)\s*(\w+)", argument)
+            types.append(match.group(1) + match.group(2) if match else argument)
+        declarations[name] = (restype.replace("const ", ""), tuple(types))
+    return declarations, typedefs
+
+
+def _c_type(name: str, typedefs: dict) -> str:
+    """A C type reduced to what the ABI sees: a pointer, or a basic type with its typedefs resolved."""
+    stars = len(name) - len(name.rstrip("*"))
+    base = name.rstrip("*").strip()
+    if stars or base in ("N_Vector", "SUNContext", "SUNMatrix", "SUNLinearSolver", "CVRhsFn", "CVRootFn",
+                         "CVLsJacFn") or base.endswith("*"):
+        return "pointer"
+    while base in typedefs and typedefs[base] != base:
+        base = typedefs[base]
+    return base
+
+
+def test_every_bound_function_matches_the_declaration_scikit_sundae_ships():
+    declarations, typedefs = _pxd_declarations()
+    assert typedefs.get("sunrealtype") == "double"
+    unchecked = []
+    for functions in compiled.FUNCTIONS.values():
+        for name, (restype, argtypes) in functions.items():
+            if name not in declarations:
+                unchecked.append(name)
+                continue
+            declared_restype, declared_args = declarations[name]
+            ours = [_c_type(t, typedefs) for t in (restype, *argtypes)]
+            theirs = [_c_type(t, typedefs) for t in (declared_restype, *declared_args)]
+            assert ours == theirs, name
+    # not used by scikit-sundae, so not declared there: documented SUNDIALS 7 API, stable since 6.0
+    assert sorted(unchecked) == ["CVodeGetReturnFlagName", "SUNDIALSGetVersion"]
+
+
+@pytest.mark.parametrize(("callback", "typedef"), [("_rhs", "CVRhsFn"), ("_roots", "CVRootFn"),
+                                                 ("_jacobian", "CVLsJacFn")])
+def test_the_compiled_callbacks_match_the_declared_callback_types(callback, typedef):
+    declarations, typedefs = _pxd_declarations()
+    restype, argtypes = declarations[typedef]
+    signature = getattr(compiled, callback)._sig
+    ours = [str(t) for t in (signature.return_type, *signature.args)]
+    theirs = [_c_type(t, typedefs) for t in (restype, *argtypes)]
+    assert ["double" if t == "float64" else "int" if t == "int32" else "pointer" for t in ours] == theirs
+
+
+def test_the_index_type_scikit_sundae_was_built_with_is_the_one_we_pass():
+    """sunindextype is set when SUNDIALS is built: 32 bits in this wheel; the engine passes a C int."""
+    _, typedefs = _pxd_declarations()
+    assert typedefs["sunindextype"] == "int"
+    assert compiled._CTYPES["sunindextype"] is __import__("ctypes").c_int
+
+
+def test_phases_longer_than_the_step_buffer_are_complete(monkeypatch):
+    monkeypatch.setattr(compiled, "_BUFFER", 7)  # the article's phases take up to ~100 steps
+    assert_engines_agree(*run_both(ARTICLE, 2.0, 0.0, 8.0, 1e-3))
+
+
+@pytest.mark.parametrize("engine", ["compiled", "sksundae"])
+def test_the_cli_runs_either_engine_and_says_which(engine, capsys):
+    from bouncingball.cli import main
+
+    assert main(["run", "article", "--t-end", "2", "--engine", engine]) == 0
+    text = capsys.readouterr().out
+    assert f"  engine      {engine} (requested)" in text and "engine " + engine in text
