@@ -196,6 +196,7 @@ def _log_uniform(low, high):
 @example(m=10.0**0.09375, k=79147554394.1116, zeta=0.0, R=1e-3, g=36.0, lift=0.0, v0=1.0)
 @example(m=1.0, k=1e8, zeta=0.0, R=1e-3, g=34.0, lift=0.0, v0=1.0)
 @example(m=1.0, k=1e8, zeta=0.0, R=0.1, g=1.0, lift=0.0, v0=1.5)
+@example(m=1e-4, k=10.0, zeta=0.0, R=1e-3, g=10.0, lift=0.0, v0=0.25)
 def test_random_balls_against_the_exact_solution(m, k, zeta, R, g, lift, v0):
     ball = bb.Ball(m=m, k=k, b=2.0 * zeta * math.sqrt(k * m), R=R, g=g)
     h0 = ball.rest_height() + lift
