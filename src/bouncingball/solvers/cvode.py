@@ -74,6 +74,8 @@ def choose_engine(engine: str = "auto") -> tuple[str, str]:
         from bouncingball.solvers import compiled
     except ImportError as error:
         reason = f"numba is not installed ({error}): pip install 'bouncingball[fast]'"
+    except Exception as error:  # numba is there but cannot compile the engine (an incompatible release)
+        reason = f"numba could not compile the engine ({type(error).__name__}: {error})".splitlines()[0]
     else:
         reason = compiled.unavailable_reason()
         if reason is None:
@@ -189,6 +191,11 @@ class BallIntegrator:
         # So h == R counts as the mode's own side: the crossing is where h truly leaves it.
         return math.ulp(self.ball.R) if mode == Mode.FLIGHT else -math.ulp(self.ball.R)
 
+    @staticmethod
+    def _root_directions(mode: Mode) -> list[int]:
+        """h - R: an impact downwards, a departure upwards; v: every extremum; the rest margin: turning positive."""
+        return [-1 if mode == Mode.FLIGHT else 1, 0, 1]
+
     def _too_many_steps(self, mode: Mode, t: float) -> SolverError:
         return SolverError(
             f"CVODE ({self.methods[mode]}) took more than {MAX_STEPS_PER_PHASE} steps in one "
@@ -201,7 +208,8 @@ class BallIntegrator:
 
         s = self.settings
         solver = PhaseSolver(self.ball, mode, self.methods[mode], s.rtol, s.atol, s.max_step, _MAX_STEPS_PER_CALL,
-                             self.hop_tolerance, self._own_side(mode), MAX_STEPS_PER_PHASE)
+                             self.hop_tolerance, self._own_side(mode), self._root_directions(mode),
+                             MAX_STEPS_PER_PHASE)
         return solver, None
 
     def _make_solver(self, mode: Mode):
@@ -235,7 +243,7 @@ class BallIntegrator:
                 raise self._too_many_steps(mode, t)
 
         event.terminal = [True, False, True]
-        event.direction = [-1 if mode == Mode.FLIGHT else 1, 0, 1]
+        event.direction = self._root_directions(mode)
         s = self.settings
         solver = CVODE(rhs, method=self.methods[mode], rtol=s.rtol, atol=s.atol, max_step=s.max_step,
                        eventsfn=event, num_events=3, jacfn=jac, max_num_steps=_MAX_STEPS_PER_CALL)
