@@ -15,7 +15,7 @@ import numpy as np
 from sksundae.cvode import CVODE
 
 from bouncingball import validation
-from bouncingball.physics import Ball, Mode
+from bouncingball.physics import Ball, Mode, mode_acceleration
 from bouncingball.solvers import sksundae_events
 from bouncingball.solvers.dense_output import interpolate, step_state
 from bouncingball.solvers.exact import time_to_departure, time_to_impact
@@ -216,7 +216,7 @@ class BallIntegrator:
         ball = self.ball
         jacobian = ball.jacobian(mode)
         R = ball.R
-        acceleration = ball.acceleration
+        m, k, b, g = ball.m, ball.k, ball.b, ball.g
         own_side = self._own_side(mode)
         contact = mode == Mode.CONTACT
         hop_tolerance = self.hop_tolerance
@@ -225,7 +225,7 @@ class BallIntegrator:
             # physics computes k (R - h): R - h is exact near R, whereas k R - k h would bury the
             # deflection of a stiff ball (k = 1e12) in the round-off of two 6e10 terms.
             yp[0] = y[1]
-            yp[1] = acceleration(y[0], y[1], mode, self._F_ext)
+            yp[1] = mode_acceleration(y[0], y[1], mode, self._F_ext, m, k, b, R, g)
 
         def jac(t, y, yp, JJ):
             JJ[:, :] = jacobian
