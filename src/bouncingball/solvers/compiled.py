@@ -333,8 +333,8 @@ def _start_phase(f, memory, vector, state, t0, h0, v0, t_end, reinit, out, work,
     """Restart CVODE at (t0, h0, v0) with t_end as stop time and take its steps, as _steps.
 
     Unless the buffer filled up, also clears the stop time and reads the right-hand-side count
-    into counter[0] (_finish_phase). Returns (the flag, the count stored, and which call failed:
-    0 none, 1 CVodeReInit, 2 CVodeSetStopTime, 3 CVodeClearStopTime or CVodeGetNumRhsEvals).
+    into counter[0] (_finish_phase). Returns the flag, the count stored, and which call failed
+    (0 none, 1 CVodeReInit, 2 CVodeSetStopTime, 3 CVodeClearStopTime or CVodeGetNumRhsEvals).
     """
     state[0], state[1] = h0, v0
     work[1], work[2], work[3] = 0.0, 0.0, 0.0
@@ -559,7 +559,7 @@ class PhaseSolver:
                            int(self._counter[0]))
 
     def _read_roots(self, flag: int) -> None:
-        self._roots = [int(x) for x in self._work[1:]] if flag == CV_ROOT_RETURN else [0, 0, 0]
+        self._roots = list(map(int, self._work[1:].tolist())) if flag == CV_ROOT_RETURN else [0, 0, 0]
 
     def _nfev(self) -> int:
         self._check("CVodeGetNumRhsEvals", self._lib.functions["CVodeGetNumRhsEvals"](

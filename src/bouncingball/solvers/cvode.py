@@ -493,9 +493,9 @@ class BallIntegrator:
             if root:
                 t_root, h_root, v_root = self._polish_event((ts[-2], hs[-2], vs[-2]), (ts[-1], hs[-1], vs[-1]))
                 ts[-1], hs[-1], vs[-1] = t_root, h_root, v_root
-                self._check_side(ts[-2], np.min(hs[:-1]), np.max(hs[:-1]))
+                self._check_side(ts[-2], hs[:-1].min(), hs[:-1].max())
             else:
-                self._check_side(ts[-1], np.min(hs), np.max(hs))
+                self._check_side(ts[-1], hs.min(), hs.max())
             self._clear_roots(mode)
             # A phase's first point is the previous phase's last: one copy per mode, so that no
             # dense-output segment straddles the switch.
