@@ -305,3 +305,26 @@ def test_the_cli_runs_either_engine_and_says_which(engine, capsys):
     assert main(["run", "article", "--t-end", "2", "--engine", engine]) == 0
     text = capsys.readouterr().out
     assert f"  engine      {engine} (requested)" in text and "engine " + engine in text
+
+
+def test_a_host_exporting_its_own_sundials_symbols_does_not_capture_the_engine(tmp_path):
+    """A host whose global scope has a SUNContext_Create of its own (another SUNDIALS): ours is still called."""
+    import shutil
+
+    compiler = shutil.which("cc") or shutil.which("gcc")
+    if compiler is None:
+        pytest.skip("no C compiler")
+    source = tmp_path / "host.c"
+    source.write_text("int SUNContext_Create(int comm, void **ctx) { *ctx = 0; return -99; }\n")
+    host = tmp_path / "libhost.so"
+    subprocess.run([compiler, "-shared", "-fPIC", "-o", str(host), str(source)], check=True)
+    completed = _run_python(f"""
+        import ctypes
+        ctypes.CDLL({str(host)!r}, mode=ctypes.RTLD_GLOBAL)  # the host's symbols come first in the global scope
+        import bouncingball as bb
+        r = bb.simulate(bb.Ball(), 2.0, 0.0, 8.0, engine="compiled")
+        print(len(r.events), r.stats.steps)
+    """)
+    assert completed.returncode == 0, completed.stderr
+    reference = bb.simulate(ARTICLE, 2.0, 0.0, 8.0, engine="sksundae")
+    assert completed.stdout.split() == [str(len(reference.events)), str(reference.stats.steps)]

@@ -10,12 +10,14 @@ of cvode.py (mode switches, rests and hops in closed form, polishing, dense outp
 engines unchanged.
 
 The library is the one in scikit-sundae's wheel (``scikit_sundae.libs``), so the process holds one
-SUNDIALS. It is opened with RTLD_DEEPBIND where the platform has it, so that a host process that
-exports SUNDIALS symbols of its own cannot capture our calls, and its version is checked
-(SUNDIALSGetVersion) before anything else. Every return code is checked, and every SUNDIALS object
-is freed with its solver. C function addresses are passed to the compiled code as arguments, never
-baked into it, so the compiled code is cached on disk (numba ``cache=True``) and loads in a
-fraction of a second after the first run.
+SUNDIALS, and its version is checked (SUNDIALSGetVersion) before anything else. Every function we
+call is looked up in these libraries' own handles, so a host process that exports SUNDIALS
+symbols of its own (another SUNDIALS) cannot capture our calls. The libraries' calls among
+themselves are bound when they are first loaded, usually by scikit-sundae's import; if we load
+them first, RTLD_DEEPBIND (where the platform has it) binds them to each other too. Every return
+code is checked, and every SUNDIALS object is freed with its solver. C function addresses are passed
+to the compiled code as arguments, never baked into it, so the compiled code is cached on disk
+(numba ``cache=True``) and loads in a fraction of a second after the first run.
 
 Import this module only to use the engine: it imports numba. ``unavailable_reason()`` says why the
 engine cannot run here (numba missing, a library not found or of another version), or None.
