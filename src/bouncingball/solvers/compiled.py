@@ -576,6 +576,7 @@ class PhaseSolver:
 
 
 def _free(functions, handles: dict) -> None:
+    # A finalizer cannot raise: SUNLinSolFree's only failure is a NULL solver, which never gets here.
     if "memory" in handles:
         functions["CVodeFree"](ctypes.byref(ctypes.c_void_p(handles.pop("memory"))))
     if "linear_solver" in handles:
