@@ -465,7 +465,7 @@ class BallIntegrator:
                 times.append(np.array([self._t, t_end]))
                 heights.append(np.array([self._h, h_end]))
                 velocities.append(np.array([self._v, v_end]))
-                modes.append(np.full(2, mode))
+                modes.append(np.full(2, int(mode)))
                 self._t, self._h, self._v = t_end, h_end, v_end
                 break
             event = self._event_in_closed_form()
@@ -477,7 +477,7 @@ class BallIntegrator:
                 times.append(np.array([self._t, event[0]]))
                 heights.append(np.array([self._h, event[1]]))
                 velocities.append(np.array([self._v, event[2]]))
-                modes.append(np.full(2, mode))
+                modes.append(np.full(2, int(mode)))
                 self._t, self._h, self._v = event
                 if reached:
                     events.append(self._switch_mode())
@@ -502,7 +502,7 @@ class BallIntegrator:
             times.append(ts)
             heights.append(hs)
             velocities.append(vs)
-            modes.append(np.full(len(ts), mode))
+            modes.append(np.full(len(ts), int(mode)))
             self._t, self._h, self._v = float(ts[-1]), float(hs[-1]), float(vs[-1])
             self._steps += len(ts) - 1
             self._rhs_calls += int(result.nfev)
