@@ -10,12 +10,14 @@ of cvode.py (mode switches, rests and hops in closed form, polishing, dense outp
 engines unchanged.
 
 The library is the one in scikit-sundae's wheel (``scikit_sundae.libs``), so the process holds one
-SUNDIALS. It is opened with RTLD_DEEPBIND where the platform has it, so that a host process that
-exports SUNDIALS symbols of its own cannot capture our calls, and its version is checked
-(SUNDIALSGetVersion) before anything else. Every return code is checked, and every SUNDIALS object
-is freed with its solver. C function addresses are passed to the compiled code as arguments, never
-baked into it, so the compiled code is cached on disk (numba ``cache=True``) and loads in a
-fraction of a second after the first run.
+SUNDIALS, and its version is checked (SUNDIALSGetVersion) before anything else. Every function we
+call is looked up in these libraries' own handles, so a host process that exports SUNDIALS
+symbols of its own (another SUNDIALS) cannot capture our calls. The libraries' calls among
+themselves are bound when they are first loaded, usually by scikit-sundae's import; if we load
+them first, RTLD_DEEPBIND (where the platform has it) binds them to each other too. Every return
+code is checked, and every SUNDIALS object is freed with its solver. C function addresses are passed
+to the compiled code as arguments, never baked into it, so the compiled code is cached on disk
+(numba ``cache=True``) and loads in a fraction of a second after the first run.
 
 Import this module only to use the engine: it imports numba. ``unavailable_reason()`` says why the
 engine cannot run here (numba missing, a library not found or of another version), or None.
@@ -89,7 +91,6 @@ FUNCTIONS = {
         "CVode": ("int", ("void*", "sunrealtype", "N_Vector", "sunrealtype*", "int")),
         "CVodeGetRootInfo": ("int", ("void*", "int*")),
         "CVodeGetNumRhsEvals": ("int", ("void*", "long int*")),
-        "CVodeGetReturnFlagName": ("char*", ("long int",)),
         "CVodeFree": ("void", ("void**",)),
     },
 }
@@ -151,6 +152,9 @@ def library() -> Library:
 
 
 def _open() -> Library:
+    # Pointers travel through the compiled code as 64-bit integers, and C's long is 64 bits (LP64).
+    if ctypes.sizeof(ctypes.c_void_p) != 8 or ctypes.sizeof(ctypes.c_long) != 8:
+        raise EngineUnavailable("the compiled engine needs a 64-bit platform with 64-bit C longs (Linux)")
     paths = _library_paths()
     mode = ctypes.RTLD_LOCAL | getattr(os, "RTLD_DEEPBIND", 0) | getattr(os, "RTLD_NOW", 0)
     handles = {}
@@ -240,7 +244,8 @@ def _addresses(typingctx, address):
 # The block user_data points to (int64): what the callbacks need besides the state.
 _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_SIZE = range(6)
 # The parameters (float64) the callbacks read.
-_P_M, _P_K, _P_B, _P_R, _P_G, _P_F_EXT, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J10, _P_J11, _P_SIZE = range(12)
+(_P_M, _P_K, _P_B, _P_R, _P_G, _P_F_EXT, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
+ _P_SIZE) = range(14)
 
 _acceleration = njit(physics.mode_acceleration, cache=True)
 _rest_margin = njit(physics.rest_margin_value, cache=True)
@@ -287,8 +292,8 @@ def _jacobian(t, y, fy, matrix, user_data, tmp1, tmp2, tmp3):
     p = carray(_doubles(u[_U_PARAMETERS]), _P_SIZE)
     columns = carray(_addresses(_call_p1(u[_U_COLUMNS], matrix)), 2)
     first, second = carray(_doubles(columns[0]), 2), carray(_doubles(columns[1]), 2)
-    first[0], first[1] = 0.0, p[_P_J10]
-    second[0], second[1] = 1.0, p[_P_J11]
+    first[0], first[1] = p[_P_J00], p[_P_J10]  # SUNDIALS' dense matrices are stored by columns
+    second[0], second[1] = p[_P_J01], p[_P_J11]
     return 0
 
 
@@ -332,8 +337,8 @@ def _start_phase(f, memory, vector, state, t0, h0, v0, t_end, reinit, out, work,
     """Restart CVODE at (t0, h0, v0) with t_end as stop time and take its steps, as _steps.
 
     Unless the buffer filled up, also clears the stop time and reads the right-hand-side count
-    into counter[0] (_finish_phase). Returns (the flag, the count stored, and which call failed:
-    0 none, 1 CVodeReInit, 2 CVodeSetStopTime, 3 CVodeClearStopTime or CVodeGetNumRhsEvals).
+    into counter[0] (_finish_phase). Returns the flag, the count stored, and which call failed
+    (0 none, 1 CVodeReInit, 2 CVodeSetStopTime, 3 CVodeClearStopTime or CVodeGetNumRhsEvals).
     """
     state[0], state[1] = h0, v0
     work[1], work[2], work[3] = 0.0, 0.0, 0.0
@@ -362,15 +367,23 @@ def _finish_phase(f, memory, counter):
     return _call_i2(f[_NUM_RHS], memory, counter.ctypes.data)
 
 
-# What CVode's failures mean (SUNDIALS' CVODE documentation); others get their name only.
-_FAILURES = {
-    -1: "could not reach the end point within the maximum number of steps",
-    -2: "could not satisfy the accuracy demanded for an internal step",
-    -3: "error tests failed too many times, or the step reached its minimum",
-    -4: "convergence tests failed too many times, or the step reached its minimum",
-    -8: "the right-hand side failed unrecoverably",
-    -12: "the root function failed",
-    -27: "the output and initial times are too close to each other",
+# CVODE's return flags (cvode.h) and what the failures mean (CVODE's documentation of CVode). Our own
+# table: CVodeGetReturnFlagName returns a string the caller must free.
+_FLAGS = {
+    -1: ("CV_TOO_MUCH_WORK", "could not reach the end point within the maximum number of steps"),
+    -2: ("CV_TOO_MUCH_ACC", "could not satisfy the accuracy demanded for an internal step"),
+    -3: ("CV_ERR_FAILURE", "error tests failed too many times, or the step reached its minimum"),
+    -4: ("CV_CONV_FAILURE", "convergence tests failed too many times, or the step reached its minimum"),
+    -5: ("CV_LINIT_FAIL", "the linear solver's initialisation failed"),
+    -6: ("CV_LSETUP_FAIL", "the linear solver's setup failed"),
+    -7: ("CV_LSOLVE_FAIL", "the linear solver's solve failed"),
+    -8: ("CV_RHSFUNC_FAIL", "the right-hand side failed unrecoverably"),
+    -12: ("CV_RTFUNC_FAIL", "the root function failed"),
+    -20: ("CV_MEM_FAIL", "a memory allocation failed"),
+    -21: ("CV_MEM_NULL", "no CVODE memory"),
+    -22: ("CV_ILL_INPUT", "an input is illegal"),
+    -25: ("CV_BAD_T", "the time is outside the last step"),
+    -27: ("CV_TOO_CLOSE", "the output and initial times are too close to each other"),
 }
 
 
@@ -406,13 +419,15 @@ class PhaseSolver:
         The rest root's margin [m] (see Ball.rest_margin).
     own_side : float
         The value of h - R the root function reports at h == R (the mode's own side).
+    directions : sequence of int
+        The crossing direction CVODE reports for each root function (h - R, v, rest margin).
     max_evaluations : int
         Root-function evaluations allowed per phase; beyond, CVode fails with CV_RTFUNC_FAIL
         (see ``exceeded``).
     """
 
     def __init__(self, ball, mode, method: str, rtol: float, atol: float, max_step: float, max_num_steps: int,
-                 hop_tolerance: float, own_side: float, max_evaluations: int) -> None:
+                 hop_tolerance: float, own_side: float, directions, max_evaluations: int) -> None:
         self._lib = library()
         self._method = CV_ADAMS if method == "Adams" else CV_BDF
         self._settings = (rtol, atol, max_step, max_num_steps)
@@ -420,9 +435,8 @@ class PhaseSolver:
         self.parameters = np.zeros(_P_SIZE)
         self.parameters[[_P_M, _P_K, _P_B, _P_R, _P_G]] = ball.m, ball.k, ball.b, ball.R, ball.g
         self.parameters[[_P_MODE, _P_OWN_SIDE, _P_HOP]] = int(mode), own_side, hop_tolerance
-        self.parameters[[_P_J10, _P_J11]] = jacobian[1, 0], jacobian[1, 1]
-        if jacobian[0, 0] != 0.0 or jacobian[0, 1] != 1.0:
-            raise ValueError("the compiled Jacobian assumes h' = v")
+        self.parameters[[_P_J00, _P_J01, _P_J10, _P_J11]] = jacobian.ravel()
+        self._directions = (ctypes.c_int * _NUM_ROOTS)(*directions)
         addresses = self._lib.addresses
         self._user_data = np.zeros(_U_SIZE, dtype=np.intp)
         self._user_data[[_U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS]] = (
@@ -439,10 +453,7 @@ class PhaseSolver:
     # --- set-up and clean-up ----------------------------------------------------------------------
     def _check(self, name: str, flag: int) -> None:
         if flag < 0:
-            raise RuntimeError(f"{name} failed: {self._flag_name(flag)}")
-
-    def _flag_name(self, flag: int) -> str:
-        return self._lib.functions["CVodeGetReturnFlagName"](flag).decode()
+            raise RuntimeError(f"{name} failed: {self._message(flag)}")
 
     def _create(self, name, *args):
         handle = self._lib.functions[name](*args)
@@ -468,7 +479,6 @@ class PhaseSolver:
         handles["memory"] = memory = self._create("CVodeCreate", self._method, context)
         self._memory = memory
         rtol, atol, max_step, max_num_steps = self._settings
-        directions = (ctypes.c_int * 3)(-1 if self.parameters[_P_MODE] == 0 else 1, 0, 1)
         for name, *args in (
             ("CVodeSetUserData", self._user_data.ctypes.data),
             ("CVodeInit", _rhs.address, t0, vector),
@@ -478,7 +488,7 @@ class PhaseSolver:
             ("CVodeSetMaxNonlinIters", _MAX_NONLIN_ITERS),
             ("CVodeSetMaxConvFails", _MAX_CONV_FAILS),
             ("CVodeRootInit", _NUM_ROOTS, _roots.address),
-            ("CVodeSetRootDirection", directions),
+            ("CVodeSetRootDirection", self._directions),
             ("CVodeSetInitStep", 0.0),
             ("CVodeSetMinStep", 0.0),
             ("CVodeSetMaxStep", max_step),
@@ -553,7 +563,7 @@ class PhaseSolver:
                            int(self._counter[0]))
 
     def _read_roots(self, flag: int) -> None:
-        self._roots = [int(x) for x in self._work[1:]] if flag == CV_ROOT_RETURN else [0, 0, 0]
+        self._roots = list(map(int, self._work[1:].tolist())) if flag == CV_ROOT_RETURN else [0, 0, 0]
 
     def _nfev(self) -> int:
         self._check("CVodeGetNumRhsEvals", self._lib.functions["CVodeGetNumRhsEvals"](
@@ -563,11 +573,12 @@ class PhaseSolver:
     def _message(self, flag: int) -> str:
         if flag >= 0:
             return "success"
-        name = self._flag_name(flag)
-        return f"{name}: {_FAILURES[flag]}" if flag in _FAILURES else name
+        name, meaning = _FLAGS.get(flag, (f"flag {flag}", "see cvode.h"))
+        return f"{name}: {meaning}"
 
 
 def _free(functions, handles: dict) -> None:
+    # A finalizer cannot raise: SUNLinSolFree's only failure is a NULL solver, which never gets here.
     if "memory" in handles:
         functions["CVodeFree"](ctypes.byref(ctypes.c_void_p(handles.pop("memory"))))
     if "linear_solver" in handles:

@@ -16,7 +16,7 @@ import numpy as np
 from sksundae.cvode import CVODE
 
 from .. import validation
-from ..physics import Ball, Mode
+from ..physics import Ball, Mode, mode_acceleration
 from . import sksundae_events
 from .dense_output import interpolate, step_state
 from .exact import time_to_departure, time_to_impact
@@ -75,6 +75,8 @@ def choose_engine(engine: str = "auto") -> tuple[str, str]:
         from . import compiled
     except ImportError as error:
         reason = f"numba is not installed ({error}): pip install 'bouncingball[fast]'"
+    except Exception as error:  # numba is there but cannot compile the engine (an incompatible release)
+        reason = f"numba could not compile the engine ({type(error).__name__}: {error})".splitlines()[0]
     else:
         reason = compiled.unavailable_reason()
         if reason is None:
@@ -190,6 +192,11 @@ class BallIntegrator:
         # So h == R counts as the mode's own side: the crossing is where h truly leaves it.
         return math.ulp(self.ball.R) if mode == Mode.FLIGHT else -math.ulp(self.ball.R)
 
+    @staticmethod
+    def _root_directions(mode: Mode) -> list[int]:
+        """h - R: an impact downwards, a departure upwards; v: every extremum; the rest margin: turning positive."""
+        return [-1 if mode == Mode.FLIGHT else 1, 0, 1]
+
     def _too_many_steps(self, mode: Mode, t: float) -> SolverError:
         return SolverError(
             f"CVODE ({self.methods[mode]}) took more than {MAX_STEPS_PER_PHASE} steps in one "
@@ -213,14 +220,15 @@ class BallIntegrator:
 
         s = self.settings
         solver = PhaseSolver(self.ball, mode, self.methods[mode], s.rtol, self._atol(mode), s.max_step,
-                             _MAX_STEPS_PER_CALL, self.hop_tolerance, self._own_side(mode), MAX_STEPS_PER_PHASE)
+                             _MAX_STEPS_PER_CALL, self.hop_tolerance, self._own_side(mode), self._root_directions(mode),
+                             MAX_STEPS_PER_PHASE)
         return solver, None
 
     def _make_solver(self, mode: Mode):
         ball = self.ball
         jacobian = ball.jacobian(mode)
         R = ball.R
-        acceleration = ball.acceleration
+        m, k, b, g = ball.m, ball.k, ball.b, ball.g
         own_side = self._own_side(mode)
         contact = mode == Mode.CONTACT
         hop_tolerance = self.hop_tolerance
@@ -229,7 +237,7 @@ class BallIntegrator:
             # physics computes k (R - h): R - h is exact near R, whereas k R - k h would bury the
             # deflection of a stiff ball (k = 1e12) in the round-off of two 6e10 terms.
             yp[0] = y[1]
-            yp[1] = acceleration(y[0], y[1], mode, self._F_ext)
+            yp[1] = mode_acceleration(y[0], y[1], mode, self._F_ext, m, k, b, R, g)
 
         def jac(t, y, yp, JJ):
             JJ[:, :] = jacobian
@@ -249,7 +257,7 @@ class BallIntegrator:
                 raise self._too_many_steps(mode, t)
 
         event.terminal = [True, False, True]
-        event.direction = [-1 if mode == Mode.FLIGHT else 1, 0, 1]
+        event.direction = self._root_directions(mode)
         s = self.settings
         solver = CVODE(rhs, method=self.methods[mode], rtol=s.rtol, atol=self._atol(mode), max_step=s.max_step,
                        eventsfn=event, num_events=3, jacfn=jac, max_num_steps=_MAX_STEPS_PER_CALL)
@@ -485,7 +493,7 @@ class BallIntegrator:
                 times.append(np.array([self._t, t_end]))
                 heights.append(np.array([self._h, h_end]))
                 velocities.append(np.array([self._v, v_end]))
-                modes.append(np.full(2, mode))
+                modes.append(np.full(2, int(mode)))
                 self._t, self._h, self._v = t_end, h_end, v_end
                 break
             event = self._event_in_closed_form()
@@ -497,7 +505,7 @@ class BallIntegrator:
                 times.append(np.array([self._t, event[0]]))
                 heights.append(np.array([self._h, event[1]]))
                 velocities.append(np.array([self._v, event[2]]))
-                modes.append(np.full(2, mode))
+                modes.append(np.full(2, int(mode)))
                 self._t, self._h, self._v = event
                 if reached:
                     events.append(self._switch_mode())
@@ -513,16 +521,16 @@ class BallIntegrator:
             if root:
                 t_root, h_root, v_root = self._polish_event((ts[-2], hs[-2], vs[-2]), (ts[-1], hs[-1], vs[-1]))
                 ts[-1], hs[-1], vs[-1] = t_root, h_root, v_root
-                self._check_side(ts[-2], np.min(hs[:-1]), np.max(hs[:-1]))
+                self._check_side(ts[-2], hs[:-1].min(), hs[:-1].max())
             else:
-                self._check_side(ts[-1], np.min(hs), np.max(hs))
+                self._check_side(ts[-1], hs.min(), hs.max())
             self._clear_roots(mode)
             # A phase's first point is the previous phase's last: one copy per mode, so that no
             # dense-output segment straddles the switch.
             times.append(ts)
             heights.append(hs)
             velocities.append(vs)
-            modes.append(np.full(len(ts), mode))
+            modes.append(np.full(len(ts), int(mode)))
             self._t, self._h, self._v = float(ts[-1]), float(hs[-1]), float(vs[-1])
             self._steps += len(ts) - 1
             self._rhs_calls += int(result.nfev)
