@@ -32,9 +32,9 @@ from .sundials_log import SundialsLog
 
 METHODS = ("auto", "Adams", "BDF")
 ENGINES = ("auto", "compiled", "sksundae")
-# At these values the article's height error is ~2e-10 m (limit 1e-6); an undamped ball keeps
-# its height error within 1e-6 of its scale over ~100 contacts (rtol 1e-10: ~1e-6 after 60), for
-# 10% more steps on the article than rtol 1e-10.
+# At these values the article's height error is ~2e-10 m (limit 1e-6), for 10% more steps than
+# rtol 1e-10 (which gave 3e-8 m); an undamped ball keeps its height error within 1e-6 of its
+# scale over ~50 contacts, its error growing with the square of their number.
 DEFAULT_RTOL = 1e-11
 DEFAULT_ATOL = 1e-12
 # The contact oscillator is stiff for Adams when it is strongly over-damped (fast and slow rates
@@ -480,21 +480,29 @@ class BallIntegrator:
     def _integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
         t_end = grid[-1]
         check_resolvable(self.ball, t_end)
-        times, heights, velocities = [np.array([self._t])], [np.array([self._h])], [np.array([self._v])]
-        modes = [np.array([self._mode])]
+        times, heights, velocities, modes = [], [], [], []
         events: list[Event] = []
+
+        def record(ts, hs, vs, mode: Mode) -> None:
+            """Keep a piece of trajectory in one mode, and move to its last point."""
+            times.append(ts)
+            heights.append(hs)
+            velocities.append(vs)
+            modes.append(np.full(len(ts), int(mode)))
+            self._t, self._h, self._v = float(ts[-1]), float(hs[-1]), float(vs[-1])
+
+        def record_to(end: tuple[float, float, float], mode: Mode) -> None:
+            """A piece from here to end = (t, h, v) on the mode's exact flow."""
+            record(np.array([self._t, end[0]]), np.array([self._h, end[1]]), np.array([self._v, end[2]]), mode)
+
+        record(np.array([self._t]), np.array([self._h]), np.array([self._v]), self._mode)
         self._reinit_needed()
         resting = False  # set when CVODE stops at the start of a rest
         while self._t < t_end and not self._close_enough(t_end):
             mode = self._mode
             if resting or self._at_rest():
                 self._rest_from = (self._t, self._h, self._v)
-                h_end, v_end = self._rest_state(t_end)
-                times.append(np.array([self._t, t_end]))
-                heights.append(np.array([self._h, h_end]))
-                velocities.append(np.array([self._v, v_end]))
-                modes.append(np.full(2, int(mode)))
-                self._t, self._h, self._v = t_end, h_end, v_end
+                record_to((t_end, *self._rest_state(t_end)), mode)
                 break
             event = self._event_in_closed_form()
             if event is not None:
@@ -502,11 +510,7 @@ class BallIntegrator:
                 if not reached:
                     h_end, v_end = self.ball.flow(mode, self._h, self._v, t_end - self._t, self._F_ext)
                     event = (t_end, float(h_end), float(v_end))
-                times.append(np.array([self._t, event[0]]))
-                heights.append(np.array([self._h, event[1]]))
-                velocities.append(np.array([self._v, event[2]]))
-                modes.append(np.full(2, int(mode)))
-                self._t, self._h, self._v = event
+                record_to(event, mode)
                 if reached:
                     events.append(self._switch_mode())
                 continue
@@ -527,20 +531,13 @@ class BallIntegrator:
             self._clear_roots(mode)
             # A phase's first point is the previous phase's last: one copy per mode, so that no
             # dense-output segment straddles the switch.
-            times.append(ts)
-            heights.append(hs)
-            velocities.append(vs)
-            modes.append(np.full(len(ts), int(mode)))
-            self._t, self._h, self._v = float(ts[-1]), float(hs[-1]), float(vs[-1])
+            record(ts, hs, vs, mode)
             self._steps += len(ts) - 1
             self._rhs_calls += int(result.nfev)
             if root:
                 events.append(self._switch_mode())
         if self._t > times[-1][-1]:  # finished by a Taylor step within a few ulps of t_end
-            times.append(np.array([self._t]))
-            heights.append(np.array([self._h]))
-            velocities.append(np.array([self._v]))
-            modes.append(np.array([self._mode]))
+            record(np.array([self._t]), np.array([self._h]), np.array([self._v]), self._mode)
         h_out, v_out = interpolate(self.ball, self._F_ext, np.concatenate(times), np.concatenate(heights),
                                    np.concatenate(velocities), np.concatenate(modes), grid)
         return h_out, v_out, events
