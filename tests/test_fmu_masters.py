@@ -148,11 +148,11 @@ def test_validate_command_prints_the_four_runs(fmu, capsys):
     assert [line.split(" (")[0] for line in captured.err.splitlines()] == [  # a sign of life before each stage
         "validate: the exact solution ...", "validate: the article's SciPy algorithm",
         "validate: CVODE in this process ...", "validate: the FMU through FMPy ..."]
-    rows = {line[:24].strip(): line[24:].split() for line in out.splitlines()[3:7]}
-    assert list(rows) == ["FMU (FMPy)", "CVODE (in-process)", "SciPy (article's RK45)", "exact"]
+    rows = {line[:31].strip(): line[31:].split() for line in out.splitlines()[3:7]}
+    assert list(rows) == ["FMU (FMPy)", "CVODE (in-process)", "article (RK45, max_step 0.01)", "exact"]
     assert float(rows["FMU (FMPy)"][0]) < 1e-7 and rows["FMU (FMPy)"][1] == "n/a"
     assert rows["FMU (FMPy)"][2:4] == ["41", "41"] and rows["CVODE (in-process)"][2:4] == ["41", "41"]
-    assert float(rows["SciPy (article's RK45)"][0]) > 1e-4  # the article's algorithm, as published
+    assert float(rows["article (RK45, max_step 0.01)"][0]) > 1e-4  # the article's algorithm, as published
     assert "FMU impact count equals the exact count at every communication point: yes" in out
 
 

@@ -7,38 +7,126 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .physics import Mode
+from .physics import Ball, Mode
 from .solvers.exact import ExactSolution
 from .solvers.result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats
 
 
 @dataclass(frozen=True)
+class ExactOnGrid:
+    """The exact solution sampled at the times t [s]: h [m], v [m/s] and the impacts up to each time."""
+
+    solution: ExactSolution
+    t: np.ndarray
+    h: np.ndarray
+    v: np.ndarray
+    impacts: np.ndarray
+
+
+def exact_on_grid(t, ball: Ball, h0: float, v0: float, F_ext: float = 0.0,
+                  t_start: float | None = None) -> ExactOnGrid:
+    """The exact solution from (h0 [m], v0 [m/s]) at t_start (default: t[0]) sampled at the times t [s].
+
+    Parameters
+    ----------
+    t : array_like
+        Increasing sample times [s], all >= t_start.
+    ball : Ball
+        The ball.
+    h0, v0 : float
+        Height [m] and velocity [m/s] at t_start.
+    F_ext : float, optional
+        Constant external force [N], positive upwards.
+    t_start : float, optional
+        Time [s] of the start state; t[0] if not given.
+
+    Returns
+    -------
+    ExactOnGrid
+        The solution, and h, v and the number of impacts up to (and at) each time.
+    """
+    t = np.asarray(t, dtype=float)
+    solution = ExactSolution(ball, h0, v0, float(t[0]) if t_start is None else t_start, float(t[-1]), F_ext)
+    h, v = solution.state(t)
+    impact_times = [event.time for event in solution.events if event.kind == IMPACT]
+    return ExactOnGrid(solution, t, h, v, np.searchsorted(impact_times, t, side="right"))
+
+
+@dataclass(frozen=True)
 class Accuracy:
-    """max |h - h_exact| [m], max event time error [s] over the events both found, and the event counts."""
+    """How a result compares with the exact solution on the result's own grid.
+
+    max |h - h_exact| [m]; the max event time error [s] over the events both found (nan when the
+    events are not observable, as through an FMU that counts impacts); the events (or impacts,
+    see `counted`) found and in the exact solution; and the relative energy drift
+    max |E - E0| / |E0| (nan without v).
+    """
 
     max_height_error: float
     max_event_time_error: float
     events_found: int
     events_exact: int
+    counted: str = "events"  # or "impacts"
+    energy_drift: float = math.nan
 
     @property
     def events_match(self) -> bool:
         return self.events_found == self.events_exact
 
 
+def accuracy_of(exact: ExactOnGrid, h, *, events: list[Event] | None = None, impacts: int | None = None,
+                v=None) -> Accuracy:
+    """Compare a result on exact's grid with it: by its events if given, else by its impact count.
+
+    Parameters
+    ----------
+    exact : ExactOnGrid
+        The exact solution on the result's grid.
+    h : array_like
+        The result's heights [m] on that grid (NaN where it has none: the error is then inf).
+    events : list of Event, optional
+        The result's events; compared in order with the exact ones.
+    impacts : int, optional
+        The result's impact count, when its events are not observable.
+    v : array_like, optional
+        The result's velocities [m/s], for the energy drift.
+    """
+    if events is not None:
+        event_error = max_event_time_error(events, exact.solution.events)
+        found, expected, counted = len(events), len(exact.solution.events), "events"
+    else:
+        event_error = math.nan
+        found, expected, counted = impacts, int(exact.impacts[-1]), "impacts"
+    drift = math.nan
+    if v is not None:
+        energy = exact.solution.ball.energy(np.asarray(h), np.asarray(v), exact.solution.F_ext)
+        drift = float(np.max(np.abs(energy - energy[0])) / abs(energy[0]))
+    return Accuracy(max_height_error(h, exact.h), event_error, found, expected, counted, drift)
+
+
 def exact_counterpart(result: SimulationResult, h0: float, v0: float) -> SimulationResult:
     """The exact solution on the result's own grid, for the same ball, start state and F_ext."""
-    t = result.t
-    solution = ExactSolution(result.ball, h0, v0, float(t[0]), float(t[-1]), result.F_ext)
-    h, v = solution.state(t)
-    return SimulationResult("exact", result.ball, t, h, v, list(solution.events), solution.rest_time,
-                            SolverStats(steps=len(solution.phases), events=len(solution.events)), result.F_ext)
+    exact = exact_on_grid(result.t, result.ball, h0, v0, result.F_ext)
+    solution = exact.solution
+    return SimulationResult("exact", result.ball, exact.t, exact.h, exact.v, list(solution.events),
+                            solution.rest_time, SolverStats(steps=len(solution.phases), events=len(solution.events)),
+                            result.F_ext)
 
 
 def compare(result: SimulationResult, exact: SimulationResult) -> Accuracy:
     """Accuracy of result against exact (both on the same grid)."""
     return Accuracy(max_height_error(result.h, exact.h), max_event_time_error(result.events, exact.events),
                     len(result.events), len(exact.events))
+
+
+def impact_counts_match(exact: ExactOnGrid, impacts) -> bool:
+    """True if impacts[i] counts the exact impacts up to t[i]; one within 1 ns of t[i] may count or not."""
+    t = exact.t
+    impact_times = np.array([event.time for event in exact.solution.events if event.kind == IMPACT])
+    tie = 1e-9 * np.maximum(1.0, np.abs(t))
+    before = np.searchsorted(impact_times, t - tie, side="left")
+    up_to = np.searchsorted(impact_times, t + tie, side="right")
+    return bool(np.all((before <= impacts) & (impacts <= up_to)))
 
 
 def max_height_error(h: np.ndarray, h_exact: np.ndarray) -> float:

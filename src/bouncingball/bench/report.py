@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 
+from ..accuracy import Accuracy
 from ..scenes import Scene
 from . import runners
 from .stability import (
@@ -84,7 +85,7 @@ def _rtol(rtol: float | None) -> str:
     return "default" if rtol is None else f"{rtol:.0e}"
 
 
-def _events(errors: runners.Errors | None) -> str:
+def _events(errors: Accuracy | None) -> str:
     if errors is None:
         return ""
     suffix = " impacts" if errors.counted == "impacts" else ""

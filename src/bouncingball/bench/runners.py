@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import textwrap
 import time
 from dataclasses import dataclass
@@ -10,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..accuracy import max_event_time_error, max_height_error
+from ..accuracy import Accuracy, accuracy_of, exact_on_grid
 from ..scenes import BALL_KEYS, Scene
-from ..solvers.exact import ExactSolution
-from ..solvers.result import IMPACT, Event
+from ..solvers import ARTICLE_LABEL
+from ..solvers.result import Event
 
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau", "BDF")
 EXPLICIT_SCIPY_METHODS = ("RK45", "DOP853")
@@ -58,7 +57,7 @@ def empty_slave(comm_step: float) -> Solver:
 
 CVODE_AUTO = cvode("auto")
 CVODE_COMPILED = cvode("auto", "compiled")
-ARTICLE = Solver("article (RK45, max_step 0.01)", "article", "RK45")
+ARTICLE = Solver(ARTICLE_LABEL, "article", "RK45")
 EXACT = Solver("exact solution", "exact")
 
 
@@ -127,39 +126,10 @@ def _run_fmu(solver: Solver, scene: Scene, tolerances: dict, fmus: FmuPaths | No
                None, int(result["impacts"][-1]) if "impacts" in names else None, None, len(result) - 1, wall_time)
 
 
-@dataclass(frozen=True)
-class Errors:
-    """max |h - h_exact| [m], max event time error [s] (nan: not observable), events (or impacts) found and exact,
-    and the relative energy drift max |E - E0| / E0 (nan without v)."""
-
-    max_height_error: float
-    max_event_time_error: float
-    events_found: int
-    events_exact: int
-    counted: str  # "events" or "impacts"
-    energy_drift: float
-
-    @property
-    def events_match(self) -> bool:
-        return self.events_found == self.events_exact
-
-
-def errors_against_exact(scene: Scene, run: Run) -> Errors:
-    """Compare run with the exact solution on the run's own grid."""
-    exact = ExactSolution(scene.ball, scene.h0, scene.v0, 0.0, float(run.t[-1]), scene.F_ext)
-    h_exact, _ = exact.state(run.t)
-    height_error = max_height_error(run.h, h_exact)
-    if run.events is not None:
-        event_error = max_event_time_error(run.events, exact.events)
-        found, expected, counted = len(run.events), len(exact.events), "events"
-    else:
-        event_error = math.nan
-        found, expected, counted = run.impacts, sum(e.kind == IMPACT for e in exact.events), "impacts"
-    drift = math.nan
-    if run.v is not None:
-        energy = scene.ball.energy(run.h, run.v, scene.F_ext)
-        drift = float(np.max(np.abs(energy - energy[0])) / abs(energy[0]))
-    return Errors(height_error, float(event_error), found, expected, counted, drift)
+def errors_against_exact(scene: Scene, run: Run) -> Accuracy:
+    """Compare run with the exact solution on the run's own grid: by its events, or its impacts (FMU)."""
+    exact = exact_on_grid(run.t, scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=0.0)
+    return accuracy_of(exact, run.h, events=run.events, impacts=run.impacts, v=run.v)
 
 
 EMPTY_SLAVE_SCRIPT = '''\

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import multiprocessing
 import statistics
 import tempfile
 import time
@@ -12,10 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..accuracy import Accuracy
+from ..capped import FINISHED, run_capped
 from ..physics import Ball
 from ..scenes import BUILTIN_SCENES, Scene, load_scene, scene_from_mapping
 from . import runners
-from .runners import ARTICLE, CVODE_AUTO, EXACT, Errors, FmuPaths, Solver
+from .runners import ARTICLE, CVODE_AUTO, EXACT, FmuPaths, Run, Solver
 
 _DEFAULT = Ball()
 # Extreme scenes beyond the built-in ones: each holds only what differs from the article's defaults.
@@ -62,7 +63,7 @@ class Outcome:
     case: Case
     status: str
     note: str = ""
-    errors: Errors | None = None
+    errors: Accuracy | None = None
     wall_time: float = math.nan
     rhs_calls: int | None = None
 
@@ -97,45 +98,23 @@ def stiff_cases() -> list[Case]:
     return cases
 
 
-def _child(case: Case, fmus: FmuPaths | None, connection) -> None:
-    try:
-        times = []
-        for _ in range(case.repeats):
-            run = runners.run_solver(case.solver, case.scene, case.scene.output_interval, case.rtol, case.atol, fmus)
-            times.append(run.wall_time)
-        connection.send(("solved", statistics.median(times), run.rhs_calls))
-        connection.send(("compared", runners.errors_against_exact(case.scene, run)))
-    except Exception as error:
-        connection.send(("failed", f"{type(error).__name__}: {error}".splitlines()[0][:200]))
-    finally:
-        connection.close()
+def _timed_runs(case: Case, fmus: FmuPaths | None) -> tuple[float, Run]:
+    """The case's runs: the median wall time [s] and the last run."""
+    times = []
+    for _ in range(case.repeats):
+        run = runners.run_solver(case.solver, case.scene, case.scene.output_interval, case.rtol, case.atol, fmus)
+        times.append(run.wall_time)
+    return statistics.median(times), run
 
 
 def run_case(case: Case, cap: float, fmus: FmuPaths | None = None) -> Outcome:
-    """Run case in a forked child; kill it if its runs have not finished within cap [s] each."""
-    context = multiprocessing.get_context("fork")
-    receiver, sender = context.Pipe(duplex=False)
-    process = context.Process(target=_child, args=(case, fmus, sender), daemon=True)
-    process.start()
-    sender.close()
-    try:
-        if not receiver.poll(cap * case.repeats):
-            return Outcome(case, "timed out", f"killed after {cap:g} s")
-        message = receiver.recv()
-        if message[0] == "failed":
-            return Outcome(case, "failed", message[1])
-        _, wall_time, rhs_calls = message
-        if not receiver.poll(600.0):  # comparing with the exact solution
-            return Outcome(case, "failed", "no comparison with the exact solution within 600 s")
-        return Outcome(case, "finished", errors=receiver.recv()[1], wall_time=wall_time, rhs_calls=rhs_calls)
-    except EOFError:
-        process.join()
-        return Outcome(case, "failed", f"the child process died (exit code {process.exitcode})")
-    finally:
-        if process.is_alive():
-            process.kill()
-        process.join()
-        receiver.close()
+    """Run case in a child process killed if its runs have not finished within cap [s] each."""
+    capped = run_capped(_timed_runs, (case, fmus), cap * case.repeats)
+    if capped.status != FINISHED:
+        return Outcome(case, capped.status, capped.note)
+    wall_time, run = capped.value
+    return Outcome(case, FINISHED, errors=runners.errors_against_exact(case.scene, run), wall_time=wall_time,
+                   rhs_calls=run.rhs_calls)
 
 
 def run_cases(cases: list[Case], cap: float, fmus: FmuPaths | None = None, desc: str = "stability") -> list[Outcome]:

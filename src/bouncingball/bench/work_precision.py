@@ -15,9 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..accuracy import Accuracy
 from ..scenes import Scene, load_scene
 from . import runners
-from .runners import ARTICLE, EXACT, Errors, FmuPaths, Run, Solver
+from .runners import ARTICLE, EXACT, FmuPaths, Run, Solver
 
 DENSE = 1e-3  # the article's 1 ms output grid [s]
 SPARSE = 0.1  # a sparse grid, where output overhead does not dominate [s]
@@ -54,7 +55,7 @@ class Point:
     grid: float  # the output interval of the run [s] (the FMU: its communication step)
     status: str = "pending"
     note: str = ""
-    errors: Errors | None = None
+    errors: Accuracy | None = None
     rhs_calls: int | None = None
     steps: int = 0
     times: list[float] = field(default_factory=list)

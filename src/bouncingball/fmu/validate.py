@@ -3,32 +3,29 @@
 from __future__ import annotations
 
 import math
-import multiprocessing
 import shutil
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
-import numpy as np
-
-from ..accuracy import compare, exact_counterpart, max_height_error
+from ..accuracy import Accuracy, accuracy_of, compare, exact_counterpart, exact_on_grid, impact_counts_match
+from ..capped import FINISHED, Capped, run_capped
 from ..scenes import BALL_KEYS, Scene, load_scene
-from ..solvers.result import IMPACT, SimulationResult
+from ..solvers import ARTICLE_LABEL
 
+CVODE_LABEL = "CVODE (in-process)"
+NAME_WIDTH = 31
 SCIPY_CAP = 60.0  # s: the article's explicit method takes many minutes on the stiffest scenes
 
 
 @dataclass(frozen=True)
 class Row:
-    """One run: max |h - h_exact| [m], max event time error [s] (None: not observable), events, wall time [s]."""
+    """One run: its accuracy against the exact solution (None: it has no result), wall time [s] and a note."""
 
     name: str
-    max_height_error: float
-    max_event_time_error: float | None
-    events_found: int
-    events_exact: int
+    accuracy: Accuracy | None
     wall_time: float
     note: str = ""
 
@@ -89,74 +86,28 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
 
     progress("the exact solution")
     exact = scene.simulate("exact")
-    n_exact = len(exact.events)
     # SciPy first, in a child process that is killed past the cap (before the FMU starts Python threads).
     progress(f"the article's SciPy algorithm (stopped after {SCIPY_CAP:g} s if it has not finished)")
-    runs = {"SciPy (article's RK45)": run_capped(scene, "scipy", SCIPY_CAP)}
+    article = run_capped(scene.simulate, ("scipy",), SCIPY_CAP)
     progress("CVODE in this process")
-    runs["CVODE (in-process)"] = scene.simulate("cvode")
-    rows = []
+    runs = {CVODE_LABEL: Capped(FINISHED, scene.simulate("cvode")), ARTICLE_LABEL: article}
     progress("the FMU through FMPy")
     result, wall_time, load_time = run_fmu(fmu, scene)
-    t = result["time"]
-    h_exact, _ = exact_solution_at(scene, t)
-    impacts = result["impacts"]
-    # Impacts are counted; departures follow from them and the contact flag at both ends.
-    contact = result["contact"].astype(int)
-    events_found = 2 * int(impacts[-1]) + contact[0] - contact[-1]
-    impact_times = np.array([event.time for event in exact.events if event.kind == IMPACT])
-    rows.append(Row("FMU (FMPy)", max_height_error(result["h"], h_exact), None, events_found, n_exact,
-                    wall_time, f"+ {load_time:.3f} s to load; events seen only at communication points"))
-    for label in ("CVODE (in-process)", "SciPy (article's RK45)"):
-        run = runs[label]
-        if isinstance(run, str):  # SciPy's explicit method fails or crawls on stiff scenes
-            rows.append(Row(label, math.nan, math.nan, 0, n_exact, math.nan, run))
+    exact_at_points = exact_on_grid(result["time"], scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=0.0)
+    impacts, contact = int(result["impacts"][-1]), result["contact"].astype(int)
+    # The FMU counts impacts; its departures follow from them and the contact flag at both ends.
+    fmu_accuracy = replace(accuracy_of(exact_at_points, result["h"], impacts=impacts), counted="events",
+                           events_found=2 * impacts + contact[0] - contact[-1], events_exact=len(exact.events))
+    rows = [Row("FMU (FMPy)", fmu_accuracy, wall_time,
+                f"+ {load_time:.3f} s to load; events seen only at communication points")]
+    for label, capped in runs.items():
+        if capped.status != FINISHED:  # SciPy's explicit method fails or crawls on stiff scenes
+            rows.append(Row(label, None, math.nan, f"{capped.status}: {capped.note}"))
             continue
-        accuracy = compare(run, exact_counterpart(run, scene.h0, scene.v0))
-        rows.append(Row(label, accuracy.max_height_error, accuracy.max_event_time_error, accuracy.events_found,
-                        n_exact, run.stats.wall_time))
-    rows.append(Row("exact", 0.0, 0.0, n_exact, n_exact, exact.stats.wall_time))
-    return Report(scene, fmu, rows, impact_counts_match(impact_times, t, impacts))
-
-
-def impact_counts_match(impact_times: np.ndarray, t: np.ndarray, impacts: np.ndarray) -> bool:
-    """True if impacts[i] counts the impacts up to t[i]; one that falls on t[i] itself (to 1 ns) may count or not."""
-    tie = 1e-9 * np.maximum(1.0, np.abs(t))
-    before = np.searchsorted(impact_times, t - tie, side="left")
-    up_to = np.searchsorted(impact_times, t + tie, side="right")
-    return bool(np.all((before <= impacts) & (impacts <= up_to)))
-
-
-def run_capped(scene: Scene, solver: str, cap: float) -> SimulationResult | str:
-    """scene.simulate(solver) in a forked child killed after cap [s]; a string says why it has no result."""
-    context = multiprocessing.get_context("fork")
-    receiver, sender = context.Pipe(duplex=False)
-    process = context.Process(target=_simulate_into, args=(scene, solver, sender), daemon=True)
-    process.start()
-    try:
-        if not receiver.poll(cap):
-            return f"killed after {cap:g} s"
-        return receiver.recv()
-    except EOFError:
-        return f"the run ended with exit code {process.exitcode}"
-    finally:
-        process.kill()
-        process.join()
-
-
-def _simulate_into(scene: Scene, solver: str, sender) -> None:
-    try:
-        sender.send(scene.simulate(solver))
-    except Exception as error:  # the parent reports it in the table
-        sender.send(f"failed: {error}")
-
-
-def exact_solution_at(scene: Scene, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The exact (h, v) of the scene at the times t."""
-    from ..solvers.exact import ExactSolution
-
-    solution = ExactSolution(scene.ball, scene.h0, scene.v0, 0.0, float(t[-1]), scene.F_ext)
-    return solution.state(t)
+        run = capped.value
+        rows.append(Row(label, compare(run, exact_counterpart(run, scene.h0, scene.v0)), run.stats.wall_time))
+    rows.append(Row("exact", compare(exact, exact), exact.stats.wall_time))
+    return Report(scene, fmu, rows, impact_counts_match(exact_at_points, result["impacts"]))
 
 
 def format_report(report: Report) -> str:
@@ -164,12 +115,16 @@ def format_report(report: Report) -> str:
     scene = report.scene
     lines = [f"scene {scene.name}: {scene.description}",
              f"FMU {report.fmu}, communication step {scene.output_interval:g} s, 0 to {scene.t_end:g} s",
-             f"{'run':24s}{'max |h - h_exact| [m]':>23s}{'event time error [s]':>22s}{'events':>8s}"
+             f"{'run':{NAME_WIDTH}s}{'max |h - h_exact| [m]':>23s}{'event time error [s]':>22s}{'events':>8s}"
              f"{'exact':>7s}{'wall time [s]':>15s}  note"]
     for row in report.rows:
-        event_error = "n/a" if row.max_event_time_error is None else f"{row.max_event_time_error:.3e}"
-        lines.append(f"{row.name:24s}{row.max_height_error:23.3e}{event_error:>22s}{row.events_found:8d}"
-                     f"{row.events_exact:7d}{row.wall_time:15.4f}  {row.note}")
+        a = row.accuracy
+        if a is None:
+            lines.append(f"{row.name:{NAME_WIDTH}s}{'-':>23s}{'-':>22s}{'-':>8s}{'-':>7s}{'-':>15s}  {row.note}")
+            continue
+        event_error = "n/a" if math.isnan(a.max_event_time_error) else f"{a.max_event_time_error:.3e}"
+        lines.append(f"{row.name:{NAME_WIDTH}s}{a.max_height_error:23.3e}{event_error:>22s}{a.events_found:8d}"
+                     f"{a.events_exact:7d}{row.wall_time:15.4f}  {row.note}")
     match = "yes" if report.impacts_match_at_every_point else "NO"
     lines.append(f"FMU impact count equals the exact count at every communication point: {match}")
     return "\n".join(lines)

@@ -9,6 +9,8 @@ from ..physics import Ball
 from .result import Event, SimulationResult, SolverStats, output_grid
 
 SOLVERS = ("cvode", "exact", "scipy")
+# The "scipy" solver at its defaults is the reference article's algorithm: its name in every table.
+ARTICLE_LABEL = "article (RK45, max_step 0.01)"
 DEFAULT_OUTPUT_INTERVAL = 1e-3
 
 
