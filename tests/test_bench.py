@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from bouncingball.bench import report, runners
+from bouncingball.bench import pages, runners
 from bouncingball.bench.stability import Case, run_case
 from bouncingball.bench.work_precision import CSV_FILE, H_FILE, QUICK, solvers
 from bouncingball.cli import main
@@ -119,14 +119,14 @@ def test_a_run_over_the_cap_is_killed_and_a_failure_is_reported(tmp_path):
     assert finished.errors.max_height_error < 1e-6
     assert timed_out.status == "timed out"
     assert failed.status == "failed" and "could not be built" in failed.note
-    path = report.write_stability_md([short, stiff_rest], [finished, timed_out, failed], 0.3, True, {},
-                                     tmp_path / "stability.md")
+    path = pages.write_stability_md([short, stiff_rest], [finished, timed_out, failed], 0.3, True, {},
+                                    tmp_path / "stability.md")
     text = path.read_text(encoding="utf-8")
     assert "| ok 2/2 |" in text and "timed out" in text and "failed" in text
 
 
 def test_the_bench_package_imports_nothing_heavy():
-    code = ("import sys, bouncingball.bench.report\n"
+    code = ("import sys, bouncingball.bench.studies\n"
             "print(sorted(m for m in sys.modules if m.split('.')[0] in "
             "('scipy', 'matplotlib', 'fmpy', 'pythonfmu', 'tqdm')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout

@@ -18,11 +18,11 @@ def bench_command(output_dir: str | Path = "bench-results", quick: bool = False,
     output_dir.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     if stability:
-        from .stability import run_stability_study
+        from .studies import run_stability_study
 
         written = run_stability_study(output_dir, quick=quick)
     else:
-        from .work_precision import run_benchmark
+        from .studies import run_benchmark
 
         written = run_benchmark(output_dir, quick=quick)
     for path in written:

@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import math
 import statistics
-import tempfile
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -173,18 +171,3 @@ def cost_per_event(t_end: float, chunks: int = 100) -> CostPerEvent:
     tenth = chunks // 10
     return CostPerEvent(t_end, sum(events), sum(times[:tenth]), sum(events[:tenth]), sum(times[-tenth:]),
                         sum(events[-tenth:]))
-
-
-def run_stability_study(output_dir: Path, quick: bool = False) -> list[Path]:
-    """`bouncingball bench --stability`: the matrix over all scenes and solvers; writes stability.md and .csv."""
-    from . import report
-
-    cap = QUICK_CAP if quick else FULL_CAP
-    environment = report.environment()
-    load_scene("article").simulate("cvode", t_end=1.0)  # children inherit a warm scikit-sundae
-    scenes = all_scenes()
-    with tempfile.TemporaryDirectory(prefix="bouncingball_bench_") as temp:
-        fmus = runners.build_fmus(Path(temp))
-        outcomes = run_cases(stability_cases(scenes), cap, fmus)
-    return [report.write_stability_csv(outcomes, output_dir / CSV_FILE),
-            report.write_stability_md(scenes, outcomes, cap, quick, environment, output_dir / "stability.md")]

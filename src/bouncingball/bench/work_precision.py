@@ -9,14 +9,13 @@ from __future__ import annotations
 
 import math
 import statistics
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..accuracy import Accuracy
-from ..scenes import Scene, load_scene
+from ..scenes import Scene
 from . import runners
 from .runners import ARTICLE, EXACT, FmuPaths, Run, Solver
 
@@ -157,6 +156,15 @@ def _points_to_save(points: list[Point]) -> list[Point]:
     return chosen
 
 
+def by_solver(points: list[Point], section: str) -> dict[str, list[Point]]:
+    """The points of one section (dense or sparse grid), grouped by solver label in the order they come."""
+    groups: dict[str, list[Point]] = {}
+    for point in points:
+        if point.section == section:
+            groups.setdefault(point.solver.label, []).append(point)
+    return groups
+
+
 def time_at_error(points: list[Point], target: float, statistic: str = "median") -> tuple[float | None, bool]:
     """Time [s] (the median, or with statistic="minimum" the min) at which a solver's height error reaches
     target, interpolated log-log between tolerances.
@@ -182,31 +190,3 @@ def save_h(points: list[Point], path: Path) -> Path:
     """The h values of the saved points, keyed by Point.key, so that errors can be recomputed."""
     np.savez_compressed(path, **{point.key: point.h for point in points if point.h is not None})
     return path
-
-
-def run_benchmark(output_dir: Path, quick: bool = False) -> list[Path]:
-    """The whole `bouncingball bench`: sweep, stiff scenes, cost per event; writes the docs and returns their paths."""
-    from . import report, stability
-
-    settings = QUICK if quick else FULL
-    scene = load_scene("article")
-    environment = report.environment()
-    scene.simulate("cvode", t_end=1.0, engine="sksundae")  # load scikit-sundae before anything is timed
-    try:  # and compile (or load from numba's cache) the compiled engine
-        scene.simulate("cvode", t_end=1.0, engine="compiled")
-    except ImportError:
-        pass  # its rows say why
-    with tempfile.TemporaryDirectory(prefix="bouncingball_bench_") as temp:
-        fmus = runners.build_fmus(Path(temp))
-        points = make_points(settings)
-        sweep(scene, points, settings, fmus)
-    stiff = stability.run_cases(stability.stiff_cases(), settings.stiff_cap, desc="stiff scenes")
-    per_event = stability.cost_per_event(settings.undamped_t_end)
-    written = [
-        report.write_work_precision_csv(points, output_dir / CSV_FILE),
-        save_h(points, output_dir / H_FILE),
-        report.plot_work_precision(points, output_dir / "work_precision.png"),
-        report.write_benchmarks_md(points, stiff, per_event, settings, quick, environment,
-                                   output_dir / "benchmarks.md"),
-    ]
-    return written

@@ -1,0 +1,52 @@
+"""The two studies `bouncingball bench` runs, from the runs to the files they write."""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+from ..scenes import load_scene
+from . import runners, stability, work_precision
+from .environment import environment
+from .pages import write_benchmarks_md, write_stability_md
+from .plots import plot_work_precision
+from .tables import write_stability_csv, write_work_precision_csv
+
+
+def run_benchmark(output_dir: Path, quick: bool = False) -> list[Path]:
+    """The whole `bouncingball bench`: sweep, stiff scenes, cost per event; writes the docs and returns their paths."""
+    settings = work_precision.QUICK if quick else work_precision.FULL
+    scene = load_scene("article")
+    machine = environment()
+    scene.simulate("cvode", t_end=1.0, engine="sksundae")  # load scikit-sundae before anything is timed
+    try:  # and compile (or load from numba's cache) the compiled engine
+        scene.simulate("cvode", t_end=1.0, engine="compiled")
+    except ImportError:
+        pass  # its rows say why
+    with tempfile.TemporaryDirectory(prefix="bouncingball_bench_") as temp:
+        fmus = runners.build_fmus(Path(temp))
+        points = work_precision.make_points(settings)
+        work_precision.sweep(scene, points, settings, fmus)
+    stiff = stability.run_cases(stability.stiff_cases(), settings.stiff_cap, desc="stiff scenes")
+    per_event = stability.cost_per_event(settings.undamped_t_end)
+    written = [
+        write_work_precision_csv(points, output_dir / work_precision.CSV_FILE),
+        work_precision.save_h(points, output_dir / work_precision.H_FILE),
+        plot_work_precision(points, output_dir / "work_precision.png"),
+        write_benchmarks_md(points, stiff, per_event, settings, quick, machine,
+                            output_dir / "benchmarks.md"),
+    ]
+    return written
+
+
+def run_stability_study(output_dir: Path, quick: bool = False) -> list[Path]:
+    """`bouncingball bench --stability`: the matrix over all scenes and solvers; writes stability.md and .csv."""
+    cap = stability.QUICK_CAP if quick else stability.FULL_CAP
+    machine = environment()
+    load_scene("article").simulate("cvode", t_end=1.0)  # children inherit a warm scikit-sundae
+    scenes = stability.all_scenes()
+    with tempfile.TemporaryDirectory(prefix="bouncingball_bench_") as temp:
+        fmus = runners.build_fmus(Path(temp))
+        outcomes = stability.run_cases(stability.stability_cases(scenes), cap, fmus)
+    return [write_stability_csv(outcomes, output_dir / stability.CSV_FILE),
+            write_stability_md(scenes, outcomes, cap, quick, machine, output_dir / "stability.md")]

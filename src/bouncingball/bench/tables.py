@@ -1,0 +1,52 @@
+"""The benchmarks' raw numbers as CSV: every work-precision point and every stability run, full precision."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+from .stability import Outcome
+from .text import repr_or_blank
+from .work_precision import Point
+
+WORK_PRECISION_COLUMNS = ("section", "solver", "kind", "method", "rtol", "atol", "output_interval", "status", "note",
+                          "max_height_error", "max_event_time_error", "events_found", "events_exact", "counted",
+                          "rhs_calls", "steps", "median_time", "min_time", "repeats", "times", "h_key")
+
+
+def write_work_precision_csv(points: list[Point], path: Path) -> Path:
+    """One row per point, full precision; times are every timed repeat [s]; h_key names the saved h values."""
+    with open(path, "w", newline="", encoding="utf-8") as file:
+        writer = csv.writer(file)
+        writer.writerow(WORK_PRECISION_COLUMNS)
+        for p in points:
+            e = p.errors
+            writer.writerow([
+                p.section, p.solver.label, p.solver.kind, p.solver.method, repr_or_blank(p.rtol),
+                repr_or_blank(p.atol), repr(p.grid), p.status, p.note, repr_or_blank(e and e.max_height_error),
+                repr_or_blank(e and e.max_event_time_error),
+                repr_or_blank(e and e.events_found), repr_or_blank(e and e.events_exact), e.counted if e else "",
+                repr_or_blank(p.rhs_calls), p.steps, repr_or_blank(p.median if p.times else None),
+                repr_or_blank(p.minimum if p.times else None), len(p.times), ";".join(repr(t) for t in p.times),
+                p.key if p.h is not None else ""])
+    return path
+
+
+STABILITY_COLUMNS = ("scene", "solver", "kind", "method", "rtol", "atol", "status", "note", "max_height_error",
+                     "max_event_time_error", "events_found", "events_exact", "counted", "energy_drift", "wall_time",
+                     "rhs_calls")
+
+
+def write_stability_csv(outcomes: list[Outcome], path: Path) -> Path:
+    with open(path, "w", newline="", encoding="utf-8") as file:
+        writer = csv.writer(file)
+        writer.writerow(STABILITY_COLUMNS)
+        for o in outcomes:
+            e, c = o.errors, o.case
+            writer.writerow([c.scene.name, c.solver.label, c.solver.kind, c.solver.method, repr_or_blank(c.rtol),
+                             repr_or_blank(c.atol), o.status, o.note, repr_or_blank(e and e.max_height_error),
+                             repr_or_blank(e and e.max_event_time_error), repr_or_blank(e and e.events_found),
+                             repr_or_blank(e and e.events_exact), e.counted if e else "",
+                             repr_or_blank(e and e.energy_drift),
+                             repr_or_blank(o.wall_time), repr_or_blank(o.rhs_calls)])
+    return path
