@@ -4,21 +4,34 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from enum import StrEnum
 
 import numpy as np
 
 from ..physics import Ball
 
-IMPACT = "impact"
-DEPARTURE = "departure"
+
+class EventKind(StrEnum):
+    """What a mode switch is: an impact starts a contact, a departure ends one.
+
+    A str enum, like `physics.Mode` an enum: it compares equal to, prints and writes to CSV as its
+    value ("impact", "departure").
+    """
+
+    IMPACT = "impact"
+    DEPARTURE = "departure"
+
+
+IMPACT = EventKind.IMPACT
+DEPARTURE = EventKind.DEPARTURE
 
 
 @dataclass(frozen=True)
 class Event:
-    """A mode switch: time [s], kind ("impact" or "departure") and the velocity there [m/s]."""
+    """A mode switch: time [s], kind (impact or departure) and the velocity there [m/s]."""
 
     time: float
-    kind: str
+    kind: EventKind
     velocity: float
 
 
