@@ -71,6 +71,7 @@ class Accuracy:
 
     @property
     def events_match(self) -> bool:
+        """True if the result found as many events (or impacts) as the exact solution."""
         return self.events_found == self.events_exact
 
 

@@ -24,7 +24,41 @@ class Mode(enum.IntEnum):
 
 @dataclass(frozen=True)
 class Ball:
-    """A ball of mass m [kg] and radius R [m] over rigid ground; in contact a spring k [N/m] and a damper b [N s/m]."""
+    """A ball of mass m [kg] and radius R [m] over rigid ground; in contact a spring k [N/m] and a damper b [N s/m].
+
+    The defaults are the reference article's. In flight (h > R) h' = v, v' = -g + F_ext / m; in
+    contact m v' = -b v + k (R - h) - m g + F_ext. Contact starts when h crosses R going down and
+    ends when it crosses R going up; the mode is held between those events.
+
+    Parameters
+    ----------
+    m : float
+        Mass [kg], finite and > 0.
+    k : float
+        Contact stiffness [N/m], finite and > 0.
+    b : float
+        Contact damping [N s/m], finite and >= 0.
+    R : float
+        Radius [m], finite and > 0: the height of the centre at which contact starts.
+    g : float
+        Gravitational acceleration [m/s2], finite and >= 0.
+
+    Raises
+    ------
+    ValueError
+        A parameter outside its range; the message names it, its value and the allowed range.
+
+    Examples
+    --------
+    >>> from bouncingball import Ball
+    >>> ball = Ball(b=0.0)
+    >>> ball.natural_frequency, ball.damping_ratio
+    (100.0, 0.0)
+    >>> Ball(m=-1)
+    Traceback (most recent call last):
+    ...
+    ValueError: m = -1 kg is not allowed: it must be finite and > 0
+    """
 
     m: float = 1.0
     k: float = 1e4
@@ -33,6 +67,7 @@ class Ball:
     g: float = 9.81
 
     def __post_init__(self) -> None:
+        """Check every parameter before the ball exists."""
         object.__setattr__(self, "m", validation.positive("m", self.m, "kg"))
         object.__setattr__(self, "k", validation.positive("k", self.k, "N/m"))
         object.__setattr__(self, "b", validation.non_negative("b", self.b, "N s/m"))

@@ -19,9 +19,53 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
              solver: str = "cvode", *, t_start: float = 0.0, F_ext: float = 0.0, **options) -> SimulationResult:
     """Simulate the ball from (h0 [m], v0 [m/s]) at t_start to t_end [s] on a grid of output_interval [s].
 
-    options go to the solver: cvode takes rtol, atol, method ("auto", "Adams", "BDF"),
-    max_step, engine ("auto", "compiled", "sksundae"); scipy takes method, rtol, atol, max_step,
-    max_events; exact takes none.
+    Parameters
+    ----------
+    ball : Ball
+        The ball.
+    h0, v0 : float
+        Height of the centre [m] and velocity [m/s], positive upwards, at t_start.
+    t_end : float
+        End time [s], > t_start; the last output point is exactly t_end.
+    output_interval : float, optional
+        Spacing of the output grid [s], in (0, t_end - t_start]; 1 ms by default.
+    solver : {"cvode", "exact", "scipy"}, optional
+        CVODE with root-finding (default), the exact piecewise-analytic solution, or the reference
+        article's SciPy algorithm (needs the [reference] extra).
+    t_start : float, optional
+        Start time [s].
+    F_ext : float, optional
+        Constant external force [N], positive upwards.
+    **options
+        For cvode: rtol, atol, method ("auto", "Adams", "BDF"), max_step [s] (0: unbounded),
+        engine ("auto", "compiled", "sksundae"). For scipy: method, rtol, atol, max_step,
+        max_events. exact takes none.
+
+    Returns
+    -------
+    SimulationResult
+        h and v on the grid t, the events, the rest time (or None) and the work done.
+
+    Raises
+    ------
+    ValueError
+        Before any work, for a value outside its range (the message names it, its value and the
+        allowed range), an option the solver does not take, or contacts too short to resolve in
+        double precision up to t_end.
+    SolverError
+        CVODE could not deliver the tolerance (its reason in the message).
+    ImportError
+        The solver needs an extra that is not installed (the message says which).
+
+    Examples
+    --------
+    >>> import bouncingball as bb
+    >>> result = bb.simulate(bb.Ball(), h0=2.0, v0=0.0, t_end=8.0)
+    >>> len(result.t), float(result.t[-1])
+    (8001, 8.0)
+    >>> exact = bb.simulate(bb.Ball(), 2.0, 0.0, 8.0, solver="exact")
+    >>> len(result.events) == len(exact.events), bool(abs(result.h - exact.h).max() < 1e-6)
+    (True, True)
     """
     if not isinstance(ball, Ball):
         raise ValueError(f"ball = {ball!r} is not allowed: it must be a bouncingball.Ball")

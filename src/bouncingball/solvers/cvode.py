@@ -112,6 +112,7 @@ class CvodeSettings:
     engine: str = "auto"
 
     def __post_init__(self) -> None:
+        """Check every setting before the settings exist."""
         object.__setattr__(self, "rtol", validation.in_range("rtol", self.rtol, 0.0, 1.0))
         object.__setattr__(self, "atol", validation.positive("atol", self.atol))
         object.__setattr__(self, "method", validation.choice("method", self.method, METHODS))
@@ -137,19 +138,50 @@ class IntegratorState:
 
 
 class BallIntegrator:
-    """A ball integrated by CVODE that can be advanced piece by piece.
+    """A ball integrated by CVODE that can be advanced piece by piece (the FMU's integrator).
 
-    Each mode has its own CVODE object with two root functions: h - R, terminal, in the mode's
-    direction (impact downwards, departure upwards), and v, non-terminal, which makes CVODE end a
-    step at every extremum of h so that no step can hold both crossings of a hop (h leaving R
-    and coming back within one step shows no sign change of h - R). Once a contact can never
-    again lift the ball more than hop_tolerance above R (contact_is_permanent), the extremum root
-    is switched off: it would only fire on the noise of a ball at rest, and a static deflection
-    below the tolerance makes that noise cross R. At an impact or departure the event time CVODE
-    located (to ~100 ulps of t) is polished on the mode's flow to a few ulps, h is set to R, and
-    CVODE restarts in the other mode.
+    Parameters
+    ----------
+    ball : Ball
+        The ball.
+    h0, v0 : float
+        Height [m] and velocity [m/s] at t0.
+    t0 : float, optional
+        Start time [s].
+    F_ext : float, optional
+        External force [N], positive upwards; change it between advances with the F_ext property.
+    settings : CvodeSettings, optional
+        Tolerances, method, maximum step and engine; the defaults if not given.
 
-    Change F_ext between advances; get_state()/set_state() roll back to within the tolerance.
+    Raises
+    ------
+    ValueError
+        A value outside its range (naming it), or contacts too short to resolve in double
+        precision at t0 (see check_resolvable).
+
+    Examples
+    --------
+    >>> from bouncingball import Ball
+    >>> from bouncingball.solvers.cvode import BallIntegrator
+    >>> integrator = BallIntegrator(Ball(), h0=2.0, v0=0.0)
+    >>> [str(event.kind) for event in integrator.advance(1.0)]
+    ['impact', 'departure']
+    >>> state = integrator.get_state()  # roll back later with set_state(state)
+
+    Notes
+    -----
+    Each mode has its own CVODE object with three root functions: h - R, terminal, in the mode's
+    direction (impact downwards, departure upwards); v, non-terminal, which makes CVODE end a step
+    at every extremum of h so that no step can hold both crossings of a hop (h leaving R and coming
+    back within one step shows no sign change of h - R); and in contact the rest margin
+    (physics.Ball.rest_margin), terminal, which turns positive once the contact can never again
+    lift the ball more than hop_tolerance above R: the rest that follows is taken on the contact's
+    exact flow. Hops and contacts too small for CVODE to tell from its own error are also taken on
+    the mode's exact flow. At an impact or departure the event time CVODE located (to ~100 ulps of
+    t) is polished on the mode's flow to a few ulps, h is set to R, and CVODE restarts in the other
+    mode.
+
+    Change F_ext between advances; set_state(get_state()) resumes within the tolerance of the original run.
     """
 
     def __init__(self, ball: Ball, h0: float, v0: float, t0: float = 0.0, F_ext: float = 0.0,
@@ -266,30 +298,37 @@ class BallIntegrator:
     # --- read-only view --------------------------------------------------------------------
     @property
     def t(self) -> float:
+        """Current time [s]."""
         return self._t
 
     @property
     def h(self) -> float:
+        """Height of the centre [m] at t."""
         return self._h
 
     @property
     def v(self) -> float:
+        """Velocity [m/s] at t, positive upwards."""
         return self._v
 
     @property
     def mode(self) -> Mode:
+        """The mode held at t: flight or contact."""
         return self._mode
 
     @property
     def impacts(self) -> int:
+        """Impacts so far."""
         return self._impacts
 
     @property
     def departures(self) -> int:
+        """Departures so far."""
         return self._departures
 
     @property
     def rhs_calls(self) -> int:
+        """Right-hand-side evaluations so far."""
         return self._rhs_calls + self._nfev_since_init
 
     @property
@@ -299,6 +338,7 @@ class BallIntegrator:
 
     @property
     def F_ext(self) -> float:
+        """External force [N], positive upwards, held constant until changed; setting it restarts CVODE."""
         return self._F_ext
 
     @F_ext.setter
@@ -311,10 +351,12 @@ class BallIntegrator:
 
     @property
     def acceleration(self) -> float:
+        """dv/dt [m/s2] at t in the current mode."""
         return self.ball.acceleration(self._h, self._v, self._mode, self._F_ext)
 
     @property
     def contact_force(self) -> float:
+        """Force of the ground on the ball [N] at t, positive upwards; zero in flight."""
         return self.ball.contact_force(self._h, self._v, self._mode)
 
     @property

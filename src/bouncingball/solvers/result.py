@@ -52,7 +52,38 @@ class SolverStats:
 
 @dataclass
 class SimulationResult:
-    """Height h [m] and velocity v [m/s] on the output grid t [s], with events and stats."""
+    """What a solver returns: height h [m] and velocity v [m/s] on the output grid t [s], events and work.
+
+    Attributes
+    ----------
+    solver : str
+        "cvode", "exact" or "scipy".
+    ball : Ball
+        The ball simulated.
+    t, h, v : numpy.ndarray
+        The output grid [s] (its last point is t_end exactly), height [m] and velocity [m/s] there.
+    events : list of Event
+        Every impact and departure in time order, located by the solver (not at grid points).
+    rest_time : float or None
+        Start [s] of the contact that never ends (the ball at rest), or None.
+    stats : SolverStats
+        Steps, right-hand-side calls, events, wall time; for CVODE the engine and why.
+    F_ext : float
+        The constant external force [N].
+    options : dict
+        The solver's settings as used (for CVODE also the method chosen in contact).
+
+    Examples
+    --------
+    >>> import bouncingball as bb
+    >>> result = bb.simulate(bb.Ball(), 2.0, 0.0, 1.0, solver="exact")
+    >>> [str(event.kind) for event in result.events]
+    ['impact', 'departure']
+    >>> round(result.events[0].time, 6)  # sqrt(2 (h0 - R) / g)
+    0.6289
+    >>> result.impacts, result.rest_time is None
+    (1, True)
+    """
 
     solver: str
     ball: Ball
@@ -67,10 +98,12 @@ class SimulationResult:
 
     @property
     def event_times(self) -> np.ndarray:
+        """The events' times [s]."""
         return np.array([e.time for e in self.events])
 
     @property
     def impacts(self) -> int:
+        """How many of the events are impacts."""
         return sum(e.kind == IMPACT for e in self.events)
 
     @property
