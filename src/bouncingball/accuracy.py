@@ -52,6 +52,40 @@ def max_event_time_error(events: list[Event], exact_events: list[Event]) -> floa
     return float(max((abs(a.time - b.time) for a, b in zip(events, exact_events, strict=False)), default=0.0))
 
 
+def impact_count_mismatches(impact_times: np.ndarray, t: np.ndarray, impacts: np.ndarray, tie=0.0) -> np.ndarray:
+    """Indices of the points whose impact count is wrong.
+
+    impacts[i] must count the impacts up to t[i]; one within tie [s] of t[i] may count or not,
+    since a master that steps onto an impact may report it at that point or at the next one.
+
+    Parameters
+    ----------
+    impact_times : numpy.ndarray
+        The exact impact times [s], increasing.
+    t : numpy.ndarray
+        The times of the points [s].
+    impacts : numpy.ndarray
+        The impact count reported at each point.
+    tie : float or numpy.ndarray
+        How close [s] to an impact a point may count it either way (one value, or one per point).
+
+    Returns
+    -------
+    numpy.ndarray
+        The indices i (increasing) where impacts[i] is outside what the exact impacts allow.
+
+    Examples
+    --------
+    >>> impact_count_mismatches(np.array([0.5]), np.array([0.0, 1.0]), np.array([0, 0]))
+    array([1])
+    """
+    t = np.asarray(t, dtype=float)
+    before = np.searchsorted(impact_times, t - tie, side="left")
+    up_to = np.searchsorted(impact_times, t + tie, side="right")
+    impacts = np.asarray(impacts)
+    return np.flatnonzero((impacts < before) | (impacts > up_to))
+
+
 def height_scale(h_exact: np.ndarray, R: float) -> float:
     """The scene's height scale [m]: max(|h_exact|, R). Errors are judged relative to it."""
     return max(float(np.max(np.abs(h_exact))), R)
