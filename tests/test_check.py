@@ -203,3 +203,19 @@ def test_the_console_script_exits_with_the_verdict(tmp_path):
     codes = [subprocess.run([BIN / "bouncingball", "check", path], capture_output=True, text=True,
                             timeout=60).returncode for path in (good, bad, tmp_path / "missing.csv")]
     assert codes == [0, 1, 2]
+
+
+def test_the_run_starts_at_the_start_time_whether_or_not_the_result_holds_that_point(tmp_path, capsys):
+    t = np.arange(1, 3001) * 1e-3  # no row at t = 0, as libcosim's observers record it
+    h, _, impacts = exact_at(t)
+    path = write_csv(tmp_path / "late.csv", ["time", "h", "impacts"],
+                     [[repr(float(a)), repr(float(b)), int(c)] for a, b, c in zip(t, h, impacts, strict=True)])
+    assert check_result(path).max_height_error == 0.0
+    shifted = write_csv(tmp_path / "shifted.csv", ["time", "h", "impacts"],
+                        [[repr(float(a) + 10.0), repr(float(b)), int(c)]
+                         for a, b, c in zip(t, h, impacts, strict=True)])
+    code, out, _ = run_check(capsys, shifted, "--start-time", "10")  # the same run, started at t = 10 s
+    assert code == 0 and f"{impacts[-1]} at the end, exact {impacts[-1]}" in out
+    assert check_result(shifted, start_time=10.0).max_height_error < 1e-12
+    code, out, err = run_check(capsys, shifted, "--start-time", "10.5")
+    assert code == 2 and "its first time, 10.001 s, is before the start time 10.5 s" in err

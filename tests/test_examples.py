@@ -151,3 +151,28 @@ def test_cosim_levitation(tmp_path):
     assert "so at steps of 0.125 s, 0.0625 s whole contacts fall inside one step" in out
     assert sorted(p.name for p in (tmp_path / "cosim").iterdir()) == [
         "BouncingBall.fmu", "BouncingBall_ref.csv", "PDController.fmu", "cosim_levitation.csv"]
+
+
+def test_libcosim_system(tmp_path):
+    pytest.importorskip("pythonfmu")
+    pytest.importorskip("libcosimpy", reason="libcosimpy is not installed (the [test] extra installs it)")
+    out = run_example([sys.executable, EXAMPLES / "libcosim_system" / "run.py", "osp"], tmp_path)
+    data = np.loadtxt(tmp_path / "osp" / "libcosim_levitation.csv", delimiter=",", skiprows=1)
+    t, h, v, force, impacts = data.T
+    np.testing.assert_array_equal(t, np.arange(1, 1025) / 128)  # BaseStepSize 1/128 s, to 8 s
+    free = t <= 2.25
+    h_free, _, impacts_free = exact_at(np.concatenate(([0.0], t[free])))
+    assert np.max(np.abs(h[free] - h_free[1:])) < 1e-8
+    np.testing.assert_array_equal(impacts[free], impacts_free[1:])
+    # After t_off the ball is free again: the exact solution from the state libcosim reached at t_off.
+    i_off = int(np.flatnonzero(t == 5.0)[0])
+    late = ExactSolution(Ball(), h[i_off], v[i_off], 5.0, 8.0)
+    assert np.max(np.abs(h[i_off:] - late.state(t[i_off:])[0])) < 1e-8
+    impacts_late = sum(e.kind == "impact" for e in late.events)
+    assert impacts[-1] == impacts_free[-1] + impacts_late == 7
+    _, _, impacts_before, impacts_after = levitation_limit(np.array([0.0, 8.0]))
+    assert (impacts_free[-1], impacts_late) == (impacts_before, impacts_after)
+    assert abs(h[i_off] - 1.0) < 1e-6 and abs(force[i_off - 1] - 9.81) < 1e-4 and np.all(force[i_off:] == 0.0)
+    printed = float(re.search(rf"free ball up to t_on = 2.25 s: max \|h - h_exact\| = ({NUMBER}) m", out)[1])
+    assert printed == pytest.approx(np.max(np.abs(h[free] - h_free[1:])), rel=1e-3, abs=1e-15)
+    assert "impacts 2 (exact 2): PASS" in out and "1024 steps of 0.0078125 s to 8 s, 7 impacts in all" in out

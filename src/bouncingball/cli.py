@@ -54,6 +54,8 @@ def _build_parser() -> argparse.ArgumentParser:
     judge.add_argument("--start-value", action="append", default=[], metavar="NAME=VALUE",
                        help="a start value the master set on the FMU (m, k, b, R, g, h, v, F_ext; repeatable)")
     judge.add_argument("--tolerance", type=float, default=1e-6, help="allowed max |h - h_exact| [m] (default: 1e-6)")
+    judge.add_argument("--start-time", type=float, default=0.0, help="when the master started the run [s] "
+                                                                     "(default: 0)")
     bench = sub.add_parser("bench", help="benchmark error against run time (or, with --stability, the stability "
                                          "matrix) and write the results")
     bench.add_argument("--quick", action="store_true", help="a small run that CI can afford")
@@ -133,7 +135,7 @@ def _check(args: argparse.Namespace) -> int:
         if not (equals and name.strip() and value.strip()):
             raise ValueError(f"--start-value {item!r} is not allowed: it must be NAME=VALUE, for example g=1.62")
         start_values[name.strip()] = value.strip()
-    outcome = check_result(args.result, args.scene, start_values, args.tolerance)
+    outcome = check_result(args.result, args.scene, start_values, args.tolerance, args.start_time)
     print(outcome.report())
     return 0 if outcome.passed else EXIT_CHECK_FAILED
 

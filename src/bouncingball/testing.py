@@ -9,8 +9,9 @@ given, and says how far the heights are from it and whether the impacts column c
     outcome = check_result("out.csv", "article", {"g": 1.62}, tolerance=1e-6)
     assert outcome.passed, outcome.report()
 
-The run is taken to start at the first time in the CSV, from the scene's (h0, v0) with the start
-values applied; the FMU's solver settings (rtol, atol, method) are accepted and do not change the
+The run starts at start_time (0 unless given: the FMU's default experiment starts at 0), from the
+scene's (h0, v0) with the start values applied; the CSV need not hold that first point (libcosim's
+observers start after the first step); the FMU's solver settings (rtol, atol, method) are accepted and do not change the
 exact solution.
 """
 
@@ -58,14 +59,16 @@ class CheckResult:
         The allowed max |h - h_exact| [m].
     points : int
         Number of points compared.
+    start_time : float
+        When the run started from the scene's initial state [s].
     t_start, t_end : float
-        First and last time [s].
+        First and last time in the result [s].
     max_height_error : float
         max |h - h_exact| [m].
     worst_time, worst_h, worst_h_exact : float
         Where that error is: the time [s], the result's height and the exact height [m].
     impacts_exact : int
-        The exact number of impacts from t_start to t_end.
+        The exact number of impacts from start_time to t_end.
     impacts_found : int or None
         The last value of the result's impacts column; None when it has none.
     impact_mismatches : tuple of (time, found, exact)
@@ -75,6 +78,7 @@ class CheckResult:
     source: str
     scene: Scene
     tolerance: float
+    start_time: float
     points: int
     t_start: float
     t_end: float
@@ -118,7 +122,7 @@ class CheckResult:
         lines = [f"check {self.source} against the exact solution of scene {scene.name}",
                  f"  ball               m = {ball.m:g} kg, k = {ball.k:g} N/m, b = {ball.b:g} N s/m, "
                  f"R = {ball.R:g} m, g = {ball.g:g} m/s2, F_ext = {scene.F_ext:g} N",
-                 f"  start              h = {scene.h0:.15g} m, v = {scene.v0:.15g} m/s at t = {self.t_start!r} s",
+                 f"  start              h = {scene.h0:.15g} m, v = {scene.v0:.15g} m/s at t = {self.start_time!r} s",
                  f"  points compared    {self.points} (t = {self.t_start!r} to {self.t_end!r} s)",
                  f"  max |h - h_exact|  {self.max_height_error:.3e} m at t = {self.worst_time!r} s "
                  f"(h = {self.worst_h!r} m, exact {self.worst_h_exact!r} m)"]
@@ -261,7 +265,7 @@ def scene_with_start_values(scene: Scene | str | Path = "article",
 
 
 def check_result(result, scene: Scene | str | Path = "article", start_values: Mapping[str, float | str] | None = None,
-                 tolerance: float = DEFAULT_TOLERANCE) -> CheckResult:
+                 tolerance: float = DEFAULT_TOLERANCE, start_time: float = 0.0) -> CheckResult:
     """Compare a master's result with the exact solution at its own times.
 
     Parameters
@@ -275,6 +279,8 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
         The start values the master set on the FMU (see scene_with_start_values).
     tolerance : float
         The allowed max |h - h_exact| [m] (default 1e-6).
+    start_time : float
+        When the master started the run [s] (default 0); no time in the result may be earlier.
 
     Returns
     -------
@@ -286,7 +292,7 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
     BadResultError
         The result cannot be read (see read_result_csv).
     ValueError
-        A bad scene, start value or tolerance.
+        A bad scene, start value, tolerance or start time.
 
     Examples
     --------
@@ -297,13 +303,17 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
     (True, 11)
     """
     tolerance = validation.positive("tolerance", tolerance, "m")
+    start_time = validation.finite("start_time", start_time, "s")
     scene = scene_with_start_values(scene, start_values)
     if isinstance(result, str | Path):
         source, columns = str(result), read_result_csv(result)
     else:
         source, columns = "<columns>", _columns_of(result)
     t, h = columns["time"], columns["h"]
-    solution = ExactSolution(scene.ball, scene.h0, scene.v0, float(t[0]), float(t[-1]), scene.F_ext)
+    if t[0] < start_time:
+        raise BadResultError(f"{source}: its first time, {float(t[0])!r} s, is before the start time {start_time!r} s "
+                             "(give the start time the master used)")
+    solution = ExactSolution(scene.ball, scene.h0, scene.v0, start_time, float(t[-1]), scene.F_ext)
     h_exact, _ = solution.state(t)
     error = np.abs(h - h_exact)
     worst = int(np.argmax(error))
@@ -315,7 +325,7 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
         exact_counts = np.searchsorted(impact_times, t, side="right")
         mismatches = tuple((float(t[i]), int(impacts[i]), int(exact_counts[i]))
                            for i in impact_count_mismatches(impact_times, t, impacts, IMPACT_TIE))
-    return CheckResult(source, scene, tolerance, len(t), float(t[0]), float(t[-1]), float(error[worst]),
+    return CheckResult(source, scene, tolerance, start_time, len(t), float(t[0]), float(t[-1]), float(error[worst]),
                        float(t[worst]), float(h[worst]), float(h_exact[worst]), len(impact_times), impacts_found,
                        mismatches)
 
