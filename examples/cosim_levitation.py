@@ -75,8 +75,10 @@ def exact_from(rows):
 
 
 reference = cosimulate(REFERENCE_STEP)
-print(f"ball dropped from 2 m; PD controller (kp = 40 N/m, kd = 12 N s/m, h_set = 1 m) on from 2.25 s to 5 s; "
-      f"reference: communication step {REFERENCE_STEP:g} s, {reference[-1, 4]:.0f} impacts")
+gains = {v.name: v.start for v in read_model_description(controller_fmu).modelVariables}  # pd_controller.py's
+print(f"ball dropped from 2 m; PD controller (kp = {gains['kp']} N/m, kd = {gains['kd']} N s/m, h_set = "
+      f"{gains['h_set']} m) on from {gains['t_on']} s to {gains['t_off']} s; reference: communication step "
+      f"{REFERENCE_STEP:g} s, {reference[-1, 4]:.0f} impacts")
 print(f"{'step [s]':>10s}{'max |h - h_ref| [m]':>21s}{'ratio':>7s}{'h(t_off) [m]':>20s}{'v(t_off) [m/s]':>22s}"
       f"{'impacts':>8s}{'free: |h - h_exact|':>21s}{'impacts':>8s}{'after t_off':>13s}{'impacts':>8s}")
 errors = []
