@@ -22,6 +22,11 @@ class ExactOnGrid:
     v: np.ndarray
     impacts: np.ndarray
 
+    @property
+    def impact_times(self) -> np.ndarray:
+        """The exact impact times [s] up to the last sample time."""
+        return np.array([event.time for event in self.solution.events if event.kind == IMPACT])
+
 
 def exact_on_grid(t, ball: Ball, h0: float, v0: float, F_ext: float = 0.0,
                   t_start: float | None = None) -> ExactOnGrid:
@@ -120,16 +125,6 @@ def compare(result: SimulationResult, exact: SimulationResult) -> Accuracy:
                     len(result.events), len(exact.events))
 
 
-def impact_counts_match(exact: ExactOnGrid, impacts) -> bool:
-    """True if impacts[i] counts the exact impacts up to t[i]; one within 1 ns of t[i] may count or not."""
-    t = exact.t
-    impact_times = np.array([event.time for event in exact.solution.events if event.kind == IMPACT])
-    tie = 1e-9 * np.maximum(1.0, np.abs(t))
-    before = np.searchsorted(impact_times, t - tie, side="left")
-    up_to = np.searchsorted(impact_times, t + tie, side="right")
-    return bool(np.all((before <= impacts) & (impacts <= up_to)))
-
-
 def max_height_error(h: np.ndarray, h_exact: np.ndarray) -> float:
     """max |h - h_exact| [m]; inf where h has gaps (NaN: a run that stopped early)."""
     error = np.abs(np.asarray(h) - h_exact)
@@ -139,6 +134,40 @@ def max_height_error(h: np.ndarray, h_exact: np.ndarray) -> float:
 def max_event_time_error(events: list[Event], exact_events: list[Event]) -> float:
     """max |t - t_exact| [s] over the events both lists have, paired in order."""
     return float(max((abs(a.time - b.time) for a, b in zip(events, exact_events, strict=False)), default=0.0))
+
+
+def impact_count_mismatches(impact_times: np.ndarray, t: np.ndarray, impacts: np.ndarray, tie=0.0) -> np.ndarray:
+    """Indices of the points whose impact count is wrong.
+
+    impacts[i] must count the impacts up to t[i]; one within tie [s] of t[i] may count or not,
+    since a master that steps onto an impact may report it at that point or at the next one.
+
+    Parameters
+    ----------
+    impact_times : numpy.ndarray
+        The exact impact times [s], increasing.
+    t : numpy.ndarray
+        The times of the points [s].
+    impacts : numpy.ndarray
+        The impact count reported at each point.
+    tie : float or numpy.ndarray
+        How close [s] to an impact a point may count it either way (one value, or one per point).
+
+    Returns
+    -------
+    numpy.ndarray
+        The indices i (increasing) where impacts[i] is outside what the exact impacts allow.
+
+    Examples
+    --------
+    >>> impact_count_mismatches(np.array([0.5]), np.array([0.0, 1.0]), np.array([0, 0]))
+    array([1])
+    """
+    t = np.asarray(t, dtype=float)
+    before = np.searchsorted(impact_times, t - tie, side="left")
+    up_to = np.searchsorted(impact_times, t + tie, side="right")
+    impacts = np.asarray(impacts)
+    return np.flatnonzero((impacts < before) | (impacts > up_to))
 
 
 def height_scale(h_exact: np.ndarray, R: float) -> float:

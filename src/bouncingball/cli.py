@@ -1,4 +1,4 @@
-"""The bouncingball command line: run a scene, list scenes, build and validate the FMU."""
+"""The bouncingball command line: run a scene, list scenes, build and validate the FMU, check a master's result."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from . import SOLVERS
 
 EXIT_BAD_INPUT = 2
 EXIT_SOLVER_FAILED = 1
+EXIT_CHECK_FAILED = 1  # `check`: the result is not within the tolerance of the exact solution
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 # The optional modules a command may need, and the extra that installs each.
 EXTRA_OF_MODULE = {"fmpy": "fmu", "pythonfmu": "fmu", "scipy": "reference", "matplotlib": "plot", "tqdm": "bench"}
@@ -45,6 +46,16 @@ def _build_parser() -> argparse.ArgumentParser:
     check.add_argument("scene", nargs="?", default="article", help="built-in scene name or a .toml file "
                                                                    "(default: article)")
     check.add_argument("--fmu", help="the FMU to run (default: dist/BouncingBall.fmu, built if missing or stale)")
+    judge = sub.add_parser("check", help="compare a master's result (CSV) with the exact solution at its own times")
+    judge.add_argument("result", metavar="RESULT.csv", help="the CSV a master wrote: a time and an h column "
+                                                          "(an impacts column is checked too)")
+    judge.add_argument("scene", nargs="?", default="article", help="the scene the master ran: a built-in scene "
+                                                                   "name or a .toml file (default: article)")
+    judge.add_argument("--start-value", action="append", default=[], metavar="NAME=VALUE",
+                       help="a start value the master set on the FMU (m, k, b, R, g, h, v, F_ext; repeatable)")
+    judge.add_argument("--tolerance", type=float, default=1e-6, help="allowed max |h - h_exact| [m] (default: 1e-6)")
+    judge.add_argument("--start-time", type=float, default=0.0, help="when the master started the run [s] "
+                                                                     "(default: 0)")
     bench = sub.add_parser("bench", help="benchmark error against run time (or, with --stability, the stability "
                                          "matrix) and write the results")
     bench.add_argument("--quick", action="store_true", help="a small run that CI can afford")
@@ -115,6 +126,20 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check(args: argparse.Namespace) -> int:
+    from .testing import check_result
+
+    start_values = {}
+    for item in args.start_value:
+        name, equals, value = item.partition("=")
+        if not (equals and name.strip() and value.strip()):
+            raise ValueError(f"--start-value {item!r} is not allowed: it must be NAME=VALUE, for example g=1.62")
+        start_values[name.strip()] = value.strip()
+    outcome = check_result(args.result, args.scene, start_values, args.tolerance, args.start_time)
+    print(outcome.report())
+    return 0 if outcome.passed else EXIT_CHECK_FAILED
+
+
 def _scenes() -> int:
     from .scenes import BUILTIN_SCENES, load_scene
 
@@ -143,6 +168,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             from .fmu.validate import validate_command
 
             return validate_command(args.scene, args.fmu)
+        if args.command == "check":
+            return _check(args)
         if args.command == "bench":
             from .bench import bench_command
 

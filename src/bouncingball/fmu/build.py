@@ -24,6 +24,7 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
+from .documentation import index_html
 from .variables import MODEL_NAME, UNITS, VARIABLES
 
 DEFAULT_OUTPUT = Path("dist") / f"{MODEL_NAME}.fmu"
@@ -73,7 +74,67 @@ def build_fmu(output: str | Path = DEFAULT_OUTPUT) -> Path:
         partial = output.with_name(output.name + ".partial")
         _repack(Path(built), loader, partial)
         os.replace(partial, output)
+    write_reference_csv(reference_path(output))
     return output
+
+
+def reference_path(fmu: str | Path) -> Path:
+    """Where the build writes the FMU's reference result: beside it, <name>_ref.csv (BouncingBall_ref.csv)."""
+    fmu = Path(fmu)
+    return fmu.with_name(f"{fmu.stem}_ref.csv")
+
+
+def write_reference_csv(path: str | Path) -> Path:
+    """The exact solution of the FMU's default experiment, on its output grid, in the columns the FMU outputs.
+
+    As the FMI cross-check convention does, the FMU's result for its default experiment (the
+    article scene, 0 to 8 s, every 1 ms) is shipped beside it: time and the outputs h, v, a,
+    contact (0 or 1), contact_force, impacts, from the exact solution.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV to write (whole or not at all).
+
+    Returns
+    -------
+    pathlib.Path
+        path.
+
+    Examples
+    --------
+    >>> write_reference_csv("BouncingBall_ref.csv")  # doctest: +SKIP
+    PosixPath('BouncingBall_ref.csv')
+    """
+    import numpy as np
+
+    from ..output import atomic_write
+    from ..physics import Mode
+    from ..scenes import load_scene
+    from ..solvers.exact import ExactSolution
+    from ..solvers.result import IMPACT, output_grid
+    from .variables import OUTPUTS
+
+    scene = load_scene("article")
+    ball = scene.ball
+    t = output_grid(0.0, scene.t_end, scene.output_interval)
+    solution = ExactSolution(ball, scene.h0, scene.v0, 0.0, scene.t_end, scene.F_ext)
+    h, v = solution.state(t)
+    modes = [Mode(mode) for mode in solution.modes(t)]
+    columns = {
+        "h": h, "v": v,
+        "a": [ball.acceleration(*state, scene.F_ext) for state in zip(h, v, modes, strict=True)],
+        "contact": [int(mode == Mode.CONTACT) for mode in modes],
+        "contact_force": [ball.contact_force(*state) for state in zip(h, v, modes, strict=True)],
+        "impacts": np.searchsorted([e.time for e in solution.events if e.kind == IMPACT], t, side="right"),
+    }
+    if set(columns) != set(OUTPUTS):
+        raise FmuBuildError(f"the reference has columns {sorted(columns)}, the FMU outputs {sorted(OUTPUTS)}")
+    with atomic_write(path) as temporary, temporary.open("w", encoding="utf-8") as file:
+        file.write(",".join(("time", *OUTPUTS)) + "\n")
+        for row in zip(t.tolist(), *(np.asarray(columns[name]).tolist() for name in OUTPUTS), strict=True):
+            file.write(",".join(map(repr, row)) + "\n")
+    return Path(path)
 
 
 def package_sources() -> list[Path]:
@@ -119,7 +180,7 @@ def build_command(output: str | Path = DEFAULT_OUTPUT) -> int:
     except FmuBuildError as error:
         print(f"bouncingball: cannot build the FMU: {error}", file=sys.stderr)
         return 1
-    print(f"wrote {path}")
+    print(f"wrote {path} and its reference result {reference_path(path)}")
     return 0
 
 
@@ -184,7 +245,9 @@ def _repack(built: Path, loader: Path, target: Path) -> None:
     with zipfile.ZipFile(built) as source, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as fmu:
         for info in source.infolist():
             if info.filename == "modelDescription.xml":
-                fmu.writestr(info.filename, complete_model_description(source.read(info)))
+                description = complete_model_description(source.read(info))
+                fmu.writestr(info.filename, description)
+                fmu.writestr("documentation/index.html", index_html(description))
             elif info.filename == f"{binaries}{MODEL_NAME}.so":
                 fmu.writestr(binaries + PYTHONFMU_BINARY, source.read(info))
             elif not info.filename.startswith("binaries/"):  # other platforms' binaries lack the fix

@@ -74,9 +74,7 @@ class ExactSolution:
         """
         t = np.atleast_1d(np.asarray(t, dtype=float))
         starts = np.array([p.t_start for p in self.phases])
-        # a time equal to a phase's start belongs to that phase (its state there is the event's)
-        index = np.searchsorted(starts, t, side="right") - 1
-        np.clip(index, 0, len(starts) - 1, out=index)
+        index = self._phase_index(t)
         h = np.empty_like(t)
         v = np.empty_like(t)
         modes = np.array([int(p.mode) for p in self.phases])
@@ -90,6 +88,18 @@ class ExactSolution:
                 h[selected], v[selected] = self.ball.flow(mode, h_start[i], v_start[i], t[selected] - starts[i],
                                                           self.F_ext)
         return h, v
+
+    def modes(self, t) -> np.ndarray:
+        """The mode (0 flight, 1 contact; Mode's values) at the times t [s]; at an event, the mode it starts."""
+        modes = np.array([int(p.mode) for p in self.phases])
+        return modes[self._phase_index(np.atleast_1d(np.asarray(t, dtype=float)))]
+
+    def _phase_index(self, t: np.ndarray) -> np.ndarray:
+        starts = np.array([p.t_start for p in self.phases])
+        # a time equal to a phase's start belongs to that phase (its state there is the event's)
+        index = np.searchsorted(starts, t, side="right") - 1
+        np.clip(index, 0, len(starts) - 1, out=index)
+        return index
 
 
 def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tuple[float, float]:

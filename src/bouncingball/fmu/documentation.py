@@ -1,0 +1,128 @@
+"""The FMU's documentation/index.html, generated from the variable table and the physics' own docstrings.
+
+Nothing here lists a variable by hand: the table is variables.VARIABLES with the start values the
+completed modelDescription.xml declares, and the model's text is physics' docstrings.
+"""
+
+from __future__ import annotations
+
+import html
+import inspect
+import xml.etree.ElementTree as ET
+
+from ..physics import Ball
+from .variables import MODEL_NAME, SMALLEST_POSITIVE, VARIABLES
+
+
+def index_html(model_description: bytes) -> str:
+    """The FMU's documentation/index.html.
+
+    Parameters
+    ----------
+    model_description : bytes
+        The completed modelDescription.xml (its start values and default experiment are shown).
+
+    Returns
+    -------
+    str
+        A self-contained HTML page: the equations of both modes, every variable with its unit,
+        range and start value, the events, what the host needs and how to check a result.
+
+    Examples
+    --------
+    >>> page = index_html(open("modelDescription.xml", "rb").read())  # doctest: +SKIP
+    >>> "<td>F_ext</td>" in page  # doctest: +SKIP
+    True
+    """
+    root = ET.fromstring(model_description)
+    starts = {}
+    for scalar in root.find("ModelVariables").findall("ScalarVariable"):
+        typed = next(iter(scalar))
+        starts[scalar.get("name")] = typed.get("start", "")
+    experiment = root.find("DefaultExperiment")
+    e = html.escape
+
+    def doc(obj) -> str:
+        return f"<p>{e(' '.join(inspect.getdoc(obj).split()))}</p>"
+
+    rows = "\n".join(
+        f"<tr><td>{e(v.name)}</td><td>{e(v.causality)}{'' if v.type == 'Real' else ', ' + v.type}</td>"
+        f"<td>{e(v.unit)}</td><td>{e(starts.get(v.name, ''))}</td><td>{e(_range(v.min, v.max))}</td>"
+        f"<td>{e(v.description)}</td></tr>" for v in VARIABLES)
+    ball = Ball()
+    return f"""<!DOCTYPE html>
+<html lang="en">
+<head><meta charset="utf-8"><title>{MODEL_NAME}: documentation</title>
+<style>body {{font-family: sans-serif; max-width: 60em; margin: auto}} td, th {{border: 1px solid #ccc;
+padding: 0.2em 0.5em}} table {{border-collapse: collapse}} code {{background: #eee}}</style></head>
+<body>
+<h1>{MODEL_NAME}</h1>
+<p>{e(root.get("description", ""))}. FMI {e(root.get("fmiVersion", ""))} co-simulation,
+{e(root.get("generationTool", ""))}.</p>
+{doc(Ball)}
+
+<h2>Equations</h2>
+<table>
+<tr><th>mode</th><th>equation</th><th>ends when</th></tr>
+<tr><td>flight</td><td>h' = v, v' = -g + F_ext/m</td><td>h crosses R going down (impact)</td></tr>
+<tr><td>contact</td><td>h' = v, m v' = -b v + k (R - h) - m g + F_ext</td>
+<td>h crosses R going up (departure)</td></tr>
+</table>
+<p>The mode is a discrete state held between events.</p>
+{doc(Ball.flow)}
+<p>Contact force of the ground on the ball:</p>
+{doc(Ball.contact_force)}
+<p>The start mode:</p>
+{doc(Ball.initial_mode)}
+<p>A contact whose next maximum of h stays below R never ends: the ball comes to rest at</p>
+{doc(Ball.rest_height)}
+<p>({ball.rest_height():.6g} m with the defaults).</p>
+
+<h2>Variables</h2>
+<table>
+<tr><th>name</th><th>causality</th><th>unit</th><th>start</th><th>range</th><th>description</th></tr>
+{rows}
+</table>
+<p>A range "&gt; 0" is written min="{SMALLEST_POSITIVE!r}" in modelDescription.xml (FMI's min is inclusive).
+Default experiment: {e(experiment.get("startTime", ""))} to {e(experiment.get("stopTime", ""))} s,
+step {e(experiment.get("stepSize", ""))} s.</p>
+
+<h2>Events</h2>
+{doc(Ball.event_function)}
+<p>Every fmi2DoStep advances one persistent CVODE integrator and finds every impact and departure
+inside the step by root-finding, so the result does not depend on the communication step. The host
+sees events through the outputs <code>impacts</code> (counted since the start) and
+<code>contact</code>; F_ext is held constant over each communication step.</p>
+
+<h2>What the host needs</h2>
+<p>A Python of the version the FMU was built with, with numpy and scikit-sundae installed. A master
+that runs Python itself (FMPy, libcosimpy) uses its own; a master without Python (a C or C++ tool)
+starts the Python the FMU was built with or else the first matching <code>python3</code> on its PATH,
+which needs a shared libpython. Hence needsExecutionTool="true". Binaries: Linux x86_64 only.
+Invalid parameters give fmi2Error with a message; FMU state can be got, set and serialized.</p>
+
+<h2>How to check a result</h2>
+<p>The reference result of the default experiment (the exact solution, the FMU's outputs on its
+output grid) is shipped beside the FMU as <code>{MODEL_NAME}_ref.csv</code>. Any master's result,
+as a CSV with a <code>time</code> and an <code>h</code> column, is judged against the exact
+solution at its own times by</p>
+<pre>pip install bouncingball
+bouncingball check result.csv --start-value g=1.62 --start-value h=1.0 --tolerance 1e-6</pre>
+<p>with the start values the master set; it exits 0 when the heights are within the tolerance and the
+<code>impacts</code> column (if any) counts right, 1 when not. From Python:
+<code>bouncingball.testing.check_result("result.csv", "article", {{"g": 1.62}})</code>.</p>
+</body>
+</html>
+"""
+
+
+def _range(low: float | None, high: float | None) -> str:
+    if low == SMALLEST_POSITIVE:
+        text = "> 0"
+    elif low is not None:
+        text = f">= {low:g}"
+    else:
+        text = ""
+    if high is not None:
+        text = f"{text}, <= {high:g}" if text else f"<= {high:g}"
+    return text

@@ -1,0 +1,178 @@
+"""examples/: each one run as a user runs it (a subprocess, in a temporary directory), its printed numbers checked."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bouncingball.physics import Ball, oscillator_basis
+from bouncingball.solvers.exact import ExactSolution
+from fmu_helpers import exact_at
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+BIN = Path(sys.executable).parent
+NUMBER = r"[-+]?\d+(?:\.\d*)?(?:e[-+]?\d+)?"
+
+
+def run_example(args, cwd: Path, timeout: float = 300, **env) -> str:
+    """Run an example in a subprocess with cwd; its stdout, after asserting that it succeeded."""
+    environment = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}", "MPLBACKEND": "Agg",
+                   "PYTHONDONTWRITEBYTECODE": "1", **env}  # no __pycache__ left in examples/
+    completed = subprocess.run([str(arg) for arg in args], cwd=cwd, capture_output=True, text=True,
+                               timeout=timeout, env=environment, check=False)
+    assert completed.returncode == 0, completed.stdout[-3000:] + completed.stderr[-3000:]
+    return completed.stdout
+
+
+def test_every_example_says_what_it_shows_and_what_it_needs():
+    for path in sorted(EXAMPLES.rglob("*")):
+        if path.suffix in (".py", ".sh"):
+            head = path.read_text().splitlines()[:8]
+            assert any("Needs:" in line for line in head), path
+            assert len(path.read_text().splitlines()) <= 100, path
+
+
+def test_api_tour(tmp_path):
+    pytest.importorskip("scipy")
+    pytest.importorskip("matplotlib")
+    out = run_example([sys.executable, EXAMPLES / "api_tour.py", tmp_path / "out"], tmp_path)
+    exact = ExactSolution(Ball(), 2.0, 0.0, 0.0, 8.0)
+    h_end, _ = exact.state(8.0)
+    rows = {m[0]: [float(x) for x in m[1:]] for m in re.findall(
+        rf"^(exact|cvode|scipy) +({NUMBER}) +({NUMBER}) +(\d+) +(\d+) +({NUMBER})$", out, re.M)}
+    assert set(rows) == {"exact", "cvode", "scipy"}, out
+    impacts = sum(event.kind == "impact" for event in exact.events)
+    for name, (height_error, event_error, events, found_impacts, final_h) in rows.items():
+        assert abs(final_h - h_end[0]) <= height_error + 1e-15, name  # the final point is one of those compared
+        bound = 1e-2 if name == "scipy" else 1e-6  # the article's RK45 is ~3e-3 m off; CVODE within 1e-6 m
+        assert height_error <= bound and event_error <= bound, name
+        assert (events, found_impacts) == (len(exact.events), impacts) == (41, 21), name
+    assert rows["exact"][:2] == [0.0, 0.0] and rows["scipy"][0] > 1e-4  # SciPy is measurably off at its defaults
+    printed = re.findall(rf"t = ({NUMBER}) s  (impact|departure) +v = ({NUMBER}) m/s", out)
+    assert len(printed) == 4
+    for (time, kind, velocity), event in zip(printed, exact.events, strict=False):
+        assert (kind, float(time), float(velocity)) == (event.kind, pytest.approx(event.time, abs=1e-14),
+                                                        pytest.approx(event.velocity, abs=1e-11))
+    assert (tmp_path / "out" / "api_tour.png").stat().st_size > 10_000
+    assert list(tmp_path.iterdir()) == [tmp_path / "out"]  # nothing written anywhere else
+
+
+def test_fmpy_cli_script(tmp_path):
+    pytest.importorskip("fmpy")
+    pytest.importorskip("pythonfmu")
+    out = run_example(["bash", EXAMPLES / "fmpy_cli.sh", "results"], tmp_path)
+    assert "Model Name         BouncingBall" in out and "F_ext              input" in out  # fmpy info
+    moon, reference = out.split("check results/moon.csv")[1].split("check results/BouncingBall_ref.csv")
+    t = np.linspace(0.0, 6.0, 601)
+    _, _, impacts = exact_at(t, Ball(g=1.62), h0=1.0)
+    assert "points compared    601" in moon and f"{impacts[-1]} at the end, exact {impacts[-1]}" in moon
+    assert float(re.search(rf"max \|h - h_exact\|  ({NUMBER}) m", moon)[1]) < 1e-8
+    assert "verdict            PASS" in moon and "verdict            PASS" in reference
+    assert "21 at the end, exact 21" in reference and "max |h - h_exact|  0.000e+00 m" in reference
+    assert sorted(p.name for p in (tmp_path / "results").iterdir()) == ["BouncingBall.fmu", "BouncingBall_ref.csv",
+                                                                      "moon.csv"]
+
+
+def test_regression_test_example(fmu, tmp_path):
+    pytest.importorskip("fmpy")
+    out = run_example([sys.executable, "-m", "pytest", "-q", "-s", "-p", "no:cacheprovider",
+                       EXAMPLES / "regression_test.py"], tmp_path, BOUNCINGBALL_FMU=str(fmu))
+    assert "3 passed" in out
+    cases = {"article": (Ball(), 2.0, 0.0, 8.0, 8001), "moon": (Ball(g=1.62), 1.0, 0.0, 6.0, 601),
+             "thrown": (Ball(k=1e6, b=50.0), 2.0, 3.0, 3.0, 61)}
+    reports = out.split("check ")[1:]
+    assert len(reports) == 3
+    for report, (ball, h0, v0, t_end, points) in zip(reports, cases.values(), strict=True):
+        t = np.linspace(0.0, t_end, points)
+        _, _, impacts = exact_at(t, ball, h0=h0, v0=v0)
+        assert f"points compared    {points}" in report
+        assert f"{impacts[-1]} at the end, exact {impacts[-1]}; the count is right at every point" in report
+        assert float(re.search(rf"max \|h - h_exact\|  ({NUMBER}) m", report)[1]) < 1e-8
+    assert list(tmp_path.iterdir()) == []
+
+
+def levitation_limit(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """The coupled system as the communication step goes to 0: h, v at t, and the impacts before t_on and after t_off.
+
+    Free fall and bounces (exact solution) up to t_on; then m h'' = kp (h_set - h) - kd v, a damped
+    oscillator about h_set in closed form (the ball stays far above the ground); free again from t_off.
+    """
+    kp, kd, h_set, t_on, t_off, m = 40.0, 12.0, 1.0, 2.25, 5.0, 1.0
+    free = ExactSolution(Ball(), 2.0, 0.0, 0.0, t_on)
+    h_on, v_on = (x[0] for x in free.state(t_on))
+    sigma, w2 = kd / (2 * m), kp / m
+
+    def controlled(tau):
+        c, s = oscillator_basis(sigma, w2, tau)
+        y0 = h_on - h_set
+        return h_set + y0 * c + (v_on + sigma * y0) * s, v_on * c - (sigma * v_on + w2 * y0) * s
+
+    h_off, v_off = (float(x) for x in controlled(np.array(t_off - t_on)))
+    late = ExactSolution(Ball(), h_off, v_off, t_off, float(t[-1]))
+    h, v = np.empty_like(t), np.empty_like(t)
+    for part, (h_part, v_part) in ((t <= t_on, free.state(t[t <= t_on])),
+                                   ((t > t_on) & (t < t_off), controlled(t[(t > t_on) & (t < t_off)] - t_on)),
+                                   (t >= t_off, late.state(t[t >= t_off]))):
+        h[part], v[part] = h_part, v_part
+    return h, v, sum(e.kind == "impact" for e in free.events), sum(e.kind == "impact" for e in late.events)
+
+
+def test_cosim_levitation(tmp_path):
+    pytest.importorskip("fmpy")
+    pytest.importorskip("pythonfmu")
+    out = run_example([sys.executable, EXAMPLES / "cosim_levitation.py", "cosim"], tmp_path)
+    reference = np.loadtxt(tmp_path / "cosim" / "cosim_levitation.csv", delimiter=",", skiprows=1)
+    t = reference[:, 0]
+    h_limit, v_limit, impacts_before, impacts_after = levitation_limit(t)
+    assert (impacts_before, impacts_after) == (2, 5)
+    # The reference run (step 2^-12 s) is within first-order distance of the continuous coupled system.
+    assert np.max(np.abs(reference[:, 1] - h_limit)) < 1e-5
+    hovering = (t > 4.0) & (t < 5.0)
+    assert np.allclose(reference[hovering, 3], 9.81, atol=1e-4) and np.all(reference[(t < 2.25) | (t >= 5.0), 3] == 0)
+    rows = re.findall(rf"^ *({NUMBER}) +({NUMBER}) +(?:({NUMBER}) +)?({NUMBER}) +({NUMBER}) +(\d+) +({NUMBER}) +(\d+)"
+                      rf" +({NUMBER}) +(\d+)$", out, re.M)
+    assert [float(row[0]) for row in rows] == [0.125, 0.0625, 0.03125, 0.015625, 0.0078125], out
+    h_off, v_off = (float(x[t == 5.0][0]) for x in (h_limit, v_limit))
+    errors = []
+    for step, error, ratio, h, v, impacts, free_error, free_impacts, late_error, late_impacts in rows:
+        assert abs(float(h) - h_off) < 1e-6 and abs(float(v) - v_off) < 1e-5, step
+        assert (int(free_impacts), int(late_impacts), int(impacts)) == (impacts_before, impacts_after, 7), step
+        assert float(free_error) < 1e-8 and float(late_error) < 1e-8, step  # impacts inside steps, resolved exactly
+        assert float(error) < 0.02 * float(step), step  # first order: the force is held over each step
+        if ratio:
+            assert 1.5 < float(ratio) < 2.2 and float(ratio) == pytest.approx(errors[-1] / float(error), rel=0.01)
+        errors.append(float(error))
+    assert "so at steps of 0.125 s, 0.0625 s whole contacts fall inside one step" in out
+    assert sorted(p.name for p in (tmp_path / "cosim").iterdir()) == [
+        "BouncingBall.fmu", "BouncingBall_ref.csv", "PDController.fmu", "cosim_levitation.csv"]
+
+
+def test_libcosim_system(tmp_path):
+    pytest.importorskip("pythonfmu")
+    pytest.importorskip("libcosimpy", reason="libcosimpy is not installed (the [test] extra installs it)")
+    out = run_example([sys.executable, EXAMPLES / "libcosim_system" / "run.py", "osp"], tmp_path)
+    data = np.loadtxt(tmp_path / "osp" / "libcosim_levitation.csv", delimiter=",", skiprows=1)
+    t, h, v, force, impacts = data.T
+    np.testing.assert_array_equal(t, np.arange(1, 1025) / 128)  # BaseStepSize 1/128 s, to 8 s
+    free = t <= 2.25
+    h_free, _, impacts_free = exact_at(np.concatenate(([0.0], t[free])))
+    assert np.max(np.abs(h[free] - h_free[1:])) < 1e-8
+    np.testing.assert_array_equal(impacts[free], impacts_free[1:])
+    # After t_off the ball is free again: the exact solution from the state libcosim reached at t_off.
+    i_off = int(np.flatnonzero(t == 5.0)[0])
+    late = ExactSolution(Ball(), h[i_off], v[i_off], 5.0, 8.0)
+    assert np.max(np.abs(h[i_off:] - late.state(t[i_off:])[0])) < 1e-8
+    impacts_late = sum(e.kind == "impact" for e in late.events)
+    assert impacts[-1] == impacts_free[-1] + impacts_late == 7
+    _, _, impacts_before, impacts_after = levitation_limit(np.array([0.0, 8.0]))
+    assert (impacts_free[-1], impacts_late) == (impacts_before, impacts_after)
+    assert abs(h[i_off] - 1.0) < 1e-6 and abs(force[i_off - 1] - 9.81) < 1e-4 and np.all(force[i_off:] == 0.0)
+    printed = float(re.search(rf"free ball up to t_on = 2.25 s: max \|h - h_exact\| = ({NUMBER}) m", out)[1])
+    assert printed == pytest.approx(np.max(np.abs(h[free] - h_free[1:])), rel=1e-3, abs=1e-15)
+    assert "impacts 2 (exact 2): PASS" in out and "1024 steps of 0.0078125 s to 8 s, 7 impacts in all" in out

@@ -1,0 +1,69 @@
+"""What the FMU carries besides itself: documentation/index.html, and the reference result beside it."""
+
+from __future__ import annotations
+
+import csv
+import html
+import zipfile
+
+import numpy as np
+import pytest
+
+from bouncingball.cli import main
+from bouncingball.fmu.build import reference_path
+from bouncingball.fmu.variables import OUTPUTS, VARIABLES
+from bouncingball.physics import Ball
+from bouncingball.solvers.exact import ExactSolution
+from bouncingball.solvers.result import IMPACT
+
+pytest.importorskip("pythonfmu", reason="the FMU tests need the [fmu] extra")
+
+
+def test_the_fmu_documentation_names_every_variable_with_its_unit(fmu):
+    with zipfile.ZipFile(fmu) as archive:
+        page = archive.read("documentation/index.html").decode("utf-8")
+    table = page[page.index("<h2>Variables</h2>"):]
+    for variable in VARIABLES:
+        row = table[table.index(f"<tr><td>{variable.name}</td>"):]
+        row = html.unescape(row[:row.index("</tr>")])
+        assert f"<td>{variable.unit}</td>" in row and variable.description in row, row
+    for text in ("h' = v, v' = -g + F_ext/m", "m v' = -b v + k (R - h) - m g + F_ext", "impact", "departure",
+                 "numpy and scikit-sundae", "bouncingball check", "BouncingBall_ref.csv"):
+        assert html.escape(text, quote=False) in page, text
+    assert "<td>m</td><td>parameter</td><td>kg</td><td>1</td><td>&gt; 0</td>" in page
+
+
+def test_fmpy_info_still_reads_the_fmu(fmu):
+    fmpy = pytest.importorskip("fmpy")
+    assert fmpy.read_model_description(str(fmu)).modelName == "BouncingBall"
+
+
+def test_the_reference_result_is_the_exact_solution_of_the_default_experiment(fmu):
+    path = reference_path(fmu)
+    assert path == fmu.with_name("BouncingBall_ref.csv")
+    with path.open(newline="") as file:
+        rows = list(csv.reader(file))
+    assert rows[0] == ["time", *OUTPUTS] == ["time", "h", "v", "a", "contact", "contact_force", "impacts"]
+    data = np.array(rows[1:], dtype=float)
+    t = data[:, 0]
+    np.testing.assert_array_equal(t, np.arange(8001) * 1e-3)  # the default experiment: 0 to 8 s, every 1 ms
+    ball = Ball()
+    solution = ExactSolution(ball, 2.0, 0.0, 0.0, 8.0)
+    h, v = solution.state(t)
+    np.testing.assert_allclose(data[:, 1], h, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(data[:, 2], v, rtol=0, atol=1e-13)
+    contact = h < ball.R  # away from the events themselves, contact means below R
+    away = np.abs(h - ball.R) > 1e-9
+    np.testing.assert_array_equal(data[away, 4], contact[away])
+    force = np.where(data[:, 4] == 1, ball.k * (ball.R - h) - ball.b * v, 0.0)
+    np.testing.assert_allclose(data[:, 5], force, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(data[:, 3], (force - ball.m * ball.g) / ball.m, rtol=0, atol=1e-9)
+    impact_times = [event.time for event in solution.events if event.kind == IMPACT]
+    np.testing.assert_array_equal(data[:, 6], np.searchsorted(impact_times, t, side="right"))
+    assert data[-1, 6] == 21
+
+
+def test_the_reference_result_passes_bouncingball_check(fmu, capsys):
+    assert main(["check", str(reference_path(fmu))]) == 0
+    out = capsys.readouterr().out
+    assert "points compared    8001" in out and "max |h - h_exact|  0.000e+00 m" in out
