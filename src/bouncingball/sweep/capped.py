@@ -32,7 +32,8 @@ class _Child:
 
     def __init__(self) -> None:
         self.process = subprocess.Popen([sys.executable, "-m", "bouncingball.sweep.child"], stdin=subprocess.PIPE,
-                                        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, bufsize=0)
+                                        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, bufsize=0,
+                                        env={**os.environ, "BOUNCINGBALL_SWEEP_PARENT": str(os.getpid())})
         self.buffer = b""
         line = self.read_line(START_TIMEOUT)
         if line != READY:
@@ -112,8 +113,9 @@ class CappedRunner:
 
 
 WORKER_NAME = f"{socket.gethostname()}:{os.getpid()}"
-MEASURES = {"events_found": -1, "events_exact": -1, "max_height_error": math.nan, "max_event_time_error": math.nan,
-            "wall_time": math.nan, "rhs_calls": -1, "steps": -1}
+MEASURES = {"events_found": -1, "events_exact": -1, "event_mismatches": -1, "first_mismatch": "",
+            "max_height_error": math.nan, "max_event_time_error": math.nan, "wall_time": math.nan, "rhs_calls": -1,
+            "steps": -1}
 
 
 def _row(spec: dict, status: str, reason: str = "", **measures) -> dict:

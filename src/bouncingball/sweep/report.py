@@ -8,30 +8,38 @@ from pathlib import Path
 
 import numpy as np
 
+from . import store
 from .grid import Grid
 
 HEIGHT_LIMIT = 1e-5  # m: CVODE's height error above this at the defaults is listed as wrong
 TABLE_CSV = "stability_map.csv"
-TABLE_PARQUET = "stability_map.parquet"
+TABLE_PARQUET = store.TABLE
 MARKDOWN = "stability_map.md"
 SWEEP_PACKAGES = ("numba", "dask", "distributed", "pandas", "pyarrow")
-# Event-count correctness as colours: counts agree, counts differ, the run failed, the run timed out.
-OUTCOMES = ("events match", "events differ", "failed", "timed out")
+# Event correctness as colours: counts agree; counts differ only by hops too small to resolve (merged
+# into a contact: accuracy.event_mismatches finds nothing); events missing, extra or off; failed; timed out.
+OUTCOMES = ("events match", "tiny hops merged", "events wrong", "failed", "timed out")
 
 
 def outcome(frame):
-    """0..3 per row: index into OUTCOMES."""
+    """0..4 per row: index into OUTCOMES."""
     code = np.where(frame["events_found"] == frame["events_exact"], 0, 1)
-    code = np.where(frame["status"] == "failed", 2, code)
-    return np.where(frame["status"] == "timed out", 3, code)
+    code = np.where(frame["event_mismatches"] > 0, 2, code)
+    code = np.where(frame["status"] == "failed", 3, code)
+    return np.where(frame["status"] == "timed out", 4, code)
 
 
 def cvode_wrong(frame, limit: float = HEIGHT_LIMIT):
-    """CVODE's rows that did not finish, found a different number of events, or erred above limit [m]."""
+    """CVODE's rows that did not finish, missed, added or misplaced an event, or erred above limit [m]."""
     rows = frame[frame["solver"].str.startswith("cvode")]
-    bad = (rows["status"] != "finished") | (rows["events_found"] != rows["events_exact"]) | \
-          ~(rows["max_height_error"] <= limit)
+    bad = (rows["status"] != "finished") | (rows["event_mismatches"] != 0) | ~(rows["max_height_error"] <= limit)
     return rows[bad]
+
+
+def cvode_merged_hops(frame):
+    """CVODE's finished rows whose event count differs only by hops below the resolution."""
+    rows = frame[frame["solver"].str.startswith("cvode") & (frame["status"] == "finished")]
+    return rows[(rows["event_mismatches"] == 0) & (rows["events_found"] != rows["events_exact"])]
 
 
 def file_stem(solver: str) -> str:
@@ -49,7 +57,7 @@ def write_heat_maps(frame, grid: Grid, output_dir: Path) -> list[Path]:
 
     ks, zetas = grid.axis("k"), grid.axis("zeta")
     pairs = [(m, h0) for m in grid.axis("m") for h0 in grid.axis("h0")]
-    colours = ListedColormap(["#4daf4a", "#e41a1c", "#984ea3", "#999999"])
+    colours = ListedColormap(["#4daf4a", "#a6d96a", "#e41a1c", "#984ea3", "#999999"])
     written = []
     for solver in grid.solvers:
         rows = frame[frame["solver"] == solver]
@@ -63,11 +71,11 @@ def write_heat_maps(frame, grid: Grid, output_dir: Path) -> list[Path]:
                 finished = run["status"] == "finished"
                 maps[1][i, j] = math.log10(max(run["max_height_error"], 1e-16)) if finished else np.nan
                 maps[2][i, j] = math.log10(run["wall_time"]) if finished else np.nan
-            titles = ("event count vs exact", "log10 max |h - h_exact| [m]", "log10 wall time [s]")
+            titles = ("events vs exact", "log10 max |h - h_exact| [m]", "log10 wall time [s]")
             for panel, (axis, values, title) in enumerate(zip(row_axes, maps, titles, strict=True)):
                 if panel == 0:
-                    image = axis.imshow(values, origin="lower", cmap=colours, vmin=-0.5, vmax=3.5, aspect="auto")
-                    bar = figure.colorbar(image, ax=axis, ticks=range(4))
+                    image = axis.imshow(values, origin="lower", cmap=colours, vmin=-0.5, vmax=4.5, aspect="auto")
+                    bar = figure.colorbar(image, ax=axis, ticks=range(5))
                     bar.ax.set_yticklabels(OUTCOMES)
                 else:
                     image = axis.imshow(values, origin="lower", cmap="viridis", aspect="auto")
@@ -88,10 +96,9 @@ def write_heat_maps(frame, grid: Grid, output_dir: Path) -> list[Path]:
 def write_tables(frame, output_dir: Path) -> list[Path]:
     """The whole table as CSV (full precision; without the run keys) and Parquet (with them, as --resume reads)."""
     columns = [column for column in frame.columns if column != "key"]
-    csv_path, parquet_path = output_dir / TABLE_CSV, output_dir / TABLE_PARQUET
+    csv_path = output_dir / TABLE_CSV
     frame[columns].to_csv(csv_path, index=False, float_format="%.17g")
-    frame.to_parquet(parquet_path, index=False)
-    return [csv_path, parquet_path]
+    return [csv_path, store.write_table(frame, output_dir)]
 
 
 def _versions() -> str:
@@ -105,14 +112,16 @@ def _versions() -> str:
 
 
 def _summary(frame, grid: Grid) -> list[str]:
-    lines = ["| solver | runs | finished | events match | failed | timed out | max error <= 1e-5 m | "
-             "median max error [m] | median wall time [ms] | RHS calls (sum) |", "|" + " --- |" * 10]
+    lines = ["| solver | runs | finished | event counts match | events right | failed | timed out | "
+             "max error <= 1e-5 m | median max error [m] | median wall time [ms] | RHS calls (sum) |",
+             "|" + " --- |" * 11]
     for solver in grid.solvers:
         rows = frame[frame["solver"] == solver]
         done = rows[rows["status"] == "finished"]
         calls = done["rhs_calls"][done["rhs_calls"] >= 0]
         matched = int((done["events_found"] == done["events_exact"]).sum())
-        lines.append(f"| {solver} | {len(rows)} | {len(done)} | {matched}"
+        right = int((done["event_mismatches"] == 0).sum())
+        lines.append(f"| {solver} | {len(rows)} | {len(done)} | {matched} | {right}"
                      f" | {int((rows['status'] == 'failed').sum())} | {int((rows['status'] == 'timed out').sum())}"
                      f" | {int((done['max_height_error'] <= HEIGHT_LIMIT).sum())}"
                      f" | {done['max_height_error'].median():.2e} | {done['wall_time'].median() * 1e3:.3g}"
@@ -158,17 +167,31 @@ def write_markdown(frame, grid: Grid, info: dict, output_dir: Path, images: list
     wrong = cvode_wrong(frame)
     lines += ["", "## Summary", "", *_summary(frame, grid), "", "## Where CVODE is wrong", ""]
     if len(wrong):
-        lines += [f"CVODE runs that did not finish, found a different number of events than the exact solution, "
-                  f"or erred above {HEIGHT_LIMIT:g} m:", "",
+        lines += [f"CVODE runs that did not finish, missed, added or misplaced an event (beyond the hops below "
+                  f"its resolution, see below), or erred above {HEIGHT_LIMIT:g} m:", "",
                   "| solver | k [N/m] | damping ratio | m [kg] | h0 [m] | status | events (exact) | "
                   "max error [m] | reason |", "|" + " --- |" * 9]
         for _, row in wrong.iterrows():
+            reason = row["reason"] or row["first_mismatch"]
             lines.append(f"| {row['solver']} | {row['k']:.3g} | {row['zeta']:.3g} | {row['m']:.3g} | {row['h0']:.3g} "
                          f"| {row['status']} | {row['events_found']} ({row['events_exact']}) "
-                         f"| {row['max_height_error']:.2e} | {row['reason']} |")
+                         f"| {row['max_height_error']:.2e} | {reason} |")
     else:
-        lines.append(f"None: in every cell CVODE finished, found exactly the exact solution's events and stayed "
-                     f"within {HEIGHT_LIMIT:g} m.")
+        lines.append(f"None: in every cell CVODE finished, found the exact solution's events (up to the hops below "
+                     f"its resolution, below) and stayed within {HEIGHT_LIMIT:g} m.")
+    merged = cvode_merged_hops(frame)
+    if len(merged):
+        lines += ["", "In these cells CVODE's event count differs from the exact solution's only by the last, "
+                  "tiny hops before rest: each missing departure-impact pair bounds a hop lower than 100 times "
+                  "CVODE's absolute error of h near R (1e-10 m + 1e-9 R), which it merges into the contact (the "
+                  "ball is then at rest to within its tolerance); `accuracy.event_mismatches` finds every other "
+                  "event within the time the ball takes to move 1e-6 m. Not a defect: those hops are below what "
+                  "the tolerances resolve.", "",
+                  "| solver | k [N/m] | damping ratio | m [kg] | h0 [m] | events (exact) | max error [m] |",
+                  "|" + " --- |" * 7]
+        lines += [f"| {row['solver']} | {row['k']:.3g} | {row['zeta']:.3g} | {row['m']:.3g} | {row['h0']:.3g} "
+                  f"| {row['events_found']} ({row['events_exact']}) | {row['max_height_error']:.2e} |"
+                  for _, row in merged.iterrows()]
     lines += ["", "## Heat maps", ""]
     lines += [f"![{path.stem}]({path.name})" for path in images]
     path = output_dir / MARKDOWN
