@@ -39,7 +39,29 @@ def measure_overhead(client, tasks: int = OVERHEAD_TASKS) -> float:
 
 def choose_batch_size(overhead: float, runs: int, slots: int) -> int:
     """Runs per task: enough that the per-task overhead is <= OVERHEAD_SHARE of the work, few enough that
-    every worker thread gets BATCHES_PER_SLOT batches (a lost worker then costs little to run again)."""
+    every worker thread gets BATCHES_PER_SLOT batches (a lost worker then costs little to run again).
+
+    Parameters
+    ----------
+    overhead : float
+        Dask's overhead per task [s] (measure_overhead).
+    runs : int
+        Runs to do.
+    slots : int
+        Worker threads of the cluster.
+
+    Returns
+    -------
+    int
+        The batch size, >= 1.
+
+    Examples
+    --------
+    >>> choose_batch_size(0.004, runs=273, slots=2)
+    3
+    >>> choose_batch_size(0.004, runs=12, slots=2)
+    1
+    """
     wanted = math.ceil(overhead / (OVERHEAD_SHARE * TYPICAL_RUN_TIME))
     balanced = max(1, runs // (BATCHES_PER_SLOT * max(slots, 1)))
     return max(1, min(wanted, balanced))
