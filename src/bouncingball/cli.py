@@ -13,7 +13,8 @@ EXIT_SOLVER_FAILED = 1
 EXIT_CHECK_FAILED = 1  # `check`: the result is not within the tolerance of the exact solution
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 # The optional modules a command may need, and the extra that installs each.
-EXTRA_OF_MODULE = {"fmpy": "fmu", "pythonfmu": "fmu", "scipy": "reference", "matplotlib": "plot", "tqdm": "bench"}
+EXTRA_OF_MODULE = {"fmpy": "fmu", "pythonfmu": "fmu", "scipy": "reference", "matplotlib": "plot", "tqdm": "bench",
+                   "dask": "sweep", "distributed": "sweep", "pandas": "sweep", "pyarrow": "sweep"}
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -63,6 +64,24 @@ def _build_parser() -> argparse.ArgumentParser:
                                                                 "cap and write stability.md")
     bench.add_argument("--output-dir", default="bench-results",
                        help="where to write the results (default: bench-results; docs regenerates the committed ones)")
+    sweep = sub.add_parser("sweep", help="a stability map over (k, damping ratio, m, h0) for each solver, run on "
+                                         "Dask (needs the [sweep] extra)")
+    for name, default in (("k", "1e2:1e14:13"), ("zeta", "1e-4:1e2:7"), ("m", "1"), ("h0", "2")):
+        sweep.add_argument(f"--{name}", metavar="LO:HI:N", help=f"log-spaced values (default: {default})")
+    sweep.add_argument("--t-end", type=float, help="end time of each run [s] (default: 8)")
+    sweep.add_argument("--solvers", help="comma-separated: cvode, cvode:Adams, cvode:BDF, article, scipy:METHOD "
+                                         "(default: cvode,article,scipy:DOP853)")
+    sweep.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786 "
+                                                              "(default: a LocalCluster)")
+    sweep.add_argument("--workers", type=int, help="LocalCluster worker processes (default: one per core)")
+    sweep.add_argument("--time-cap", type=float, help="wall time a run may take [s] (default: 2; --quick: 1)")
+    sweep.add_argument("--batch-size", type=int, help="runs per Dask task (default: from the measured overhead)")
+    sweep.add_argument("--output-dir", default="sweep-results", help="where to write (default: sweep-results; "
+                                                                     "docs regenerates the committed map)")
+    sweep.add_argument("--resume", action="store_true", help="keep the runs already in --output-dir, run the rest")
+    sweep.add_argument("--scaling", action="store_true", help="also time the grid on 1 worker and on as many as "
+                                                              "the sweep used, for the doc's scaling line")
+    sweep.add_argument("--quick", action="store_true", help="a 4 x 3 grid with a 1 s cap")
     return parser
 
 
@@ -174,6 +193,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             from .bench import bench_command
 
             return bench_command(args.output_dir, args.quick, args.stability)
+        if args.command == "sweep":
+            from .sweep.command import sweep_command
+
+            return sweep_command(args)
         return _scenes()
     except ImportError as error:
         extra = EXTRA_OF_MODULE.get((error.name or "").split(".")[0])

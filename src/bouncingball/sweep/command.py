@@ -1,0 +1,101 @@
+"""`bouncingball sweep`: check the input, run the grid on a cluster, write the table, heat maps and markdown."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+from . import grid as grids
+from .capped import DEFAULT_TIME_CAP
+
+QUICK_TIME_CAP = 1.0  # s
+
+
+def build_grid(k: str | None = None, zeta: str | None = None, m: str | None = None, h0: str | None = None,
+               t_end: float | None = None, solvers: str | None = None, quick: bool = False) -> grids.Grid:
+    """The Grid from the command line's text (None: the default, or with quick the small grid).
+
+    Raises
+    ------
+    ValueError
+        Naming the option, its value and what is allowed.
+
+    Examples
+    --------
+    >>> build_grid(k="1e2:1e6:3", zeta="0.1", solvers="cvode,article").runs()[0]["solver"]
+    'cvode'
+    """
+    defaults = {"k": grids.QUICK_K if quick else grids.DEFAULT_K, "zeta": grids.QUICK_ZETA if quick else
+                grids.DEFAULT_ZETA, "m": grids.DEFAULT_M, "h0": grids.DEFAULT_H0}
+    axes = {field: defaults[field] if text is None else grids.parse_range(field, text)
+            for field, text in (("k", k), ("zeta", zeta), ("m", m), ("h0", h0))}
+    names = grids.DEFAULT_SOLVERS if solvers is None else tuple(name.strip() for name in solvers.split(","))
+    for name in names:
+        if name.lower() not in (known.lower() for known in grids.solver_names()):
+            raise ValueError(f"--solvers: {name!r} is not allowed: each must be one of "
+                             f"{', '.join(grids.solver_names())}")
+    if t_end is not None and not (0.0 < t_end < float("inf")):
+        raise ValueError(f"--t-end = {t_end!r} s is not allowed: it must be finite and > 0")
+    return grids.Grid(**axes, t_end=grids.DEFAULT_T_END if t_end is None else t_end, solvers=names)
+
+
+def sweep_command(args) -> int:
+    """Run `bouncingball sweep` from parsed arguments; every input is checked before a cluster starts."""
+    from .run import check_settings
+
+    grid = build_grid(args.k, args.zeta, args.m, args.h0, args.t_end, args.solvers, args.quick)
+    time_cap = args.time_cap if args.time_cap is not None else QUICK_TIME_CAP if args.quick else DEFAULT_TIME_CAP
+    check_settings(time_cap, args.workers, args.batch_size)
+    if args.scheduler and args.workers:
+        raise ValueError(f"--workers = {args.workers} is not allowed with --scheduler: the cluster has its own")
+    output_dir = Path(args.output_dir)
+    if output_dir.exists() and not output_dir.is_dir():
+        raise ValueError(f"--output-dir = {args.output_dir!r} is not allowed: it is a file, not a directory")
+    for module in ("distributed", "pandas", "pyarrow", "matplotlib", "tqdm"):  # before the hours of work
+        __import__(module)
+    from distributed import Client
+
+    from . import report
+    from .run import run_sweep
+
+    output_dir.mkdir(parents=True, exist_ok=True)
+    started = time.perf_counter()
+    options = dict(output_dir=output_dir, resume=args.resume, time_cap=time_cap, batch_size=args.batch_size)
+    if args.scheduler:
+        with Client(args.scheduler, timeout=30) as client:
+            frame = run_sweep(grid, client, **options)
+        cluster = f"the scheduler at {args.scheduler}"
+    else:
+        frame = run_sweep(grid, workers=args.workers, **options)
+        cluster = "LocalCluster (one single-threaded worker process each)"
+    scaling = None
+    if args.scaling:
+        workers = frame.attrs["workers"]
+        one = _timed_on_local_cluster(grid, 1, time_cap, frame.attrs["batch_size"])
+        # The sweep itself, when it ran the whole grid on a LocalCluster, is the many-worker timing.
+        many = frame.attrs["wall_time"] if not args.scheduler and frame.attrs["runs_done"] == len(frame) else \
+            _timed_on_local_cluster(grid, workers, time_cap, frame.attrs["batch_size"])
+        scaling = (one, many, workers)
+    command = "bouncingball sweep " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["sweep"] else "run_sweep"
+    info = {"command": command.strip(), "time_cap": time_cap, "cluster": cluster, "scaling": scaling}
+    written = report.write_tables(frame, output_dir)
+    images = report.write_heat_maps(frame, grid, output_dir)
+    written += images
+    written.append(report.write_markdown(frame, grid, info, output_dir, images))
+    for path in written:
+        print(f"wrote {path}")
+    counts = frame["status"].value_counts().to_dict()
+    print(f"{len(frame)} runs ({frame.attrs['runs_done']} run now): "
+          + ", ".join(f"{count} {status}" for status, count in counts.items())
+          + f"; CVODE wrong in {len(report.cvode_wrong(frame))} cells", file=sys.stderr)
+    print(f"sweep finished in {time.perf_counter() - started:.0f} s", file=sys.stderr)
+    return 0
+
+
+def _timed_on_local_cluster(grid: grids.Grid, workers: int, time_cap: float, batch_size: int) -> float:
+    """Wall time [s] of the whole grid on a fresh LocalCluster of `workers` (nothing written)."""
+    from .run import run_sweep
+
+    print(f"scaling: the grid again on {workers} worker(s)", file=sys.stderr)
+    return run_sweep(grid, workers=workers, time_cap=time_cap, batch_size=batch_size).attrs["wall_time"]

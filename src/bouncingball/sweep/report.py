@@ -1,0 +1,199 @@
+"""What the sweep writes: the table (CSV and Parquet), heat maps per solver and docs/stability_map.md."""
+
+from __future__ import annotations
+
+import math
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+
+from . import store
+from .grid import Grid
+
+HEIGHT_LIMIT = 1e-5  # m: CVODE's height error above this at the defaults is listed as wrong
+TABLE_CSV = "stability_map.csv"
+TABLE_PARQUET = store.TABLE
+MARKDOWN = "stability_map.md"
+SWEEP_PACKAGES = ("numba", "dask", "distributed", "pandas", "pyarrow")
+# Event correctness as colours: counts agree; counts differ only by hops too small to resolve (merged
+# into a contact: accuracy.event_mismatches finds nothing); events missing, extra or off; failed; timed out.
+OUTCOMES = ("events match", "tiny hops merged", "events wrong", "failed", "timed out")
+
+
+def outcome(frame):
+    """0..4 per row: index into OUTCOMES."""
+    code = np.where(frame["events_found"] == frame["events_exact"], 0, 1)
+    code = np.where(frame["event_mismatches"] > 0, 2, code)
+    code = np.where(frame["status"] == "failed", 3, code)
+    return np.where(frame["status"] == "timed out", 4, code)
+
+
+def cvode_wrong(frame, limit: float = HEIGHT_LIMIT):
+    """CVODE's rows that did not finish, missed, added or misplaced an event, or erred above limit [m]."""
+    rows = frame[frame["solver"].str.startswith("cvode")]
+    bad = (rows["status"] != "finished") | (rows["event_mismatches"] != 0) | ~(rows["max_height_error"] <= limit)
+    return rows[bad]
+
+
+def cvode_merged_hops(frame):
+    """CVODE's finished rows whose event count differs only by hops below the resolution."""
+    rows = frame[frame["solver"].str.startswith("cvode") & (frame["status"] == "finished")]
+    return rows[(rows["event_mismatches"] == 0) & (rows["events_found"] != rows["events_exact"])]
+
+
+def file_stem(solver: str) -> str:
+    return "stability_map_" + solver.replace(":", "-")
+
+
+def write_heat_maps(frame, grid: Grid, output_dir: Path) -> list[Path]:
+    """One PNG per solver: event-count correctness, log10 height error and log10 wall time over (k, zeta);
+    one row of panels per (m, h0)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import ListedColormap
+
+    ks, zetas = grid.axis("k"), grid.axis("zeta")
+    pairs = [(m, h0) for m in grid.axis("m") for h0 in grid.axis("h0")]
+    colours = ListedColormap(["#4daf4a", "#a6d96a", "#e41a1c", "#984ea3", "#999999"])
+    written = []
+    for solver in grid.solvers:
+        rows = frame[frame["solver"] == solver]
+        figure, axes = plt.subplots(len(pairs), 3, figsize=(15, 4.2 * len(pairs)), squeeze=False)
+        for row_axes, (m, h0) in zip(axes, pairs, strict=True):
+            part = rows[(rows["m"] == m) & (rows["h0"] == h0)]
+            maps = [np.full((len(zetas), len(ks)), np.nan) for _ in range(3)]
+            for _, run in part.iterrows():
+                i, j = zetas.index(run["zeta"]), ks.index(run["k"])
+                maps[0][i, j] = outcome(part.loc[[run.name]])[0]
+                finished = run["status"] == "finished"
+                maps[1][i, j] = math.log10(max(run["max_height_error"], 1e-16)) if finished else np.nan
+                maps[2][i, j] = math.log10(run["wall_time"]) if finished else np.nan
+            titles = ("events vs exact", "log10 max |h - h_exact| [m]", "log10 wall time [s]")
+            for panel, (axis, values, title) in enumerate(zip(row_axes, maps, titles, strict=True)):
+                if panel == 0:
+                    image = axis.imshow(values, origin="lower", cmap=colours, vmin=-0.5, vmax=4.5, aspect="auto")
+                    bar = figure.colorbar(image, ax=axis, ticks=range(5))
+                    bar.ax.set_yticklabels(OUTCOMES)
+                else:
+                    image = axis.imshow(values, origin="lower", cmap="viridis", aspect="auto")
+                    figure.colorbar(image, ax=axis)
+                axis.set_xticks(range(len(ks)), [f"{k:.0e}" for k in ks], rotation=90, fontsize=7)
+                axis.set_yticks(range(len(zetas)), [f"{z:.0e}" for z in zetas], fontsize=7)
+                axis.set_xlabel("k [N/m]")
+                axis.set_ylabel("damping ratio")
+                axis.set_title(f"{solver}: {title}\nm = {m:g} kg, h0 = {h0:g} m", fontsize=9)
+        figure.tight_layout()
+        path = output_dir / f"{file_stem(solver)}.png"
+        figure.savefig(path, dpi=80)
+        plt.close(figure)
+        written.append(path)
+    return written
+
+
+def write_tables(frame, output_dir: Path) -> list[Path]:
+    """The whole table as CSV (full precision; without the run keys) and Parquet (with them, as --resume reads)."""
+    columns = [column for column in frame.columns if column != "key"]
+    csv_path = output_dir / TABLE_CSV
+    frame[columns].to_csv(csv_path, index=False, float_format="%.17g")
+    return [csv_path, store.write_table(frame, output_dir)]
+
+
+def _versions() -> str:
+    found = []
+    for package in SWEEP_PACKAGES:
+        try:
+            found.append(f"{package} {metadata.version(package)}")
+        except metadata.PackageNotFoundError:
+            found.append(f"{package} (not installed)")
+    return ", ".join(found)
+
+
+def _summary(frame, grid: Grid) -> list[str]:
+    lines = ["| solver | runs | finished | event counts match | events right | failed | timed out | "
+             "max error <= 1e-5 m | median max error [m] | median wall time [ms] | RHS calls (sum) |",
+             "|" + " --- |" * 11]
+    for solver in grid.solvers:
+        rows = frame[frame["solver"] == solver]
+        done = rows[rows["status"] == "finished"]
+        calls = done["rhs_calls"][done["rhs_calls"] >= 0]
+        matched = int((done["events_found"] == done["events_exact"]).sum())
+        right = int((done["event_mismatches"] == 0).sum())
+        lines.append(f"| {solver} | {len(rows)} | {len(done)} | {matched} | {right}"
+                     f" | {int((rows['status'] == 'failed').sum())} | {int((rows['status'] == 'timed out').sum())}"
+                     f" | {int((done['max_height_error'] <= HEIGHT_LIMIT).sum())}"
+                     f" | {done['max_height_error'].median():.2e} | {done['wall_time'].median() * 1e3:.3g}"
+                     f" | {int(calls.sum())} |")
+    return lines
+
+
+def write_markdown(frame, grid: Grid, info: dict, output_dir: Path, images: list[Path]) -> Path:
+    """docs/stability_map.md: the machine, the grid, the timing and overhead lines, CVODE's wrong cells, the maps."""
+    from ..bench.environment import environment
+
+    env = environment()
+    attrs = frame.attrs
+    lines = ["# Stability map over the parameter space", "",
+             f"Generated by `{info['command']}`: every cell of a log-spaced grid over stiffness k and damping "
+             "ratio zeta = b / (2 sqrt(k m)) run by each solver on dask.distributed, each run under a "
+             f"wall-time cap of {info['time_cap']:g} s, and compared with the exact solution on its own output "
+             f"grid. The whole table: [{TABLE_CSV}]({TABLE_CSV}) (also {TABLE_PARQUET}).", "",
+             *(f"- {key}: {value}" for key, value in env.items()), f"- sweep: {_versions()}", "",
+             "## Grid", "",
+             f"- k [N/m]: {', '.join(f'{x:.3g}' for x in grid.axis('k'))}",
+             f"- damping ratio: {', '.join(f'{x:.3g}' for x in grid.axis('zeta'))}",
+             f"- m [kg]: {', '.join(f'{x:.3g}' for x in grid.axis('m'))}; h0 [m]: "
+             f"{', '.join(f'{x:.3g}' for x in grid.axis('h0'))}; v0 = 0; R = 0.06 m, g = 9.81 m/s2",
+             f"- t_end = {grid.t_end:g} s, output every {grid.output_interval:g} s; solvers: {', '.join(grid.solvers)} "
+             "(cvode: method auto, engine auto; scipy:METHOD: solve_ivp with unbounded steps; both at CVODE's "
+             "default rtol 1e-11, atol 1e-12; article: RK45, max_step 0.01, SciPy's tolerances)", "",
+             "## Execution", "",
+             f"- cluster: {info['cluster']}, {attrs['workers']} workers, {attrs['threads']} threads",
+             f"- wall time: {attrs['wall_time']:.1f} s for {attrs['runs_done']} runs (first task submitted to last "
+             f"result; cluster start not included)",
+             f"- Dask's overhead: {attrs['overhead'] * 1e3:.2f} ms per task (no-op tasks over all workers); batch "
+             f"size {attrs['batch_size']} runs per task, so {attrs['overhead'] / attrs['batch_size'] * 1e3:.2f} ms "
+             "per run, against a median run of "
+             f"{frame.loc[frame['status'] == 'finished', 'wall_time'].median() * 1e3:.3g} ms"]
+    scaling = info.get("scaling")
+    if scaling:
+        one, many, n = scaling
+        lines.append(f"- scaling: the same grid on a LocalCluster of 1 worker {one:.1f} s, of {n} workers "
+                     f"{many:.1f} s: {one / many:.2f}x")
+    else:
+        lines.append("- scaling: not measured (run with --scaling)")
+    wrong = cvode_wrong(frame)
+    lines += ["", "## Summary", "", *_summary(frame, grid), "", "## Where CVODE is wrong", ""]
+    if len(wrong):
+        lines += [f"CVODE runs that did not finish, missed, added or misplaced an event (beyond the hops below "
+                  f"its resolution, see below), or erred above {HEIGHT_LIMIT:g} m:", "",
+                  "| solver | k [N/m] | damping ratio | m [kg] | h0 [m] | status | events (exact) | "
+                  "max error [m] | reason |", "|" + " --- |" * 9]
+        for _, row in wrong.iterrows():
+            reason = row["reason"] or row["first_mismatch"]
+            lines.append(f"| {row['solver']} | {row['k']:.3g} | {row['zeta']:.3g} | {row['m']:.3g} | {row['h0']:.3g} "
+                         f"| {row['status']} | {row['events_found']} ({row['events_exact']}) "
+                         f"| {row['max_height_error']:.2e} | {reason} |")
+    else:
+        lines.append(f"None: in every cell CVODE finished, found the exact solution's events (up to the hops below "
+                     f"its resolution, below) and stayed within {HEIGHT_LIMIT:g} m.")
+    merged = cvode_merged_hops(frame)
+    if len(merged):
+        lines += ["", "In these cells CVODE's event count differs from the exact solution's only by the last, "
+                  "tiny hops before rest: each missing departure-impact pair bounds a hop lower than 100 times "
+                  "CVODE's absolute error of h near R (1e-10 m + 1e-9 R), which it merges into the contact (the "
+                  "ball is then at rest to within its tolerance); `accuracy.event_mismatches` finds every other "
+                  "event within the time the ball takes to move 1e-6 m. Not a defect: those hops are below what "
+                  "the tolerances resolve.", "",
+                  "| solver | k [N/m] | damping ratio | m [kg] | h0 [m] | events (exact) | max error [m] |",
+                  "|" + " --- |" * 7]
+        lines += [f"| {row['solver']} | {row['k']:.3g} | {row['zeta']:.3g} | {row['m']:.3g} | {row['h0']:.3g} "
+                  f"| {row['events_found']} ({row['events_exact']}) | {row['max_height_error']:.2e} |"
+                  for _, row in merged.iterrows()]
+    lines += ["", "## Heat maps", ""]
+    lines += [f"![{path.stem}]({path.name})" for path in images]
+    path = output_dir / MARKDOWN
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path

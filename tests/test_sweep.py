@@ -1,0 +1,237 @@
+"""The stability sweep: grid and input checks, the capped runner, and the sweep on Dask (LocalCluster, a
+scheduler and a worker started here as separate processes, a worker killed mid-sweep, --resume).
+
+Everything that starts a cluster runs in a subprocess with a timeout, so that a hang fails the test.
+"""
+
+import json
+import math
+import signal
+import socket
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import bouncingball as bb
+from bouncingball.cli import EXIT_BAD_INPUT
+from bouncingball.solvers.cvode import DEFAULT_ATOL, DEFAULT_RTOL
+from bouncingball.solvers.exact import ExactSolution
+from bouncingball.sweep import Grid, parse_range
+from bouncingball.sweep.capped import CappedRunner
+
+SWEEP = ["--k", "1e2:1e8:4", "--zeta", "1e-3:1:3", "--solvers", "cvode,article", "--t-end", "1",
+         "--batch-size", "2", "--time-cap", "30"]
+TIMES = ["wall_time", "worker", "batch"]  # what may differ between two sweeps of the same grid
+BIN = Path(sys.executable).parent
+
+
+def _sweep(*args: str, timeout: float = 240.0) -> subprocess.CompletedProcess:
+    return subprocess.run([str(BIN / "bouncingball"), "sweep", *args], capture_output=True, text=True,
+                          timeout=timeout, check=False)
+
+
+def _table(directory: Path) -> pd.DataFrame:
+    return pd.read_parquet(directory / "stability_map.parquet")
+
+
+# --- input, before any cluster ------------------------------------------------------------------------
+@pytest.mark.parametrize(("args", "names"), [
+    (["--k", "1e2:1e1:0"], ["--k", "'1e2:1e1:0'", "LO:HI:N"]),
+    (["--zeta=-1:1:3"], ["--zeta", "'-1:1:3'", "0 < LO <= HI"]),
+    (["--m", "1:1:3"], ["--m", "need LO < HI"]),
+    (["--solvers", "cvode,rk4"], ["--solvers", "'rk4'", "scipy:DOP853", "article"]),
+    (["--t-end", "0"], ["--t-end", "0.0", "> 0"]),
+    (["--workers", "0"], ["--workers", ">= 1"]),
+    (["--time-cap", "-2"], ["--time-cap", "-2.0", "> 0"]),
+])
+def test_bad_input_is_one_line_and_exit_2_before_any_cluster(args, names):
+    script = (f"import sys\nfrom bouncingball.cli import main\nassert main(['sweep', *{args!r}]) == {EXIT_BAD_INPUT}\n"
+              "print(sorted(m for m in ('distributed', 'dask') if m in sys.modules))")
+    completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60,
+                               check=True)
+    assert completed.stdout.strip() == "[]"  # no cluster was started: Dask was not even imported
+    error = completed.stderr.strip().splitlines()
+    assert len(error) == 1 and error[0].startswith("bouncingball: error: ")
+    for name in names:
+        assert name in error[0]
+
+
+def test_grid_is_log_spaced_with_exact_ends_and_every_solver_spelling():
+    assert parse_range("k", "1e2:1e14:13") == (1e2, 1e14, 13)
+    grid = Grid(k=(1e2, 1e14, 13), zeta=(1e-4, 1e2, 7), solvers=("CVODE", "Article", "scipy:dop853"))
+    assert grid.solvers == ("cvode", "article", "scipy:DOP853")
+    assert grid.axis("k")[0] == 1e2 and grid.axis("k")[-1] == 1e14
+    np.testing.assert_allclose(np.diff(np.log10(grid.axis("k"))), 1.0, rtol=1e-12)
+    runs = grid.runs()
+    assert len(runs) == 13 * 7 * 3 and len({run["key"] for run in runs}) == len(runs)
+    cell = runs[-1]
+    assert cell["b"] == pytest.approx(2.0 * cell["zeta"] * math.sqrt(cell["k"] * cell["m"]), rel=1e-15)
+    with pytest.raises(ValueError, match="solver = 'rk4' is not allowed"):
+        Grid(solvers=("rk4",))
+
+
+def test_import_and_a_cvode_run_load_no_sweep_dependency():
+    script = ("import sys\nimport bouncingball\nbouncingball.simulate(bouncingball.Ball(), 2.0, 0.0, 1.0)\n"
+              "from bouncingball.cli import main\n"
+              "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+              "('dask', 'distributed', 'pandas', 'pyarrow', 'matplotlib', 'tqdm')))")
+    completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=True)
+    assert completed.stdout.strip() == "[]"
+
+
+# --- one run under its cap --------------------------------------------------------------------------------
+def test_a_timed_out_or_failed_run_is_a_row_and_the_runner_goes_on():
+    base = {"key": "", "m": 1.0, "h0": 2.0, "t_end": 8.0, "output_interval": 1e-3, "b": 0.0}
+    runner = CappedRunner(time_cap=0.5)
+    try:
+        # Explicit RK45 at rest on an over-damped k = 1e8 N/m spring: millions of steps.
+        stiff = runner.run({**base, "k": 1e8, "zeta": 100.0, "solver": "article"})
+        # A contact of 1e-11 s cannot be resolved in double precision up to 8 s: CVODE refuses it.
+        unresolvable = runner.run({**base, "k": 1e14, "m": 1e-9, "zeta": 0.1, "solver": "cvode"})
+        after = runner.run({**base, "k": 1e4, "zeta": 0.05, "t_end": 2.0, "solver": "cvode"})
+    finally:
+        runner.close()
+    assert (stiff["status"], stiff["reason"]) == ("timed out", "killed after 0.5 s")
+    assert math.isnan(stiff["max_height_error"]) and stiff["events_found"] == -1
+    assert unresolvable["status"] == "failed"
+    assert "k = 100000000000000.0 N/m with m = 1e-09 kg is not allowed" in unresolvable["reason"]
+    exact = ExactSolution(bb.Ball(k=1e4, b=2.0 * 0.05 * 100.0), 2.0, 0.0, 0.0, 2.0)
+    assert after["status"] == "finished" and after["events_found"] == after["events_exact"] == len(exact.events)
+
+
+# --- the sweep on Dask ---------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def local_sweep(tmp_path_factory) -> Path:
+    """The small sweep (4 x 3 cells, 2 solvers) on a LocalCluster of 2 workers, through the CLI."""
+    directory = tmp_path_factory.mktemp("local")
+    completed = _sweep(*SWEEP, "--workers", "2", "--output-dir", str(directory))
+    assert completed.returncode == 0, completed.stderr
+    assert "24 runs (24 run now): 24 finished" in completed.stderr
+    return directory
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _stop(process: subprocess.Popen) -> None:
+    process.send_signal(signal.SIGINT)
+    try:
+        process.wait(timeout=20)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+
+
+def test_every_cell_agrees_with_the_exact_solution_recomputed_here(local_sweep):
+    table = _table(local_sweep)
+    assert len(table) == 24 and set(table["status"]) == {"finished"}
+    for row in table.itertuples():
+        ball = bb.Ball(m=row.m, k=row.k, b=2.0 * row.zeta * math.sqrt(row.k * row.m))
+        options = ({"rtol": DEFAULT_RTOL, "atol": DEFAULT_ATOL}, "cvode") if row.solver == "cvode" else ({}, "scipy")
+        result = bb.simulate(ball, row.h0, 0.0, row.t_end, row.output_interval, options[1], **options[0])
+        exact = ExactSolution(ball, row.h0, 0.0, 0.0, row.t_end)
+        h_exact, _ = exact.state(result.t)
+        assert row.events_exact == len(exact.events)
+        assert row.events_found == len(result.events)
+        assert row.max_height_error == pytest.approx(float(np.max(np.abs(result.h - h_exact))), rel=1e-9, abs=1e-15)
+        paired = [abs(a.time - b.time) for a, b in zip(result.events, exact.events, strict=False)]
+        assert row.max_event_time_error == pytest.approx(max(paired, default=0.0), rel=1e-9, abs=1e-15)
+        if row.solver == "cvode":
+            assert row.events_found == row.events_exact and row.event_mismatches == 0
+            assert row.max_height_error < 1e-6
+    markdown = (local_sweep / "stability_map.md").read_text()
+    assert "per task" in markdown and "batch size 2 runs per task" in markdown
+    assert "None: in every cell CVODE finished" in markdown
+    assert all((local_sweep / f"stability_map_{name}.png").stat().st_size > 1000 for name in ("cvode", "article"))
+
+
+def test_the_same_sweep_on_a_scheduler_and_worker_started_here_gives_the_same_results(local_sweep, tmp_path):
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    dask = str(BIN / "dask")
+    scheduler = subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                                  "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    worker = None
+    try:
+        worker = subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--nworkers", "2",
+                                   "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        completed = _sweep(*SWEEP, "--scheduler", address, "--output-dir", str(tmp_path))
+    finally:
+        for process in (worker, scheduler):
+            if process is not None:
+                _stop(process)
+    assert completed.returncode == 0, completed.stderr
+    assert f"the scheduler at {address}" in (tmp_path / "stability_map.md").read_text()
+    pd.testing.assert_frame_equal(_table(tmp_path).drop(columns=TIMES), _table(local_sweep).drop(columns=TIMES))
+
+
+KILL_SCRIPT = """
+import json, os, signal, sys
+from distributed import Client, LocalCluster
+from bouncingball.sweep import Grid, run_sweep
+
+if __name__ == "__main__":
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None)
+    client = Client(cluster)
+    killed = []
+
+    def kill_one(rows):
+        if not killed:
+            pid = next(iter(client.run(os.getpid).values()))
+            os.kill(pid, signal.SIGKILL)
+            killed.append(pid)
+
+    grid = Grid(k=(1e2, 1e8, 4), zeta=(1e-3, 1.0, 3), solvers=("cvode", "article"), t_end=1.0)
+    frame = run_sweep(grid, client, output_dir=sys.argv[1], batch_size=1, time_cap=30.0, progress=False,
+                      on_batch=kill_one)
+    print(json.dumps({"killed": killed, "workers": sorted(frame["worker"].unique())}))
+    client.close()
+    cluster.close()
+"""
+
+
+def test_a_worker_killed_mid_sweep_only_costs_its_batches(local_sweep, tmp_path):
+    script = tmp_path / "kill.py"
+    script.write_text(textwrap.dedent(KILL_SCRIPT), encoding="utf-8")
+    completed = subprocess.run([sys.executable, str(script), str(tmp_path / "out")], capture_output=True, text=True,
+                               timeout=240, check=False)
+    assert completed.returncode == 0, completed.stderr
+    report = json.loads(completed.stdout.strip().splitlines()[-1])
+    assert len(report["killed"]) == 1
+    from bouncingball.sweep.store import read_parts
+
+    table = read_parts(tmp_path / "out").sort_values("key").reset_index(drop=True)
+    expected = _table(local_sweep).sort_values(["solver", "k", "zeta"]).reset_index(drop=True)
+    assert len(table) == 24 and table["key"].is_unique and set(table["status"]) == {"finished"}
+    columns = [c for c in expected.columns if c not in TIMES]
+    got = table.sort_values(["solver", "k", "zeta"]).reset_index(drop=True)[columns]
+    pd.testing.assert_frame_equal(got, expected[columns])
+
+
+def test_resume_runs_only_what_is_missing_and_nothing_twice(local_sweep, tmp_path):
+    from bouncingball.sweep.store import write_part
+
+    # An interrupted sweep: the batches it finished are on disk as parts, five runs are missing.
+    rows = _table(local_sweep).to_dict("records")
+    removed = pd.DataFrame(rows[:5])
+    for start in range(5, len(rows), 8):
+        write_part(tmp_path, rows[start:start + 8])
+    before = _table(local_sweep).set_index("key")
+    completed = _sweep(*SWEEP, "--workers", "1", "--output-dir", str(tmp_path), "--resume")
+    assert completed.returncode == 0, completed.stderr
+    assert f"24 runs ({len(removed)} run now)" in completed.stderr
+    after = _table(tmp_path).set_index("key")
+    assert after.index.is_unique and set(after.index) == set(before.index)
+    kept = before.index.difference(removed["key"])
+    # The kept runs were not run again: the same measured wall times, to the last bit.
+    assert after.loc[kept, "wall_time"].tolist() == before.loc[kept, "wall_time"].tolist()
+    again = _sweep(*SWEEP, "--workers", "1", "--output-dir", str(tmp_path), "--resume")
+    assert "24 runs (0 run now)" in again.stderr
