@@ -176,3 +176,18 @@ def test_libcosim_system(tmp_path):
     printed = float(re.search(rf"free ball up to t_on = 2.25 s: max \|h - h_exact\| = ({NUMBER}) m", out)[1])
     assert printed == pytest.approx(np.max(np.abs(h[free] - h_free[1:])), rel=1e-3, abs=1e-15)
     assert "impacts 2 (exact 2): PASS" in out and "1024 steps of 0.0078125 s to 8 s, 7 impacts in all" in out
+
+
+def test_sweep_example(tmp_path):
+    """Each printed cell: the exact event count recomputed here, CVODE finding it within 1e-6 m."""
+    out = run_example([sys.executable, EXAMPLES / "sweep.py", tmp_path / "sweep"], tmp_path, timeout=600)
+    rows = re.findall(rf"^(cvode|article)\s+({NUMBER})\s+({NUMBER})\s+(\w+)\s+(\d+)/(\d+)\s+({NUMBER})$", out, re.M)
+    assert len(rows) == 12, out
+    for solver, k, zeta, status, found, expected, error in rows:
+        k, zeta = float(k), float(zeta)
+        ball = Ball(k=k, b=2.0 * zeta * np.sqrt(k * 1.0))
+        assert int(expected) == len(ExactSolution(ball, 2.0, 0.0, 0.0, 2.0).events), (k, zeta)
+        if solver == "cvode":
+            assert status == "finished" and found == expected and float(error) <= 1e-6, (k, zeta, error)
+    assert "cvode cells outside 1e-6 m: 0 of 6" in out
+    assert list((tmp_path / "sweep" / "sweep_parts").glob("*.parquet"))  # streamed to disk as it ran
