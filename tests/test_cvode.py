@@ -249,3 +249,26 @@ def test_advance_and_integrate_grid_agree(name, engine):
     # each path is within ~1e-6 of the scale of the exact solution (test_every_builtin_scene...); they must
     # agree at least that well with each other
     assert np.max(np.abs(np.array(h_step) - h_grid)) <= 1e-6 * scale
+
+
+def test_the_sksundae_adapter_still_fits_scikit_sundae():
+    """solvers/sksundae_events.py reads scikit-sundae's private root records: fail loudly if a release changes them."""
+    from sksundae.cvode import CVODE
+
+    from bouncingball.solvers import sksundae_events
+
+    def rhs(t, y, yp):
+        yp[0] = -1.0
+
+    def events(t, y, e):
+        e[0], e[1] = y[0] - 0.5, y[0] + 5.0  # the first crosses at t = 0.5, the second never before 1
+
+    events.terminal, events.direction = [True, False], [-1, 0]
+    solver = CVODE(rhs, eventsfn=events, num_events=2)
+    solution = solver.solve([0.0, 1.0], [1.0])
+    assert solution.status == 2 and abs(solution.t[-1] - 0.5) < 1e-8  # stopped at the terminal root
+    assert sksundae_events.roots_found(events) == [-1, 0]
+    for field in ("_i", "_t", "_y", "_i_cnt"):
+        assert hasattr(events, field), field
+    sksundae_events.clear(events)
+    assert sksundae_events.roots_found(events) == [] and not any(events._i_cnt)
