@@ -182,3 +182,22 @@ def test_state_at_the_events_is_the_event_and_continuous_across_it():
     assert np.array_equal(v, [e.velocity for e in exact.events])
     h_before, v_before = exact.state(times - 1e-9)
     assert np.max(np.abs(h_before - ball.R)) <= 1e-8 and np.max(np.abs(v_before - v)) <= 1e-4
+
+
+def test_departure_search_converges_by_newton(monkeypatch):
+    """Newton's last ulp-sized step once landed on the bracket's end and set off ~50 bisections per departure."""
+    from bouncingball.solvers import exact
+
+    evaluations = []
+    polish = exact._polish_root
+
+    def counting(f, a, b):
+        calls = []
+        root = polish(lambda x: calls.append(x) or f(x), a, b)
+        evaluations.append(len(calls))
+        return root
+
+    monkeypatch.setattr(exact, "_polish_root", counting)
+    solution = ExactSolution(Ball(), 2.0, 0.0, 0.0, 8.0)
+    assert len(evaluations) == len(solution.events) // 2 + 1  # each departure, and the search that finds none
+    assert max(evaluations) <= 12, evaluations

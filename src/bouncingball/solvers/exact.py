@@ -198,11 +198,13 @@ def _polish_root(f, a: float, b: float) -> float:
         else:
             b = x
         step = fx / dfx if dfx > 0.0 else math.inf
+        # Converged when Newton moves by ulps: checked before the bracket test, since such a step
+        # lands on the bracket's end just moved to x, and bisecting from there would take ~50 steps.
+        if abs(step) <= 2.0 * math.ulp(x) or b - a <= 2.0 * math.ulp(b):
+            break
         x_new = x - step
         if not a < x_new < b:
             x_new = 0.5 * (a + b)
-        if abs(x_new - x) <= 2.0 * math.ulp(x) or b - a <= 2.0 * math.ulp(b):
-            break
         x = x_new
     return best
 
