@@ -20,20 +20,25 @@ def environment() -> dict[str, str]:
             cpu = next((line.split(":", 1)[1].strip() for line in info if line.startswith("model name")), cpu)
     except OSError:
         pass
-    versions = []
-    for package in PACKAGES:
-        try:
-            versions.append(f"{package} {metadata.version(package)}")
-        except metadata.PackageNotFoundError:
-            versions.append(f"{package} (not installed)")
     load = ", ".join(f"{value:.2f}" for value in os.getloadavg())
     commit = subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True, text=True,
                             cwd=Path(__file__).parent, check=False).stdout.strip()
     return {"machine": f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}",
             "load": f"{load} (1, 5, 15 min) at the start",
-            "software": f"Python {platform.python_version()}, " + ", ".join(versions),
+            "software": f"Python {platform.python_version()}, " + versions(PACKAGES),
             "date": datetime.datetime.now().astimezone().isoformat(timespec="minutes"),
             "commit": commit or "unknown"}
+
+
+def versions(packages: tuple[str, ...]) -> str:
+    """'name version' of each installed package, '(not installed)' for the others, comma-separated."""
+    found = []
+    for package in packages:
+        try:
+            found.append(f"{package} {metadata.version(package)}")
+        except metadata.PackageNotFoundError:
+            found.append(f"{package} (not installed)")
+    return ", ".join(found)
 
 
 def environment_lines(environment: dict[str, str]) -> list[str]:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -101,16 +100,6 @@ def write_tables(frame, output_dir: Path) -> list[Path]:
     return [csv_path, store.write_table(frame, output_dir)]
 
 
-def _versions() -> str:
-    found = []
-    for package in SWEEP_PACKAGES:
-        try:
-            found.append(f"{package} {metadata.version(package)}")
-        except metadata.PackageNotFoundError:
-            found.append(f"{package} (not installed)")
-    return ", ".join(found)
-
-
 def _summary(frame, grid: Grid) -> list[str]:
     lines = ["| solver | runs | finished | event counts match | events right | failed | timed out | "
              "max error <= 1e-5 m | median max error [m] | median wall time [ms] | RHS calls (sum) |",
@@ -131,7 +120,7 @@ def _summary(frame, grid: Grid) -> list[str]:
 
 def write_markdown(frame, grid: Grid, info: dict, output_dir: Path, images: list[Path]) -> Path:
     """docs/stability_map.md: the machine, the grid, the timing and overhead lines, CVODE's wrong cells, the maps."""
-    from ..bench.environment import environment
+    from ..bench.environment import environment, environment_lines, versions
 
     env = environment()
     attrs = frame.attrs
@@ -140,7 +129,7 @@ def write_markdown(frame, grid: Grid, info: dict, output_dir: Path, images: list
              "ratio zeta = b / (2 sqrt(k m)) run by each solver on dask.distributed, each run under a "
              f"wall-time cap of {info['time_cap']:g} s, and compared with the exact solution on its own output "
              f"grid. The whole table: [{TABLE_CSV}]({TABLE_CSV}) (also {TABLE_PARQUET}).", "",
-             *(f"- {key}: {value}" for key, value in env.items()), f"- sweep: {_versions()}", "",
+             *environment_lines(env), f"- sweep: {versions(SWEEP_PACKAGES)}", "",
              "## Grid", "",
              f"- k [N/m]: {', '.join(f'{x:.3g}' for x in grid.axis('k'))}",
              f"- damping ratio: {', '.join(f'{x:.3g}' for x in grid.axis('zeta'))}",
