@@ -8,16 +8,15 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
-from ..physics import Ball, Mode
+from ..physics import Ball, Mode, oscillator_basis
 from .result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
 
 
-@dataclass(frozen=True)
-class Phase:
+class Phase(NamedTuple):
     """One mode held from t_start [s], starting from the state (h0 [m], v0 [m/s])."""
 
     t_start: float
@@ -54,16 +53,12 @@ class ExactSolution:
                 if math.isinf(tau):
                     self.rest_time = t
                     return
-                v_next = float(self._contact_state(self.phases[-1], np.array([tau]))[1][0])
+                v_next = float(ball.flow(Mode.CONTACT, h, v, tau, self.F_ext)[1])
                 kind, next_mode = DEPARTURE, Mode.FLIGHT
             if not t + tau <= self.t_end:
                 return
             t, h, v, mode = t + tau, R, v_next, next_mode
             self.events.append(Event(t, kind, v))
-
-    # --- contact -----------------------------------------------------------------------------
-    def _contact_state(self, phase: Phase, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self.ball.flow(Mode.CONTACT, phase.h0, phase.v0, tau, self.F_ext)
 
     # --- evaluation ---------------------------------------------------------------------------
     def state(self, t) -> tuple[np.ndarray, np.ndarray]:
@@ -124,14 +119,16 @@ def time_to_departure(ball: Ball, h0: float, v0: float, F_ext: float = 0.0) -> f
     sigma, w2 = ball.b / (2.0 * ball.m), ball.k / ball.m
     rest, d = ball.rest_height(F_ext), ball.static_deflection(F_ext)
     y0 = h0 - rest
-    q = sigma * v0 + w2 * y0  # v(tau) = v0 C(tau) - q S(tau)
+    p, q = v0 + sigma * y0, sigma * v0 + w2 * y0  # y = y0 C + p S, v = v0 C - q S
 
     def excess(tau: float) -> tuple[float, float]:
-        h, v = ball.flow(Mode.CONTACT, h0, v0, tau, F_ext)
-        return float(h - ball.R), float(v)
+        """h - R [m] and v [m/s] at tau; y - d rather than (rest + y) - R, which would round twice."""
+        c, s = oscillator_basis(sigma, w2, tau)
+        return y0 * c + p * s - d, v0 * c - q * s
 
     rising = v0 > 0.0 or (v0 == 0.0 and q < 0.0)
     disc = sigma * sigma - w2
+    guess = None
     if disc < 0.0:
         # Under-damped: extrema every pi/omega; maxima are positive and decay, so the
         # first maximum decides whether the ball ever leaves.
@@ -140,8 +137,19 @@ def time_to_departure(ball: Ball, h0: float, v0: float, F_ext: float = 0.0) -> f
         tau1 = (first if first > 0.0 else math.pi) / omega
         # Maxima lie above the rest height and minima below it; this decides robustly even
         # when round-off puts an extremum at tau = 0.
-        is_maximum = float(ball.flow(Mode.CONTACT, h0, v0, tau1, F_ext)[0]) > rest
-        a, b = (0.0, tau1) if is_maximum else (tau1, tau1 + math.pi / omega)
+        at_tau1 = excess(tau1)[0]
+        if at_tau1 + d > 0.0:
+            a, b = 0.0, tau1
+        else:
+            a, b = tau1, tau1 + math.pi / omega
+            at_b = excess(b)[0]
+            if at_b <= 0.0:
+                return math.inf
+            # Between a minimum and the next maximum y is close to half a cosine: its crossing
+            # is Newton's start, a few iterations from the root when the damping is light.
+            half = 0.5 * (at_b - at_tau1)
+            cosine = min(1.0, max(-1.0, (0.5 * (at_b + at_tau1)) / half))
+            guess = a + (b - a) * math.acos(cosine) / math.pi
     else:
         # Critically or over-damped: at most one extremum, then a monotone approach to rest.
         mu = math.sqrt(disc)
@@ -160,9 +168,9 @@ def time_to_departure(ball: Ball, h0: float, v0: float, F_ext: float = 0.0) -> f
                 return math.inf
         else:
             return math.inf
-    if excess(b)[0] <= 0.0:
+    if guess is None and excess(b)[0] <= 0.0:
         return math.inf
-    return _polish_root(excess, a, b)
+    return _polish_root(excess, a, b, guess, at_tau1 if guess is not None else None)
 
 
 def _overdamped_extremum(v0: float, q: float, mu: float) -> float | None:
@@ -181,11 +189,15 @@ def _overdamped_extremum(v0: float, q: float, mu: float) -> float | None:
     return math.log1p(x) / (2.0 * mu)
 
 
-def _polish_root(f, a: float, b: float) -> float:
-    """Root of an increasing f on [a, b] with f(a) <= 0 < f(b); f returns (value, derivative)."""
-    if f(a)[0] >= 0.0:
+def _polish_root(f, a: float, b: float, guess: float | None = None, f_a: float | None = None) -> float:
+    """Root of an increasing f on [a, b] with f(a) <= 0 < f(b); f returns (value, derivative).
+
+    Newton from guess (default: the middle), safeguarded by bisection of the bracket; f_a is f(a)
+    if the caller knows it.
+    """
+    if (f(a)[0] if f_a is None else f_a) >= 0.0:
         return a
-    x = 0.5 * (a + b)
+    x = guess if guess is not None and a < guess < b else 0.5 * (a + b)
     best, best_abs = b, math.inf
     for _ in range(200):
         fx, dfx = f(x)
