@@ -17,7 +17,7 @@ import numpy as np
 from ..accuracy import Accuracy
 from ..scenes import Scene
 from . import runners
-from .runners import ARTICLE, EXACT, FmuPaths, Run, Solver
+from .runners import ARTICLE, EXACT, EXACT_EVALUATION, FmuPaths, Run, Solver
 
 DENSE = 1e-3  # the article's 1 ms output grid [s]
 SPARSE = 0.1  # a sparse grid, where output overhead does not dominate [s]
@@ -84,7 +84,8 @@ def solvers(section: str, settings: Settings) -> list[Solver]:
     fmus = [runners.fmu(step) for step in settings.comm_steps] if section == "dense" else []
     floors = [runners.empty_slave(step) for step in settings.comm_steps] if section == "dense" else []
     peers = [ARTICLE, *(runners.scipy(method) for method in runners.SCIPY_METHODS)]
-    return [*ours, *fmus, *floors, *peers, EXACT]
+    evaluation = [EXACT_EVALUATION] if section == "dense" else []
+    return [*ours, *fmus, *floors, *peers, EXACT, *evaluation]
 
 
 def make_points(settings: Settings) -> list[Point]:
