@@ -259,6 +259,31 @@ def test_a_hovering_ball_stays_put_without_a_warning(g, h0, F_ext):
     assert result.events == []
 
 
+@pytest.mark.parametrize("zeta", [0.5, 1.01])
+@pytest.mark.parametrize("solver", ["exact", "cvode-sksundae", "cvode-compiled"])
+def test_a_lift_too_small_to_move_the_rest_height_off_r_still_lifts_the_ball_off(zeta, solver):
+    """Weightless and pushed up by F_ext, the ball rests at R + F_ext/k, above R: it must leave and fly off at
+    F_ext/m. Here F_ext/k is below half an ulp of R, so R + F_ext/k rounds to R; every solver once measured the
+    departure as h - R on that rounded rest height, never saw it turn positive and kept the ball at R."""
+    m, k, R, F_ext = 1e-5, 3e11, 0.6, 1.5e-5
+    h0, v0 = R - 2e-10, 1e-3
+    ball = bb.Ball(m=m, k=k, b=2.0 * zeta * math.sqrt(k * m), R=R, g=0.0)
+    assert ball.rest_height(F_ext) == R and F_ext / k > 0.0
+    name, _, engine = solver.partition("-")
+    if engine == "compiled":
+        pytest.importorskip("numba")
+    result = bb.simulate(ball, h0, v0, 1.0, 0.1, name, F_ext=F_ext, **({"engine": engine} if engine else {}))
+    assert [str(event.kind) for event in result.events] == ["departure"]
+    departure = result.events[0].time
+    assert 0.0 < departure < 1e-6
+    # Then free flight from R under the lift alone, at a departure speed no larger than the oscillator's energy
+    # allows: sqrt(v0^2 + (k/m) (h0 - rest height)^2).
+    tau = result.t[result.t > departure] - departure
+    v_bound = math.sqrt(v0**2 + k / m * (h0 - R - F_ext / k) ** 2)
+    rise = result.h[result.t > departure] - R - 0.5 * (F_ext / m) * tau**2
+    assert np.all(rise >= -1e-12) and np.all(rise <= v_bound * tau + 1e-12)
+
+
 def test_a_killed_process_leaves_no_sundials_log_behind(tmp_path):
     """A worker killed mid-run (a time cap, a lost node) must not litter the temporary folder."""
     import subprocess
