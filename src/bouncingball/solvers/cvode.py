@@ -565,11 +565,11 @@ class BallIntegrator:
             roots = self._roots_found(mode) if result.status == _CV_ROOT_RETURN else [0, 0, 0]
             root, resting = bool(roots[0]), bool(roots[2])
             if root:
-                t_root, h_root, v_root = self._polish_event((ts[-2], hs[-2], vs[-2]), (ts[-1], hs[-1], vs[-1]))
-                ts[-1], hs[-1], vs[-1] = t_root, h_root, v_root
-                self._check_side(ts[-2], hs[:-1].min(), hs[:-1].max())
+                (t0, t1), (h0, h1), (v0, v1) = ts[-2:].tolist(), hs[-2:].tolist(), vs[-2:].tolist()
+                ts[-1], hs[-1], vs[-1] = self._polish_event((t0, h0, v0), (t1, h1, v1))
+                self._check_step_ends(t0, hs[:-1])
             else:
-                self._check_side(ts[-1], hs.min(), hs.max())
+                self._check_step_ends(float(ts[-1]), hs)
             self._clear_roots(mode)
             # A phase's first point is the previous phase's last: one copy per mode, so that no
             # dense-output segment straddles the switch.
@@ -681,10 +681,10 @@ class BallIntegrator:
             tau -= (h - R) / v
             if not abs(tau) <= bound:
                 return t_root, h_root, v_root
-            h, v = (float(x) for x in ball.flow(mode, h_root, v_root, tau, F_ext))
+            h, v = ball.flow(mode, h_root, v_root, tau, F_ext)
         if not abs(h - R) <= 4.0 * math.ulp(R):
             return t_root, h_root, v_root
-        return t_root + tau, R, v
+        return t_root + tau, R, float(v)
 
     def _check_side(self, t: float, lowest: float, highest: float) -> None:
         """Step ends must lie on the mode's side of R: else CVODE stepped over an event unseen."""
@@ -694,6 +694,11 @@ class BallIntegrator:
             raise SolverError(f"CVODE stepped over an {'impact' if flight else 'departure'} unseen near "
                               f"t = {t!r} s (h = {float(lowest if flight else highest)!r} m, R = {R!r} m); "
                               "the result would be wrong: tighten rtol/atol or set max_step")
+
+    def _check_step_ends(self, t: float, heights: np.ndarray) -> None:
+        """_check_side for a phase's step ends up to t: only the extreme on the side an unseen event would leave."""
+        extreme = float(heights.min() if self._mode == Mode.FLIGHT else heights.max())
+        self._check_side(t, extreme, extreme)
 
     def _close_enough(self, t_target: float) -> bool:
         """Within a few ulps of t_target CVODE refuses to step (CV_TOO_CLOSE): finish by Taylor."""

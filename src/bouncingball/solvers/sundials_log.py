@@ -33,6 +33,9 @@ except (OSError, AttributeError):  # no process-wide C library to reach (Windows
     _fflush = None
 
 
+_NOTHING_TO_DO = contextlib.nullcontext()
+
+
 class SundialsWarning(RuntimeWarning):
     """A warning SUNDIALS issued while integrating (its text, one per cause)."""
 
@@ -57,12 +60,13 @@ class SundialsLog:
         self._causes: set[str] = set()
         self._remove = weakref.finalize(self, _remove, self._descriptor, self.path)
 
-    @contextlib.contextmanager
     def capturing(self):
         """Around a solver call: the first one makes SUNDIALS open this log's file."""
-        if self._opened:
-            yield
-            return
+        # a solver makes one call per phase: once the file is open, the cheapest context there is
+        return _NOTHING_TO_DO if self._opened else self._opening()
+
+    @contextlib.contextmanager
+    def _opening(self):
         previous = os.environ.get(ENVIRONMENT_VARIABLE)
         os.environ[ENVIRONMENT_VARIABLE] = self.path
         try:
