@@ -202,3 +202,14 @@ def test_departure_search_converges_by_newton(monkeypatch):
     solution = ExactSolution(Ball(), 2.0, 0.0, 0.0, 8.0)
     assert len(evaluations) == len(solution.events) // 2 + 1  # each departure, and the search that finds none
     assert max(evaluations) <= 5, evaluations
+
+
+def test_a_contact_that_does_not_move_leaves_without_dividing_by_zero():
+    """At its (rounded) rest height with v0 ~ 0, a contact's next minimum and maximum are equal (found by hypothesis:
+    the departure search's starting guess divided by their difference). Forces of 1e-15 N on 1 kg move it by at most
+    0.5 * 1e-15 * t^2 m."""
+    ball = Ball(m=1.0, k=10.0, b=0.0, R=1.0, g=0.0)
+    F_ext = 1e-15
+    solution = ExactSolution(ball, ball.rest_height(F_ext), -2.225073858507203e-309, 0.0, 3.0, F_ext)
+    h, _ = solution.state(np.linspace(0.0, 3.0, 301))
+    assert np.max(np.abs(h - ball.R)) <= 0.5 * F_ext * 3.0**2 + 4 * math.ulp(ball.R)

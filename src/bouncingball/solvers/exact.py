@@ -148,8 +148,9 @@ def time_to_departure(ball: Ball, h0: float, v0: float, F_ext: float = 0.0) -> f
             # Between a minimum and the next maximum y is close to half a cosine: its crossing
             # is Newton's start, a few iterations from the root when the damping is light.
             half = 0.5 * (at_b - at_tau1)
-            cosine = min(1.0, max(-1.0, (0.5 * (at_b + at_tau1)) / half))
-            guess = a + (b - a) * math.acos(cosine) / math.pi
+            if half > 0.0:  # else the ball does not move (y constant): Newton starts in the middle
+                cosine = min(1.0, max(-1.0, (0.5 * (at_b + at_tau1)) / half))
+                guess = a + (b - a) * math.acos(cosine) / math.pi
     else:
         # Critically or over-damped: at most one extremum, then a monotone approach to rest.
         mu = math.sqrt(disc)
