@@ -131,3 +131,16 @@ def test_the_bench_package_imports_nothing_heavy():
             "('scipy', 'matplotlib', 'fmpy', 'pythonfmu', 'tqdm')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_fmu_steps_table_has_every_case_and_the_first_uses(markdown):
+    section = markdown.split("### Per doStep, call by call")[1].split("## Stiff scenes")[0]
+    for slave in ("empty pythonfmu slave", "FMU, engine sksundae", "FMU, engine compiled"):
+        for state in ("no", "yes"):
+            assert re.search(rf"^\| {slave} \| {state} \| \d+\.\d \| \d+\.\d \| \d+\.\d\d \|  \|$", section, re.M), (
+                slave, state)
+    for engine in ("sksundae", "compiled"):
+        for cache in ("cold", "warm"):
+            assert re.search(rf"^\| {engine} \| {cache} \| \d+\.\d\d \|  \|$", section, re.M), (engine, cache)
+    assert re.search(r"^Engine compiled (pays back its longer first use after [\d,]+ doSteps|did not make)", section,
+                     re.M)

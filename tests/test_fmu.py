@@ -52,6 +52,7 @@ def test_model_description_has_units_ranges_and_start_values(fmu):
     assert float(variables["F_ext"].start) == 0.0
     assert (float(variables["rtol"].start), float(variables["atol"].start), variables["method"].start) == (
         settings.rtol, settings.atol, "auto")
+    assert variables["engine"].start == "sksundae"  # not "auto": numba's first use in a process costs seconds
     assert float(variables["m"].min) == SMALLEST_POSITIVE and float(variables["rtol"].max) == 1.0
     assert float(variables["b"].min) == 0.0 and float(variables["g"].min) == 0.0
 
@@ -299,6 +300,7 @@ def test_two_instances_with_different_g_stay_independent(unzipped):
     ("rtol", 2.0, "rtol = 2.0 is not allowed: it must be in (0, 1]"),
     ("atol", 0.0, "atol = 0.0 is not allowed: it must be finite and > 0"),
     ("method", "RK4", "method = 'RK4' is not allowed: it must be one of auto, Adams, BDF"),
+    ("engine", "fast", "engine = 'fast' is not allowed: it must be one of auto, compiled, sksundae"),
 ])
 def test_invalid_parameter_gives_fmi2Error_with_a_message(unzipped, name, value, expected):
     ball = Instance(unzipped, f"bad_{name}")

@@ -11,8 +11,8 @@ given, and says how far the heights are from it and whether the impacts column c
 
 The run starts at start_time (0 unless given: the FMU's default experiment starts at 0), from the
 scene's (h0, v0) with the start values applied; the CSV need not hold that first point (libcosim's
-observers start after the first step); the FMU's solver settings (rtol, atol, method) are accepted and do not change the
-exact solution.
+observers start after the first step); the FMU's solver settings (rtol, atol, method, engine) are accepted
+and do not change the exact solution.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from .scenes import BALL_KEYS, Scene, load_scene
 DEFAULT_TOLERANCE = 1e-6  # m
 IMPACT_TIE = 1e-6  # s: a point this close to an impact may count it or not
 # The FMU's start values that set up the run, by the scene field each one sets; the others (rtol,
-# atol, method) are solver settings, which the exact solution has no use for.
+# atol, method, engine) are solver settings, which the exact solution has no use for.
 SCENE_FIELD_OF_START_VALUE = {**{key: key for key in BALL_KEYS}, "h": "h0", "v": "v0", "F_ext": "F_ext"}
 SOLVER_SETTINGS = tuple(v.name for v in VARIABLES if v.causality == "parameter" and v.name not in BALL_KEYS)
 
@@ -215,7 +215,7 @@ def scene_with_start_values(scene: Scene | str | Path = "article",
     """The scene a master ran, given the start values it set on the FMU.
 
     The FMU's parameters m, k, b, R, g set the ball, the start values of h and v the initial
-    state, and F_ext (held constant) the external force; rtol, atol and method are accepted and
+    state, and F_ext (held constant) the external force; rtol, atol, method and engine are accepted and
     ignored (they do not change the exact solution).
 
     Parameters

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from ..scenes import Scene
 from .environment import environment_lines
+from .fmu_steps import EMPTY, ENGINES, FmuStepCosts
 from .stability import EXTRA_SCENES, CostPerEvent, Outcome, stability_solvers
 from .targets import MATCHED_ERRORS, all_targets, fmu_step_costs, per_step
 from .text import events_text, ms, num, rtol_text, table
@@ -38,8 +40,8 @@ def _matched_table(points: list[Point], section: str) -> list[str]:
     return table(["solver", *(f"time at {e:.0e} m [ms]" for e in MATCHED_ERRORS)], rows)
 
 
-def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: CostPerEvent, settings: Settings,
-                        quick: bool, environment: dict[str, str], path: Path) -> Path:
+def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: CostPerEvent, step_costs: FmuStepCosts,
+                        settings: Settings, quick: bool, environment: dict[str, str], path: Path) -> Path:
     targets = all_targets(points, stiff, per_event)
     kind = "a QUICK run: few tolerances and repeats, not the published numbers" if quick else "the full run"
     lines = [
@@ -94,6 +96,8 @@ def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: Co
                 [[f.solver.label, rtol_text(f.rtol), f"{per_step(f) * 1e6:.1f}", f"{per_step(e) * 1e6:.1f}",
                   f"{per_step(f) / per_step(e):.2f}"] for f, e in fmu_step_costs(points) if f.status == "ok"]),
         "",
+        *_fmu_steps_section(step_costs),
+        "",
         "## Stiff scenes",
         "",
         f"Each run in a child process killed after {settings.stiff_cap:g} s; CVODE auto at its defaults (median of "
@@ -119,6 +123,53 @@ def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: Co
     ]
     path.write_text("\n".join(lines), encoding="utf-8")
     return path
+
+
+def _us(seconds: float) -> str:
+    return "" if math.isnan(seconds) else f"{seconds * 1e6:.1f}"
+
+
+def _fmu_steps_section(costs: FmuStepCosts) -> list[str]:
+    lines = [
+        "### Per doStep, call by call, and the first use of each engine",
+        "",
+        f"Each FMU driven through FMPy's `FMU2Slave` in a fresh process, the article at the FMU's defaults, "
+        f"{costs.steps} doSteps of {costs.step * 1e3:g} ms: only the doStep calls are timed (median and min of "
+        f"{costs.repeats} runs after an untimed one, round-robin over the cases), neither the instantiation nor "
+        "any output reading. With a state: `fmi2GetFMUstate` before every doStep (the previous state freed), as a "
+        "master that may reject steps does.",
+        "",
+    ]
+    if costs.note:
+        return [*lines, f"Not measured: {costs.note}."]
+    floor = {take: costs.per_step(EMPTY, take) for take in (False, True)}
+    rows = []
+    for cost in costs.costs:
+        median = cost.median
+        rows.append([cost.slave if cost.slave == EMPTY else f"FMU, engine {cost.slave}", "yes" if cost.take_state
+                     else "no", _us(median), _us(min(cost.times)) if cost.times else "",
+                     "" if math.isnan(median) else f"{median / floor[cost.take_state]:.2f}", cost.note])
+    header = ["slave", "state at every step", "per doStep [us]", "min [us]", "x empty slave (same state)", "note"]
+    lines += table(header, rows)
+    lines += [
+        "",
+        "First use: from loading the FMU's binary to the end of its first doStep, each in a fresh process; "
+        "cold: a folder just unzipped (as `simulate_fmu` unzips every run), so numba's disk cache is empty; "
+        "warm: the same folder a second time.",
+        "",
+        *table(["engine", "numba cache", "first use [s]", "note"],
+               [[f.engine, f.cache, "" if math.isnan(f.seconds) else f"{f.seconds:.2f}", f.note]
+                for f in costs.first_use]),
+        "",
+    ]
+    even = {cache: costs.break_even(cache) for cache in ("cold", "warm")}
+    if all(math.isnan(n) for n in even.values()):
+        lines.append("Engine compiled did not make a doStep cheaper here: it never pays back its first use.")
+    else:
+        lines.append("Engine compiled pays back its longer first use after " + " and ".join(
+            f"{n:,.0f} doSteps ({cache} cache)" for cache, n in even.items() if not math.isnan(n))
+            + f", from the medians above ({', '.join(ENGINES)} without a state).")
+    return lines
 
 
 def _stiff_table(stiff: list[Outcome]) -> list[str]:

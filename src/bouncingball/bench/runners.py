@@ -27,7 +27,7 @@ class Solver:
     kind: str
     method: str = ""
     comm_step: float = 0.0  # FMU communication step [s]
-    engine: str = ""  # CVODE: "sksundae" or "compiled"
+    engine: str = ""  # CVODE and the FMU: "sksundae" or "compiled"
 
     @property
     def takes_tolerances(self) -> bool:
@@ -48,8 +48,10 @@ def scipy(method: str) -> Solver:
     return Solver(f"solve_ivp {method}", "scipy", method)
 
 
-def fmu(comm_step: float) -> Solver:
-    return Solver(f"FMU via FMPy, {comm_step * 1e3:g} ms", "fmu", comm_step=comm_step)
+def fmu(comm_step: float, engine: str = "sksundae") -> Solver:
+    """The FMU with its parameter engine; the label names the engine unless it is the FMU's default."""
+    suffix = "" if engine == "sksundae" else f" ({engine})"
+    return Solver(f"FMU via FMPy{suffix}, {comm_step * 1e3:g} ms", "fmu", comm_step=comm_step, engine=engine)
 
 
 def empty_slave(comm_step: float) -> Solver:
@@ -79,11 +81,15 @@ class Run:
 
 @dataclass(frozen=True)
 class FmuPaths:
-    """Extracted FMUs: the ball, and the empty slave that measures the overhead floor; error if the build failed."""
+    """Extracted FMUs: the ball, and the empty slave that measures the overhead floor; error if the build failed.
+
+    ball_fmu: the ball's .fmu file, to unzip afresh (numba's cache is then cold, as in simulate_fmu).
+    """
 
     ball: Path | None
     empty: Path | None
     error: str = ""
+    ball_fmu: Path | None = None
 
 
 def run_solver(solver: Solver, scene: Scene, output_interval: float, rtol: float | None = None,
@@ -133,6 +139,12 @@ def _run_fmu(solver: Solver, scene: Scene, tolerances: dict, fmus: FmuPaths | No
         path, output = fmus.ball, ["h", "v", "impacts"] if record else ["h"]
         start_values = {**{key: getattr(scene.ball, key) for key in BALL_KEYS}, "h": scene.h0, "v": scene.v0,
                         "F_ext": scene.F_ext, **tolerances}
+        if solver.engine:
+            start_values["engine"] = solver.engine
+        if solver.engine == "compiled":  # where it cannot run here, it cannot in the FMU: say why
+            from ..solvers.cvode import choose_engine
+
+            choose_engine("compiled")
     started = time.perf_counter()
     result = simulate_fmu(str(path), start_time=0.0, stop_time=scene.t_end, output_interval=solver.comm_step,
                           start_values=start_values, output=output)
@@ -184,4 +196,4 @@ def build_fmus(directory: Path) -> FmuPaths:
     except Exception as error:  # no compiler, unsupported platform...: the FMU rows say why
         return FmuPaths(None, None, f"{type(error).__name__}: {error}")
     return FmuPaths(Path(extract(str(ball), str(directory / "ball"))),
-                    Path(extract(str(empty), str(directory / "empty"))))
+                    Path(extract(str(empty), str(directory / "empty"))), ball_fmu=Path(ball))

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import tempfile
 from pathlib import Path
 
 from ..scenes import load_scene
-from . import runners, stability, work_precision
+from . import fmu_steps, runners, stability, work_precision
 from .environment import environment
 from .pages import write_benchmarks_md, write_stability_md
 from .plots import plot_work_precision
@@ -25,15 +26,21 @@ def run_benchmark(output_dir: Path, quick: bool = False) -> list[Path]:
         pass  # its rows say why
     with tempfile.TemporaryDirectory(prefix="bouncingball_bench_") as temp:
         fmus = runners.build_fmus(Path(temp))
+        try:  # the FMU's compiled engine too: its first use (seconds) is timed apart, by fmu_steps
+            runners.run_solver(runners.fmu(work_precision.DENSE, "compiled"), dataclasses.replace(scene, t_end=0.01),
+                               work_precision.DENSE, fmus=fmus, record=False)
+        except Exception:  # no numba, no FMU...: its rows say why
+            pass
         points = work_precision.make_points(settings)
         work_precision.sweep(scene, points, settings, fmus)
+        step_costs = fmu_steps.measure(fmus, work_precision.DENSE, scene.t_end, settings.repeats)
     stiff = stability.run_cases(stability.stiff_cases(), settings.stiff_cap, desc="stiff scenes")
     per_event = stability.cost_per_event(settings.undamped_t_end)
     written = [
         write_work_precision_csv(points, output_dir / work_precision.CSV_FILE),
         work_precision.save_h(points, output_dir / work_precision.H_FILE),
         plot_work_precision(points, output_dir / "work_precision.png"),
-        write_benchmarks_md(points, stiff, per_event, settings, quick, machine,
+        write_benchmarks_md(points, stiff, per_event, step_costs, settings, quick, machine,
                             output_dir / "benchmarks.md"),
     ]
     return written

@@ -170,7 +170,7 @@ def target_fmu(points: list[Point]) -> Target:
     """(c): the FMU's doStep at 1 ms against the empty slave's, at the swept tolerance nearest the FMU's default."""
     goal = f"the FMU through FMPy at a 1 ms step: time per doStep <= {FMU_FLOOR_RATIO:g}x the empty pythonfmu slave's"
     candidates = [(fmu, empty) for fmu, empty in fmu_step_costs(points)
-                  if fmu.solver.comm_step == DENSE and fmu.status == "ok"]
+                  if fmu.solver.comm_step == DENSE and fmu.status == "ok" and fmu.solver.engine == "sksundae"]
     if not candidates:
         return Target("c", goal, False, "the FMU did not run: " + "; ".join(
             {p.note for p, _ in fmu_step_costs(points) if p.note}))
@@ -184,6 +184,11 @@ def target_fmu(points: list[Point]) -> Target:
     measured = (f"at rtol {rtol_text(fmu.rtol)}: FMU {ours * 1e6:.1f} us per doStep, empty slave {floor * 1e6:.1f} us, "
                 f"ratio {ratio:.2f} (medians of whole runs / {fmu.steps} steps, instantiation included; from min "
                 f"times {fmu.minimum / empty.minimum:.2f}).")
+    compiled = [f for f, _ in fmu_step_costs(points) if f.solver.label == runners.fmu(DENSE, "compiled").label
+                and f.rtol == fmu.rtol and f.status == "ok"]
+    if compiled:
+        measured += (f" With engine compiled: {per_step(compiled[0]) * 1e6:.1f} us per doStep, ratio "
+                     f"{per_step(compiled[0]) / floor:.2f} (its first use in the process is not in these runs).")
     if not met:
         measured += (f" Reason: on top of the floor each doStep runs one CVODE advance (BallIntegrator.advance: "
                      "a scikit-sundae step() call and the Python right-hand-side calls of the internal steps in "

@@ -81,7 +81,8 @@ class Point:
 def solvers(section: str, settings: Settings) -> list[Solver]:
     """The solvers of a section, in the order of the tables."""
     ours = [runners.cvode(method) for method in ("Adams", "BDF", "auto")] + [runners.CVODE_COMPILED]
-    fmus = [runners.fmu(step) for step in settings.comm_steps] if section == "dense" else []
+    fmus = ([runners.fmu(step, engine) for engine in ("sksundae", "compiled") for step in settings.comm_steps]
+            if section == "dense" else [])
     floors = [runners.empty_slave(step) for step in settings.comm_steps] if section == "dense" else []
     peers = [ARTICLE, *(runners.scipy(method) for method in runners.SCIPY_METHODS)]
     evaluation = [EXACT_EVALUATION] if section == "dense" else []

@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 import warnings
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 from pythonfmu import Boolean, Fmi2Slave, Integer, Real, String
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
@@ -30,7 +31,10 @@ from .variables import VARIABLES
 
 # The namespace of each run of the FMU's slave script, kept alive for pythonfmu 0.7 (see that script).
 SCRIPT_NAMESPACES: list[dict] = []
-STATE_FORMAT = "bouncingball-fmu-state-2"
+STATE_FORMAT = "bouncingball-fmu-state-3"  # 3: the parameter engine
+# Not "auto" as in process: the FMU's copy of the package is unzipped afresh by most masters, so numba's cache
+# (keyed by the source's path) is cold in each new process, and the compiled engine's first use costs seconds.
+DEFAULT_ENGINE = "sksundae"
 SETTABLE_AFTER_INITIALISATION = ("F_ext",)
 # Outputs the slave computes: a master may set the start values of h and v (initial="exact"), not these.
 COMPUTED_OUTPUTS = tuple(v.name for v in VARIABLES if v.causality == "output" and v.initial != "exact")
@@ -50,13 +54,15 @@ class BouncingBall(Fmi2Slave):
         resources = kwargs.get("resources")
         while resources is not None and sys.path.count(resources) > 1:
             sys.path.remove(resources)
+        if resources is not None:
+            _search_package_in(resources)
         # The values set by the master: parameters, start values of h and v, and the input F_ext. The
         # defaults are the article's; they are not read from the package's data files, because a master
         # (FMPy) may delete the unzipped FMU whose modules this process keeps using.
         ball, settings = Ball(), CvodeSettings()
         self._values = {**{key: getattr(ball, key) for key in BALL_KEYS}, "h": SCENE_DEFAULTS["h0"],
                         "v": SCENE_DEFAULTS["v0"], "F_ext": SCENE_DEFAULTS["F_ext"], "rtol": settings.rtol,
-                        "atol": settings.atol, "method": settings.method}
+                        "atol": settings.atol, "method": settings.method, "engine": DEFAULT_ENGINE}
         self._start_time = 0.0
         self._stop_time: float | None = None
         self._tolerance: float | None = None
@@ -84,7 +90,7 @@ class BouncingBall(Fmi2Slave):
             if self._stop_time is not None:  # refuse now what could not be integrated up to the stop time
                 check_resolvable(integrator.ball, validation.finite("stopTime", self._stop_time, "s"))
             self._integrator = integrator
-        except ValueError as error:
+        except (ValueError, ImportError) as error:  # ImportError: the compiled engine cannot run here, and why
             self._error(error)
 
     def do_step(self, current_time, step_size):
@@ -140,7 +146,7 @@ class BouncingBall(Fmi2Slave):
                 if integrator is None or (integrator.ball, integrator.settings) != (ball, settings):
                     integrator = BallIntegrator(ball, values["h"], values["v"], start_time, values["F_ext"], settings)
                 integrator.set_state(IntegratorState(**saved))  # checks every field before it changes any
-        except (KeyError, TypeError, ValueError) as error:
+        except (KeyError, TypeError, ValueError, ImportError) as error:
             self._error(f"fmi2SetFMUstate failed, nothing was changed: {error}")
             return
         self._values, self._start_time, self._stop_time, self._tolerance = values, start_time, stop_time, tolerance
@@ -199,11 +205,16 @@ class BouncingBall(Fmi2Slave):
         rtol = values["rtol"]
         if tolerance is not None:
             rtol = validation.in_range("tolerance (fmi2SetupExperiment, used as rtol)", tolerance, 0.0, 1.0)
-        return ball, CvodeSettings(rtol=rtol, atol=values["atol"], method=values["method"], engine="sksundae")
+        return ball, CvodeSettings(rtol=rtol, atol=values["atol"], method=values["method"], engine=values["engine"])
 
-    def _make_integrator(self) -> BallIntegrator:
-        """An integrator at the start state; ValueError names a bad value."""
+    def _make_integrator(self, engine: str | None = None) -> BallIntegrator:
+        """An integrator at the start state (on engine if given); ValueError names a bad value.
+
+        ImportError: the engine asked for is "compiled" and cannot run here (the message says why).
+        """
         ball, settings = self._ball_and_settings()
+        if engine is not None:
+            settings = replace(settings, engine=engine)
         values = self._values
         h, v = validation.finite("h", values["h"], "m"), validation.finite("v", values["v"], "m/s")
         return BallIntegrator(ball, h, v, self._start_time, values["F_ext"], settings)
@@ -211,9 +222,27 @@ class BouncingBall(Fmi2Slave):
     def _preview(self) -> BallIntegrator | None:
         """Before initialisation, outputs are those of the start state (None if a value is invalid)."""
         try:
-            return self._make_integrator()
+            # The start state's outputs do not depend on the engine: no numba for a preview.
+            return self._make_integrator(engine="sksundae")
         except ValueError:
             return None
 
     def _error(self, error) -> None:
         self.log(str(error), Fmi2Status.error)
+
+
+def _search_package_in(resources: str) -> None:
+    """Import the package's modules not imported yet (the compiled engine) from this instance's copy too.
+
+    The process keeps the package's modules of the first instance, whose unzipped folder a master
+    (FMPy) may since have deleted; this instance's copy has the same sources (the package's name is
+    their digest). Folders that are gone are dropped, so the search path stays short.
+    """
+    root = __name__.split(".")[0]
+    for name, module in list(sys.modules.items()):
+        path = getattr(module, "__path__", None)
+        if path is None or not (name == root or name.startswith(root + ".")):
+            continue
+        folder = os.path.join(resources, *name.split("."))
+        if os.path.isdir(folder):
+            path[:] = [entry for entry in path if entry != folder and os.path.isdir(entry)] + [folder]

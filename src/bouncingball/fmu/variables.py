@@ -62,6 +62,11 @@ VARIABLES = (
                 min=SMALLEST_POSITIVE),
     FmuVariable("method", "String", "parameter", "fixed", "CVODE method: auto (Adams in flight, BDF for a "
                 "stiff contact), Adams or BDF"),
+    FmuVariable("engine", "String", "parameter", "fixed", "CVODE engine: sksundae (scikit-sundae's CVODE), "
+                "compiled (the same CVODE with callbacks compiled by numba, which the Python running the FMU "
+                "must have) or auto (compiled where numba is installed, else sksundae); compiled makes each "
+                "doStep cheaper but its first use in a process takes seconds, so it pays only in a long "
+                "co-simulation"),
 )
 
 

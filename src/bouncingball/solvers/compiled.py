@@ -247,15 +247,19 @@ _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_
 (_P_M, _P_K, _P_B, _P_R, _P_G, _P_F_EXT, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
  _P_SIZE) = range(14)
 
-_acceleration = njit(physics.mode_acceleration, cache=True)
-_rest_margin = njit(physics.rest_margin_value, cache=True)
-_static_deflection = njit(physics.static_deflection_value, cache=True)
-_effective_gravity = njit(physics.effective_gravity_value, cache=True)
+# numba keys its disk cache by the source file; where a source is gone (an FMU's copy of the package,
+# whose unzipped folder the master deleted after the process imported physics from it), it compiles afresh.
+_CACHE = os.path.isfile(physics.__file__) and os.path.isfile(__file__)
+
+_acceleration = njit(physics.mode_acceleration, cache=_CACHE)
+_rest_margin = njit(physics.rest_margin_value, cache=_CACHE)
+_static_deflection = njit(physics.static_deflection_value, cache=_CACHE)
+_effective_gravity = njit(physics.effective_gravity_value, cache=_CACHE)
 
 _callback_data = types.CPointer(types.intp)
 
 
-@cfunc(types.int32(types.float64, types.intp, types.intp, _callback_data), cache=True)
+@cfunc(types.int32(types.float64, types.intp, types.intp, _callback_data), cache=_CACHE)
 def _rhs(t, y, ydot, user_data):
     u = carray(user_data, _U_SIZE)
     p = carray(_doubles(u[_U_PARAMETERS]), _P_SIZE)
@@ -266,7 +270,7 @@ def _rhs(t, y, ydot, user_data):
     return 0
 
 
-@cfunc(types.int32(types.float64, types.intp, types.CPointer(types.float64), _callback_data), cache=True)
+@cfunc(types.int32(types.float64, types.intp, types.CPointer(types.float64), _callback_data), cache=_CACHE)
 def _roots(t, y, gout, user_data):
     u = carray(user_data, _U_SIZE)
     p = carray(_doubles(u[_U_PARAMETERS]), _P_SIZE)
@@ -286,7 +290,7 @@ def _roots(t, y, gout, user_data):
 
 
 @cfunc(types.int32(types.float64, types.intp, types.intp, types.intp, _callback_data, types.intp, types.intp,
-                   types.intp), cache=True)
+                   types.intp), cache=_CACHE)
 def _jacobian(t, y, fy, matrix, user_data, tmp1, tmp2, tmp3):
     u = carray(user_data, _U_SIZE)
     p = carray(_doubles(u[_U_PARAMETERS]), _P_SIZE)
@@ -304,7 +308,7 @@ _CVODE, _ROOT_INFO, _REINIT, _SET_STOP, _CLEAR_STOP, _NUM_RHS = range(len(_LOOP_
 _BUFFER_FULL = 99
 
 
-@njit(cache=True)
+@njit(cache=_CACHE)
 def _steps(f, memory, vector, state, t_end, out, count, one_step, work):
     """CVODE steps from its current point towards t_end until a terminal root, t_end, an error or a full buffer.
 
@@ -332,7 +336,7 @@ def _steps(f, memory, vector, state, t_end, out, count, one_step, work):
             return _BUFFER_FULL, count
 
 
-@njit(cache=True)
+@njit(cache=_CACHE)
 def _start_phase(f, memory, vector, state, t0, h0, v0, t_end, reinit, out, work, counter):
     """Restart CVODE at (t0, h0, v0) with t_end as stop time and take its steps, as _steps.
 
@@ -358,7 +362,7 @@ def _start_phase(f, memory, vector, state, t0, h0, v0, t_end, reinit, out, work,
     return flag, count, 0
 
 
-@njit(cache=True)
+@njit(cache=_CACHE)
 def _finish_phase(f, memory, counter):
     """Clear the stop time; returns its flag and CVODE's right-hand-side evaluations in counter[0]."""
     flag = _call_i1(f[_CLEAR_STOP], memory)

@@ -1,0 +1,219 @@
+"""What one fmi2DoStep costs, and what the first use of each CVODE engine costs, with the FMU driven call by call.
+
+The FMU rows of the work-precision sweep time whole `simulate_fmu` runs, which also instantiate the
+FMU and read every output at every step. Here a fresh Python process drives each FMU through FMPy's
+FMU2Slave and times the doStep calls alone: the empty pythonfmu slave (the floor any pythonfmu slave
+pays), the ball with engine sksundae and with engine compiled, each also with fmi2GetFMUstate taken
+before every step (what a master that may reject steps does). Each case runs once untimed (the engine's
+first use), then `repeats` times round-robin over the cases. The first use (from loading the FMU's
+binary to the end of the first doStep) is timed apart, each in its own fresh process: "cold" on a
+folder just unzipped (as FMPy's simulate_fmu unzips every run: numba's disk cache, keyed by the source
+file's path, is then empty), "warm" on the same folder a second time.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import statistics
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .runners import FmuPaths
+
+ENGINES = ("sksundae", "compiled")
+EMPTY = "empty pythonfmu slave"
+CHILD_TIMEOUT = 600.0  # s
+RESULT_MARKER = "BOUNCINGBALL_BENCH_RESULT "
+
+CHILD = r'''
+import json, sys, time
+from ctypes import byref
+
+from fmpy import read_model_description
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
+                       fmi2CallbackLoggerTYPE)
+from fmpy import calloc, free
+from fmpy.logging import addLoggerProxy
+
+job = json.loads(sys.argv[1])
+errors = []
+
+
+def logger(environment, instance_name, status, category, message):
+    if status >= 3:
+        errors.append(message.decode("utf-8", "replace"))
+
+
+callbacks = fmi2CallbackFunctions()
+callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+addLoggerProxy(byref(callbacks))
+descriptions = {}
+
+
+def start(folder, engine, name):
+    """An FMU instance after initialisation (engine: None for the empty slave)."""
+    if folder not in descriptions:
+        descriptions[folder] = read_model_description(folder)
+    description = descriptions[folder]
+    fmu = FMU2Slave(guid=description.guid, unzipDirectory=folder,
+                    modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
+    fmu.instantiate(callbacks=callbacks)
+    if engine is not None:
+        [reference] = [v.valueReference for v in description.modelVariables if v.name == "engine"]
+        fmu.setString([reference], [engine])
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    return fmu
+
+
+def steps(fmu, step, n, take_state):
+    """n doSteps of step [s]; with take_state, fmi2GetFMUstate before each (the previous one freed)."""
+    state = None
+    t = 0.0
+    started = time.perf_counter()
+    for i in range(1, n + 1):
+        if take_state:
+            if state is not None:
+                fmu.freeFMUstate(state)
+            state = fmu.getFMUstate()
+        fmu.doStep(t, i * step - t)
+        t = i * step
+    elapsed = time.perf_counter() - started
+    if state is not None:
+        fmu.freeFMUstate(state)
+    return elapsed
+
+
+try:
+    if job["mode"] == "first use":
+        started = time.perf_counter()
+        fmu = start(job["folder"], job["engine"], "first")
+        fmu.doStep(0.0, job["step"])
+        result = {"seconds": time.perf_counter() - started}
+        fmu.terminate()
+        fmu.freeInstance()
+    else:
+        cases, n = job["cases"], job["n"]
+        times = {case["key"]: [] for case in cases}
+        for repeat in range(1 + job["repeats"]):  # repeat 0: each engine's first use, untimed
+            for case in cases:
+                fmu = start(case["folder"], case["engine"], case["key"])
+                elapsed = steps(fmu, job["step"], n, case["take_state"])
+                fmu.terminate()
+                fmu.freeInstance()
+                if repeat:
+                    times[case["key"]].append(elapsed / n)
+        result = {"times": times}
+except FMICallException as error:
+    result = {"error": "; ".join(errors) or str(error)}
+print("BOUNCINGBALL_BENCH_RESULT " + json.dumps(result))
+'''
+
+
+@dataclass(frozen=True)
+class StepCost:
+    """One case: slave (EMPTY or the engine's name), whether a state is taken at every step, seconds per doStep."""
+
+    slave: str
+    take_state: bool
+    times: tuple[float, ...] = ()  # per doStep [s], one per timed repeat
+    note: str = ""
+
+    @property
+    def median(self) -> float:
+        return statistics.median(self.times) if self.times else math.nan
+
+
+@dataclass(frozen=True)
+class FirstUse:
+    """Loading the FMU and running its first doStep in a fresh process [s], numba's cache cold or warm."""
+
+    engine: str
+    cache: str  # "cold" or "warm"
+    seconds: float = math.nan
+    note: str = ""
+
+
+@dataclass
+class FmuStepCosts:
+    step: float  # communication step [s]
+    steps: int  # doSteps per timed run
+    repeats: int
+    costs: list[StepCost] = field(default_factory=list)
+    first_use: list[FirstUse] = field(default_factory=list)
+    note: str = ""  # why nothing ran
+
+    def per_step(self, slave: str, take_state: bool = False) -> float:
+        found = [c.median for c in self.costs if (c.slave, c.take_state) == (slave, take_state)]
+        return found[0] if found else math.nan
+
+    def first(self, engine: str, cache: str) -> float:
+        found = [f.seconds for f in self.first_use if (f.engine, f.cache) == (engine, cache)]
+        return found[0] if found else math.nan
+
+    def break_even(self, cache: str, take_state: bool = False) -> float:
+        """doSteps after which engine compiled has paid back its longer first use (nan: never, or not measured)."""
+        extra = self.first("compiled", cache) - self.first("sksundae", cache)
+        saved = self.per_step("sksundae", take_state) - self.per_step("compiled", take_state)
+        return extra / saved if saved > 0.0 else math.nan
+
+
+def _run_child(job: dict) -> dict:
+    completed = subprocess.run([sys.executable, "-c", CHILD, json.dumps(job)], capture_output=True, text=True,
+                               timeout=CHILD_TIMEOUT, check=False)
+    lines = [line for line in completed.stdout.splitlines() if line.startswith(RESULT_MARKER)]
+    if completed.returncode != 0 or not lines:
+        tail = (completed.stderr.strip().splitlines() or [f"exit status {completed.returncode}"])[-1]
+        return {"error": f"the measuring process failed: {tail}"}
+    return json.loads(lines[-1][len(RESULT_MARKER):])
+
+
+def _engine_unavailable() -> str:
+    """Why the compiled engine cannot run in this Python (so not in the FMU it runs either), or ""."""
+    from ..solvers.cvode import choose_engine
+
+    try:
+        choose_engine("compiled")
+    except ImportError as error:
+        return str(error)
+    return ""
+
+
+def measure(fmus: FmuPaths, step: float, t_end: float, repeats: int) -> FmuStepCosts:
+    """The six per-doStep costs and the first uses (cold and warm) of both engines, the FMU at its defaults."""
+    n = round(t_end / step)
+    result = FmuStepCosts(step, n, repeats)
+    if fmus.error or fmus.ball_fmu is None:
+        result.note = f"the FMUs could not be built: {fmus.error or 'no .fmu file'}"
+        return result
+    from fmpy import extract
+
+    unavailable = {"sksundae": "", "compiled": _engine_unavailable()}
+    with tempfile.TemporaryDirectory(prefix="bouncingball_fmu_steps_") as temp:
+        for engine in ENGINES:
+            folder = str(extract(str(fmus.ball_fmu), str(Path(temp) / engine)))
+            for cache in ("cold", "warm"):  # the same folder: the second process finds numba's cache of the first
+                if unavailable[engine]:
+                    result.first_use.append(FirstUse(engine, cache, note=unavailable[engine]))
+                    continue
+                found = _run_child({"mode": "first use", "folder": folder, "engine": engine, "step": step})
+                result.first_use.append(FirstUse(engine, cache, found.get("seconds", math.nan),
+                                                 found.get("error", "")))
+    cases = [{"key": f"{slave}|{take_state}", "slave": slave, "take_state": take_state,
+              "folder": str(fmus.empty if slave == EMPTY else fmus.ball), "engine": None if slave == EMPTY else slave}
+             for slave in (EMPTY, *ENGINES) for take_state in (False, True)]
+    runnable = [case for case in cases if not unavailable.get(case["slave"])]
+    found = _run_child({"mode": "steps", "cases": runnable, "n": n, "step": step, "repeats": repeats})
+    for case in cases:
+        note = unavailable.get(case["slave"]) or found.get("error", "")
+        times = () if note else tuple(found["times"][case["key"]])
+        result.costs.append(StepCost(case["slave"], case["take_state"], times, note))
+    return result

@@ -1,0 +1,204 @@
+"""The FMU's parameter engine: the compiled CVODE engine gives scikit-sundae's answer; where it cannot run, it says why.
+
+Every run loads the FMU in its own Python process (a crash fails that test, and numba can be hidden
+from it); the process saves its outputs, and the checks here compare them with the exact solution
+and with the other engine.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bouncingball.physics import Ball
+from fmu_helpers import exact_at
+
+pytest.importorskip("fmpy", reason="the FMU tests need the [fmu] extra")
+pytest.importorskip("pythonfmu", reason="the FMU tests need the [fmu] extra")
+
+TESTS = Path(__file__).parent
+SAME_ANSWER = 1e-12  # m: the two engines drive the same CVODE library through the same steps
+EXACT = 1e-8  # m: the FMU against the exact solution at TIGHT tolerances (measured 4.9e-10 on the article)
+
+
+def run_python(body: str, *arguments, env: dict | None = None) -> None:
+    """Run body in a fresh Python (sys.argv[1:] = arguments; fmu_helpers importable); it must print ok last."""
+    code = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {str(TESTS)!r})
+        import numpy as np
+        import fmpy
+        from fmpy import simulate_fmu
+        from fmu_helpers import TIGHT, Instance
+    """) + textwrap.dedent(body) + "\nprint('ok')\n"
+    completed = subprocess.run([sys.executable, "-c", code, *map(str, arguments)], capture_output=True, text=True,
+                               timeout=300, check=False, env={**os.environ, **(env or {})})
+    assert (completed.returncode, completed.stdout.strip().splitlines()[-1:]) == (0, ["ok"]), (
+        completed.stdout + completed.stderr)
+
+
+@pytest.fixture()
+def numba_hidden(tmp_path) -> dict:
+    """An environment whose Python cannot import numba (a package of that name that raises ImportError)."""
+    shadow = tmp_path / "shadow" / "numba"
+    shadow.mkdir(parents=True)
+    (shadow / "__init__.py").write_text('raise ImportError("numba is hidden from this process")\n')
+    return {"PYTHONPATH": os.pathsep.join(filter(None, [str(shadow.parent), os.environ.get("PYTHONPATH")]))}
+
+
+def assert_engines_agree(runs) -> None:
+    sksundae, compiled = runs["sksundae"], runs["compiled"]
+    np.testing.assert_array_equal(compiled["time"], sksundae["time"])
+    np.testing.assert_array_equal(compiled["impacts"], sksundae["impacts"])
+    assert np.max(np.abs(compiled["h"] - sksundae["h"])) <= SAME_ANSWER
+
+
+# --- the compiled engine gives the same answer -------------------------------------------------------
+def test_compiled_engine_gives_the_sksundae_answer_on_the_article_at_1ms(fmu, tmp_path):
+    """Both engines in one process, scikit-sundae's first: the compiled engine's modules are then imported
+    from the second run's unzipped copy, after FMPy deleted the first's."""
+    pytest.importorskip("numba", reason="the compiled engine needs numba")
+    run_python("""
+        runs = {engine: simulate_fmu(sys.argv[1], stop_time=8.0, output_interval=1e-3, output=["h", "impacts"],
+                                     start_values={**TIGHT, "engine": engine}) for engine in ("sksundae", "compiled")}
+        np.savez(sys.argv[2], **{f"{engine}_{name}": run[name] for engine, run in runs.items()
+                                 for name in ("time", "h", "impacts")})
+    """, fmu, tmp_path / "runs.npz")
+    saved = np.load(tmp_path / "runs.npz")
+    runs = {engine: {name: saved[f"{engine}_{name}"] for name in ("time", "h", "impacts")}
+            for engine in ("sksundae", "compiled")}
+    assert_engines_agree(runs)
+    t = runs["compiled"]["time"]
+    assert len(t) == 8001 and t[-1] == 8.0
+    h, _, impacts = exact_at(t)
+    assert np.max(np.abs(runs["compiled"]["h"] - h)) < EXACT
+    np.testing.assert_array_equal(runs["compiled"]["impacts"], impacts)
+    assert impacts[-1] == 21
+
+
+def test_compiled_engine_with_F_ext_as_input(fmu, tmp_path):
+    """F_ext = m g until t = 1 s (h = 2 + t), then 0: free flight from (3 m, 1 m/s), with bounces."""
+    pytest.importorskip("numba", reason="the compiled engine needs numba")
+    ball = Ball(m=2.0)
+    run_python("""
+        weight = float(sys.argv[3])
+        signal = np.array([(0.0, weight), (1.0, weight), (1.0, 0.0), (4.0, 0.0)],
+                          dtype=[("time", np.float64), ("F_ext", np.float64)])
+        runs = {engine: simulate_fmu(sys.argv[1], stop_time=4.0, output_interval=1e-3, input=signal,
+                                     output=["h", "impacts"],
+                                     start_values={**TIGHT, "m": 2.0, "h": 2.0, "v": 1.0, "engine": engine})
+                for engine in ("compiled", "sksundae")}
+        np.savez(sys.argv[2], **{f"{engine}_{name}": run[name] for engine, run in runs.items()
+                                 for name in ("time", "h", "impacts")})
+    """, fmu, tmp_path / "runs.npz", ball.m * ball.g)
+    saved = np.load(tmp_path / "runs.npz")
+    runs = {engine: {name: saved[f"{engine}_{name}"] for name in ("time", "h", "impacts")}
+            for engine in ("sksundae", "compiled")}
+    assert_engines_agree(runs)
+    t, h = runs["compiled"]["time"], runs["compiled"]["h"]
+    before = t <= 1.0
+    np.testing.assert_allclose(h[before], 2.0 + t[before], rtol=0, atol=1e-12)
+    h_exact, _, impacts = exact_at(t[~before], ball, h0=3.0, v0=1.0, t_start=1.0)
+    assert np.max(np.abs(h[~before] - h_exact)) < EXACT
+    np.testing.assert_array_equal(runs["compiled"]["impacts"][~before], impacts)
+    assert impacts[-1] == 2
+
+
+def test_compiled_engine_resumes_from_an_fmu_state(unzipped, tmp_path):
+    """A state taken at 1.3 s, then a detour (F_ext = 50 N to 2 s), then the state restored, in the same
+    instance and (serialized) in a fresh one: both continue as the uninterrupted run does."""
+    pytest.importorskip("numba", reason="the compiled engine needs numba")
+    run_python("""
+        def outputs(rows):
+            return np.array([(row[0], row[1], row[3], row[5]) for row in rows])  # h, v, contact, impacts
+
+        straight = Instance(sys.argv[1], "straight")
+        straight.initialize(engine="compiled", **TIGHT)
+        uninterrupted = outputs(straight.step_to(3.0, 1e-3))
+
+        ball = Instance(sys.argv[1], "ball")
+        ball.initialize(engine="compiled", **TIGHT)
+        ball.step_to(1.3, 1e-3)
+        state = ball.fmu.getFMUstate()
+        serialized = ball.fmu.serializeFMUstate(state)
+        ball.set(F_ext=50.0)
+        ball.step_to(2.0, 1e-3)
+        ball.fmu.setFMUstate(state)
+        ball.fmu.freeFMUstate(state)
+        ball.t = 1.3
+        resumed = outputs(ball.step_to(3.0, 1e-3))
+
+        fresh = Instance(sys.argv[1], "fresh")  # never initialised: its engine comes with the state
+        state = fresh.fmu.deSerializeFMUstate(serialized)
+        fresh.fmu.setFMUstate(state)
+        fresh.fmu.freeFMUstate(state)
+        assert fresh.get("engine", "F_ext") == ["compiled", 0.0]
+        fresh.t = 1.3
+        deserialized = outputs(fresh.step_to(3.0, 1e-3))
+        for instance in (straight, ball, fresh):
+            assert instance.errors() == [], instance.errors()
+            instance.free()
+        np.savez(sys.argv[2], uninterrupted=uninterrupted, resumed=resumed, deserialized=deserialized)
+    """, unzipped, tmp_path / "runs.npz")
+    saved = np.load(tmp_path / "runs.npz")
+    uninterrupted = saved["uninterrupted"]
+    t = np.arange(1, 3001) * 1e-3
+    h, _, impacts = exact_at(t)
+    assert np.max(np.abs(uninterrupted[:, 0] - h)) < EXACT
+    np.testing.assert_array_equal(uninterrupted[:, 3], impacts)
+    tail = uninterrupted[1300:]
+    assert tail[-1, 3] == impacts[-1] > impacts[1299]  # the resumed part holds impacts
+    for name in ("resumed", "deserialized"):
+        run = saved[name]
+        # CVODE restarts at the restored state: the same run within the tolerance, not bit for bit
+        np.testing.assert_array_equal(run[:, 2:], tail[:, 2:])
+        np.testing.assert_allclose(run[:, 0], tail[:, 0], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(run[:, 1], tail[:, 1], rtol=0, atol=1e-7)
+        assert np.max(np.abs(run[:, 0] - h[1300:])) < EXACT
+
+
+# --- where the compiled engine cannot run ----------------------------------------------------------------
+def test_compiled_engine_without_numba_gives_fmi2Error_with_the_reason(unzipped, numba_hidden):
+    """The instance stays usable: with engine sksundae the same instance then initialises and runs."""
+    run_python("""
+        ball = Instance(sys.argv[1])
+        ball.set(engine="compiled")
+        ball.fmu.setupExperiment(startTime=0.0)
+        ball.fmu.enterInitializationMode()
+        try:
+            ball.fmu.exitInitializationMode()
+        except fmpy.fmi1.FMICallException as error:
+            assert error.status == 3, error.status  # fmi2Error, not fmi2Fatal
+        else:
+            raise AssertionError("engine compiled was accepted without numba")
+        [message] = ball.errors()
+        assert message.startswith("engine 'compiled' is not available: numba is not installed"), message
+        assert "numba is hidden from this process" in message, message
+        ball.set(engine="sksundae")
+        ball.fmu.exitInitializationMode()
+        print(*ball.step_to(1.0, 0.5)[-1])
+        assert ball.errors() == [message]
+        ball.free()
+    """, unzipped, env=numba_hidden)
+
+
+def test_auto_engine_without_numba_runs_on_sksundae(unzipped, numba_hidden, tmp_path):
+    run_python("""
+        ball = Instance(sys.argv[1])
+        ball.initialize(engine="auto", **TIGHT)
+        rows = ball.step_to(2.0, 1e-3)
+        assert ball.log == [], ball.log  # silently: no warning, no error
+        assert not [name for name in sys.modules if name.endswith(".solvers.compiled")]
+        ball.free()
+        np.save(sys.argv[2], np.array([(row[0], row[5]) for row in rows]))
+    """, unzipped, tmp_path / "run.npy", env=numba_hidden)
+    run = np.load(tmp_path / "run.npy")
+    h, _, impacts = exact_at(np.arange(1, 2001) * 1e-3)
+    assert np.max(np.abs(run[:, 0] - h)) < EXACT
+    np.testing.assert_array_equal(run[:, 1], impacts)
