@@ -639,13 +639,16 @@ class BallIntegrator:
         A flight whose apex stays within hop_tolerance of R: CVODE cannot tell such a hop from its
         own error (its first steps after a restart are of low order, and it may place the impact
         on the way up or miss it: a chatter of false events, or a fall through the floor). A
-        contact below CVODE's resolution (_contact_below_resolution) that ends. Each mode's flow
-        is exact, so such a phase is taken in closed form: events of the right kind at the right
-        times, the trajectory within the tolerance either way.
+        contact below CVODE's resolution (_contact_below_resolution) that ends. A contact that
+        cannot hold the ball (F_ext lifts more than its weight: the rest height is above R), which
+        always ends, but may creep towards a rest height closer to R than CVODE resolves, where h
+        never visibly crosses R (a weightless ball lifted by 1e-6 N stayed at R instead of flying
+        4.5e-6 m in 3 s). Each mode's flow is exact, so such a phase is taken in closed form:
+        events of the right kind at the right times, the trajectory within the tolerance either way.
         """
         ball, R = self.ball, self.ball.R
         if self._mode == Mode.CONTACT:
-            if not self._contact_below_resolution():
+            if not (self._contact_below_resolution() or ball.static_deflection(self._F_ext) < 0.0):
                 return None
             tau = time_to_departure(ball, self._h, self._v, self._F_ext)
             if math.isinf(tau):
