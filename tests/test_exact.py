@@ -213,3 +213,21 @@ def test_a_contact_that_does_not_move_leaves_without_dividing_by_zero():
     solution = ExactSolution(ball, ball.rest_height(F_ext), -2.225073858507203e-309, 0.0, 3.0, F_ext)
     h, _ = solution.state(np.linspace(0.0, 3.0, 301))
     assert np.max(np.abs(h - ball.R)) <= 0.5 * F_ext * 3.0**2 + 4 * math.ulp(ball.R)
+
+
+def test_bounces_below_an_ulp_of_r_lose_energy_and_come_to_rest():
+    """A static deflection of 1.7 ulps of R (found by hypothesis): with the contact's deflection taken as
+    h - (R - d), R - d rounded d to ulp(R) and each sub-ulp bounce regained what damping took, a chatter of
+    ~1e7 hops. Each contact takes exp(-zeta pi / sqrt(1 - zeta^2)) of the impact speed u, and one ends for
+    good once the speed it returns with is below w d sqrt(exp(2 zeta pi) - 1): that bounds the contacts."""
+    m, k, zeta, R, g = 1.566292822959508e-05, 263564838396.437, 0.007062432519941699, 0.30717894468230245, 1.62
+    ball = Ball(m=m, k=k, b=2 * zeta * math.sqrt(k * m), R=R, g=g)
+    d, omega = ball.static_deflection(), math.sqrt(k / m)
+    assert d < 2 * math.ulp(R)
+    h0 = R + 1.566292822959508e-05
+    solution = ExactSolution(ball, h0, 0.0, 0.0, 2.0)
+    assert solution.rest_time is not None
+    u = math.sqrt(2 * g * (h0 - R))
+    loss = zeta * math.pi / math.sqrt(1 - zeta**2)
+    contacts = math.log(u / (omega * d * math.sqrt(math.exp(2 * zeta * math.pi) - 1))) / loss
+    assert len(solution.events) <= 2 * (1.1 * contacts + 2)

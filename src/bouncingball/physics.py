@@ -118,10 +118,12 @@ class Ball:
             g_eff = self.effective_gravity(F_ext)
             return h0 + tau * (v0 - 0.5 * g_eff * tau), v0 - g_eff * tau
         sigma, w2 = self.b / (2.0 * self.m), self.k / self.m
-        rest = self.rest_height(F_ext)
-        y0 = h0 - rest
+        # y, the deflection from the rest height, taken from h - R, which is exact near R: R - d
+        # would round the static deflection d to ulp(R), and a sub-ulp bounce would gain energy.
+        d = self.static_deflection(F_ext)
+        y0 = (h0 - self.R) + d
         c, s = oscillator_basis(sigma, w2, tau)
-        return rest + y0 * c + (v0 + sigma * y0) * s, v0 * c - (sigma * v0 + w2 * y0) * s
+        return self.R + ((y0 * c + (v0 + sigma * y0) * s) - d), v0 * c - (sigma * v0 + w2 * y0) * s
 
     def contact_force(self, h: float, v: float, mode: Mode) -> float:
         """Force of the ground on the ball [N], positive upwards; zero in flight.

@@ -117,8 +117,8 @@ def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tupl
 def time_to_departure(ball: Ball, h0: float, v0: float, F_ext: float = 0.0) -> float:
     """Time from (h0, v0) in contact to the first upward crossing of h = R; inf if none."""
     sigma, w2 = ball.b / (2.0 * ball.m), ball.k / ball.m
-    rest, d = ball.rest_height(F_ext), ball.static_deflection(F_ext)
-    y0 = h0 - rest
+    d = ball.static_deflection(F_ext)
+    y0 = (h0 - ball.R) + d  # exactly d at an impact: not h0 - (R - d), where R - d rounds d to ulp(R)
     p, q = v0 + sigma * y0, sigma * v0 + w2 * y0  # y = y0 C + p S, v = v0 C - q S
 
     def excess(tau: float) -> tuple[float, float]:
