@@ -218,6 +218,9 @@ def _log_uniform(low, high):
 # never saw h cross R and kept the ball at R (silently, 4.5 tolerances low after 3 s) or gave up.
 @example(m=1.0, k=602851817656.5535, zeta=1.0, R=1.0, g=0.0, lift=0.0, v0=-15.082059905272018, force=1e-06)
 @example(m=1.0, k=602851817656.5535, zeta=1.0, R=1.0, g=0.0, lift=0.0, v0=-15.082059905272018, force=1e-18)
+# At R with v0 = -2e-112 m/s, lifted by 1e-18 N: a departure at once with that speed rounded below 0,
+# then an impact at once, for ever at t = 0.
+@example(m=1.0, k=100.0, zeta=0.0, R=1.0, g=0.0, lift=0.0, v0=-2.374447051180475e-112, force=1e-18)
 # An undamped ball whose contacts deflect it by 1.4e7 ulps of R: CVODE rounded each step's h to ulp(R).
 @example(m=1e-5, k=1e12, zeta=0.0, R=1.0, g=9.81, lift=0.0, v0=1.0, force=0.0)
 def test_random_balls_against_the_exact_solution(m, k, zeta, R, g, lift, v0, force):

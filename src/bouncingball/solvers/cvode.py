@@ -19,7 +19,7 @@ from .. import validation
 from ..physics import Ball, Mode, mode_acceleration
 from . import sksundae_events
 from .dense_output import interpolate, step_state
-from .exact import time_to_departure, time_to_impact
+from .exact import time_to_departure, time_to_impact, velocity_at_departure
 from .result import (
     DEPARTURE,
     IMPACT,
@@ -663,7 +663,7 @@ class BallIntegrator:
             tau = time_to_departure(ball, self._h, self._v, self._F_ext)
             if math.isinf(tau):
                 return None
-            return self._t + tau, R, float(ball.flow(Mode.CONTACT, self._h, self._v, tau, self._F_ext)[1])
+            return self._t + tau, R, velocity_at_departure(ball, self._h, self._v, tau, self._F_ext)
         if self._h < R:
             return None
         g_eff = ball.effective_gravity(self._F_ext)

@@ -53,7 +53,7 @@ class ExactSolution:
                 if math.isinf(tau):
                     self.rest_time = t
                     return
-                v_next = float(ball.flow(Mode.CONTACT, h, v, tau, self.F_ext)[1])
+                v_next = velocity_at_departure(ball, h, v, tau, self.F_ext)
                 kind, next_mode = DEPARTURE, Mode.FLIGHT
             if not t + tau <= self.t_end:
                 return
@@ -172,6 +172,16 @@ def time_to_departure(ball: Ball, h0: float, v0: float, F_ext: float = 0.0) -> f
     if guess is None and excess(b)[0] <= 0.0:
         return math.inf
     return _polish_root(excess, a, b, guess, at_tau1 if guess is not None else None)
+
+
+def velocity_at_departure(ball: Ball, h0: float, v0: float, tau: float, F_ext: float = 0.0) -> float:
+    """v [m/s] where a contact from (h0, v0) ends after tau (time_to_departure): never < 0.
+
+    A departure crosses R upwards; where the ball barely moves (at R with v0 = -1e-112) the flow can
+    round it to a tiny downward speed, and the flight would end at once in an impact at R, and so on
+    for ever.
+    """
+    return max(float(ball.flow(Mode.CONTACT, h0, v0, tau, F_ext)[1]), 0.0)
 
 
 def _overdamped_extremum(v0: float, q: float, mu: float) -> float | None:
