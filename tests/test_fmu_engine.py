@@ -36,6 +36,10 @@ def run_python(body: str, *arguments, env: dict | None = None) -> None:
         import fmpy
         from fmpy import simulate_fmu
         from fmu_helpers import TIGHT, Instance
+
+        def save_runs(runs, path):  # read back by load_runs
+            np.savez(path, **{{f"{{engine}}_{{name}}": run[name] for engine, run in runs.items()
+                               for name in ("time", "h", "impacts")}})
     """) + textwrap.dedent(body) + "\nprint('ok')\n"
     completed = subprocess.run([sys.executable, "-c", code, *map(str, arguments)], capture_output=True, text=True,
                                timeout=300, check=False, env={**os.environ, **(env or {})})
@@ -59,6 +63,13 @@ def assert_engines_agree(runs) -> None:
     assert np.max(np.abs(compiled["h"] - sksundae["h"])) <= SAME_ANSWER
 
 
+def load_runs(path):
+    """The runs a child saved with save_runs: {engine: {"time", "h", "impacts"}}."""
+    saved = np.load(path)
+    return {engine: {name: saved[f"{engine}_{name}"] for name in ("time", "h", "impacts")}
+            for engine in ("sksundae", "compiled")}
+
+
 # --- the compiled engine gives the same answer -------------------------------------------------------
 def test_compiled_engine_gives_the_sksundae_answer_on_the_article_at_1ms(fmu, tmp_path):
     """Both engines in one process, scikit-sundae's first: the compiled engine's modules are then imported
@@ -67,12 +78,9 @@ def test_compiled_engine_gives_the_sksundae_answer_on_the_article_at_1ms(fmu, tm
     run_python("""
         runs = {engine: simulate_fmu(sys.argv[1], stop_time=8.0, output_interval=1e-3, output=["h", "impacts"],
                                      start_values={**TIGHT, "engine": engine}) for engine in ("sksundae", "compiled")}
-        np.savez(sys.argv[2], **{f"{engine}_{name}": run[name] for engine, run in runs.items()
-                                 for name in ("time", "h", "impacts")})
+        save_runs(runs, sys.argv[2])
     """, fmu, tmp_path / "runs.npz")
-    saved = np.load(tmp_path / "runs.npz")
-    runs = {engine: {name: saved[f"{engine}_{name}"] for name in ("time", "h", "impacts")}
-            for engine in ("sksundae", "compiled")}
+    runs = load_runs(tmp_path / "runs.npz")
     assert_engines_agree(runs)
     t = runs["compiled"]["time"]
     assert len(t) == 8001 and t[-1] == 8.0
@@ -94,12 +102,9 @@ def test_compiled_engine_with_F_ext_as_input(fmu, tmp_path):
                                      output=["h", "impacts"],
                                      start_values={**TIGHT, "m": 2.0, "h": 2.0, "v": 1.0, "engine": engine})
                 for engine in ("compiled", "sksundae")}
-        np.savez(sys.argv[2], **{f"{engine}_{name}": run[name] for engine, run in runs.items()
-                                 for name in ("time", "h", "impacts")})
+        save_runs(runs, sys.argv[2])
     """, fmu, tmp_path / "runs.npz", ball.m * ball.g)
-    saved = np.load(tmp_path / "runs.npz")
-    runs = {engine: {name: saved[f"{engine}_{name}"] for name in ("time", "h", "impacts")}
-            for engine in ("sksundae", "compiled")}
+    runs = load_runs(tmp_path / "runs.npz")
     assert_engines_agree(runs)
     t, h = runs["compiled"]["time"], runs["compiled"]["h"]
     before = t <= 1.0
