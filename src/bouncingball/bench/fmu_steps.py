@@ -114,7 +114,7 @@ try:
         result = {"times": times}
 except FMICallException as error:
     result = {"error": "; ".join(errors) or str(error)}
-print("BOUNCINGBALL_BENCH_RESULT " + json.dumps(result))
+print(sys.argv[2] + json.dumps(result))  # RESULT_MARKER
 '''
 
 
@@ -167,8 +167,8 @@ class FmuStepCosts:
 
 
 def _run_child(job: dict) -> dict:
-    completed = subprocess.run([sys.executable, "-c", CHILD, json.dumps(job)], capture_output=True, text=True,
-                               timeout=CHILD_TIMEOUT, check=False)
+    completed = subprocess.run([sys.executable, "-c", CHILD, json.dumps(job), RESULT_MARKER], capture_output=True,
+                               text=True, timeout=CHILD_TIMEOUT, check=False)
     lines = [line for line in completed.stdout.splitlines() if line.startswith(RESULT_MARKER)]
     if completed.returncode != 0 or not lines:
         tail = (completed.stderr.strip().splitlines() or [f"exit status {completed.returncode}"])[-1]

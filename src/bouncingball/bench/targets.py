@@ -62,11 +62,9 @@ def target_versus_peers(points: list[Point], error: float) -> Target:
     if ours is None:
         return Target("a", goal, False, f"CVODE auto does not reach {error:.0e} m at any swept tolerance.")
     parts, met, reasons = [], True, []
-    for method in runners.SCIPY_METHODS:
-        label = runners.scipy(method).label
-        theirs, _ = _times_at(groups, label, error)
+    for method, theirs, not_reached in _scipy_times(groups, error):
         if theirs is None:
-            parts.append(f"{method} {_not_reached(groups.get(label, []))}")
+            parts.append(f"{method} {not_reached}")
             continue
         met &= theirs > ours
         parts.append(f"{method} {ms(theirs)} ms ({theirs / ours:.2f}x)")
@@ -97,6 +95,16 @@ def target_versus_peers(points: list[Point], error: float) -> Target:
     if reasons:
         measured += " Reason: " + "; ".join(reasons) + "."
     return Target("a", goal, met, measured)
+
+
+def _scipy_times(groups: dict[str, list[Point]], error: float) -> list[tuple[str, float | None, str]]:
+    """Per solve_ivp method: its time at a matched error [s] (None if not reached) and why not."""
+    found = []
+    for method in runners.SCIPY_METHODS:
+        label = runners.scipy(method).label
+        theirs, _ = _times_at(groups, label, error)
+        found.append((method, theirs, "" if theirs is not None else _not_reached(groups.get(label, []))))
+    return found
 
 
 def _not_reached(group: list[Point]) -> str:
@@ -254,10 +262,9 @@ def target_compiled(points: list[Point], error: float) -> Target:
     versus_exact = ours / exact.median
     met = versus_exact <= 1.0
     parts = [f"compiled {ms(ours)} ms = {versus_exact:.1f}x the exact solution's {ms(exact.median)} ms"]
-    for method in runners.SCIPY_METHODS:
-        theirs, _ = _times_at(groups, runners.scipy(method).label, error)
+    for method, theirs, not_reached in _scipy_times(groups, error):
         if theirs is None:
-            parts.append(f"{method} {_not_reached(groups.get(runners.scipy(method).label, []))}")
+            parts.append(f"{method} {not_reached}")
             continue
         met &= theirs >= COMPILED_SPEEDUP * ours
         parts.append(f"{method} {ms(theirs)} ms ({theirs / ours:.1f}x)")
