@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+import bouncingball
 from bouncingball.physics import Ball, Mode, oscillator_basis
 from bouncingball.solvers.exact import ExactSolution
 from closed_forms import undamped_event_count
@@ -255,3 +256,20 @@ def test_a_departure_never_leaves_downwards():
     ball = Ball(m=1.0, k=100.0, b=0.0, R=1.0, g=0.0)
     solution = within_seconds(10, ExactSolution, ball, ball.R, -2.374447051180475e-112, 0.0, 3.0, 1e-18)
     assert [(str(e.kind), e.velocity >= 0.0) for e in solution.events] == [("departure", True)]
+
+
+@pytest.mark.parametrize("solver", ["exact", "cvode"])
+def test_a_lift_near_critical_damping_leaves_the_ground(solver):
+    """Damping ratio just below 1 (b = 2 sqrt(k m) rounds below critical), lifted by twice the weight.
+
+    The first extremum lies many decay times away, and its height was decided on y(tau1) - d + d,
+    below the rounding of d: the ball was held at R for ever. Truth from a 40-digit mpmath solution
+    (the issue's): it leaves at 0.02110 s at 0.02698 m/s and is at 4.787 m at t = 1 s.
+    """
+    m, k = 0.1, 1e4
+    ball = Ball(m=m, k=k, b=2 * math.sqrt(k * m))
+    result = bouncingball.simulate(ball, 0.05, 0.0, 1.0, 1e-3, solver=solver, F_ext=2 * m * 9.81)
+    assert [str(e.kind) for e in result.events] == ["departure"]
+    assert result.events[0].time == pytest.approx(0.02110, abs=5e-6)
+    assert result.events[0].velocity == pytest.approx(0.02698, abs=5e-6)
+    assert result.h[-1] == pytest.approx(4.787, abs=5e-4)

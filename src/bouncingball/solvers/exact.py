@@ -128,19 +128,25 @@ def time_to_departure(ball: Ball, h0: float, v0: float, F_ext: float = 0.0) -> f
 
     rising = v0 > 0.0 or (v0 == 0.0 and q < 0.0)
     disc = sigma * sigma - w2
-    guess = None
+    guess, at_tau1 = None, None
     if disc < 0.0:
         # Under-damped: extrema every pi/omega; maxima are positive and decay, so the
         # first maximum decides whether the ball ever leaves.
         omega = math.sqrt(-disc)
-        first = math.atan2(omega * v0, q) % math.pi
-        tau1 = (first if first > 0.0 else math.pi) / omega
-        # Maxima lie above the rest height and minima below it; this decides robustly even
-        # when round-off puts an extremum at tau = 0.
-        at_tau1 = excess(tau1)[0]
-        if at_tau1 + d > 0.0:
+        # The phase angle of the next extremum, in [0, pi], from the quadrant that holds it: atan2(a, b)
+        # - pi rounds an extremum just ahead (a minimum at v0 = -1e-38) to pi instead of ~0.
+        if rising:
+            tau1 = math.atan2(omega * v0, q) / omega
+        else:
+            tau1 = math.atan2(-omega * v0, -q) / omega
+        # Between two extrema v keeps its sign, so the first one is a maximum when the ball starts
+        # rising and a minimum when it starts falling. Decided on the direction, never on the
+        # value y(tau1): near critical damping that extremum lies many decay times away, and y(tau1)
+        # is below the rounding of d (a lifted ball was held at R for ever).
+        if rising:
             a, b = 0.0, tau1
         else:
+            at_tau1 = excess(tau1)[0]
             a, b = tau1, tau1 + math.pi / omega
             at_b = excess(b)[0]
             if at_b <= 0.0:
@@ -171,7 +177,7 @@ def time_to_departure(ball: Ball, h0: float, v0: float, F_ext: float = 0.0) -> f
             return math.inf
     if guess is None and excess(b)[0] <= 0.0:
         return math.inf
-    return _polish_root(excess, a, b, guess, at_tau1 if guess is not None else None)
+    return _polish_root(excess, a, b, guess, at_tau1 if a > 0.0 else None)
 
 
 def velocity_at_departure(ball: Ball, h0: float, v0: float, tau: float, F_ext: float = 0.0) -> float:
