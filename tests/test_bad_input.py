@@ -23,7 +23,7 @@ BALL = Ball()
     (dict(method="RK4"), "method = 'RK4' is not allowed: it must be one of auto, Adams, BDF"),
     (dict(solver="scipy", method="Adams"), "method = 'Adams' is not allowed: it must be one of RK45"),
     (dict(rtol=0.0), "rtol = 0.0 is not allowed: it must be in (0, 1]"),
-    (dict(atol=-1.0), "atol = -1.0 is not allowed: it must be finite and > 0"),
+    (dict(atol=-1.0), "atol = -1.0 m is not allowed: it must be finite and > 0"),
     (dict(max_step=-1.0), "max_step = -1.0 s is not allowed"),
     (dict(solver="exact", rtol=1e-6), "option rtol = 1e-06 is not allowed for solver 'exact': it takes no options"),
     (dict(tolerance=1e-6), "option tolerance = 1e-06 is not allowed for solver 'cvode': it takes rtol, atol"),

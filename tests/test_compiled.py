@@ -351,9 +351,8 @@ def test_solvers_free_their_sundials_memory():
                 return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
         def cycle(i):
-            solver = PhaseSolver(bb.Ball(), Mode.FLIGHT, "Adams", 1e-11, 1e-12, 0.0, 1000, 1e-9, 1e-17, [-1, 0, 1],
-                                 10**6)
-            result = solver.solve(np.array([0.0, 1.0]), np.array([2.0, 0.0]))
+            solver = PhaseSolver(bb.Ball(), Mode.FLIGHT, "Adams", 1e-11, 0.0, 1000, 1e-300, [-1, 0, 1], 10**6)
+            result = solver.solve(np.array([0.0, 1.0]), np.array([2.0 - 0.06, 0.0]))  # the gap; frame 1 m, 1 m/s
             assert result.status == 2 and abs(result.t[-1] - (2.0 - 0.06) ** 0.5 * (2 / 9.81) ** 0.5) < 1e-9
             if i % 2:
                 solver.close()

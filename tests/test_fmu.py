@@ -51,7 +51,7 @@ def test_model_description_has_units_ranges_and_start_values(fmu):
     assert (variables["h"].initial, variables["v"].initial) == ("exact", "exact")
     assert float(variables["F_ext"].start) == 0.0
     assert (float(variables["rtol"].start), float(variables["atol"].start), variables["method"].start) == (
-        settings.rtol, settings.atol, "auto")
+        settings.rtol, 0.0, "auto")  # atol 0: no absolute bound (settings.atol None)
     assert variables["engine"].start == "sksundae"  # not "auto": numba's first use in a process costs seconds
     assert float(variables["m"].min) == SMALLEST_POSITIVE and float(variables["rtol"].max) == 1.0
     assert float(variables["b"].min) == 0.0 and float(variables["g"].min) == 0.0
@@ -298,7 +298,7 @@ def test_two_instances_with_different_g_stay_independent(unzipped):
     ("h", math.inf, "h = inf m is not allowed: it must be a finite number"),
     ("F_ext", math.nan, "F_ext = nan N is not allowed: it must be a finite number"),
     ("rtol", 2.0, "rtol = 2.0 is not allowed: it must be in (0, 1]"),
-    ("atol", 0.0, "atol = 0.0 is not allowed: it must be finite and > 0"),
+    ("atol", -1.0, "atol = -1.0 m is not allowed: it must be finite and >= 0"),
     ("method", "RK4", "method = 'RK4' is not allowed: it must be one of auto, Adams, BDF"),
     ("engine", "fast", "engine = 'fast' is not allowed: it must be one of auto, compiled, sksundae"),
 ])

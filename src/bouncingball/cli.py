@@ -27,7 +27,8 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--solver", default="cvode", help=f"one of {', '.join(SOLVERS)} (default: cvode)")
     run.add_argument("--method", help="cvode: auto, Adams or BDF; scipy: RK45, DOP853, LSODA, Radau, BDF, ...")
     run.add_argument("--rtol", type=float, help="relative tolerance")
-    run.add_argument("--atol", type=float, help="absolute tolerance")
+    run.add_argument("--atol", type=float, help="upper bound on the absolute error of h [m] (default: none, the "
+                     "error is controlled relative to each phase's scale)")
     run.add_argument("--max-step", type=float, help="maximum step size [s] (0: unbounded)")
     run.add_argument("--engine", help="cvode: auto (default), compiled (needs numba: pip install "
                                       "'bouncingball[fast]') or sksundae")

@@ -114,16 +114,25 @@ class Ball:
         Both modes are linear with constant coefficients: a parabola in flight, a damped
         oscillator about the rest height in contact. Arrays allowed (broadcast); tau may be < 0.
         """
+        x, v = self.gap_flow(mode, h0 - self.R, v0, tau, F_ext)
+        return self.R + x, v
+
+    def gap_flow(self, mode: Mode, x0, v0, tau, F_ext: float = 0.0):
+        """The exact (x [m], v [m/s]) a time tau [s] after (x0, v0), x = h - R the gap to the ground.
+
+        The gap carries digits that h = R + x rounds away (a deflection of a few ulps of R); the
+        integrator and the event searches work in it.
+        """
         if mode == Mode.FLIGHT:
             g_eff = self.effective_gravity(F_ext)
-            return h0 + tau * (v0 - 0.5 * g_eff * tau), v0 - g_eff * tau
+            return x0 + tau * (v0 - 0.5 * g_eff * tau), v0 - g_eff * tau
         sigma, w2 = self.b / (2.0 * self.m), self.k / self.m
-        # y, the deflection from the rest height, taken from h - R, which is exact near R: R - d
-        # would round the static deflection d to ulp(R), and a sub-ulp bounce would gain energy.
+        # y, the deflection from the rest height, is x + d: R - d would round the static
+        # deflection d to ulp(R), and a sub-ulp bounce would gain energy.
         d = self.static_deflection(F_ext)
-        y0 = (h0 - self.R) + d
+        y0 = x0 + d
         c, s = oscillator_basis(sigma, w2, tau)
-        return self.R + ((y0 * c + (v0 + sigma * y0) * s) - d), v0 * c - (sigma * v0 + w2 * y0) * s
+        return (y0 * c + (v0 + sigma * y0) * s) - d, v0 * c - (sigma * v0 + w2 * y0) * s
 
     def contact_force(self, h: float, v: float, mode: Mode) -> float:
         """Force of the ground on the ball [N], positive upwards; zero in flight.
@@ -173,20 +182,25 @@ class Ball:
         v^2 = w^2 (A^2 - d^2) to fly v^2 / 2 g_eff = (A^2 - d^2) / 2d above R (g_eff = w^2 d > 0).
         It only grows in contact, so it is a root function for the start of a rest.
         """
-        return rest_margin_value(h, v, self.static_deflection(F_ext), hop_tolerance, self.k / self.m, self.R)
+        return rest_margin_value(h - self.R, v, self.static_deflection(F_ext), hop_tolerance, self.k / self.m)
 
 
 # The equations as functions of plain floats: Ball's methods call them, and the compiled CVODE
 # engine compiles these same functions, so the physics has one definition.
 def mode_acceleration(h, v, mode, F_ext, m, k, b, R, g):
-    """dv/dt [m/s2] in mode (0 or Mode.FLIGHT: flight, 1 or Mode.CONTACT: contact).
+    """dv/dt [m/s2] in mode (0 or Mode.FLIGHT: flight, 1 or Mode.CONTACT: contact); see gap_acceleration."""
+    return gap_acceleration(h - R, v, mode, F_ext, m, k, b, g)
 
-    k (R - h), not k R - k h: R - h is exact near R, whereas the two products of a stiff ball
-    (k = 1e12) would bury its deflection in their round-off.
+
+def gap_acceleration(x, v, mode, F_ext, m, k, b, g):
+    """dv/dt [m/s2] in mode at the gap x = h - R [m].
+
+    k x, not k h - k R: x is exact near R, whereas the two products of a stiff ball (k = 1e12)
+    would bury its deflection in their round-off.
     """
     if mode == 0:
         return -g + F_ext / m
-    return (-b * v + k * (R - h) + F_ext) / m - g
+    return (-b * v - k * x + F_ext) / m - g
 
 
 def effective_gravity_value(F_ext, m, g):
@@ -199,9 +213,13 @@ def static_deflection_value(F_ext, m, k, g):
     return (m * g - F_ext) / k
 
 
-def rest_margin_value(h, v, d, hop_tolerance, w2, R):
-    """w2 d (d + 2 hop_tolerance) - (v^2 + w2 y^2) [m2/s2], d the static deflection; see Ball.rest_margin."""
-    y = h - (R - d)
+def rest_margin_value(x, v, d, hop_tolerance, w2):
+    """w2 d (d + 2 hop_tolerance) - (v^2 + w2 y^2) [m2/s2] at the gap x = h - R, d the static deflection.
+
+    y = x + d, the deflection from the rest height, exact where R - d would round d to ulp(R). See
+    Ball.rest_margin.
+    """
+    y = x + d
     return w2 * d * (d + 2.0 * hop_tolerance) - (v * v + w2 * y * y)
 
 

@@ -96,9 +96,10 @@ def run_solver(solver: Solver, scene: Scene, output_interval: float, rtol: float
                atol: float | None = None, fmus: FmuPaths | None = None, record: bool = True) -> Run:
     """Run scene with solver on a grid of output_interval [s] (the FMU: its communication step).
 
-    rtol/atol None means the solver's defaults. record=False asks the FMU for h only (a timed run).
+    rtol None means the solver's defaults; atol None CVODE's rule (relative to each phase's scale), and
+    for SciPy's methods rtol times the scene's height scale. record=False asks the FMU for h only (a timed run).
     """
-    tolerances = {} if rtol is None else {"rtol": rtol, "atol": atol}
+    tolerances = {} if rtol is None else {"rtol": rtol} if atol is None else {"rtol": rtol, "atol": atol}
     if solver.is_fmu:
         return _run_fmu(solver, scene, tolerances, fmus, record)
     if solver.kind == "evaluation":
@@ -108,6 +109,8 @@ def run_solver(solver: Solver, scene: Scene, output_interval: float, rtol: float
         options.update(method=solver.method, engine=solver.engine, **tolerances)
     elif solver.kind == "scipy":
         options.update(method=solver.method, max_step=0.0, **tolerances)
+        if rtol is not None and atol is None:
+            options["atol"] = rtol * max(abs(scene.h0), scene.ball.R)
     name = {"cvode": "cvode", "scipy": "scipy", "article": "scipy", "exact": "exact"}[solver.kind]
     started = time.perf_counter()
     result = scene.simulate(name, **options)

@@ -62,7 +62,7 @@ class BouncingBall(Fmi2Slave):
         ball, settings = Ball(), CvodeSettings()
         self._values = {**{key: getattr(ball, key) for key in BALL_KEYS}, "h": SCENE_DEFAULTS["h0"],
                         "v": SCENE_DEFAULTS["v0"], "F_ext": SCENE_DEFAULTS["F_ext"], "rtol": settings.rtol,
-                        "atol": settings.atol, "method": settings.method, "engine": DEFAULT_ENGINE}
+                        "atol": settings.atol or 0.0, "method": settings.method, "engine": DEFAULT_ENGINE}
         self._start_time = 0.0
         self._stop_time: float | None = None
         self._tolerance: float | None = None
@@ -205,7 +205,8 @@ class BouncingBall(Fmi2Slave):
         rtol = values["rtol"]
         if tolerance is not None:
             rtol = validation.in_range("tolerance (fmi2SetupExperiment, used as rtol)", tolerance, 0.0, 1.0)
-        return ball, CvodeSettings(rtol=rtol, atol=values["atol"], method=values["method"], engine=values["engine"])
+        atol = validation.non_negative("atol", values["atol"], "m") or None  # 0: no absolute bound
+        return ball, CvodeSettings(rtol=rtol, atol=atol, method=values["method"], engine=values["engine"])
 
     def _make_integrator(self, engine: str | None = None) -> BallIntegrator:
         """An integrator at the start state (on engine if given); ValueError names a bad value.

@@ -58,8 +58,8 @@ VARIABLES = (
                 "positive, held constant over each communication step", "N"),
     FmuVariable("rtol", "Real", "parameter", "fixed", "CVODE relative tolerance, in (0, 1]; a tolerance "
                 "given in fmi2SetupExperiment replaces it", min=SMALLEST_POSITIVE, max=1.0),
-    FmuVariable("atol", "Real", "parameter", "fixed", "CVODE absolute tolerance on h [m] and v [m/s] (> 0)",
-                min=SMALLEST_POSITIVE),
+    FmuVariable("atol", "Real", "parameter", "fixed", "upper bound on CVODE's absolute error of h (>= 0); 0, "
+                "the default, for none: the error is controlled relative to each phase's own scale", "m", 0.0),
     FmuVariable("method", "String", "parameter", "fixed", "CVODE method: auto (Adams in flight, BDF for a "
                 "stiff contact), Adams or BDF"),
     FmuVariable("engine", "String", "parameter", "fixed", "CVODE engine: sksundae (scikit-sundae's CVODE), "

@@ -244,14 +244,15 @@ def _addresses(typingctx, address):
 # The block user_data points to (int64): what the callbacks need besides the state.
 _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_SIZE = range(6)
 # The parameters (float64) the callbacks read.
+# CVODE integrates x / length and v / speed (x = h - R), the phase's frame set by PhaseSolver.set_frame.
 (_P_M, _P_K, _P_B, _P_R, _P_G, _P_F_EXT, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
- _P_SIZE) = range(14)
+ _P_LENGTH, _P_SPEED, _P_SIZE) = range(16)
 
 # numba keys its disk cache by the source file; where a source is gone (an FMU's copy of the package,
 # whose unzipped folder the master deleted after the process imported physics from it), it compiles afresh.
 _CACHE = os.path.isfile(physics.__file__) and os.path.isfile(__file__)
 
-_acceleration = njit(physics.mode_acceleration, cache=_CACHE)
+_acceleration = njit(physics.gap_acceleration, cache=_CACHE)
 _rest_margin = njit(physics.rest_margin_value, cache=_CACHE)
 _static_deflection = njit(physics.static_deflection_value, cache=_CACHE)
 _effective_gravity = njit(physics.effective_gravity_value, cache=_CACHE)
@@ -265,8 +266,10 @@ def _rhs(t, y, ydot, user_data):
     p = carray(_doubles(u[_U_PARAMETERS]), _P_SIZE)
     state = carray(_doubles(_call_p1(u[_U_GET_ARRAY], y)), 2)
     out = carray(_doubles(_call_p1(u[_U_GET_ARRAY], ydot)), 2)
-    out[0] = state[1]
-    out[1] = _acceleration(state[0], state[1], p[_P_MODE], p[_P_F_EXT], p[_P_M], p[_P_K], p[_P_B], p[_P_R], p[_P_G])
+    length, speed = p[_P_LENGTH], p[_P_SPEED]
+    out[0] = (speed / length) * state[1]
+    out[1] = _acceleration(length * state[0], speed * state[1], p[_P_MODE], p[_P_F_EXT], p[_P_M], p[_P_K], p[_P_B],
+                           p[_P_G]) / speed
     return 0
 
 
@@ -276,13 +279,12 @@ def _roots(t, y, gout, user_data):
     p = carray(_doubles(u[_U_PARAMETERS]), _P_SIZE)
     state = carray(_doubles(_call_p1(u[_U_GET_ARRAY], y)), 2)
     out = carray(gout, 3)
-    h, v, R = state[0], state[1], p[_P_R]
-    out[0] = h - R if h != R else p[_P_OWN_SIDE]
-    # as in BallIntegrator._make_solver: under zero net gravity v never changes in flight
-    out[1] = v if p[_P_MODE] == 1.0 or _effective_gravity(p[_P_F_EXT], p[_P_M], p[_P_G]) != 0.0 else 1.0
+    # as in BallIntegrator._make_solver: the scaled gap, its own side at 0; v; the rest margin
+    out[0] = state[0] if state[0] != 0.0 else p[_P_OWN_SIDE]
+    out[1] = state[1] if p[_P_MODE] == 1.0 or _effective_gravity(p[_P_F_EXT], p[_P_M], p[_P_G]) != 0.0 else 1.0
     d = _static_deflection(p[_P_F_EXT], p[_P_M], p[_P_K], p[_P_G])
     if p[_P_MODE] == 1.0 and d > 0.0:
-        out[2] = _rest_margin(h, v, d, p[_P_HOP], p[_P_K] / p[_P_M], R)
+        out[2] = _rest_margin(p[_P_LENGTH] * state[0], p[_P_SPEED] * state[1], d, p[_P_HOP], p[_P_K] / p[_P_M])
     else:
         out[2] = -1.0
     u[_U_EVALUATIONS] += 1
@@ -413,14 +415,12 @@ class PhaseSolver:
         The mode whose equations this solver integrates.
     method : str
         "Adams" or "BDF".
-    rtol, atol : float
-        CVODE's tolerances.
+    rtol : float
+        CVODE's relative tolerance; its absolute one is the same, on the state scaled to the phase.
     max_step : float
         The largest step [s]; 0 for none.
     max_num_steps : int
         CVODE's limit of steps per call.
-    hop_tolerance : float
-        The rest root's margin [m] (see Ball.rest_margin).
     own_side : float
         The value of h - R the root function reports at h == R (the mode's own side).
     directions : sequence of int
@@ -430,16 +430,16 @@ class PhaseSolver:
         (see ``exceeded``).
     """
 
-    def __init__(self, ball, mode, method: str, rtol: float, atol: float, max_step: float, max_num_steps: int,
-                 hop_tolerance: float, own_side: float, directions, max_evaluations: int) -> None:
+    def __init__(self, ball, mode, method: str, rtol: float, max_step: float, max_num_steps: int,
+                 own_side: float, directions, max_evaluations: int) -> None:
         self._lib = library()
         self._method = CV_ADAMS if method == "Adams" else CV_BDF
-        self._settings = (rtol, atol, max_step, max_num_steps)
-        jacobian = ball.jacobian(mode)
+        self._settings = (rtol, rtol, max_step, max_num_steps)
+        self._jacobian = ball.jacobian(mode)
         self.parameters = np.zeros(_P_SIZE)
         self.parameters[[_P_M, _P_K, _P_B, _P_R, _P_G]] = ball.m, ball.k, ball.b, ball.R, ball.g
-        self.parameters[[_P_MODE, _P_OWN_SIDE, _P_HOP]] = int(mode), own_side, hop_tolerance
-        self.parameters[[_P_J00, _P_J01, _P_J10, _P_J11]] = jacobian.ravel()
+        self.parameters[[_P_MODE, _P_OWN_SIDE]] = int(mode), own_side
+        self.set_frame(1.0, 1.0, 0.0)
         self._directions = (ctypes.c_int * _NUM_ROOTS)(*directions)
         addresses = self._lib.addresses
         self._user_data = np.zeros(_U_SIZE, dtype=np.intp)
@@ -514,6 +514,13 @@ class PhaseSolver:
     @F_ext.setter
     def F_ext(self, value: float) -> None:
         self.parameters[_P_F_EXT] = value
+
+    def set_frame(self, length: float, speed: float, hop_tolerance: float) -> None:
+        """The phase's scales [m, m/s] and the rest root's margin [m] (Ball.rest_margin); set before init_step/solve."""
+        (j00, j01), (j10, j11) = self._jacobian
+        self.parameters[[_P_LENGTH, _P_SPEED, _P_HOP]] = length, speed, hop_tolerance
+        # the Jacobian of (x / length, v / speed)' in those scaled variables
+        self.parameters[[_P_J00, _P_J01, _P_J10, _P_J11]] = j00, j01 * speed / length, j10 * length / speed, j11
 
     @property
     def exceeded(self) -> bool:

@@ -16,7 +16,7 @@ import numpy as np
 from sksundae.cvode import CVODE
 
 from .. import validation
-from ..physics import Ball, Mode, mode_acceleration
+from ..physics import Ball, Mode, gap_acceleration, rest_margin_value
 from . import sksundae_events
 from .dense_output import interpolate, step_state
 from .exact import time_to_departure, time_to_impact, velocity_at_departure
@@ -32,11 +32,16 @@ from .sundials_log import SundialsLog
 
 METHODS = ("auto", "Adams", "BDF")
 ENGINES = ("auto", "compiled", "sksundae")
-# At these values the article's height error is ~2e-10 m (limit 1e-6), for 10% more steps than
-# rtol 1e-10 (which gave 3e-8 m); an undamped ball keeps its height error within 1e-6 of its
-# scale over ~50 contacts, its error growing with the square of their number.
-DEFAULT_RTOL = 1e-11
-DEFAULT_ATOL = 1e-12
+# Each contact's departure speed comes out ~20 rtol off (CVODE's local errors over its ~50 steps),
+# and a ball that keeps its energy keeps those errors: event times drift with the square of the
+# number of bounces. Measured with the state scaled to each phase: at 1e-11 an R = 1 um ball of
+# 912 events ends 2e-5 of its height scale off; at 1e-12 5e-8, in 8% fewer steps (Adams' order
+# rises); the article 1e-10 m.
+DEFAULT_RTOL = 1e-12
+# No absolute bound by default: CVODE integrates the gap x = h - R scaled to each phase (see
+# phase_scales), so rtol is relative to the phase's own size whatever R, the drop height or the
+# stiffness. An atol, where given, only tightens that rule.
+DEFAULT_ATOL = None
 # The contact oscillator is stiff for Adams when it is strongly over-damped (fast and slow rates
 # far apart). A high natural frequency alone is not: a bounce must be resolved for accuracy
 # anyway, where Adams beats BDF (an undamped k = 1e8 N/m ball over 39 contacts: 1.1e-9 m in 1707
@@ -49,15 +54,15 @@ _EPS = 2.0**-52
 # Measured: at the default tolerances the departure speed stays within 1e-8 down to contacts of
 # 30 ulps of t (at 10 ulps CVODE fails its error test); 1e4 keeps a margin of 300.
 MIN_CONTACT_ULPS = 1e4
-# A contact deflecting the ball by less than this many tolerances of h is taken in closed form.
-CONTACT_RESOLUTION = 100.0
-# ... and one deflecting it by less than this many ulps of R: CVODE carries h = R + deflection, so
-# each step rounds the deflection to ulp(R), and its error test, seeing that noise, shrinks the
-# steps and adds more of it. Measured on one undamped contact (k = 1e12 N/m, 1 m/s): the departure
-# speed is off by 1e-9 to 3e-9 at 1e9 ulps, 1e-7 at 1.4e7 ulps (1,400 steps at rtol 1e-11) and 6e-3
-# at 1.4e6 ulps (100,000 steps at rtol 1e-12); an undamped ball keeps each error. At 1e10 ulps it
-# stays below 1e-9, and every built-in scene's contacts deflect by more than 1e11 ulps.
-MIN_DEFLECTION_ULPS = 1e10
+# A phase whose length scale [m] is below this (a hop or contact of 1e-200 m) is taken on the exact
+# flow: its scaled state would leave the range of double precision.
+MIN_PHASE_SCALE = 1e-200
+# A hop whose apex is within this many rtol of the static deflection above R cannot be told from the
+# contact's own error (CVODE controls the contact relative to its amplitude, ~ the deflection near rest).
+HOP_RESOLUTION = 10.0
+MERGED_HOP_MARGIN = 10.0
+# The value the root function h - R takes at h == R: the mode's own side (see _make_solver).
+_OWN_SIDE = 1e-300
 _STEP_HORIZON = 1.0  # s; see advance()
 _MAX_STEPS_PER_CALL = 1_000_000
 # A phase that needs more steps than this is a method fighting stiffness (Adams creeping through
@@ -105,7 +110,10 @@ def choose_method(ball: Ball) -> str:
 
 @dataclass(frozen=True)
 class CvodeSettings:
-    """rtol, atol [-, m or m/s], method ("auto", "Adams", "BDF"), max_step [s] (0: unbounded) and engine.
+    """rtol [-], atol [m] (None: no absolute bound), method ("auto", "Adams", "BDF"), max_step [s] (0: none), engine.
+
+    rtol is relative to each phase's own scale (see phase_scales); atol, where given, is an upper
+    bound on the absolute error of h and never loosens that rule.
 
     engine: "sksundae" (scikit-sundae's CVODE with Python callbacks), "compiled" (the same CVODE
     library driven by compiled callbacks and a compiled stepping loop, needs numba) or "auto"
@@ -113,7 +121,7 @@ class CvodeSettings:
     """
 
     rtol: float = DEFAULT_RTOL
-    atol: float = DEFAULT_ATOL
+    atol: float | None = DEFAULT_ATOL
     method: str = "auto"
     max_step: float = 0.0
     engine: str = "auto"
@@ -121,10 +129,59 @@ class CvodeSettings:
     def __post_init__(self) -> None:
         """Check every setting before the settings exist."""
         object.__setattr__(self, "rtol", validation.in_range("rtol", self.rtol, 0.0, 1.0))
-        object.__setattr__(self, "atol", validation.positive("atol", self.atol))
+        if self.atol is not None:
+            object.__setattr__(self, "atol", validation.positive("atol", self.atol, "m"))
         object.__setattr__(self, "method", validation.choice("method", self.method, METHODS))
         object.__setattr__(self, "max_step", validation.non_negative("max_step", self.max_step, "s"))
         object.__setattr__(self, "engine", validation.choice("engine", self.engine, ENGINES))
+
+
+def hop_tolerance(ball: Ball, rtol: float = DEFAULT_RTOL, atol: float | None = DEFAULT_ATOL,
+                  F_ext: float = 0.0) -> float:
+    """The highest hop [m] above R that CVODE may merge into the contact around it: the tolerance's one hop rule.
+
+    Near rest CVODE controls a contact to rtol times its amplitude, which is then about the static
+    deflection d, so a hop rising less than HOP_RESOLUTION rtol d above R cannot be told from that
+    error: a contact that cannot lift the ball higher is taken as a rest, and a flight lower than
+    that is taken in closed form. An undamped contact never comes to rest (its energy is kept), and
+    neither does a lifted one (d <= 0): there the rule is 0, every hop is integrated.
+    """
+    d = ball.static_deflection(F_ext)
+    if ball.b == 0.0 or not d > 0.0:
+        return 0.0
+    tolerance = HOP_RESOLUTION * rtol * d
+    return tolerance if atol is None else min(tolerance, HOP_RESOLUTION * atol)
+
+
+def merged_hop_limit(ball: Ball, rtol: float = DEFAULT_RTOL, atol: float | None = DEFAULT_ATOL,
+                     F_ext: float = 0.0) -> float:
+    """The highest hop [m] a CVODE result may lack or add against the exact solution: MERGED_HOP_MARGIN hop_tolerance.
+
+    CVODE decides a rest on its own state, which is off by its tolerance, so a hop a little above
+    hop_tolerance may be merged too. The one rule every comparison with the exact solution uses.
+    """
+    return MERGED_HOP_MARGIN * hop_tolerance(ball, rtol, atol, F_ext)
+
+
+def phase_scales(ball: Ball, mode: Mode, x: float, v: float, F_ext: float = 0.0) -> tuple[float, float]:
+    """The length [m] and speed [m/s] a phase from the gap x = h - R [m] and v [m/s] is integrated relative to.
+
+    In flight the apex above R and the speed at impact; in contact the amplitude of the
+    oscillation about the rest height and its largest speed. CVODE integrates x / length and
+    v / speed, so its error is rtol times the phase's own size: a 1.6e-9 m hop or a contact
+    deflecting the ball by 1e-9 R after a 100 m fall are resolved as well as the article's bounce.
+    A flight that never comes down is scaled by its height (at least R).
+    """
+    if mode == Mode.FLIGHT:
+        g_eff = ball.effective_gravity(F_ext)
+        if g_eff > 0.0:
+            length = max(x, 0.0) + 0.5 * (max(v, 0.0) / math.sqrt(g_eff)) ** 2
+            return length, math.sqrt(2.0 * g_eff * length)
+        length = max(abs(x), ball.R)
+        return length, max(abs(v), math.sqrt(2.0 * abs(g_eff) * length), length)
+    w = ball.natural_frequency
+    amplitude = math.hypot(x + ball.static_deflection(F_ext), v / w)
+    return amplitude, w * amplitude
 
 
 @dataclass(frozen=True)
@@ -206,16 +263,13 @@ class BallIntegrator:
         F_ext = validation.finite("F_ext", F_ext, "N")
         self.resolvable_until = resolvable_until(ball)
         check_resolvable(ball, t0)
-        resolution = self.settings.atol + self.settings.rtol * ball.R  # CVODE's error of h near R [m]
-        # A hop lower than this above R is within CVODE's own error of h: it is taken in closed
-        # form, and a contact that can rise no higher than this is at rest.
-        self.hop_tolerance = 10.0 * resolution
-        self._min_contact_amplitude = max(CONTACT_RESOLUTION * resolution, MIN_DEFLECTION_ULPS * math.ulp(ball.R))
         self._logs = {mode: SundialsLog() for mode in Mode}
         self._cvode_called = False
         self.engine, self.engine_reason = choose_engine(self.settings.engine)
         self._solvers: dict[Mode, CVODE] = {}
         self._event_functions = {}
+        # The phase's frame: CVODE's time is t - origin, its state (x / length, v / speed); see _start_frame.
+        self._frames = {mode: [0.0, 1.0, 1.0, 0.0] for mode in Mode}  # origin, length, speed, hop tolerance
         for mode in Mode:
             make = self._make_compiled_solver if self.engine == "compiled" else self._make_solver
             self._solvers[mode], self._event_functions[mode] = make(mode)
@@ -223,13 +277,13 @@ class BallIntegrator:
                                        t_start=t0))
 
     # --- CVODE set-up ---------------------------------------------------------------------
-    def _own_side(self, mode: Mode) -> float:
-        # h - R is exactly 0 where a phase starts (h is set to R at each event), and stays 0 over a
-        # hop too small to move h off R in double precision. CVODE takes a root function that is 0
-        # at the start as inactive until it turns non-zero, and then misses the crossing (the ball
-        # fell through the floor); one that turns 0 later is a root (an "impact" on the way up).
-        # So h == R counts as the mode's own side: the crossing is where h truly leaves it.
-        return math.ulp(self.ball.R) if mode == Mode.FLIGHT else -math.ulp(self.ball.R)
+    # x = h - R is exactly 0 where a phase starts (at each event). CVODE takes a root function that
+    # is 0 at the start as inactive until it turns non-zero, and then misses the crossing (the ball
+    # fell through the floor); one that turns 0 later is a root (an "impact" on the way up). So
+    # x == 0 counts as the mode's own side: the crossing is where the ball truly leaves it.
+    @staticmethod
+    def _own_side(mode: Mode) -> float:
+        return _OWN_SIDE if mode == Mode.FLIGHT else -_OWN_SIDE
 
     @staticmethod
     def _root_directions(mode: Mode) -> list[int]:
@@ -242,54 +296,47 @@ class BallIntegrator:
             f"{mode.name.lower()} phase, at t = {t!r} s: the problem is stiff for this method; "
             "use method 'BDF' (or 'auto')")
 
-    def _atol(self, mode: Mode) -> float:
-        """CVODE's absolute tolerance in a mode [m and m/s]."""
-        s = self.settings
-        if mode == Mode.FLIGHT:
-            return s.atol
-        # In contact h stays within a deflection of R, so rtol alone asks CVODE for rtol R on h.
-        # An atol above that would loosen every contact of a small ball: each departure speed
-        # then carries an error that an undamped ball accumulates from bounce to bounce (R = 1
-        # mm, 50 bounces: 1.6e-8 m, 1e-6 of its height; 6e-9 m with this bound on h and v).
-        return min(s.atol, s.rtol * self.ball.R)
+    @property
+    def hop_tolerance(self) -> float:
+        """The highest hop [m] merged into the contact around it at the current F_ext; see hop_tolerance()."""
+        return hop_tolerance(self.ball, self.settings.rtol, self.settings.atol, self._F_ext)
 
     def _make_compiled_solver(self, mode: Mode):
         """The same CVODE set-up as _make_solver, with the callbacks compiled from physics.py."""
         from .compiled import PhaseSolver
 
         s = self.settings
-        solver = PhaseSolver(self.ball, mode, self.methods[mode], s.rtol, self._atol(mode), s.max_step,
-                             _MAX_STEPS_PER_CALL, self.hop_tolerance, self._own_side(mode), self._root_directions(mode),
-                             MAX_STEPS_PER_PHASE)
+        solver = PhaseSolver(self.ball, mode, self.methods[mode], s.rtol, s.max_step, _MAX_STEPS_PER_CALL,
+                             self._own_side(mode), self._root_directions(mode), MAX_STEPS_PER_PHASE)
         return solver, None
 
     def _make_solver(self, mode: Mode):
         ball = self.ball
-        jacobian = ball.jacobian(mode)
-        R = ball.R
         m, k, b, g = ball.m, ball.k, ball.b, ball.g
+        w2, damping = k / m, b / m
         own_side = self._own_side(mode)
         contact = mode == Mode.CONTACT
-        hop_tolerance = self.hop_tolerance
+        frame = self._frames[mode]
 
+        # CVODE integrates x / length and v / speed (the frame's scales), in time from the frame's origin.
         def rhs(t, y, yp):
-            # physics computes k (R - h): R - h is exact near R, whereas k R - k h would bury the
-            # deflection of a stiff ball (k = 1e12) in the round-off of two 6e10 terms.
-            yp[0] = y[1]
-            yp[1] = mode_acceleration(y[0], y[1], mode, self._F_ext, m, k, b, R, g)
+            _, length, speed, _ = frame
+            yp[0] = (speed / length) * y[1]
+            yp[1] = gap_acceleration(length * y[0], speed * y[1], mode, self._F_ext, m, k, b, g) / speed
 
         def jac(t, y, yp, JJ):
-            JJ[:, :] = jacobian
+            _, length, speed, _ = frame
+            JJ[0, 0], JJ[0, 1] = 0.0, speed / length
+            JJ[1, 0], JJ[1, 1] = (-w2 * length / speed, -damping) if contact else (0.0, 0.0)
 
         def event(t, y, out):
-            out[0] = y[0] - R if y[0] != R else own_side
+            _, length, speed, hop = frame
+            out[0] = y[0] if y[0] != 0.0 else own_side
             # Under zero net gravity v never changes in flight: a root function identically 0 would
             # only make CVODE warn.
             out[1] = y[1] if contact or ball.effective_gravity(self._F_ext) != 0.0 else 1.0
-            if contact and ball.static_deflection(self._F_ext) > 0.0:
-                out[2] = ball.rest_margin(y[0], y[1], self._F_ext, hop_tolerance)
-            else:
-                out[2] = -1.0
+            d = ball.static_deflection(self._F_ext)
+            out[2] = rest_margin_value(length * y[0], speed * y[1], d, hop, w2) if contact and d > 0.0 else -1.0
             # CVODE evaluates the root functions once per step (and a few times per root found)
             self._phase_evaluations += 1
             if self._phase_evaluations > MAX_STEPS_PER_PHASE:
@@ -298,9 +345,26 @@ class BallIntegrator:
         event.terminal = [True, False, True]
         event.direction = self._root_directions(mode)
         s = self.settings
-        solver = CVODE(rhs, method=self.methods[mode], rtol=s.rtol, atol=self._atol(mode), max_step=s.max_step,
+        # The scaled state is of order 1: atol = rtol asks for rtol times the phase's scale.
+        solver = CVODE(rhs, method=self.methods[mode], rtol=s.rtol, atol=s.rtol, max_step=s.max_step,
                        eventsfn=event, num_events=3, jacfn=jac, max_num_steps=_MAX_STEPS_PER_CALL)
         return solver, event
+
+    def _start_frame(self) -> tuple[float, float, float]:
+        """Fix the current phase's frame at the current state; (origin [s], length [m], speed [m/s]).
+
+        Scales from phase_scales, capped so that rtol length <= atol where atol is given.
+        """
+        s, mode = self.settings, self._mode
+        length, speed = phase_scales(self.ball, mode, self._h - self.ball.R, self._v, self._F_ext)
+        if s.atol is not None and s.rtol * length > s.atol:
+            speed *= s.atol / (s.rtol * length)
+            length = s.atol / s.rtol
+        hop = self.hop_tolerance
+        self._frames[mode][:] = self._t, length, speed, hop
+        if self.engine == "compiled":
+            self._solvers[mode].set_frame(length, speed, hop)
+        return self._t, length, speed
 
     # --- read-only view --------------------------------------------------------------------
     @property
@@ -442,8 +506,9 @@ class BallIntegrator:
         """Restart CVODE at the current state in the current mode."""
         solver = self._solvers[self._mode]
         self._clear_roots(self._mode)
+        _, length, speed = self._start_frame()
         with self._logs[self._mode].capturing():
-            solver.init_step(self._t, np.array([self._h, self._v]))
+            solver.init_step(0.0, np.array([(self._h - self.ball.R) / length, self._v / speed]))
         self._cvode_called = True
         self._needs_init = False
         self._step_start = (self._t, self._h, self._v)
@@ -494,22 +559,26 @@ class BallIntegrator:
             solver = self._init_phase() if self._needs_init else self._solvers[self._mode]
             # The far target only orients CVODE and bounds its first step: the same for every
             # way of cutting the interval.
-            result = solver.step(self._step_start[0] + _STEP_HORIZON, method="onestep")
+            origin, length, speed, _ = self._frames[self._mode]
+            tau_before = self._step_start[0] - origin
+            result = solver.step(tau_before + _STEP_HORIZON, method="onestep")
             self._cvode_called = True
             self._check(result)
             self._nfev_since_init = result.nfev
-            end = (float(result.t), float(result.y[0]), float(result.y[1]))
+            tau, x, v = float(result.t), length * float(result.y[0]), speed * float(result.y[1])
+            end = (origin + tau, self.ball.R + x, v)
             if result.status == _CV_ROOT_RETURN:
                 roots = self._roots_found(self._mode)
                 if roots[0]:
-                    end = self._event_pending = self._polish_event(self._step_start, end)
+                    tau, v = self._polish_event(tau_before, (tau, x, v))
+                    end = self._event_pending = (origin + tau, self.ball.R, v)
                 elif roots[2]:
                     self._rest_from = end
                 self._clear_roots(self._mode)
             else:
                 self._steps += 1
             if self._event_pending is None:
-                self._check_side(end[0], end[1], end[1])
+                self._check_side(end[0], x)
             self._segment = (self._mode, self._step_start, end)
             self._step_start = end
         return events
@@ -564,20 +633,28 @@ class BallIntegrator:
                     events.append(self._switch_mode())
                 continue
             self._clear_roots(mode)
+            origin, length, speed = self._start_frame()
+            x0 = self._h - self.ball.R
             with self._logs[mode].capturing():
-                result = self._solvers[mode].solve(np.array([self._t, t_end]), np.array([self._h, self._v]))
+                result = self._solvers[mode].solve(np.array([0.0, t_end - origin]),
+                                                   np.array([x0 / length, self._v / speed]))
             self._cvode_called = True
             self._check(result)
-            ts, hs, vs = result.t.copy(), result.y[:, 0].copy(), result.y[:, 1].copy()
+            taus, xs, vs = result.t.copy(), length * result.y[:, 0], speed * result.y[:, 1]
+            xs[0], vs[0] = x0, self._v  # the phase's start as it was, not scaled and back
             roots = self._roots_found(mode) if result.status == _CV_ROOT_RETURN else [0, 0, 0]
             root, resting = bool(roots[0]), bool(roots[2])
             if root:
-                (t0, t1), (h0, h1), (v0, v1) = ts[-2:].tolist(), hs[-2:].tolist(), vs[-2:].tolist()
-                ts[-1], hs[-1], vs[-1] = self._polish_event((t0, h0, v0), (t1, h1, v1))
-                self._check_step_ends(t0, hs[:-1])
+                tau_before = float(taus[-2])
+                taus[-1], vs[-1] = self._polish_event(tau_before, (float(taus[-1]), float(xs[-1]), float(vs[-1])))
+                xs[-1] = 0.0
+                self._check_step_ends(origin + tau_before, xs[:-1])
             else:
-                self._check_step_ends(float(ts[-1]), hs)
+                self._check_step_ends(origin + float(taus[-1]), xs)
             self._clear_roots(mode)
+            ts, hs = origin + taus, self.ball.R + xs
+            if not (root or resting):  # CVODE stopped at t_end - origin, which may round off t_end
+                ts[-1] = t_end
             # A phase's first point is the previous phase's last: one copy per mode, so that no
             # dense-output segment straddles the switch.
             record(ts, hs, vs, mode)
@@ -605,7 +682,7 @@ class BallIntegrator:
         on the spring) creeps towards its rest height for many spring time constants, which CVODE
         would crawl through at the spring's time scale (500,000 steps for k/m = 8e12 1/s). Such
         a contact has at most one extremum, so the exact flow decides at once whether it ever
-        reaches R; so it does for a contact below CVODE's resolution.
+        reaches R; so it does for a contact too small to scale (MIN_PHASE_SCALE).
         """
         if self._mode != Mode.CONTACT:
             return False
@@ -613,7 +690,7 @@ class BallIntegrator:
         if ball.contact_is_permanent(self._h, self._v, self._F_ext, self.hop_tolerance):
             return True
         undecided = (ball.damping_ratio >= 1.0 or ball.static_deflection(self._F_ext) <= 0.0
-                     or self._contact_below_resolution())
+                     or self._below_scale())
         return undecided and math.isinf(time_to_departure(ball, self._h, self._v, self._F_ext))
 
     def _rest_state(self, t: float) -> tuple[float, float]:
@@ -627,38 +704,25 @@ class BallIntegrator:
         h, v = self.ball.flow(Mode.CONTACT, h0, v0, t - t0, self._F_ext)
         return float(h), float(v)
 
-    def _contact_below_resolution(self) -> bool:
-        """In a contact whose amplitude about the rest height is too small for CVODE to integrate.
-
-        Below CONTACT_RESOLUTION tolerances of h or MIN_DEFLECTION_ULPS ulps of R.
-
-        CVODE controls h to atol + rtol R; a contact that deflects the ball by little more than
-        that is integrated from noise (the departure speed of a k = 1e20 N/m, m = 1 g ball
-        landing at 1.7 m/s came out 2e-3 too fast), or not at all below ulp(R). Tighter
-        tolerances do not help where the rounding of h = R + deflection dominates.
-        """
-        if self._mode != Mode.CONTACT:
-            return False
-        ball, y = self.ball, self._h - self.ball.rest_height(self._F_ext)
-        amplitude_squared = y * y + self._v * self._v * (ball.m / ball.k)
-        return amplitude_squared < self._min_contact_amplitude**2
+    def _below_scale(self) -> bool:
+        """The current phase is smaller than MIN_PHASE_SCALE: its scaled state would not be representable."""
+        length, speed = phase_scales(self.ball, self._mode, self._h - self.ball.R, self._v, self._F_ext)
+        return not (length >= MIN_PHASE_SCALE and speed > 0.0)
 
     def _event_in_closed_form(self) -> tuple[float, float, float] | None:
-        """The event (t, R, v) ending the current phase if CVODE cannot resolve the phase, else None.
+        """The event (t, R, v) ending the current phase if CVODE is not to integrate it, else None.
 
-        A flight whose apex stays within hop_tolerance of R: CVODE cannot tell such a hop from its
-        own error (its first steps after a restart are of low order, and it may place the impact
-        on the way up or miss it: a chatter of false events, or a fall through the floor). A
-        contact below CVODE's resolution (_contact_below_resolution) that ends. A contact that
-        cannot hold the ball (F_ext lifts more than its weight: the rest height is above R), which
-        always ends, but may creep towards a rest height closer to R than CVODE resolves, where h
-        never visibly crosses R (a weightless ball lifted by 1e-6 N stayed at R instead of flying
-        4.5e-6 m in 3 s). Each mode's flow is exact, so such a phase is taken in closed form:
-        events of the right kind at the right times, the trajectory within the tolerance either way.
+        A flight whose apex stays within hop_tolerance of R (a hop merged into the contacts around
+        it would be as right) or below MIN_PHASE_SCALE. A contact below MIN_PHASE_SCALE that ends.
+        A contact that cannot hold the ball (F_ext lifts more than its weight: the rest height is
+        above R), which always ends, but may creep towards a rest height closer to R than CVODE
+        resolves, where h never visibly crosses R (a weightless ball lifted by 1e-6 N stayed at R
+        instead of flying 4.5e-6 m in 3 s). Each mode's flow is exact, so such a phase is taken in
+        closed form: events of the right kind at the right times.
         """
         ball, R = self.ball, self.ball.R
         if self._mode == Mode.CONTACT:
-            if not (self._contact_below_resolution() or ball.static_deflection(self._F_ext) < 0.0):
+            if not (self._below_scale() or ball.static_deflection(self._F_ext) < 0.0):
                 return None
             tau = time_to_departure(ball, self._h, self._v, self._F_ext)
             if math.isinf(tau):
@@ -669,49 +733,54 @@ class BallIntegrator:
         g_eff = ball.effective_gravity(self._F_ext)
         if not g_eff > 0.0:
             return None
-        apex = self._h - R + 0.5 * max(self._v, 0.0) ** 2 / g_eff
-        if not apex < self.hop_tolerance:
+        apex, _ = phase_scales(ball, Mode.FLIGHT, self._h - R, self._v, self._F_ext)
+        if not apex < max(self.hop_tolerance, MIN_PHASE_SCALE):
             return None
         tau, v_impact = time_to_impact(self._h - R, self._v, g_eff)
         return self._t + tau, R, v_impact
 
-    def _polish_event(self, start, root):
-        """The crossing of h = R that CVODE located at root, to a few ulps of t; h set to R.
+    def _polish_event(self, tau_before: float, root: tuple[float, float, float]) -> tuple[float, float]:
+        """The crossing of x = 0 that CVODE located at root = (tau, x, v) in the phase's frame: (tau, v) there.
 
-        CVODE locates a root to ~100 ulps of t (its tolerance is not settable). At a departure the
-        damper's force jumps the acceleration by b v / m, so that time error becomes a velocity
-        error of (b/m) v dt: 3e-5 relative for m = 1e-6 kg, b = 64 N s/m at t = 24 s, which
-        then grows through every later bounce. Newton on the mode's flow removes it. A grazing
-        root (v ~ 0) is kept as CVODE found it.
+        CVODE locates a root to ~100 ulps of its time, on its own trajectory, which is off the true
+        one by its tolerance: a long fall leaves x off by ~rtol times the drop height where CVODE
+        says 0. The next phase starts at x = 0 exactly; its start time and speed come from Newton
+        on the mode's exact flow from the root, however large the correction (a 1e-11 m error of
+        the fall against a contact deflecting the ball by 6e-9 m: a departure 9e-6 too fast when
+        the root was kept). At a departure the damper's force also jumps the acceleration by b v /
+        m, so a time error becomes a velocity error. A correction that does not converge, or that
+        would go back past the step's start, keeps CVODE's root (a grazing root, v ~ 0). An impact
+        never leaves upwards, a departure never downwards.
         """
-        ball, mode, F_ext, R = self.ball, self._mode, self._F_ext, self.ball.R
-        t_root, h_root, v_root = root
-        bound = 400.0 * _EPS * (abs(t_root) + abs(t_root - start[0]))
-        tau, h, v = 0.0, h_root, v_root
-        for _ in range(4):
-            if h == R or v == 0.0:
+        ball, mode, F_ext = self.ball, self._mode, self._F_ext
+        tau_root, x_root, v_root = root
+        length = self._frames[mode][1]
+        tau, x, v = 0.0, x_root, v_root
+        for _ in range(8):
+            if x == 0.0 or v == 0.0:
                 break
-            tau -= (h - R) / v
-            if not abs(tau) <= bound:
-                return t_root, h_root, v_root
-            h, v = ball.flow(mode, h_root, v_root, tau, F_ext)
-        if not abs(h - R) <= 4.0 * math.ulp(R):
-            return t_root, h_root, v_root
-        return t_root + tau, R, float(v)
+            correction = x / v
+            tau -= correction
+            x, v = ball.gap_flow(mode, x_root, v_root, tau, F_ext)
+            if abs(correction) <= 2.0 * _EPS * abs(tau_root + tau):
+                break
+        if abs(x) <= 16.0 * _EPS * length and tau_root + tau >= tau_before:
+            tau_root, v_root = tau_root + tau, float(v)
+        return tau_root, (min(v_root, 0.0) if mode == Mode.FLIGHT else max(v_root, 0.0))
 
-    def _check_side(self, t: float, lowest: float, highest: float) -> None:
-        """Step ends must lie on the mode's side of R: else CVODE stepped over an event unseen."""
-        R, margin = self.ball.R, self.hop_tolerance
+    def _check_side(self, t: float, x: float) -> None:
+        """A step end (gap x [m] at t) must lie on the mode's side of R: else CVODE stepped over an event unseen."""
         flight = self._mode == Mode.FLIGHT
-        if (lowest < R - margin) if flight else (highest > R + margin):
+        margin = max(self.hop_tolerance, HOP_RESOLUTION * self.settings.rtol * self._frames[self._mode][1])
+        if (x < -margin) if flight else (x > margin):
+            R = self.ball.R
             raise SolverError(f"CVODE stepped over an {'impact' if flight else 'departure'} unseen near "
-                              f"t = {t!r} s (h = {float(lowest if flight else highest)!r} m, R = {R!r} m); "
+                              f"t = {t!r} s (h = {R + x!r} m, R = {R!r} m); "
                               "the result would be wrong: tighten rtol/atol or set max_step")
 
-    def _check_step_ends(self, t: float, heights: np.ndarray) -> None:
+    def _check_step_ends(self, t: float, gaps: np.ndarray) -> None:
         """_check_side for a phase's step ends up to t: only the extreme on the side an unseen event would leave."""
-        extreme = float(heights.min() if self._mode == Mode.FLIGHT else heights.max())
-        self._check_side(t, extreme, extreme)
+        self._check_side(t, float(gaps.min() if self._mode == Mode.FLIGHT else gaps.max()))
 
     def _close_enough(self, t_target: float) -> bool:
         """Within a few ulps of t_target CVODE refuses to step (CV_TOO_CLOSE): finish by Taylor."""
@@ -773,7 +842,7 @@ def check_resolvable(ball: Ball, t: float) -> None:
 
 def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
                    t_start: float = 0.0, F_ext: float = 0.0, rtol: float = DEFAULT_RTOL,
-                   atol: float = DEFAULT_ATOL, method: str = "auto", max_step: float = 0.0,
+                   atol: float | None = DEFAULT_ATOL, method: str = "auto", max_step: float = 0.0,
                    engine: str = "auto") -> SimulationResult:
     """Integrate with CVODE from t_start to t_end and return the solution on the output grid.
 

@@ -11,16 +11,12 @@ import sys
 
 from ..accuracy import event_mismatches
 from ..bench import runners
-from ..solvers.cvode import DEFAULT_ATOL, DEFAULT_RTOL
+from ..solvers.cvode import DEFAULT_RTOL, merged_hop_limit
 from ..solvers.exact import ExactSolution
 from .capped import MEASURES
 from .grid import Cell, solver_spec, tolerances
 
 HEIGHT_TOLERANCE = 1e-6  # m: an event must be within the time the ball takes to move this far
-# Hops lower than this above R [m] may be merged into the contact (100 times CVODE's absolute error
-# of h near R, as the hard-case tests use): CVODE takes such a contact as the rest it almost is.
-MIN_HOP_ATOL = 100.0 * DEFAULT_ATOL
-MIN_HOP_RTOL = 100.0 * DEFAULT_RTOL
 
 
 def measure(spec: dict) -> dict:
@@ -38,7 +34,7 @@ def measure(spec: dict) -> dict:
     dict
         status "finished" with events_found, events_exact, event_mismatches (events missing,
         extra or off in time beyond what accuracy.event_mismatches allows: hops below
-        MIN_HOP_ATOL + MIN_HOP_RTOL R may be merged into the contact) and the first of them, max_height_error [m],
+        cvode.merged_hop_limit may be merged into the contact) and the first of them, max_height_error [m],
         max_event_time_error [s], wall_time [s], rhs_calls and steps; or status "failed" with the
         reason (the error's first line).
 
@@ -55,8 +51,9 @@ def measure(spec: dict) -> dict:
                                  *tolerances(spec["solver"]))
         errors = runners.errors_against_exact(scene, run)
         exact = ExactSolution(scene.ball, scene.h0, scene.v0, 0.0, float(run.t[-1]), scene.F_ext)
+        rtol, atol = tolerances(spec["solver"])
         mismatches = event_mismatches(run.events, exact, HEIGHT_TOLERANCE,
-                                      MIN_HOP_ATOL + MIN_HOP_RTOL * scene.ball.R)
+                                      merged_hop_limit(scene.ball, rtol or DEFAULT_RTOL, atol, scene.F_ext))
     except Exception as error:  # a failed run is a row of the map, not a crash of the sweep
         reason = f"{type(error).__name__}: {error}".splitlines()[0][:300]
         return {"status": "failed", "reason": reason, **MEASURES}

@@ -59,7 +59,10 @@ def solver_spec(name: str) -> runners.Solver:
 
 
 def tolerances(name: str) -> tuple[float | None, float | None]:
-    """(rtol, atol) for a solver: CVODE's defaults for every solver that takes them, None for the article's."""
+    """(rtol, atol) for a solver: CVODE's defaults for every solver that takes them, None for the article's.
+
+    atol None: CVODE's rule relative to each phase, rtol times the scene's height for SciPy's methods.
+    """
     return (None, None) if name == "article" else (DEFAULT_RTOL, DEFAULT_ATOL)
 
 

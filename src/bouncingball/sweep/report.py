@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..solvers.cvode import DEFAULT_RTOL
 from . import store
 from .grid import Grid
 
@@ -137,7 +138,8 @@ def write_markdown(frame, grid: Grid, info: dict, output_dir: Path, images: list
              f"{', '.join(f'{x:.3g}' for x in grid.axis('h0'))}; v0 = 0; R = 0.06 m, g = 9.81 m/s2",
              f"- t_end = {grid.t_end:g} s, output every {grid.output_interval:g} s; solvers: {', '.join(grid.solvers)} "
              "(cvode: method auto, engine auto; scipy:METHOD: solve_ivp with unbounded steps; both at CVODE's "
-             "default rtol 1e-11, atol 1e-12; article: RK45, max_step 0.01, SciPy's tolerances)", "",
+             f"default rtol {DEFAULT_RTOL:g}, the scipy methods with atol rtol times the scene's height; "
+             "article: RK45, max_step 0.01, SciPy's tolerances)", "",
              "## Execution", "",
              f"- cluster: {info['cluster']}, {attrs['workers']} workers, {attrs['threads']} threads",
              f"- wall time: {attrs['wall_time']:.1f} s for {attrs['runs_done']} runs (first task submitted to last "
