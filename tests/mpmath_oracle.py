@@ -205,6 +205,8 @@ class Oracle:
     events : list of OracleEvent
     rest_time : mpf or None
         Start of the contact that never ends, if it starts at or before t_end.
+    next_event : OracleEvent or None
+        The first event after t_end, if the last phase ends.
     phases : list of Phase
     """
 
@@ -222,6 +224,7 @@ class Oracle:
         self.events: list[OracleEvent] = []
         self.phases: list[Phase] = []
         self.rest_time = None
+        self.next_event = None  # the first event after t_end, if there is one
         t = self.t_start
         while True:
             self.phases.append(Phase(mode, t, h, v))
@@ -236,6 +239,7 @@ class Oracle:
                     break
             tau, v = switch
             if t + tau > self.t_end:
+                self.next_event = OracleEvent(t + tau, IMPACT if mode == FLIGHT else DEPARTURE, v)
                 break
             if len(self.events) >= max_events:
                 raise TooManyEvents(f"more than {max_events} events before t = {float(self.t_end)} s")
@@ -277,7 +281,7 @@ class Oracle:
         return (np.array([float(h) for h, _ in hv], dtype=float),
                 np.array([float(v) for _, v in hv], dtype=float))
 
-    def hop_height(self, i):
-        """How high [m, mpf] the flight after departure i rises above R (inf if it never comes down)."""
-        v = self.events[i].velocity
+    def hop_height(self, event):
+        """How high [m, mpf] the flight after a departure event rises above R (inf if it never comes down)."""
+        v = event.velocity
         return v * v / (2 * self.a) if self.a > 0 else mp.inf
