@@ -366,7 +366,11 @@ def fastest_contact_rate(t_end: float) -> float:
 
 @st.composite
 def long_fall(draw) -> Case:
-    """A fall of 1..1000 m onto a contact whose deflection v_impact / sqrt(k/m) is 1e-9..1e-3 of R."""
+    """A fall of 1..1000 m onto a contact whose deflection v_impact / sqrt(k/m) is 1e-9..1e-3 of R.
+
+    R and the deflection are drawn only where the contact is resolvable up to t_end (R >= ~1e-5 m):
+    the rest of the box is refused by the package before any work.
+    """
     drop = draw(log_uniform(1.0, 1e3))
     v_impact = math.sqrt(2 * G * drop)
     t_fall = math.sqrt(2 * drop / G)
