@@ -272,6 +272,7 @@ FAMILIES = [
     # 2. a stiff contact after a long fall
     Case("2-stiff-100m", 1e-6, 4.6e13, 0.0, 1e-3, G, 100.0, 0.0, 100.0, 0.02),
     Case("2-stiff-1000m", 1e-6, 5.5e13, 0.0, 1e-3, G, 1000.0, 0.0, 100.0, 0.02),
+    Case("2-stiff-1000m-180s", 1e-6, 5.5e13, 0.0, 1e-3, G, 1000.0, 0.0, 180.0, 0.02),  # resolvable to 190 s
     Case("2-stiff-1e12-R2mm", 1e-6, 1e12, 0.0, 2e-3, G, 100.0, 0.0, 100.0, 0.02),
     # 3. undamped micro-hops (2538 events)
     Case("3-micro-hops", 1.0, 1e12, 0.0, 0.06, G, 0.06, 1.7717787672280082e-4, 0.05, 1e-5),
