@@ -176,7 +176,9 @@ class _Contact:
         def f(u):
             return (self.flow(y0, v0, a + u * width)[0] - d) / scale
 
-        assert f(mp.zero) < 0 < f(mp.one), "the departure bracket does not bracket"
+        assert 0 < f(mp.one), "the departure bracket does not bracket"
+        if f(mp.zero) >= 0:  # y(a) = d to the working precision: at R (a start at R at -4e-294 m/s, lifted)
+            return a
         try:
             u = mp.findroot(f, (mp.zero, mp.one), solver="anderson", maxsteps=400)
         except (ValueError, ZeroDivisionError):
