@@ -261,6 +261,7 @@ def complete_model_description(xml: bytes) -> bytes:
 
     from .. import __version__
     from ..scenes import load_scene
+    from ..solvers.cvode import CvodeSettings
 
     root = ET.fromstring(xml)
     root.set("version", __version__)
@@ -274,8 +275,9 @@ def complete_model_description(xml: bytes) -> bytes:
     root.insert(children.index(co_simulation) + 1, units)
 
     article = load_scene("article")
+    # The FMU's own rtol as the tolerance: a master that takes it from here passes it back (see slave.py's rule).
     experiment = ET.Element("DefaultExperiment", startTime="0", stopTime=repr(article.t_end),
-                            stepSize=repr(article.output_interval))
+                            stepSize=repr(article.output_interval), tolerance=repr(CvodeSettings().rtol))
     root.insert(list(root).index(root.find("ModelVariables")), experiment)
 
     scalars = root.find("ModelVariables").findall("ScalarVariable")
