@@ -24,6 +24,7 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
+from ..output import atomic_write
 from .documentation import index_html
 from .variables import MODEL_NAME, UNITS, VARIABLES
 
@@ -71,9 +72,8 @@ def build_fmu(output: str | Path = DEFAULT_OUTPUT) -> Path:
                 if name == script.stem or name.split(".")[0] == package.name:
                     del sys.modules[name]
         output.parent.mkdir(parents=True, exist_ok=True)
-        partial = output.with_name(output.name + ".partial")
-        _repack(Path(built), loader, partial)
-        os.replace(partial, output)
+        with atomic_write(output) as partial:
+            _repack(Path(built), loader, partial)
     write_reference_csv(reference_path(output))
     return output
 
@@ -108,7 +108,6 @@ def write_reference_csv(path: str | Path) -> Path:
     """
     import numpy as np
 
-    from ..output import atomic_write
     from ..physics import Mode
     from ..scenes import load_scene
     from ..solvers.exact import ExactSolution
