@@ -60,7 +60,9 @@ class Instance:
         callbacks.logger = fmi2CallbackLoggerTYPE(self._logger)
         callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        addLoggerProxy(byref(callbacks))  # formats the FMU's printf-style messages
+        # formats the FMU's printf-style messages; FMPy's proxy keeps one logger per process, so the messages
+        # of every instance reach the log of the instance created last
+        addLoggerProxy(byref(callbacks))
         self._callbacks = callbacks
         self.fmu = FMU2Slave(guid=description.guid, unzipDirectory=str(unzipped),
                              modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)

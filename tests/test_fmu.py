@@ -59,6 +59,7 @@ def test_model_description_has_units_ranges_and_start_values(fmu):
     assert {u.name: {k: getattr(u.baseUnit, k) for k in ("kg", "m", "s") if getattr(u.baseUnit, k)}
             for u in md.unitDefinitions} == UNITS
     assert (md.defaultExperiment.startTime, md.defaultExperiment.stopTime) == ("0", "8.0")
+    assert float(md.defaultExperiment.tolerance) == settings.rtol  # masters that take it pass the FMU's own back
     cs = md.coSimulation
     assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
     assert cs.needsExecutionTool  # a Python installation with numpy and scikit-sundae runs it
@@ -144,15 +145,65 @@ def test_answer_does_not_depend_on_the_communication_step(article_runs):
     np.testing.assert_array_equal(coarse["impacts"], impacts)
 
 
-def test_tolerance_from_setup_experiment_is_used_as_rtol(fmu):
-    def run(**options):
-        return fmpy.simulate_fmu(str(fmu), stop_time=2.0, output_interval=0.1, output=["h"], **options)
+# --- the master's tolerance: it may tighten rtol, never loosen it -----------------------------------------
+LOOSER = "(fmi2SetupExperiment) is looser than the FMU's rtol = 1e-11, so rtol = 1e-11 is used"
 
-    with_tolerance = run(relative_tolerance=1e-9, start_values={"atol": 1e-14})
-    with_rtol = run(start_values={"rtol": 1e-9, "atol": 1e-14})
-    default_rtol = run(start_values={"atol": 1e-14})
-    np.testing.assert_array_equal(with_tolerance["h"], with_rtol["h"])
-    assert not np.array_equal(with_tolerance["h"], default_rtol["h"])
+
+def run_article_at_10ms(fmu, **options) -> tuple[float, np.ndarray, list[tuple[int, str]]]:
+    """max |h - h_exact| [m], the impacts column and the FMU's log (status, message) of the 8 s article."""
+    log = []
+    result = fmpy.simulate_fmu(str(fmu), stop_time=8.0, output_interval=0.01, output=["h", "impacts"],
+                               logger=lambda env, name, status, category, message: log.append(
+                                   (status, message.decode("utf-8"))), **options)
+    h, _, impacts = exact_at(result["time"])
+    np.testing.assert_array_equal(result["impacts"], impacts)
+    assert impacts[-1] == 21
+    return float(np.max(np.abs(result["h"] - h))), result["impacts"], log
+
+
+@pytest.mark.parametrize("tolerance", [1e-4, 1e-3])  # OMSimulator always passes 1e-4
+def test_a_looser_tolerance_from_the_master_is_not_used_and_the_fmu_says_so_once(fmu, tolerance):
+    error, _, log = run_article_at_10ms(fmu, relative_tolerance=tolerance)
+    assert error < 1e-6  # measured 2.56e-10 m (with the tolerance as rtol: 6.1e-4 m at 1e-4, 2.7e-2 m at 1e-3)
+    said = [(status, message) for status, message in log if "fmi2SetupExperiment" in message]
+    assert said == [(1, f"tolerance = {tolerance!r} {LOOSER}: a master's tolerance may tighten rtol but never "
+                        "loosen it, because each bounce's error carries into every later bounce (at 1e-3 the "
+                        "article's ball misses an impact); to loosen it, set the parameter rtol")]
+
+
+def test_a_tighter_tolerance_from_the_master_is_used(fmu):
+    default_error, _, default_log = run_article_at_10ms(fmu)  # FMPy passes the DefaultExperiment's 1e-11
+    tight_error, _, tight_log = run_article_at_10ms(fmu, relative_tolerance=1e-13, debug_logging=True)
+    assert not any("rtol" in message for _, message in default_log)  # the FMU's own tolerance: nothing to say
+    assert (0, "rtol = 1e-13 is used: the tolerance of fmi2SetupExperiment, tighter than the parameter "
+               "rtol = 1e-11") in tight_log
+    assert tight_error < default_error / 5  # measured 1.71e-11 m against 2.56e-10 m
+
+
+def test_a_restored_state_keeps_the_tolerance_rule(unzipped):
+    """A state taken under a looser master tolerance continues at rtol, in this instance or a fresh one."""
+    first = Instance(unzipped, "first")
+    fresh = None
+    try:
+        first.initialize(tolerance=1e-3)
+        assert [status for status, message in first.log if LOOSER in message] == [1]
+        first.step_to(2.0, 0.01)
+        serialized = first.fmu.serializeFMUstate(first.fmu.getFMUstate())
+        fresh = Instance(unzipped, "fresh")  # created now: FMPy's logger proxy sends every message to the last one
+        state = fresh.fmu.deSerializeFMUstate(serialized)
+        fresh.fmu.setFMUstate(state)
+        fresh.fmu.freeFMUstate(state)
+        fresh.t = 2.0
+        continued, restored = first.step_to(8.0, 0.01), fresh.step_to(8.0, 0.01)
+        h, _, impacts = exact_at(np.arange(201, 801) * 0.01)
+        for run in (continued, restored):
+            assert np.max(np.abs(np.array([row[0] for row in run]) - h)) < 1e-6  # measured 2.6e-10 and 2.3e-10 m
+            assert [row[5] for row in run] == impacts.tolist() and impacts[-1] == 21
+        assert fresh.get("rtol") == [1e-11] and fresh.errors() == []
+    finally:
+        first.free()
+        if fresh is not None:
+            fresh.free()
 
 
 # --- inputs: F_ext ---------------------------------------------------------------------------------
@@ -326,8 +377,7 @@ def test_invalid_tolerance_in_setup_experiment_gives_fmi2Error(unzipped):
         with pytest.raises(fmpy.fmi1.FMICallException) as raised:
             ball.initialize(tolerance=5.0)
         assert raised.value.status == 3
-        assert ball.errors() == ["tolerance (fmi2SetupExperiment, used as rtol) = 5.0 is not allowed: "
-                                 "it must be in (0, 1]"]
+        assert ball.errors() == ["tolerance (fmi2SetupExperiment) = 5.0 is not allowed: it must be in (0, 1]"]
     finally:
         ball.free()
 

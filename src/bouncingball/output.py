@@ -1,11 +1,12 @@
-"""CSV files: the solution as FMPy writes it (time,h,v) and the event list (time,kind,v)."""
+"""CSV files: the solution as FMPy writes it (time,h,v) and the event list (time,kind,v); atomic_write, through
+which every file the package writes goes."""
 
 from __future__ import annotations
 
 import contextlib
 import csv
 import os
-import tempfile
+import secrets
 from pathlib import Path
 
 import numpy as np
@@ -30,12 +31,25 @@ def check_output_path(name: str, path: str | Path) -> Path:
 
 @contextlib.contextmanager
 def atomic_write(path: str | Path):
-    """A temporary file beside path, renamed onto it only once written: no partial file is ever left."""
+    """A new file beside path, renamed onto it only once written: no partial file is ever left.
+
+    Every file the package writes goes through here. The file is created as any program creates one,
+    mode 0666 less the umask (0644 under umask 022), not mkstemp's 0600, so that CI artifacts and
+    shared folders can read it. Write it by name (the yielded path); it is renamed onto path when
+    the block ends without an exception, and removed otherwise.
+    """
     path = Path(path)
-    descriptor, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    os.close(descriptor)
+    for _ in range(100):
+        temporary = path.with_name(f".{path.name}.{secrets.token_hex(4)}")
+        try:  # O_EXCL: a new file of ours, never one that was there; the kernel applies the umask
+            os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            break
+        except FileExistsError:
+            continue
+    else:
+        raise FileExistsError(f"no free temporary name beside {str(path)!r}")
     try:
-        yield Path(temporary)
+        yield temporary
         os.replace(temporary, path)
     finally:
         with contextlib.suppress(FileNotFoundError):

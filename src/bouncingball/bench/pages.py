@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ..output import atomic_write
 from ..scenes import Scene
 from .environment import environment_lines
 from .fmu_steps import EMPTY, ENGINES, FmuStepCosts
@@ -121,7 +122,8 @@ def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: Co
         "tolerance per solver on the 1 ms grid and every point on the sparse grid).",
         "",
     ]
-    path.write_text("\n".join(lines), encoding="utf-8")
+    with atomic_write(path) as temporary:
+        temporary.write_text("\n".join(lines), encoding="utf-8")
     return path
 
 
@@ -244,5 +246,6 @@ def write_stability_md(scenes: list[Scene], outcomes: list[Outcome], cap: float,
                  "max event time error [s]", "energy drift", "wall time [ms]", "RHS calls", "note"], detail),
         "",
     ]
-    path.write_text("\n".join(lines), encoding="utf-8")
+    with atomic_write(path) as temporary:
+        temporary.write_text("\n".join(lines), encoding="utf-8")
     return path

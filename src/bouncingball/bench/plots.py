@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..output import atomic_write
 from .targets import MATCHED_ERRORS
 from .work_precision import DENSE, SPARSE, Point, by_solver
 
@@ -47,6 +48,7 @@ def plot_work_precision(points: list[Point], path: Path) -> Path:
         ax.grid(True, which="major", color="0.92")
     axes[0].set_ylabel("max |h - h_exact| [m]")
     fig.legend(*axes[0].get_legend_handles_labels(), loc="outside right center", fontsize=8)
-    fig.savefig(path, dpi=100)
+    with atomic_write(path) as temporary:
+        fig.savefig(temporary, dpi=100, format="png")
     plt.close(fig)
     return path

@@ -148,9 +148,11 @@ def _run_fmu(solver: Solver, scene: Scene, tolerances: dict, fmus: FmuPaths | No
             from ..solvers.cvode import choose_engine
 
             choose_engine("compiled")
+    # FMPy passes the DefaultExperiment's tolerance (the default rtol) unless told one, and the FMU's rtol is
+    # the tighter of the two: a swept rtol looser than the default is passed as the tolerance too.
     started = time.perf_counter()
     result = simulate_fmu(str(path), start_time=0.0, stop_time=scene.t_end, output_interval=solver.comm_step,
-                          start_values=start_values, output=output)
+                          start_values=start_values, output=output, relative_tolerance=tolerances.get("rtol"))
     wall_time = time.perf_counter() - started
     names = result.dtype.names
     return Run(result["time"], result["h"] if "h" in names else None, result["v"] if "v" in names else None,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+from ..output import atomic_write
 from .stability import Outcome
 from .text import repr_or_blank
 from .work_precision import Point
@@ -16,7 +17,7 @@ WORK_PRECISION_COLUMNS = ("section", "solver", "kind", "method", "rtol", "atol",
 
 def write_work_precision_csv(points: list[Point], path: Path) -> Path:
     """One row per point, full precision; times are every timed repeat [s]; h_key names the saved h values."""
-    with open(path, "w", newline="", encoding="utf-8") as file:
+    with atomic_write(path) as temporary, open(temporary, "w", newline="", encoding="utf-8") as file:
         writer = csv.writer(file)
         writer.writerow(WORK_PRECISION_COLUMNS)
         for p in points:
@@ -38,7 +39,7 @@ STABILITY_COLUMNS = ("scene", "solver", "kind", "method", "rtol", "atol", "statu
 
 
 def write_stability_csv(outcomes: list[Outcome], path: Path) -> Path:
-    with open(path, "w", newline="", encoding="utf-8") as file:
+    with atomic_write(path) as temporary, open(temporary, "w", newline="", encoding="utf-8") as file:
         writer = csv.writer(file)
         writer.writerow(STABILITY_COLUMNS)
         for o in outcomes:

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..accuracy import Accuracy
+from ..output import atomic_write
 from ..scenes import Scene
 from . import runners
 from .runners import ARTICLE, EXACT, EXACT_EVALUATION, FmuPaths, Run, Solver
@@ -190,5 +191,6 @@ def time_at_error(points: list[Point], target: float, statistic: str = "median")
 
 def save_h(points: list[Point], path: Path) -> Path:
     """The h values of the saved points, keyed by Point.key, so that errors can be recomputed."""
-    np.savez_compressed(path, **{point.key: point.h for point in points if point.h is not None})
+    with atomic_write(path) as temporary, temporary.open("wb") as file:  # a file: savez adds no .npz to it
+        np.savez_compressed(file, **{point.key: point.h for point in points if point.h is not None})
     return path

@@ -24,6 +24,7 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
+from ..output import atomic_write
 from .documentation import index_html
 from .variables import MODEL_NAME, UNITS, VARIABLES
 
@@ -71,9 +72,8 @@ def build_fmu(output: str | Path = DEFAULT_OUTPUT) -> Path:
                 if name == script.stem or name.split(".")[0] == package.name:
                     del sys.modules[name]
         output.parent.mkdir(parents=True, exist_ok=True)
-        partial = output.with_name(output.name + ".partial")
-        _repack(Path(built), loader, partial)
-        os.replace(partial, output)
+        with atomic_write(output) as partial:
+            _repack(Path(built), loader, partial)
     write_reference_csv(reference_path(output))
     return output
 
@@ -108,7 +108,6 @@ def write_reference_csv(path: str | Path) -> Path:
     """
     import numpy as np
 
-    from ..output import atomic_write
     from ..physics import Mode
     from ..scenes import load_scene
     from ..solvers.exact import ExactSolution
@@ -261,6 +260,7 @@ def complete_model_description(xml: bytes) -> bytes:
 
     from .. import __version__
     from ..scenes import load_scene
+    from ..solvers.cvode import CvodeSettings
 
     root = ET.fromstring(xml)
     root.set("version", __version__)
@@ -274,8 +274,9 @@ def complete_model_description(xml: bytes) -> bytes:
     root.insert(children.index(co_simulation) + 1, units)
 
     article = load_scene("article")
+    # The FMU's own rtol as the tolerance: a master that takes it from here passes it back (see slave.py's rule).
     experiment = ET.Element("DefaultExperiment", startTime="0", stopTime=repr(article.t_end),
-                            stepSize=repr(article.output_interval))
+                            stepSize=repr(article.output_interval), tolerance=repr(CvodeSettings().rtol))
     root.insert(list(root).index(root.find("ModelVariables")), experiment)
 
     scalars = root.find("ModelVariables").findall("ScalarVariable")

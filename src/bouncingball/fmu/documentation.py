@@ -85,7 +85,9 @@ padding: 0.2em 0.5em}} table {{border-collapse: collapse}} code {{background: #e
 </table>
 <p>A range "&gt; 0" is written min="{SMALLEST_POSITIVE!r}" in modelDescription.xml (FMI's min is inclusive).
 Default experiment: {e(experiment.get("startTime", ""))} to {e(experiment.get("stopTime", ""))} s,
-step {e(experiment.get("stepSize", ""))} s.</p>
+step {e(experiment.get("stepSize", ""))} s, tolerance {e(experiment.get("tolerance", ""))} (the default rtol). A
+tolerance a master passes in fmi2SetupExperiment is used as rtol only where it is tighter than rtol; a looser
+one is not used, and the FMU says so once in its log.</p>
 
 <h2>Events</h2>
 {doc(Ball.event_function)}

@@ -31,7 +31,7 @@ from .variables import VARIABLES
 
 # The namespace of each run of the FMU's slave script, kept alive for pythonfmu 0.7 (see that script).
 SCRIPT_NAMESPACES: list[dict] = []
-STATE_FORMAT = "bouncingball-fmu-state-3"  # 3: the parameter engine
+STATE_FORMAT = "bouncingball-fmu-state-4"  # 4: the master's tolerance only tightens rtol (3: it replaced rtol)
 # Not "auto" as in process: the FMU's copy of the package is unzipped afresh by most masters, so numba's cache
 # (keyed by the source's path) is cold in each new process, and the compiled engine's first use costs seconds.
 DEFAULT_ENGINE = "sksundae"
@@ -66,6 +66,7 @@ class BouncingBall(Fmi2Slave):
         self._start_time = 0.0
         self._stop_time: float | None = None
         self._tolerance: float | None = None
+        self._tolerance_told = False  # the master's tolerance and the rtol used are logged once per instance
         self._integrator: BallIntegrator | None = None
         for variable in VARIABLES:
             if variable.causality == "output":  # each output is read by the method of its name
@@ -90,6 +91,7 @@ class BouncingBall(Fmi2Slave):
             if self._stop_time is not None:  # refuse now what could not be integrated up to the stop time
                 check_resolvable(integrator.ball, validation.finite("stopTime", self._stop_time, "s"))
             self._integrator = integrator
+            self._tell_tolerance(integrator.settings.rtol)
         except (ValueError, ImportError) as error:  # ImportError: the compiled engine cannot run here, and why
             self._error(error)
 
@@ -202,11 +204,26 @@ class BouncingBall(Fmi2Slave):
         if values is None:
             values, tolerance = self._values, self._tolerance
         ball = Ball(**{key: values[key] for key in BALL_KEYS})
-        rtol = values["rtol"]
-        if tolerance is not None:
-            rtol = validation.in_range("tolerance (fmi2SetupExperiment, used as rtol)", tolerance, 0.0, 1.0)
+        rtol = validation.in_range("rtol", values["rtol"], 0.0, 1.0)
+        if tolerance is not None:  # the master's tolerance may tighten rtol, never loosen it
+            rtol = min(rtol, validation.in_range("tolerance (fmi2SetupExperiment)", tolerance, 0.0, 1.0))
         atol = validation.non_negative("atol", values["atol"], "m") or None  # 0: no absolute bound
         return ball, CvodeSettings(rtol=rtol, atol=atol, method=values["method"], engine=values["engine"])
+
+    def _tell_tolerance(self, used: float) -> None:
+        """Once per instance: a warning if the master asked for a looser tolerance than rtol, a note if tighter."""
+        asked, rtol = self._tolerance, self._values["rtol"]
+        if self._tolerance_told or asked is None or asked == rtol:
+            return
+        self._tolerance_told = True
+        if asked > rtol:
+            self.log(f"tolerance = {asked!r} (fmi2SetupExperiment) is looser than the FMU's rtol = {rtol!r}, so "
+                     f"rtol = {used!r} is used: a master's tolerance may tighten rtol but never loosen it, because "
+                     "each bounce's error carries into every later bounce (at 1e-3 the article's ball misses an "
+                     "impact); to loosen it, set the parameter rtol", Fmi2Status.warning)
+        else:
+            self.log(f"rtol = {used!r} is used: the tolerance of fmi2SetupExperiment, tighter than the "
+                     f"parameter rtol = {rtol!r}", Fmi2Status.ok)
 
     def _make_integrator(self, engine: str | None = None) -> BallIntegrator:
         """An integrator at the start state (on engine if given); ValueError names a bad value.

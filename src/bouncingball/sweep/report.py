@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..output import atomic_write
 from ..solvers.cvode import DEFAULT_RTOL
 from . import store
 from .grid import Grid
@@ -87,7 +88,8 @@ def write_heat_maps(frame, grid: Grid, output_dir: Path) -> list[Path]:
                 axis.set_title(f"{solver}: {title}\nm = {m:g} kg, h0 = {h0:g} m", fontsize=9)
         figure.tight_layout()
         path = output_dir / f"{file_stem(solver)}.png"
-        figure.savefig(path, dpi=80)
+        with atomic_write(path) as temporary:
+            figure.savefig(temporary, dpi=80, format="png")
         plt.close(figure)
         written.append(path)
     return written
@@ -97,7 +99,8 @@ def write_tables(frame, output_dir: Path) -> list[Path]:
     """The whole table as CSV (full precision; without the run keys) and Parquet (with them, as --resume reads)."""
     columns = [column for column in frame.columns if column != "key"]
     csv_path = output_dir / TABLE_CSV
-    frame[columns].to_csv(csv_path, index=False, float_format="%.17g")
+    with atomic_write(csv_path) as temporary:
+        frame[columns].to_csv(temporary, index=False, float_format="%.17g")
     return [csv_path, store.write_table(frame, output_dir)]
 
 
@@ -186,5 +189,6 @@ def write_markdown(frame, grid: Grid, info: dict, output_dir: Path, images: list
     lines += ["", "## Heat maps", ""]
     lines += [f"![{path.stem}]({path.name})" for path in images]
     path = output_dir / MARKDOWN
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    with atomic_write(path) as temporary:
+        temporary.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path

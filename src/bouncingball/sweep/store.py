@@ -6,9 +6,10 @@ A finished sweep's whole table (TABLE) replaces its parts; --resume reads it too
 
 from __future__ import annotations
 
-import os
 import uuid
 from pathlib import Path
+
+from ..output import atomic_write
 
 PARTS = "sweep_parts"
 TABLE = "stability_map.parquet"
@@ -35,9 +36,8 @@ def clear(output_dir: Path, table: bool = True) -> None:
 def write_table(frame, output_dir: Path) -> Path:
     """The whole table as one Parquet file (temporary name, then renamed), then its parts removed."""
     path = Path(output_dir) / TABLE
-    temporary = path.with_name(f".{TABLE}.tmp")
-    frame.to_parquet(temporary, index=False)
-    os.replace(temporary, path)
+    with atomic_write(path) as temporary:
+        frame.to_parquet(temporary, index=False)
     clear(output_dir, table=False)
     return path
 
@@ -49,11 +49,10 @@ def write_part(output_dir: Path, rows: list[dict]) -> Path:
 
     directory = parts_dir(output_dir)
     directory.mkdir(parents=True, exist_ok=True)
-    name = uuid.uuid4().hex
-    temporary, path = directory / f".{name}.tmp", directory / f"{name}.parquet"
+    path = directory / f"{uuid.uuid4().hex}.parquet"
     table = pa.Table.from_pylist([{column: row[column] for column in COLUMNS} for row in rows])
-    pq.write_table(table, temporary)
-    os.replace(temporary, path)
+    with atomic_write(path) as temporary:
+        pq.write_table(table, temporary)
     return path
 
 
