@@ -199,6 +199,7 @@ class IntegratorState:
     t_start: float = 0.0
     rhs_calls: int = 0
     steps: int = 0
+    gap: float | None = None  # h - R [m] to every digit (h rounds a deflection to ulp(R)); None: h - R
 
 
 class BallIntegrator:
@@ -356,7 +357,7 @@ class BallIntegrator:
         Scales from phase_scales, capped so that rtol length <= atol where atol is given.
         """
         s, mode = self.settings, self._mode
-        length, speed = phase_scales(self.ball, mode, self._h - self.ball.R, self._v, self._F_ext)
+        length, speed = phase_scales(self.ball, mode, self._x, self._v, self._F_ext)
         if s.atol is not None and s.rtol * length > s.atol:
             speed *= s.atol / (s.rtol * length)
             length = s.atol / s.rtol
@@ -375,7 +376,7 @@ class BallIntegrator:
     @property
     def h(self) -> float:
         """Height of the centre [m] at t."""
-        return self._h
+        return self.ball.R + self._x
 
     @property
     def v(self) -> float:
@@ -423,12 +424,13 @@ class BallIntegrator:
     @property
     def acceleration(self) -> float:
         """dv/dt [m/s2] at t in the current mode."""
-        return self.ball.acceleration(self._h, self._v, self._mode, self._F_ext)
+        ball = self.ball
+        return gap_acceleration(self._x, self._v, self._mode, self._F_ext, ball.m, ball.k, ball.b, ball.g)
 
     @property
     def contact_force(self) -> float:
         """Force of the ground on the ball [N] at t, positive upwards; zero in flight."""
-        return self.ball.contact_force(self._h, self._v, self._mode)
+        return 0.0 if self._mode == Mode.FLIGHT else -self.ball.k * self._x - self.ball.b * self._v
 
     @property
     def rest_time(self) -> float | None:
@@ -447,10 +449,10 @@ class BallIntegrator:
         A restored snapshot restarts CVODE there, so it continues within the tolerance of the
         original run, not bit for bit (CVODE's step history is not part of the snapshot).
         """
-        return IntegratorState(t=self._t, h=self._h, v=self._v, mode=self._mode, F_ext=self._F_ext,
+        return IntegratorState(t=self._t, h=self.h, v=self._v, mode=self._mode, F_ext=self._F_ext,
                                impacts=self._impacts, departures=self._departures,
                                last_impact_time=self._last_impact_time, t_start=self._t_start,
-                               rhs_calls=self.rhs_calls, steps=self._steps)
+                               rhs_calls=self.rhs_calls, steps=self._steps, gap=self._x)
 
     def set_state(self, state: IntegratorState) -> None:
         """Resume from state (one of get_state()); ValueError names a bad field, and then nothing changed."""
@@ -469,8 +471,14 @@ class BallIntegrator:
         except ValueError:
             raise ValueError(f"state mode = {state.mode!r} is not allowed: it must be one of "
                              f"{', '.join(f'{m.value} ({m.name})' for m in Mode)}") from None
+        x = h - self.ball.R
+        if state.gap is not None:
+            x = validation.finite("state gap", state.gap, "m")
+            if not abs((self.ball.R + x) - h) <= 2.0 * math.ulp(max(abs(h), self.ball.R)):
+                raise ValueError(f"state gap = {x!r} m is not allowed with h = {h!r} m: R + gap must be h "
+                                 f"(R = {self.ball.R!r} m)")
         check_resolvable(self.ball, t)
-        self._t, self._h, self._v, self._mode, self._F_ext = t, h, v, mode, F_ext
+        self._t, self._x, self._v, self._mode, self._F_ext = t, x, v, mode, F_ext
         self._impacts, self._departures = int(state.impacts), int(state.departures)
         self._last_impact_time, self._t_start = last_impact, t_start
         self._rhs_calls, self._steps = int(state.rhs_calls), int(state.steps)
@@ -508,10 +516,10 @@ class BallIntegrator:
         self._clear_roots(self._mode)
         _, length, speed = self._start_frame()
         with self._logs[self._mode].capturing():
-            solver.init_step(0.0, np.array([(self._h - self.ball.R) / length, self._v / speed]))
+            solver.init_step(0.0, np.array([self._x / length, self._v / speed]))
         self._cvode_called = True
         self._needs_init = False
-        self._step_start = (self._t, self._h, self._v)
+        self._step_start = (self._t, self._x, self._v)
         return solver
 
     # --- integration -------------------------------------------------------------------------
@@ -538,22 +546,22 @@ class BallIntegrator:
             if segment is not None:
                 mode, start, end = segment
                 if t_target <= end[0]:
-                    h, v = step_state(self.ball, self._F_ext, mode, start, end, t_target)
-                    self._t, self._h, self._v = t_target, float(h), float(v)
+                    x, v = step_state(self.ball, self._F_ext, mode, start, end, t_target)
+                    self._t, self._x, self._v = t_target, float(x), float(v)
                     break
                 if self._event_pending is not None:
-                    self._t, self._h, self._v = self._event_pending
+                    self._t, self._x, self._v = self._event_pending
                     events.append(self._switch_mode())
                     continue
             if self._rest_from is None and self._needs_init and self._at_rest():
-                self._rest_from = (self._t, self._h, self._v)
+                self._rest_from = (self._t, self._x, self._v)
             if self._rest_from is not None:
-                self._t, self._h, self._v = t_target, *self._rest_state(t_target)
+                self._t, self._x, self._v = t_target, *self._rest_state(t_target)
                 break
             if self._close_enough(t_target):
                 break
             if self._needs_init and (event := self._event_in_closed_form()) is not None:
-                self._segment = (self._mode, (self._t, self._h, self._v), event)
+                self._segment = (self._mode, (self._t, self._x, self._v), event)
                 self._event_pending = event
                 continue
             solver = self._init_phase() if self._needs_init else self._solvers[self._mode]
@@ -566,12 +574,12 @@ class BallIntegrator:
             self._check(result)
             self._nfev_since_init = result.nfev
             tau, x, v = float(result.t), length * float(result.y[0]), speed * float(result.y[1])
-            end = (origin + tau, self.ball.R + x, v)
+            end = (origin + tau, x, v)
             if result.status == _CV_ROOT_RETURN:
                 roots = self._roots_found(self._mode)
                 if roots[0]:
                     tau, v = self._polish_event(tau_before, (tau, x, v))
-                    end = self._event_pending = (origin + tau, self.ball.R, v)
+                    end = self._event_pending = (origin + tau, 0.0, v)
                 elif roots[2]:
                     self._rest_from = end
                 self._clear_roots(self._mode)
@@ -598,50 +606,49 @@ class BallIntegrator:
     def _integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
         t_end = grid[-1]
         check_resolvable(self.ball, t_end)
-        times, heights, velocities, modes = [], [], [], []
+        times, gaps, velocities, modes = [], [], [], []
         events: list[Event] = []
 
-        def record(ts, hs, vs, mode: Mode) -> None:
-            """Keep a piece of trajectory in one mode, and move to its last point."""
+        def record(ts, xs, vs, mode: Mode) -> None:
+            """Keep a piece of trajectory in one mode (gaps x = h - R), and move to its last point."""
             times.append(ts)
-            heights.append(hs)
+            gaps.append(xs)
             velocities.append(vs)
             modes.append(np.full(len(ts), int(mode)))
-            self._t, self._h, self._v = float(ts[-1]), float(hs[-1]), float(vs[-1])
+            self._t, self._x, self._v = float(ts[-1]), float(xs[-1]), float(vs[-1])
 
         def record_to(end: tuple[float, float, float], mode: Mode) -> None:
-            """A piece from here to end = (t, h, v) on the mode's exact flow."""
-            record(np.array([self._t, end[0]]), np.array([self._h, end[1]]), np.array([self._v, end[2]]), mode)
+            """A piece from here to end = (t, x, v) on the mode's exact flow."""
+            record(np.array([self._t, end[0]]), np.array([self._x, end[1]]), np.array([self._v, end[2]]), mode)
 
-        record(np.array([self._t]), np.array([self._h]), np.array([self._v]), self._mode)
+        record(np.array([self._t]), np.array([self._x]), np.array([self._v]), self._mode)
         self._reinit_needed()
         resting = False  # set when CVODE stops at the start of a rest
         while self._t < t_end and not self._close_enough(t_end):
             mode = self._mode
             if resting or self._at_rest():
-                self._rest_from = (self._t, self._h, self._v)
+                self._rest_from = (self._t, self._x, self._v)
                 record_to((t_end, *self._rest_state(t_end)), mode)
                 break
             event = self._event_in_closed_form()
             if event is not None:
                 reached = event[0] <= t_end
                 if not reached:
-                    h_end, v_end = self.ball.flow(mode, self._h, self._v, t_end - self._t, self._F_ext)
-                    event = (t_end, float(h_end), float(v_end))
+                    x_end, v_end = self.ball.gap_flow(mode, self._x, self._v, t_end - self._t, self._F_ext)
+                    event = (t_end, float(x_end), float(v_end))
                 record_to(event, mode)
                 if reached:
                     events.append(self._switch_mode())
                 continue
             self._clear_roots(mode)
             origin, length, speed = self._start_frame()
-            x0 = self._h - self.ball.R
             with self._logs[mode].capturing():
                 result = self._solvers[mode].solve(np.array([0.0, t_end - origin]),
-                                                   np.array([x0 / length, self._v / speed]))
+                                                   np.array([self._x / length, self._v / speed]))
             self._cvode_called = True
             self._check(result)
             taus, xs, vs = result.t.copy(), length * result.y[:, 0], speed * result.y[:, 1]
-            xs[0], vs[0] = x0, self._v  # the phase's start as it was, not scaled and back
+            xs[0], vs[0] = self._x, self._v  # the phase's start as it was, not scaled and back
             roots = self._roots_found(mode) if result.status == _CV_ROOT_RETURN else [0, 0, 0]
             root, resting = bool(roots[0]), bool(roots[2])
             if root:
@@ -652,21 +659,21 @@ class BallIntegrator:
             else:
                 self._check_step_ends(origin + float(taus[-1]), xs)
             self._clear_roots(mode)
-            ts, hs = origin + taus, self.ball.R + xs
+            ts = origin + taus
             if not (root or resting):  # CVODE stopped at t_end - origin, which may round off t_end
                 ts[-1] = t_end
             # A phase's first point is the previous phase's last: one copy per mode, so that no
             # dense-output segment straddles the switch.
-            record(ts, hs, vs, mode)
+            record(ts, xs, vs, mode)
             self._steps += len(ts) - 1
             self._rhs_calls += int(result.nfev)
             if root:
                 events.append(self._switch_mode())
         if self._t > times[-1][-1]:  # finished by a Taylor step within a few ulps of t_end
-            record(np.array([self._t]), np.array([self._h]), np.array([self._v]), self._mode)
-        h_out, v_out = interpolate(self.ball, self._F_ext, np.concatenate(times), np.concatenate(heights),
+            record(np.array([self._t]), np.array([self._x]), np.array([self._v]), self._mode)
+        x_out, v_out = interpolate(self.ball, self._F_ext, np.concatenate(times), np.concatenate(gaps),
                                    np.concatenate(velocities), np.concatenate(modes), grid)
-        return h_out, v_out, events
+        return self.ball.R + x_out, v_out, events
 
     def _report_sundials_warnings(self) -> None:
         if self._cvode_called:
@@ -686,31 +693,30 @@ class BallIntegrator:
         """
         if self._mode != Mode.CONTACT:
             return False
-        ball = self.ball
-        if ball.contact_is_permanent(self._h, self._v, self._F_ext, self.hop_tolerance):
-            return True
-        undecided = (ball.damping_ratio >= 1.0 or ball.static_deflection(self._F_ext) <= 0.0
-                     or self._below_scale())
-        return undecided and math.isinf(time_to_departure(ball, self._h, self._v, self._F_ext))
+        ball, d = self.ball, self.ball.static_deflection(self._F_ext)
+        if d > 0.0 and rest_margin_value(self._x, self._v, d, self.hop_tolerance, ball.k / ball.m) > 0.0:
+            return True  # Ball.contact_is_permanent, in the gap
+        undecided = ball.damping_ratio >= 1.0 or d <= 0.0 or self._below_scale()
+        return undecided and math.isinf(time_to_departure(ball, self._x, self._v, self._F_ext))
 
     def _rest_state(self, t: float) -> tuple[float, float]:
-        """h [m] and v [m/s] at t on a rest, on the contact's exact flow from where the rest began.
+        """The gap x = h - R [m] and v [m/s] at t on a rest, on the contact's exact flow from where the rest began.
 
         Once at rest the ball's motion is the linear oscillator decaying to the rest height,
         which CVODE would only add its error to: where k/m ulp(R) is comparable to g, h cannot
         even represent the rest height, and the quantised spring force keeps CVODE's steps tiny.
         """
-        t0, h0, v0 = self._rest_from
-        h, v = self.ball.flow(Mode.CONTACT, h0, v0, t - t0, self._F_ext)
-        return float(h), float(v)
+        t0, x0, v0 = self._rest_from
+        x, v = self.ball.gap_flow(Mode.CONTACT, x0, v0, t - t0, self._F_ext)
+        return float(x), float(v)
 
     def _below_scale(self) -> bool:
         """The current phase is smaller than MIN_PHASE_SCALE: its scaled state would not be representable."""
-        length, speed = phase_scales(self.ball, self._mode, self._h - self.ball.R, self._v, self._F_ext)
+        length, speed = phase_scales(self.ball, self._mode, self._x, self._v, self._F_ext)
         return not (length >= MIN_PHASE_SCALE and speed > 0.0)
 
     def _event_in_closed_form(self) -> tuple[float, float, float] | None:
-        """The event (t, R, v) ending the current phase if CVODE is not to integrate it, else None.
+        """The event (t, x = 0, v) ending the current phase if CVODE is not to integrate it, else None.
 
         A flight whose apex stays within hop_tolerance of R (a hop merged into the contacts around
         it would be as right) or below MIN_PHASE_SCALE. A contact below MIN_PHASE_SCALE that ends.
@@ -720,24 +726,24 @@ class BallIntegrator:
         instead of flying 4.5e-6 m in 3 s). Each mode's flow is exact, so such a phase is taken in
         closed form: events of the right kind at the right times.
         """
-        ball, R = self.ball, self.ball.R
+        ball, x, v = self.ball, self._x, self._v
         if self._mode == Mode.CONTACT:
             if not (self._below_scale() or ball.static_deflection(self._F_ext) < 0.0):
                 return None
-            tau = time_to_departure(ball, self._h, self._v, self._F_ext)
+            tau = time_to_departure(ball, x, v, self._F_ext)
             if math.isinf(tau):
                 return None
-            return self._t + tau, R, velocity_at_departure(ball, self._h, self._v, tau, self._F_ext)
-        if self._h < R:
+            return self._t + tau, 0.0, velocity_at_departure(ball, x, v, tau, self._F_ext)
+        if x < 0.0:
             return None
         g_eff = ball.effective_gravity(self._F_ext)
         if not g_eff > 0.0:
             return None
-        apex, _ = phase_scales(ball, Mode.FLIGHT, self._h - R, self._v, self._F_ext)
+        apex, _ = phase_scales(ball, Mode.FLIGHT, x, v, self._F_ext)
         if not apex < max(self.hop_tolerance, MIN_PHASE_SCALE):
             return None
-        tau, v_impact = time_to_impact(self._h - R, self._v, g_eff)
-        return self._t + tau, R, v_impact
+        tau, v_impact = time_to_impact(x, v, g_eff)
+        return self._t + tau, 0.0, v_impact
 
     def _polish_event(self, tau_before: float, root: tuple[float, float, float]) -> tuple[float, float]:
         """The crossing of x = 0 that CVODE located at root = (tau, x, v) in the phase's frame: (tau, v) there.
@@ -788,7 +794,7 @@ class BallIntegrator:
         if dt > 32.0 * math.ulp(max(abs(t_target), abs(self._t), 1e-300)):
             return False
         a = self.acceleration
-        self._t, self._h, self._v = t_target, self._h + dt * (self._v + 0.5 * dt * a), self._v + dt * a
+        self._t, self._x, self._v = t_target, self._x + dt * (self._v + 0.5 * dt * a), self._v + dt * a
         return True
 
     def _check(self, result) -> None:
@@ -797,7 +803,7 @@ class BallIntegrator:
         if result.status < 0:
             t = float(np.atleast_1d(result.t)[-1])
             raise SolverError(f"CVODE failed at t = {t!r} s ({self._mode.name.lower()}, "
-                              f"h = {self._h!r} m, v = {self._v!r} m/s): {result.message}")
+                              f"h = {self.h!r} m, v = {self._v!r} m/s): {result.message}")
 
     def _switch_mode(self) -> Event:
         self._reinit_needed()

@@ -23,36 +23,37 @@ from ..physics import Ball, Mode
 
 
 def step_state(ball: Ball, F_ext: float, mode: Mode, start, end, t):
-    """h [m] and v [m/s] at t on the step from start = (t0, h0, v0) to end = (t1, h1, v1) taken in mode.
+    """The gap x = h - R [m] and v [m/s] at t on the step from start = (t0, x0, v0) to end = (t1, x1, v1) in mode.
 
-    Scalars or arrays (one step per element); t0 <= t <= t1. A step of zero length gives its start.
+    In the gap, which carries the digits of a deflection that h = R + x rounds away. Scalars or
+    arrays (one step per element); t0 <= t <= t1. A step of zero length gives its start.
     """
-    (t0, h0, v0), (t1, h1, v1) = start, end
+    (t0, x0, v0), (t1, x1, v1) = start, end
     dt = t1 - t0
-    h_end, v_end = ball.flow(mode, h0, v0, dt, F_ext)
+    x_end, v_end = ball.gap_flow(mode, x0, v0, dt, F_ext)
     tau = t - t0
     if isinstance(dt, float):
         s = tau / dt if dt > 0.0 else 0.0
     else:
         s = tau / np.where(dt > 0.0, dt, np.inf)
-    h, v = ball.flow(mode, h0, v0, tau, F_ext)
-    return h + s * (h1 - h_end), v + s * (v1 - v_end)
+    x, v = ball.gap_flow(mode, x0, v0, tau, F_ext)
+    return x + s * (x1 - x_end), v + s * (v1 - v_end)
 
 
-def interpolate(ball: Ball, F_ext: float, ts: np.ndarray, hs: np.ndarray, vs: np.ndarray, modes: np.ndarray,
+def interpolate(ball: Ball, F_ext: float, ts: np.ndarray, xs: np.ndarray, vs: np.ndarray, modes: np.ndarray,
                 t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """h and v at the increasing times t from CVODE's step ends (ts, hs, vs) and the mode of each.
+    """Gap x = h - R and v at the increasing times t from CVODE's step ends (ts, xs, vs) and the mode of each.
 
     Consecutive points of different modes share their time (an event): that segment has zero
     length and is never used inside a step.
     """
     i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
     j = i + 1
-    h = np.empty_like(t)
+    x = np.empty_like(t)
     v = np.empty_like(t)
     for mode in Mode:
         sel = modes[i] == mode
         if np.any(sel):
             a, b = i[sel], j[sel]
-            h[sel], v[sel] = step_state(ball, F_ext, mode, (ts[a], hs[a], vs[a]), (ts[b], hs[b], vs[b]), t[sel])
-    return h, v
+            x[sel], v[sel] = step_state(ball, F_ext, mode, (ts[a], xs[a], vs[a]), (ts[b], xs[b], vs[b]), t[sel])
+    return x, v

@@ -49,11 +49,11 @@ class ExactSolution:
                 tau, v_next = time_to_impact(h - R, v, ball.effective_gravity(self.F_ext))
                 kind, next_mode = IMPACT, Mode.CONTACT
             else:
-                tau = time_to_departure(ball, h, v, self.F_ext)
+                tau = time_to_departure(ball, h - R, v, self.F_ext)
                 if math.isinf(tau):
                     self.rest_time = t
                     return
-                v_next = velocity_at_departure(ball, h, v, tau, self.F_ext)
+                v_next = velocity_at_departure(ball, h - R, v, tau, self.F_ext)
                 kind, next_mode = DEPARTURE, Mode.FLIGHT
             if not t + tau <= self.t_end:
                 return
@@ -114,11 +114,11 @@ def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tupl
     return math.inf, math.nan
 
 
-def time_to_departure(ball: Ball, h0: float, v0: float, F_ext: float = 0.0) -> float:
-    """Time from (h0, v0) in contact to the first upward crossing of h = R; inf if none."""
+def time_to_departure(ball: Ball, x0: float, v0: float, F_ext: float = 0.0) -> float:
+    """Time from the gap x0 = h0 - R [m] and v0 [m/s] in contact to the first upward crossing of h = R; inf if none."""
     sigma, w2 = ball.b / (2.0 * ball.m), ball.k / ball.m
     d = ball.static_deflection(F_ext)
-    y0 = (h0 - ball.R) + d  # exactly d at an impact: not h0 - (R - d), where R - d rounds d to ulp(R)
+    y0 = x0 + d  # exactly d at an impact: not h0 - (R - d), where R - d rounds d to ulp(R)
     p, q = v0 + sigma * y0, sigma * v0 + w2 * y0  # y = y0 C + p S, v = v0 C - q S
 
     def excess(tau: float) -> tuple[float, float]:
@@ -180,14 +180,14 @@ def time_to_departure(ball: Ball, h0: float, v0: float, F_ext: float = 0.0) -> f
     return _polish_root(excess, a, b, guess, at_tau1 if a > 0.0 else None)
 
 
-def velocity_at_departure(ball: Ball, h0: float, v0: float, tau: float, F_ext: float = 0.0) -> float:
-    """v [m/s] where a contact from (h0, v0) ends after tau (time_to_departure): never < 0.
+def velocity_at_departure(ball: Ball, x0: float, v0: float, tau: float, F_ext: float = 0.0) -> float:
+    """v [m/s] where a contact from the gap x0 = h0 - R [m] and v0 ends after tau (time_to_departure): never < 0.
 
     A departure crosses R upwards; where the ball barely moves (at R with v0 = -1e-112) the flow can
     round it to a tiny downward speed, and the flight would end at once in an impact at R, and so on
     for ever.
     """
-    return max(float(ball.flow(Mode.CONTACT, h0, v0, tau, F_ext)[1]), 0.0)
+    return max(float(ball.gap_flow(Mode.CONTACT, x0, v0, tau, F_ext)[1]), 0.0)
 
 
 def _overdamped_extremum(v0: float, q: float, mu: float) -> float | None:
