@@ -155,7 +155,7 @@ class _Contact:
                     start = end  # (over-damped: a maximum below d; the approach after it decides)
                     continue
             tau = self._root(y0, v0, start, end)
-            return tau, self.flow(y0, v0, tau)[1]
+            return tau, max(self.flow(y0, v0, tau)[1], mp.zero)  # a departure crosses R upwards: never v < 0
         raise AssertionError("the departure search did not end")
 
     def _beyond(self, y0, v0, start):

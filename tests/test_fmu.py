@@ -14,7 +14,7 @@ import pytest
 from bouncingball.fmu.variables import SMALLEST_POSITIVE, UNITS, VARIABLES
 from bouncingball.physics import Ball
 from bouncingball.scenes import load_scene
-from bouncingball.solvers.cvode import CvodeSettings
+from bouncingball.solvers.cvode import DEFAULT_RTOL, CvodeSettings
 from fmu_helpers import TIGHT, Instance, exact_at
 
 fmpy = pytest.importorskip("fmpy", reason="the FMU tests need the [fmu] extra")
@@ -146,7 +146,7 @@ def test_answer_does_not_depend_on_the_communication_step(article_runs):
 
 
 # --- the master's tolerance: it may tighten rtol, never loosen it -----------------------------------------
-LOOSER = "(fmi2SetupExperiment) is looser than the FMU's rtol = 1e-11, so rtol = 1e-11 is used"
+LOOSER = f"(fmi2SetupExperiment) is looser than the FMU's rtol = {DEFAULT_RTOL!r}, so rtol = {DEFAULT_RTOL!r} is used"
 
 
 def run_article_at_10ms(fmu, **options) -> tuple[float, np.ndarray, list[tuple[int, str]]]:
@@ -164,7 +164,7 @@ def run_article_at_10ms(fmu, **options) -> tuple[float, np.ndarray, list[tuple[i
 @pytest.mark.parametrize("tolerance", [1e-4, 1e-3])  # OMSimulator always passes 1e-4
 def test_a_looser_tolerance_from_the_master_is_not_used_and_the_fmu_says_so_once(fmu, tolerance):
     error, _, log = run_article_at_10ms(fmu, relative_tolerance=tolerance)
-    assert error < 1e-6  # measured 2.56e-10 m (with the tolerance as rtol: 6.1e-4 m at 1e-4, 2.7e-2 m at 1e-3)
+    assert error < 1e-6  # measured 1.04e-10 m (with the tolerance as rtol: 6.1e-4 m at 1e-4, 2.7e-2 m at 1e-3)
     said = [(status, message) for status, message in log if "fmi2SetupExperiment" in message]
     assert said == [(1, f"tolerance = {tolerance!r} {LOOSER}: a master's tolerance may tighten rtol but never "
                         "loosen it, because each bounce's error carries into every later bounce (at 1e-3 the "
@@ -172,12 +172,12 @@ def test_a_looser_tolerance_from_the_master_is_not_used_and_the_fmu_says_so_once
 
 
 def test_a_tighter_tolerance_from_the_master_is_used(fmu):
-    default_error, _, default_log = run_article_at_10ms(fmu)  # FMPy passes the DefaultExperiment's 1e-11
+    default_error, _, default_log = run_article_at_10ms(fmu)  # FMPy passes the DefaultExperiment's rtol
     tight_error, _, tight_log = run_article_at_10ms(fmu, relative_tolerance=1e-13, debug_logging=True)
     assert not any("rtol" in message for _, message in default_log)  # the FMU's own tolerance: nothing to say
     assert (0, "rtol = 1e-13 is used: the tolerance of fmi2SetupExperiment, tighter than the parameter "
-               "rtol = 1e-11") in tight_log
-    assert tight_error < default_error / 5  # measured 1.71e-11 m against 2.56e-10 m
+               f"rtol = {DEFAULT_RTOL!r}") in tight_log
+    assert tight_error < default_error / 5  # measured 1.52e-11 m against 1.04e-10 m
 
 
 def test_a_restored_state_keeps_the_tolerance_rule(unzipped):
@@ -199,7 +199,7 @@ def test_a_restored_state_keeps_the_tolerance_rule(unzipped):
         for run in (continued, restored):
             assert np.max(np.abs(np.array([row[0] for row in run]) - h)) < 1e-6  # measured 2.6e-10 and 2.3e-10 m
             assert [row[5] for row in run] == impacts.tolist() and impacts[-1] == 21
-        assert fresh.get("rtol") == [1e-11] and fresh.errors() == []
+        assert fresh.get("rtol") == [DEFAULT_RTOL] and fresh.errors() == []
     finally:
         first.free()
         if fresh is not None:
