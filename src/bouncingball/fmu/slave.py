@@ -150,7 +150,9 @@ class BouncingBall(Fmi2Slave):
                 integrator = self._integrator
                 if integrator is None or (integrator.ball, integrator.settings) != (ball, settings):
                     integrator = BallIntegrator(ball, values["h"], values["v"], start_time, values["F_ext"], settings)
-                limits.check_scene(ball, saved["h"], saved["v"], saved["F_ext"], saved["t"])
+                t, h, v, F_ext = (validation.finite(f"state {name}", saved[name], unit)
+                                  for name, unit in (("t", "s"), ("h", "m"), ("v", "m/s"), ("F_ext", "N")))
+                limits.check_scene(ball, h, v, F_ext, t)
                 integrator.set_state(IntegratorState(**saved))  # checks every field before it changes any
         except (KeyError, TypeError, ValueError, ImportError) as error:
             self._error(f"fmi2SetFMUstate failed, nothing was changed: {error}")
