@@ -19,7 +19,6 @@ import bouncingball
 from bouncingball import limits
 from bouncingball.physics import Ball
 from bouncingball.scenes import BUILTIN_SCENES, load_scene
-from bouncingball.solvers.cvode import BallIntegrator
 from bouncingball.solvers.result import output_grid
 
 TIMEOUT = 60.0  # s: each case is refused in well under a second; a hang fails here
