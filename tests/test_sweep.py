@@ -247,8 +247,10 @@ def test_clearing_removes_the_sweeps_own_leftover_temporaries_and_nothing_else(t
     parts = tmp_path / store.PARTS
     parts.mkdir()
     (parts / LEFTOVER).write_bytes(b"half a part")
+    (parts / ".fedcba9876543210fedcba9876543210.parquet.0a1b2c3d").write_bytes(b"half a part, other spelling")
     (parts / "0123456789abcdef0123456789abcdef.parquet").write_bytes(b"a part")
     (tmp_path / f".{store.TABLE}.tmp").write_bytes(b"half a table")
+    (tmp_path / f".{store.TABLE}.0a1b2c3d").write_bytes(b"half a table, other spelling")
     store.clear(tmp_path)  # was: OSError: Directory not empty
     assert list(tmp_path.iterdir()) == []
     parts.mkdir()
