@@ -238,7 +238,7 @@ def test_resume_runs_only_what_is_missing_and_nothing_twice(local_sweep, tmp_pat
 
 
 # --- leftovers of an interrupted part-write ------------------------------------------------------------------
-LEFTOVER = ".0123456789abcdef0123456789abcdef.tmp"  # what write_part leaves if killed before its rename
+LEFTOVER = ".0123456789abcdef0123456789abcdef.parquet.0a1b2c3d"  # what write_part leaves if killed before its rename
 
 
 def test_clearing_removes_the_sweeps_own_leftover_temporaries_and_nothing_else(tmp_path):
