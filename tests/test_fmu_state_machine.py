@@ -250,6 +250,28 @@ def test_a_stop_time_beyond_what_double_precision_resolves_is_refused_at_initial
     """))
 
 
+def test_a_scene_outside_the_range_double_precision_resolves_is_refused_at_initialisation(unzipped):
+    assert_ok(run_case(unzipped, """
+        ball.set(R=1e300)
+        f.setupExperiment(startTime=0.0, stopTime=1.0)
+        f.enterInitializationMode()
+        refused(lambda: f.exitInitializationMode(), "R = 1e+300 m is not allowed: it must be <= 1e+150 m")
+        ball.free()
+    """))
+
+
+def test_a_force_outside_the_resolvable_range_is_refused_between_steps_and_changes_nothing(unzipped):
+    assert_ok(run_case(unzipped, """
+        ball.initialize()
+        f.doStep(0.0, 0.5)
+        refused(lambda: f.setReal([fr], [-1e300]), "F_ext = -1e+300 N is not allowed for this ball")
+        assert f.getReal([fr]) == [0.0]
+        f.doStep(0.5, 0.5)
+        assert abs(f.getReal([vr])[0] - exact_at([1.0])[0][0]) < 1e-8
+        ball.free()
+    """))
+
+
 def test_repeated_instantiation_keeps_sys_path_and_memory_flat(unzipped):
     """pythonfmu 0.7 runs the slave script per instance and keeps what it defines: ~45 kB with the whole
     slave class in the script, under 8 kB now that the script only names a class imported once."""

@@ -235,3 +235,47 @@ def test_resume_runs_only_what_is_missing_and_nothing_twice(local_sweep, tmp_pat
     assert after.loc[kept, "wall_time"].tolist() == before.loc[kept, "wall_time"].tolist()
     again = _sweep(*SWEEP, "--workers", "1", "--output-dir", str(tmp_path), "--resume")
     assert "24 runs (0 run now)" in again.stderr
+
+
+# --- leftovers of an interrupted part-write ------------------------------------------------------------------
+LEFTOVER = ".0123456789abcdef0123456789abcdef.parquet.0a1b2c3d"  # what write_part leaves if killed before its rename
+
+
+def test_clearing_removes_the_sweeps_own_leftover_temporaries_and_nothing_else(tmp_path):
+    from bouncingball.sweep import store
+
+    parts = tmp_path / store.PARTS
+    parts.mkdir()
+    (parts / LEFTOVER).write_bytes(b"half a part")
+    (parts / ".fedcba9876543210fedcba9876543210.parquet.0a1b2c3d").write_bytes(b"half a part, other spelling")
+    (parts / "0123456789abcdef0123456789abcdef.parquet").write_bytes(b"a part")
+    (tmp_path / f".{store.TABLE}.tmp").write_bytes(b"half a table")
+    (tmp_path / f".{store.TABLE}.0a1b2c3d").write_bytes(b"half a table, other spelling")
+    store.clear(tmp_path)  # was: OSError: Directory not empty
+    assert list(tmp_path.iterdir()) == []
+    parts.mkdir()
+    (parts / LEFTOVER).write_bytes(b"half a part")
+    (parts / "notes.txt").write_text("mine")  # not the sweep's: kept, and with it the folder
+    (parts / ".notes.tmp").write_text("mine too")
+    store.clear(tmp_path)
+    assert sorted(path.name for path in parts.iterdir()) == [".notes.tmp", "notes.txt"]
+
+
+def test_a_leftover_temporary_part_neither_fails_a_sweep_nor_stops_its_report(tmp_path):
+    tiny = ["--k", "1e2:1e3:2", "--zeta", "0.1", "--solvers", "cvode", "--t-end", "0.5", "--batch-size", "1",
+            "--time-cap", "30", "--workers", "1", "--output-dir", str(tmp_path)]
+    parts = tmp_path / "sweep_parts"
+    parts.mkdir()
+    (parts / LEFTOVER).write_bytes(b"half a part")
+    fresh = _sweep(*tiny)  # was: OSError: Directory not empty, before any run
+    assert fresh.returncode == 0, fresh.stderr
+    assert "2 runs (2 run now): 2 finished" in fresh.stderr
+    parts.mkdir()
+    (parts / LEFTOVER).write_bytes(b"half a part")
+    for name in ("stability_map.md", "stability_map_cvode.png"):
+        (tmp_path / name).unlink()
+    resumed = _sweep(*tiny, "--resume")  # was: the table written, then the same OSError and no report
+    assert resumed.returncode == 0, resumed.stderr
+    assert "2 runs (0 run now)" in resumed.stderr and "Traceback" not in resumed.stderr
+    assert (tmp_path / "stability_map.md").is_file() and (tmp_path / "stability_map_cvode.png").is_file()
+    assert not parts.exists() and len(_table(tmp_path)) == 2

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from . import validation
+from . import limits, validation
 from .physics import Ball
 
 BALL_KEYS = ("m", "k", "b", "R", "g")
@@ -47,7 +47,10 @@ BUILTIN_SCENES: tuple[str, ...] = tuple(_builtin_table())
 
 
 def scene_from_mapping(name: str, values: dict) -> Scene:
-    """Build a Scene from the keys that differ from the defaults; unknown keys are refused."""
+    """Build a Scene from the keys that differ from the defaults; unknown keys are refused.
+
+    So is a scene outside the range double precision resolves (limits.check_scene).
+    """
     unknown = [key for key in values if key not in ALLOWED_KEYS]
     if unknown:
         raise ValueError(f"scene key {unknown[0]!r} (= {values[unknown[0]]!r}) in scene {name!r} is not allowed: "
@@ -57,16 +60,12 @@ def scene_from_mapping(name: str, values: dict) -> Scene:
     F_ext = validation.finite("F_ext", merged["F_ext"], "N")
     h0 = ball.rest_height(F_ext) if merged["h0"] == REST else validation.finite("h0", merged["h0"], "m")
     t_end = validation.positive("t_end", merged["t_end"], "s")
-    return Scene(
-        name=name,
-        description=str(values.get("description", "")),
-        ball=ball,
-        h0=h0,
-        v0=validation.finite("v0", merged["v0"], "m/s"),
-        t_end=t_end,
-        output_interval=validation.in_range("output_interval", merged["output_interval"], 0.0, t_end, "s"),
-        F_ext=F_ext,
-    )
+    v0 = validation.finite("v0", merged["v0"], "m/s")
+    output_interval = validation.in_range("output_interval", merged["output_interval"], 0.0, t_end, "s")
+    # A scene file is refused when it is read, not when it is run, if double precision cannot resolve it.
+    limits.check_scene(ball, h0, v0, F_ext, 0.0, t_end, output_interval)
+    return Scene(name=name, description=str(values.get("description", "")), ball=ball, h0=h0, v0=v0, t_end=t_end,
+                 output_interval=output_interval, F_ext=F_ext)
 
 
 def load_scene(name_or_path: str | Path) -> Scene:

@@ -22,7 +22,7 @@ from dataclasses import asdict, replace
 from pythonfmu import Boolean, Fmi2Slave, Integer, Real, String
 from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variability
 
-from .. import validation
+from .. import limits, validation
 from ..physics import Ball, Mode
 from ..scenes import BALL_KEYS, SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, SolverError, check_resolvable
@@ -89,7 +89,10 @@ class BouncingBall(Fmi2Slave):
         try:
             integrator = self._make_integrator()
             if self._stop_time is not None:  # refuse now what could not be integrated up to the stop time
-                check_resolvable(integrator.ball, validation.finite("stopTime", self._stop_time, "s"))
+                stop_time = validation.finite("stopTime", self._stop_time, "s")
+                check_resolvable(integrator.ball, stop_time)
+                limits.check_scene(integrator.ball, integrator.h, integrator.v, integrator.F_ext, integrator.t,
+                                   max(stop_time, integrator.t))
             self._integrator = integrator
             self._tell_tolerance(integrator.settings.rtol)
         except (ValueError, ImportError) as error:  # ImportError: the compiled engine cannot run here, and why
@@ -147,6 +150,9 @@ class BouncingBall(Fmi2Slave):
                 integrator = self._integrator
                 if integrator is None or (integrator.ball, integrator.settings) != (ball, settings):
                     integrator = BallIntegrator(ball, values["h"], values["v"], start_time, values["F_ext"], settings)
+                t, h, v, F_ext = (validation.finite(f"state {name}", saved[name], unit)
+                                  for name, unit in (("t", "s"), ("h", "m"), ("v", "m/s"), ("F_ext", "N")))
+                limits.check_scene(ball, h, v, F_ext, t)
                 integrator.set_state(IntegratorState(**saved))  # checks every field before it changes any
         except (KeyError, TypeError, ValueError, ImportError) as error:
             self._error(f"fmi2SetFMUstate failed, nothing was changed: {error}")
@@ -168,8 +174,12 @@ class BouncingBall(Fmi2Slave):
         elif self._integrator is not None and name not in SETTABLE_AFTER_INITIALISATION:
             self._error(f"{name} = {value!r} is not allowed: {name} cannot change after initialisation")
         elif name == "F_ext" and self._integrator is not None:
+            integrator = self._integrator
             try:
-                self._integrator.F_ext = value  # checks it first: a rejected value changes nothing
+                # A force outside the range double precision resolves from the current state is refused too.
+                limits.check_scene(integrator.ball, integrator.h, integrator.v,
+                                   validation.finite("F_ext", value, "N"), integrator.t)
+                integrator.F_ext = value  # checks it first: a rejected value changes nothing
             except ValueError as error:
                 self._error(error)
                 return

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import inspect
 
-from .. import validation
+from .. import limits, validation
 from ..physics import Ball
 from .result import Event, SimulationResult, SolverStats
 
@@ -50,8 +50,10 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     ------
     ValueError
         Before any work, for a value outside its range (the message names it, its value and the
-        allowed range), an option the solver does not take, or contacts too short to resolve in
-        double precision up to t_end.
+        allowed range), an option the solver does not take, a scene outside the range double
+        precision resolves (bouncingball.limits.check_scene: magnitudes whose squares would
+        overflow, an output interval below a few ulps of t), or, for cvode, contacts too short to
+        resolve in double precision up to t_end.
     SolverError
         CVODE could not deliver the tolerance (its reason in the message).
     ImportError
@@ -78,6 +80,8 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     if not t_end > t_start:
         raise ValueError(f"t_end = {t_end!r} s is not allowed: it must be > t_start = {t_start!r} s")
     output_interval = validation.in_range("output_interval", output_interval, 0.0, t_end - t_start, "s")
+    # Before any solver: what double precision cannot resolve is refused the same way by each.
+    limits.check_scene(ball, h0, v0, F_ext, t_start, t_end, output_interval)
     if solver == "cvode":
         from .cvode import simulate_cvode as run
     elif solver == "scipy":

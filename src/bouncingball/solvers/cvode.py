@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from sksundae.cvode import CVODE
 
-from .. import validation
+from .. import limits, validation
 from ..physics import Ball, Mode, gap_acceleration, rest_margin_value
 from . import sksundae_events
 from .dense_output import interpolate, step_state
@@ -262,6 +262,7 @@ class BallIntegrator:
         v0 = validation.finite("v0", v0, "m/s")
         t0 = validation.finite("t0", t0, "s")
         F_ext = validation.finite("F_ext", F_ext, "N")
+        limits.check_scene(ball, h0, v0, F_ext, t0)
         self.resolvable_until = resolvable_until(ball)
         check_resolvable(ball, t0)
         self._logs = {mode: SundialsLog() for mode in Mode}

@@ -8,6 +8,7 @@ from enum import StrEnum
 
 import numpy as np
 
+from ..limits import check_output_interval
 from ..physics import Ball
 
 
@@ -116,7 +117,12 @@ MAX_OUTPUT_POINTS = 50_000_000  # 1.2 GB of t, h and v: more would exhaust a wor
 
 
 def output_grid(t_start: float, t_end: float, output_interval: float) -> np.ndarray:
-    """t_start, t_start + dt, ... and t_end exactly as the last point; ValueError beyond MAX_OUTPUT_POINTS."""
+    """t_start, t_start + dt, ... and t_end exactly as the last point: strictly increasing times.
+
+    ValueError beyond MAX_OUTPUT_POINTS, or for an output_interval below a few ulps of the times
+    (limits.check_output_interval), which double precision cannot tell apart.
+    """
+    check_output_interval(t_start, t_end, output_interval)
     n = math.floor((t_end - t_start) / output_interval * (1.0 + 1e-12))
     if n + 1 > MAX_OUTPUT_POINTS:
         raise ValueError(f"output_interval = {output_interval!r} s is not allowed from {t_start!r} to {t_end!r} s: "
@@ -126,4 +132,7 @@ def output_grid(t_start: float, t_end: float, output_interval: float) -> np.ndar
     if t_end - grid[-1] > 1e-9 * output_interval:
         grid = np.append(grid, t_end)
     grid[-1] = t_end
+    if not np.all(np.diff(grid) > 0.0):  # cannot happen above MIN_GRID_ULPS ulps: a bug if it does
+        raise AssertionError(f"output grid from {t_start!r} to {t_end!r} s every {output_interval!r} s "
+                             "does not increase strictly")
     return grid

@@ -1,12 +1,17 @@
 """Results on disk as they arrive: one Parquet file per finished batch, written whole or not at all.
 
 A sweep that is interrupted keeps every batch it finished; --resume reads them and skips their runs.
-A finished sweep's whole table (TABLE) replaces its parts; --resume reads it too.
+A finished sweep's whole table (TABLE) replaces its parts; --resume reads it too. A write interrupted
+before its rename leaves a temporary file (.<part>.parquet.<8 hex digits> in PARTS, .TABLE.<8 hex
+digits> beside it): never read, and removed with the parts (see is_own_temporary). Files the sweep
+did not write are left alone.
 """
 
 from __future__ import annotations
 
+import re
 import uuid
+import warnings
 from pathlib import Path
 
 from ..output import atomic_write
@@ -18,27 +23,58 @@ COLUMNS = ("key", "k", "zeta", "m", "h0", "b", "t_end", "output_interval", "solv
            "max_event_time_error", "wall_time", "rhs_calls", "steps", "worker", "batch")
 
 
+_TABLE_TEMPORARY = f".{TABLE}.tmp"
+# The temporaries a write leaves when killed before its rename: output.atomic_write's
+# .<final name>.<8 hex digits>, and the .<uuid4 hex>.tmp and .TABLE.tmp of earlier versions.
+_OWN_TEMPORARY = {
+    PARTS: re.compile(r"\.[0-9a-f]{32}(\.tmp|\.parquet\.[0-9a-f]{8})"),
+    "": re.compile(re.escape(_TABLE_TEMPORARY) + "|" + re.escape(f".{TABLE}.") + "[0-9a-f]{8}"),
+}
+
+
 def parts_dir(output_dir: Path) -> Path:
     return Path(output_dir) / PARTS
 
 
+def is_own_temporary(path: Path) -> bool:
+    """True for a temporary file that write_part or write_table leaves when interrupted before its rename."""
+    pattern = _OWN_TEMPORARY[PARTS if path.parent.name == PARTS else ""]
+    return pattern.fullmatch(path.name) is not None
+
+
 def clear(output_dir: Path, table: bool = True) -> None:
-    """Remove the parts of an earlier sweep and (with table) its whole table: a fresh sweep, not --resume."""
+    """Remove the parts of an earlier sweep, their leftover temporaries and (with table) its whole table.
+
+    A fresh sweep (not --resume) starts with this, and write_table ends with it (table=False). The
+    parts folder is removed once empty; a file in it that the sweep did not write keeps it.
+    """
     directory = parts_dir(output_dir)
     if directory.is_dir():
-        for path in directory.glob("*.parquet"):
-            path.unlink()
-        directory.rmdir()
+        for path in list(directory.iterdir()):
+            if path.suffix == ".parquet" or is_own_temporary(path):
+                path.unlink(missing_ok=True)
+        if not any(directory.iterdir()):
+            directory.rmdir()
+    for leftover in Path(output_dir).glob(f".{TABLE}.*"):
+        if is_own_temporary(leftover):
+            leftover.unlink(missing_ok=True)
     if table and (Path(output_dir) / TABLE).is_file():
         (Path(output_dir) / TABLE).unlink()
 
 
 def write_table(frame, output_dir: Path) -> Path:
-    """The whole table as one Parquet file (temporary name, then renamed), then its parts removed."""
+    """The whole table as one Parquet file (temporary name, then renamed), then its parts removed.
+
+    The parts are redundant once the table is written: failing to remove them is a warning, and the
+    report is still written.
+    """
     path = Path(output_dir) / TABLE
     with atomic_write(path) as temporary:
         frame.to_parquet(temporary, index=False)
-    clear(output_dir, table=False)
+    try:
+        clear(output_dir, table=False)
+    except OSError as error:
+        warnings.warn(f"the sweep's table is written, but its parts could not be removed: {error}", stacklevel=2)
     return path
 
 

@@ -1,0 +1,209 @@
+"""The inputs double precision can resolve: a scene outside them is refused before any work.
+
+Every solver forms squares: the damping rate's in the oscillator's characteristic equation
+(sigma^2 - k/m), the speed's and the deflection's in the rest test (v^2 + (k/m) y^2), the
+amplitude's (y^2 + v^2 m/k), the energies m v^2 and k (R - h)^2. A double overflows at 1.8e308;
+a scene whose squares pass it gives overflow errors, NaN or a CVODE that never ends (its root
+functions are inf - inf). So a scene must keep each square below SQUARE_LIMIT = 1e300, eight
+decades of headroom for the sums and small factors the solvers add, and each quantity so squared
+below SCALE_LIMIT = 1e150; a height in flight, never squared, below HEIGHT_LIMIT = 1e300 m. The
+bounds hold for the whole run, by the oscillator's energy, which never grows in contact, and the
+flight's, which is conserved until the next impact.
+
+The output grid needs distinct, increasing times: its spacing must be several ulps of the
+largest time on it.
+"""
+
+from __future__ import annotations
+
+import math
+
+from . import validation
+from .physics import Ball
+
+SQUARE_LIMIT = 1e300  # any square the solvers form: [m2/s2], [1/s2], [m2], and the energies [J]
+SCALE_LIMIT = 1e150  # its square root: lengths in contact [m], speeds [m/s], rates [1/s]
+HEIGHT_LIMIT = 1e300  # m: a height in flight is never squared, only added to and multiplied by small factors
+MIN_RATE_SQUARED = 1e-300  # k/m [1/s2] below it: m/k overflows in the amplitude y^2 + v^2 m/k
+MIN_GRID_ULPS = 4.0  # output points t_start + i dt, each rounded by <= 1.5 ulps: > 3 ulps apart
+
+
+def min_output_interval(t_start: float, t_end: float) -> float:
+    """The smallest output interval [s] whose grid from t_start to t_end has distinct increasing times.
+
+    MIN_GRID_ULPS ulps of the largest |t| on the grid: below that, t_start + i dt rounds to repeated
+    or decreasing times.
+    """
+    return MIN_GRID_ULPS * math.ulp(max(abs(t_start), abs(t_end)))
+
+
+def check_output_interval(t_start: float, t_end: float, output_interval: float) -> None:
+    """Raise ValueError naming output_interval if it is below min_output_interval(t_start, t_end)."""
+    smallest = min_output_interval(t_start, t_end)
+    if not output_interval >= smallest:
+        raise ValueError(
+            f"output_interval = {output_interval!r} s is not allowed from t_start = {t_start!r} s to "
+            f"t_end = {t_end!r} s: it must be >= {smallest:.4g} s ({MIN_GRID_ULPS:g} ulps of "
+            f"{max(abs(t_start), abs(t_end))!r} s): double precision cannot hold distinct increasing times "
+            "closer than that")
+
+
+def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: float = 0.0,
+                t_end: float | None = None, output_interval: float | None = None) -> None:
+    """Raise ValueError if double precision cannot resolve this scene; else return None.
+
+    The resolvable range, checked in this order (each bound holds given the ones before it):
+
+    - b/(2m) <= 1e150 1/s: the damping rate sigma, squared in sigma^2 - k/m.
+    - 1e-300 <= k/m <= 1e300 1/s2: the oscillator's w^2 and its inverse m/k.
+    - R <= 1e150 m.
+    - (g - F_ext/m)^2 m/k <= B: the oscillator's energy at R, where B = 1e300 min(1, 1/m, k/m) m2/s2
+      keeps the speed^2 below 1e300 m2/s2, the energy m v^2 below 1e300 J and the contact's
+      amplitude below 1e150 m. The field named is g, or F_ext if F_ext takes it out of range.
+    - h0's part of the energy below B: (k/m) (h0 - R + d)^2 starting in contact (d the static
+      deflection), 2 (g - F_ext/m) (h0 - R) + (k/m) d^2 falling onto the spring; h0 <= 1e300 m.
+    - v0^2 plus that below B.
+    - With t_end: t_end - t_start finite; the ball's reach over the run (how far it can fly away with
+      the speed it has, pulled up if F_ext > m g) below 1e300 m, and its speed^2 and m v^2 below 1e300.
+    - With output_interval: at least MIN_GRID_ULPS ulps of max(|t_start|, |t_end|).
+
+    Parameters
+    ----------
+    ball : Ball
+        The ball.
+    h0, v0 : float
+        Height [m] and velocity [m/s] at t_start.
+    F_ext : float, optional
+        External force [N], finite.
+    t_start : float, optional
+        Start time [s].
+    t_end : float, optional
+        End time [s], > t_start; None (a stepping integrator): no rule on the run's length.
+    output_interval : float, optional
+        The output grid's spacing [s]; None: no grid.
+
+    Raises
+    ------
+    ValueError
+        Naming the field, its value and the range it must be in, and the quantity that breaks.
+
+    Examples
+    --------
+    >>> from bouncingball import Ball
+    >>> check_scene(Ball(), h0=2.0, v0=0.0, t_end=8.0, output_interval=1e-3)
+    >>> check_scene(Ball(R=1e300), h0=2.0, v0=0.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: R = 1e+300 m is not allowed: it must be <= 1e+150 m ...
+    >>> check_scene(Ball(b=0.0), h0=-1e200, v0=0.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: h0 = -1e+200 m is not allowed for this ball (...): it must be in [-1e+148, 5.097e+298] m; ...
+    """
+    h0, v0 = validation.finite("h0", h0, "m"), validation.finite("v0", v0, "m/s")
+    F_ext, t_start = validation.finite("F_ext", F_ext, "N"), validation.finite("t_start", t_start, "s")
+    if t_end is not None:
+        t_end = validation.finite("t_end", t_end, "s")
+    m, k, b, R = ball.m, ball.k, ball.b, ball.R
+    about = f"m = {m:g} kg, k = {k:g} N/m, R = {R:g} m"
+
+    # --- the ball ------------------------------------------------------------------------------
+    sigma = b / (2.0 * m)
+    if not sigma <= SCALE_LIMIT:
+        raise ValueError(f"b = {b!r} N s/m is not allowed with m = {m!r} kg: it must be <= {2.0 * SCALE_LIMIT * m:.4g} "
+                         f"N s/m (the damping rate b/(2m) = {sigma:.4g} 1/s must be <= {SCALE_LIMIT:g} 1/s: its "
+                         "square, in the contact's characteristic equation, would overflow)")
+    w2 = k / m
+    if not MIN_RATE_SQUARED <= w2 <= SQUARE_LIMIT:
+        raise ValueError(f"k = {k!r} N/m is not allowed with m = {m!r} kg: it must be in "
+                         f"[{MIN_RATE_SQUARED * m:.4g}, {SQUARE_LIMIT * m:.4g}] N/m (k/m = {w2:.4g} 1/s2 must be in "
+                         f"[{MIN_RATE_SQUARED:g}, {SQUARE_LIMIT:g}] 1/s2, or the oscillator's w^2 or m/k overflows)")
+    if not R <= SCALE_LIMIT:
+        raise ValueError(f"R = {R!r} m is not allowed: it must be <= {SCALE_LIMIT:g} m (lengths are squared in the "
+                         "contact's energy k (R - h)^2 and the rest test, and would overflow)")
+    budget = SQUARE_LIMIT * min(1.0, 1.0 / m, w2)  # [m2/s2]; see the docstring
+    why = (f"the oscillator's energy per unit mass, v^2 + (k/m) y^2, must stay <= {budget:.4g} m2/s2, so that no "
+           f"speed^2, energy m v^2 [J] or amplitude^2 [m2] passes {SQUARE_LIMIT:g}")
+
+    # --- the force --------------------------------------------------------------------------------
+    g_eff = ball.g - F_ext / m
+    g_max = math.sqrt(budget * w2)  # (g_eff^2 / w2 <= budget): the energy at R, (k/m) d^2
+    if not abs(g_eff) <= g_max:
+        rest = f"the energy at R, (g - F_ext/m)^2 m/k = {g_eff * g_eff / w2:.4g} m2/s2, is out of range: {why}"
+        if not ball.g <= g_max:
+            raise ValueError(f"g = {ball.g!r} m/s2 is not allowed for this ball ({about}): it must be <= "
+                             f"{g_max:.4g} m/s2 ({rest})")
+        raise ValueError(f"F_ext = {F_ext!r} N is not allowed for this ball ({about}, g = {ball.g:g} m/s2): it must "
+                         f"be in [{m * (ball.g - g_max):.4g}, {m * (ball.g + g_max):.4g}] N ({rest})")
+    d = g_eff / w2  # the static deflection [m]
+
+    # --- the start state ------------------------------------------------------------------------------
+    low = R - d - math.sqrt(budget / w2)
+    high = HEIGHT_LIMIT if g_eff <= 0.0 else min(HEIGHT_LIMIT, R + (budget - w2 * d * d) / (2.0 * g_eff))
+    energy = _energy_of_height(ball, h0, v0, F_ext, w2, d, g_eff)
+    if not (h0 <= HEIGHT_LIMIT and energy <= budget):
+        raise ValueError(f"h0 = {h0!r} m is not allowed for this ball ({about}): it must be in [{low:.4g}, "
+                         f"{high:.4g}] m; {why} (from h0 alone it is {_amount(energy)})")
+    v_max = math.sqrt(budget - energy)
+    if not abs(v0) <= v_max:
+        raise ValueError(f"v0 = {v0!r} m/s is not allowed from h0 = {h0!r} m for this ball ({about}): it must be in "
+                         f"[{-v_max:.4g}, {v_max:.4g}] m/s; {why}")
+
+    # --- the run --------------------------------------------------------------------------------------
+    if t_end is None:
+        return
+    span = t_end - t_start
+    if not math.isfinite(span):
+        raise ValueError(f"t_end = {t_end!r} s is not allowed with t_start = {t_start!r} s: t_end - t_start "
+                         "must be finite (<= 1.8e308 s)")
+    speed = math.sqrt(energy + v0 * v0)
+    span_max = _longest_run(g_eff, speed, max(abs(h0), R), SQUARE_LIMIT * min(1.0, 1.0 / m))
+    if not span <= span_max:
+        raise ValueError(f"t_end = {t_end!r} s is not allowed for this scene (h0 = {h0!r} m, v0 = {v0!r} m/s, "
+                         f"g - F_ext/m = {g_eff:.4g} m/s2): it must be <= t_start + {span_max:.4g} s; the ball "
+                         f"flies away from the ground, and later its height would pass {HEIGHT_LIMIT:g} m or its "
+                         f"speed^2 or energy m v^2 {SQUARE_LIMIT:g}")
+    if output_interval is not None:
+        check_output_interval(t_start, t_end, output_interval)
+
+
+def _amount(energy: float) -> str:
+    return "beyond 1.8e308: it overflows" if math.isinf(energy) else f"{energy:.4g} m2/s2"
+
+
+def _energy_of_height(ball: Ball, h0: float, v0: float, F_ext: float, w2: float, d: float, g_eff: float) -> float:
+    """The start height's part of the oscillator's largest energy per unit mass [m2/s2] (v0^2 to be added).
+
+    In contact (k/m) y0^2, y0 = h0 - R + d the deflection from the rest height; in flight the energy at
+    the next impact, 2 g_eff (h0 - R) + (k/m) d^2 (the fall's kinetic energy, the spring's at R).
+    """
+    if ball.initial_mode(h0, v0, F_ext) == 1:  # Mode.CONTACT
+        y0 = (h0 - ball.R) + d
+        return w2 * y0 * y0 if abs(y0) <= SCALE_LIMIT else math.inf
+    fall = 2.0 * g_eff * (h0 - ball.R) if g_eff > 0.0 else 0.0
+    return fall + w2 * d * d
+
+
+def _longest_run(g_eff: float, speed: float, start: float, speed_squared_limit: float) -> float:
+    """The longest run [s] before the ball is HEIGHT_LIMIT from the ground or its speed^2 passes the limit.
+
+    g_eff > 0: the ball comes back, its speed bounded by `speed` (energy); its height by the apex
+    unless time runs out first. g_eff <= 0: it flies away, accelerating at -g_eff.
+    """
+    room = HEIGHT_LIMIT - start
+    if g_eff > 0.0:
+        if 0.5 * speed * speed / g_eff <= room:  # the apex of any flight is in range
+            return math.inf
+        return room / speed
+    a = -g_eff
+    limit = math.sqrt(speed_squared_limit)
+    by_speed = math.inf if a == 0.0 else (limit - speed) / a
+    if speed == 0.0 and a == 0.0:
+        return math.inf
+    # 0.5 a T^2 + speed T = room, without cancellation
+    by_reach = 2.0 * room / (speed + math.sqrt(speed * speed + 2.0 * a * room))
+    return min(by_speed, by_reach)
+
+
+__all__ = ["HEIGHT_LIMIT", "MIN_GRID_ULPS", "SCALE_LIMIT", "SQUARE_LIMIT", "check_output_interval", "check_scene",
+           "min_output_interval"]
