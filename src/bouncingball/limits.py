@@ -26,6 +26,9 @@ SCALE_LIMIT = 1e150  # its square root: lengths in contact [m], speeds [m/s], ra
 HEIGHT_LIMIT = 1e300  # m: a height in flight is never squared, only added to and multiplied by small factors
 MIN_RATE_SQUARED = 1e-300  # k/m [1/s2] below it: m/k overflows in the amplitude y^2 + v^2 m/k
 MIN_GRID_ULPS = 4.0  # output points t_start + i dt, each rounded by <= 1.5 ulps: > 3 ulps apart
+# Measured with CVODE in absolute time: at the default tolerances the departure speed stayed within
+# 1e-8 down to contacts of 30 ulps of t (at 10 ulps CVODE failed its error test); 1e4 keeps a margin of 300.
+MIN_CONTACT_ULPS = 1e4
 
 
 def min_output_interval(t_start: float, t_end: float) -> float:
@@ -207,3 +210,36 @@ def _longest_run(g_eff: float, speed: float, start: float, speed_squared_limit: 
 
 __all__ = ["HEIGHT_LIMIT", "MIN_GRID_ULPS", "SCALE_LIMIT", "SQUARE_LIMIT", "check_output_interval", "check_scene",
            "min_output_interval"]
+
+
+def contact_duration(ball: Ball) -> float:
+    """pi / omega_d [s]: how long a bouncing contact lasts (inf when the contact is critically or over-damped).
+
+    omega_d = sqrt(k/m - (b/2m)^2). At damping ratio >= 1 a contact never ends by itself.
+    """
+    sigma = ball.b / (2.0 * ball.m)
+    omega_d2 = ball.k / ball.m - sigma * sigma
+    return math.pi / math.sqrt(omega_d2) if omega_d2 > 0.0 else math.inf
+
+
+def resolvable_until(ball: Ball) -> float:
+    """The latest time [s] up to which double precision can resolve a contact of this ball.
+
+    Near time t, double precision separates instants 1 ulp (~2.2e-16 t) apart. A contact shorter
+    than MIN_CONTACT_ULPS ulps of t cannot be resolved: its impact and departure fall on the same
+    few representable times, the exact solution's phases stop advancing t (it never ends), and
+    CVODE, which located roots in absolute time, missed or invented events and gained energy.
+    """
+    return contact_duration(ball) / (MIN_CONTACT_ULPS * 2.0**-52)
+
+
+def check_resolvable(ball: Ball, t: float) -> None:
+    """Raise ValueError if a contact of this ball cannot be resolved at time t [s]."""
+    limit = resolvable_until(ball)
+    if abs(t) > limit:
+        duration = contact_duration(ball)
+        raise ValueError(
+            f"k = {ball.k!r} N/m with m = {ball.m!r} kg is not allowed up to t = {t!r} s: a contact lasts "
+            f"{duration:.3g} s, but double precision resolves time only to {math.ulp(t):.3g} s there "
+            f"(a contact must span {MIN_CONTACT_ULPS:g} ulps of t). Shorten the run to t <= {limit:.4g} s, "
+            "or lower k or raise m (a longer contact)")

@@ -16,6 +16,7 @@ import numpy as np
 from sksundae.cvode import CVODE
 
 from .. import limits, validation
+from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode, gap_acceleration, rest_margin_value
 from . import sksundae_events
 from .dense_output import interpolate, step_state
@@ -51,9 +52,6 @@ STIFF_DAMPING_RATIO = 2.0
 
 _CV_ROOT_RETURN = 2
 _EPS = 2.0**-52
-# Measured: at the default tolerances the departure speed stays within 1e-8 down to contacts of
-# 30 ulps of t (at 10 ulps CVODE fails its error test); 1e4 keeps a margin of 300.
-MIN_CONTACT_ULPS = 1e4
 # A phase whose length scale [m] is below this (a hop or contact of 1e-200 m) is taken on the exact
 # flow: its scaled state would leave the range of double precision.
 MIN_PHASE_SCALE = 1e-200
@@ -815,38 +813,6 @@ class BallIntegrator:
         return Event(self._t, DEPARTURE, self._v)
 
 
-def contact_duration(ball: Ball) -> float:
-    """pi / omega_d [s]: how long a bouncing contact lasts (inf when the contact is critically or over-damped).
-
-    omega_d = sqrt(k/m - (b/2m)^2). At damping ratio >= 1 a contact never ends by itself.
-    """
-    sigma = ball.b / (2.0 * ball.m)
-    omega_d2 = ball.k / ball.m - sigma * sigma
-    return math.pi / math.sqrt(omega_d2) if omega_d2 > 0.0 else math.inf
-
-
-def resolvable_until(ball: Ball) -> float:
-    """The latest time [s] up to which double precision can resolve a contact of this ball.
-
-    Near time t, double precision separates instants 1 ulp (~2.2e-16 t) apart, and CVODE locates
-    roots to ~100 ulps. A contact shorter than MIN_CONTACT_ULPS ulps of t cannot be integrated:
-    CVODE misses or invents events and the ball gains energy.
-    """
-    return contact_duration(ball) / (MIN_CONTACT_ULPS * _EPS)
-
-
-def check_resolvable(ball: Ball, t: float) -> None:
-    """Raise ValueError if a contact of this ball cannot be resolved at time t [s]."""
-    limit = resolvable_until(ball)
-    if abs(t) > limit:
-        duration = contact_duration(ball)
-        raise ValueError(
-            f"k = {ball.k!r} N/m with m = {ball.m!r} kg is not allowed up to t = {t!r} s: a contact lasts "
-            f"{duration:.3g} s, but double precision resolves time only to {math.ulp(t):.3g} s there "
-            f"(a contact must span {MIN_CONTACT_ULPS:g} ulps of t). Shorten the run to t <= {limit:.4g} s, "
-            "or lower k or raise m (a longer contact)")
-
-
 def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
                    t_start: float = 0.0, F_ext: float = 0.0, rtol: float = DEFAULT_RTOL,
                    atol: float | None = DEFAULT_ATOL, method: str = "auto", max_step: float = 0.0,
@@ -856,7 +822,6 @@ def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     engine: see CvodeSettings; the engine that ran and why are in result.stats.
     """
     settings = CvodeSettings(rtol=rtol, atol=atol, method=method, max_step=max_step, engine=engine)
-    check_resolvable(ball, t_end)
     grid = output_grid(t_start, t_end, output_interval)
     started = time.perf_counter()
     integrator = BallIntegrator(ball, h0, v0, t_start, F_ext, settings)

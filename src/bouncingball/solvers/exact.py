@@ -12,6 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import limits
 from ..physics import Ball, Mode, oscillator_basis
 from .result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
 
@@ -30,6 +31,8 @@ class ExactSolution:
 
     def __init__(self, ball: Ball, h0: float, v0: float, t_start: float = 0.0,
                  t_end: float = math.inf, F_ext: float = 0.0) -> None:
+        if math.isfinite(t_end):  # contacts too short for the times' ulps: phases would stop advancing t
+            limits.check_resolvable(ball, t_end)
         self.ball = ball
         self.F_ext = F_ext
         self.t_start = t_start
