@@ -16,7 +16,7 @@ The rule (judge), with q = 1e-9 for the exact solver and 1e-6 for the integrator
   contact around it (the package's one rule, cvode.merged_hop_limit, for CVODE; none for the exact
   solver), or within its time tolerance of t_end; any other missing event fails, and so does an extra
   one unless the oracle's ball is within such a hop of R there at the speed of such a hop (an event
-  decided by rounding);
+  decided by rounding), or within its time tolerance of t_end;
 - rest: a rest declared at t_r needs the oracle's start in contact or one of its impacts within
   tolerance of t_r (the nearest), after which the oracle's ball never leaves for a resolvable hop (its first
   event after t_end included); the exact solver must also declare the oracle's rest.
@@ -179,7 +179,9 @@ def judge(case: Case, q: float, t, h, events, rest_time, exact: bool = False, re
             j += 1
         elif i not in optional:
             missing.append(f"{expected.kind} at {float(expected.time):.9g} s (v {float(expected.velocity):.3g} m/s)")
-    extra = [f"{e.kind} at {e.time:.9g} s" for e in events[j:] if not grazing(oracle, case, e.time, reach)]
+    # an event within its time tolerance of t_end may be there or not (the oracle may place it just after)
+    extra = [f"{e.kind} at {e.time:.9g} s" for e in events[j:]
+             if not grazing(oracle, case, e.time, reach) and not e.time > case.t_end - time_tolerance(e)]
     if missing:
         pairs = list(zip(events, oracle.events, strict=False))  # by index: how far off, while the kinds agree
         aligned = [(abs(e.time - float(o.time)), o) for e, o in pairs if e.kind == o.kind]
@@ -295,6 +297,11 @@ FAMILIES = [
     Case("4-scale-R1e-6", 1.0, 1e8, 10.0, 1e-6, G, 1e-5, 0.0, 1.0, 2e-4),
     Case("4-scale-R1e-7", 1.0, 1e10, 10.0, 1e-7, G, 1e-6, 0.0, 0.2, 1e-4),
     Case("4-scale-R1e-8", 1.0, 1e11, 10.0, 1e-8, G, 1e-7, 0.0, 0.05, 2e-5),
+    # 5. a contact so soft that its static deflection (6e120 m) dwarfs the ball's motion (1e102 m): the flow
+    # written about the rest height, x = y - d, cancelled every digit of x (the exact solution 0.083 off,
+    # CVODE's dense output 0.14; found by fuzzing the range the package accepts)
+    Case("5-soft-contact", 748984168.4626325, 0.005280603483927696, 0.0, 2.805999634182557e+97,
+         4.238516545823933e+106, 5.466539572921386e+97, 0.0, 0.01746748238597513, 1.746748238597513e-05),
 ]
 FMU_CASES = ["1-issue-lifted-0.1kg", "1-article-lifted-zeta-1", "2-stiff-100m", "3-micro-hops", "4-scale-R1e-6"]
 APIS = ["exact", "sksundae", "compiled", "stepping"]

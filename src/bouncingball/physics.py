@@ -89,6 +89,13 @@ class Ball:
         """g - F_ext/m [m/s2]: the net downward acceleration in flight."""
         return effective_gravity_value(F_ext, self.m, self.g)
 
+    def contact_load(self, F_ext: float = 0.0) -> float:
+        """(m g - F_ext)/m [m/s2]: the net downward acceleration the spring holds; k/m times static_deflection.
+
+        g - F_ext/m in value, rounded as the static deflection is, so that both are zero together.
+        """
+        return (self.m * self.g - F_ext) / self.m
+
     def static_deflection(self, F_ext: float = 0.0) -> float:
         """(m g - F_ext)/k [m]: how far below R the centre rests; negative if F_ext lifts the ball."""
         return static_deflection_value(F_ext, self.m, self.k, self.g)
@@ -126,13 +133,7 @@ class Ball:
         if mode == Mode.FLIGHT:
             g_eff = self.effective_gravity(F_ext)
             return x0 + tau * (v0 - 0.5 * g_eff * tau), v0 - g_eff * tau
-        sigma, w2 = self.b / (2.0 * self.m), self.k / self.m
-        # y, the deflection from the rest height, is x + d: R - d would round the static
-        # deflection d to ulp(R), and a sub-ulp bounce would gain energy.
-        d = self.static_deflection(F_ext)
-        y0 = x0 + d
-        c, s = oscillator_basis(sigma, w2, tau)
-        return (y0 * c + (v0 + sigma * y0) * s) - d, v0 * c - (sigma * v0 + w2 * y0) * s
+        return contact_gap_flow(self.b / (2.0 * self.m), self.k / self.m, self.contact_load(F_ext), x0, v0, tau)
 
     def contact_force(self, h: float, v: float, mode: Mode) -> float:
         """Force of the ground on the ball [N], positive upwards; zero in flight.
@@ -200,7 +201,9 @@ def gap_acceleration(x, v, mode, F_ext, m, k, b, g):
     """
     if mode == 0:
         return -g + F_ext / m
-    return (-b * v - k * x + F_ext) / m - g
+    # (m g - F_ext), as in the static deflection: zero exactly when the rest height is R (g - F_ext/m
+    # rounds differently, and a ball creeping to R felt a residual 2e-15 m/s2)
+    return (-b * v - k * x - (m * g - F_ext)) / m
 
 
 def effective_gravity_value(F_ext, m, g):
@@ -216,11 +219,72 @@ def static_deflection_value(F_ext, m, k, g):
 def rest_margin_value(x, v, d, hop_tolerance, w2):
     """w2 d (d + 2 hop_tolerance) - (v^2 + w2 y^2) [m2/s2] at the gap x = h - R, d the static deflection.
 
-    y = x + d, the deflection from the rest height, exact where R - d would round d to ulp(R). See
-    Ball.rest_margin.
+    y = x + d is the deflection from the rest height; the d^2 terms cancel in closed form, as
+    w2 (2 d hop_tolerance - x (x + 2 d)) - v^2, which keeps x's digits where d is far larger (a soft
+    contact) and d's where it is far smaller than R (no R - d). See Ball.rest_margin.
     """
-    y = x + d
-    return w2 * d * (d + 2.0 * hop_tolerance) - (v * v + w2 * y * y)
+    return w2 * (2.0 * d * hop_tolerance - x * (x + 2.0 * d)) - v * v
+
+
+def contact_gap_flow(sigma: float, w2: float, g_eff: float, x0, v0, tau):
+    """(x, v) a time tau after (x0, v0) in contact: x'' + 2 sigma x' + w2 x = -g_eff, x = h - R, g_eff = (m g - F)/m.
+
+    x = x0 C + (v0 + sigma x0) S - g_eff P and v = v0 C - (sigma v0 + w2 x0) S - g_eff S, with C, S
+    of oscillator_basis and P = integral of S, the response to a unit acceleration (unit_response).
+    Written about R, not about the rest height R - d: x = y - d would cancel every digit of x where
+    d = g_eff / w2 is far larger than x (a soft contact: 6e120 m against 1e102 m), and R - d would
+    round d to ulp(R) where it is far smaller.
+    """
+    c, s = oscillator_basis(sigma, w2, tau)
+    p = unit_response(sigma, w2, tau)
+    return x0 * c + (v0 + sigma * x0) * s - g_eff * p, v0 * c - (sigma * v0 + w2 * x0) * s - g_eff * s
+
+
+# Below this (sigma + w) tau, unit_response sums its Taylor series: the closed forms cancel there.
+_SERIES_REACH = 0.5
+_SERIES_TERMS = 24  # (0.5)^n / n! < 1e-30 well before
+
+
+def unit_response(sigma: float, w2: float, tau):
+    """P(tau) [s2]: P'' + 2 sigma P' + w2 P = 1, P(0) = P'(0) = 0; P' is oscillator_basis's S.
+
+    tau^2 / 2 at first. Its closed form 1 - C - sigma S (over w2) cancels for small (sigma + w) tau,
+    so there its Taylor series is summed; the over-damped closed form is written with expm1 of each
+    rate, which cancels only where the series is used. Floats or arrays.
+    """
+    reach = (sigma + math.sqrt(w2)) * np.abs(tau) if not isinstance(tau, float) else (sigma + math.sqrt(w2)) * abs(tau)
+    if isinstance(tau, float):
+        return _series_response(sigma, w2, tau) if reach <= _SERIES_REACH else _closed_response(math, sigma, w2, tau)
+    tau = np.asarray(tau, dtype=float)
+    near = reach <= _SERIES_REACH
+    out = np.empty_like(tau)
+    out[near] = _series_response(sigma, w2, tau[near])
+    with np.errstate(over="ignore", invalid="ignore"):
+        out[~near] = _closed_response(np, sigma, w2, tau[~near])
+    return out
+
+
+def _series_response(sigma: float, w2: float, tau):
+    # terms t_n = a_n tau^n: t_2 = tau^2 / 2, t_3 = -sigma tau^3 / 3, and from the equation
+    # (n + 2)(n + 1) t_{n+2} = -2 sigma tau (n + 1) t_{n+1} - w2 tau^2 t_n
+    before, term = 0.5 * tau * tau, -sigma * tau * tau * tau / 3.0
+    total = before + term
+    for n in range(2, _SERIES_TERMS):
+        before, term = term, (-2.0 * sigma * tau * (n + 1) * term - w2 * tau * tau * before) / ((n + 2) * (n + 1))
+        total = total + term
+    return total
+
+
+def _closed_response(xp, sigma: float, w2: float, tau):
+    disc = sigma * sigma - w2
+    if disc <= 0.0:  # (1 - C - sigma S) / w2, C and S from the under- or critically damped forms
+        c, s = _oscillator_basis(xp, sigma, w2, tau)
+        return (1.0 - c - sigma * s) / w2
+    mu = math.sqrt(disc)
+    fast = sigma + mu
+    slow = w2 / fast
+    # (fast (1 - e^{-slow tau}) - slow (1 - e^{-fast tau})) / (2 mu w2)
+    return (-fast * xp.expm1(-slow * tau) + slow * xp.expm1(-fast * tau)) / (2.0 * mu * w2)
 
 
 def oscillator_basis(sigma: float, w2: float, tau):

@@ -165,7 +165,7 @@ def phase_scales(ball: Ball, mode: Mode, x: float, v: float, F_ext: float = 0.0)
     """The length [m] and speed [m/s] a phase from the gap x = h - R [m] and v [m/s] is integrated relative to.
 
     In flight the apex above R and the speed at impact; in contact the amplitude of the
-    oscillation about the rest height and its largest speed. CVODE integrates x / length and
+    oscillation about the rest height (at most max(R, |x|)) and its largest speed. CVODE integrates x / length and
     v / speed, so its error is rtol times the phase's own size: a 1.6e-9 m hop or a contact
     deflecting the ball by 1e-9 R after a 100 m fall are resolved as well as the article's bounce.
     A flight that never comes down is scaled by its height (at least R).
@@ -179,7 +179,11 @@ def phase_scales(ball: Ball, mode: Mode, x: float, v: float, F_ext: float = 0.0)
         return length, max(abs(v), math.sqrt(2.0 * abs(g_eff) * length), length)
     w = ball.natural_frequency
     amplitude = math.hypot(x + ball.static_deflection(F_ext), v / w)
-    return amplitude, w * amplitude
+    # Never beyond the scene's own scale: a contact so soft that its amplitude dwarfs R (k/m = 7e-12 1/s2,
+    # an amplitude of 6e120 m against R = 3e97 m) is left long before it gets there, and rtol times the
+    # amplitude was 0.2 of the ball's whole motion.
+    length = min(amplitude, max(ball.R, abs(x)))
+    return length, max(w * length, abs(v))
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import limits
-from ..physics import Ball, Mode, oscillator_basis
+from ..physics import Ball, Mode, contact_gap_flow
 from .result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
 
 
@@ -120,14 +120,12 @@ def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tupl
 def time_to_departure(ball: Ball, x0: float, v0: float, F_ext: float = 0.0) -> float:
     """Time from the gap x0 = h0 - R [m] and v0 [m/s] in contact to the first upward crossing of h = R; inf if none."""
     sigma, w2 = ball.b / (2.0 * ball.m), ball.k / ball.m
-    d = ball.static_deflection(F_ext)
-    y0 = x0 + d  # exactly d at an impact: not h0 - (R - d), where R - d rounds d to ulp(R)
-    p, q = v0 + sigma * y0, sigma * v0 + w2 * y0  # y = y0 C + p S, v = v0 C - q S
+    d, g_eff = ball.static_deflection(F_ext), ball.contact_load(F_ext)
+    q = sigma * v0 + w2 * x0 + g_eff  # v = v0 C - q S (q = sigma v0 + w2 y0, y0 = x0 + d the deflection from rest)
 
     def excess(tau: float) -> tuple[float, float]:
-        """h - R [m] and v [m/s] at tau; y - d rather than (rest + y) - R, which would round twice."""
-        c, s = oscillator_basis(sigma, w2, tau)
-        return y0 * c + p * s - d, v0 * c - q * s
+        """h - R [m] and v [m/s] at tau, on the flow written about R (contact_gap_flow)."""
+        return contact_gap_flow(sigma, w2, g_eff, x0, v0, tau)
 
     rising = v0 > 0.0 or (v0 == 0.0 and q < 0.0)
     disc = sigma * sigma - w2
