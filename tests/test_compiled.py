@@ -13,6 +13,7 @@ import re
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -368,3 +369,29 @@ def test_solvers_free_their_sundials_memory():
     """)
     assert completed.returncode == 0, completed.stderr
     assert int(completed.stdout) < 5e6
+
+
+def test_a_change_to_physics_reaches_the_compiled_engine_through_numbas_disk_cache(tmp_path):
+    """numba keys each cached function by its own file: the callbacks in compiled.py inline physics.py's functions,
+    and after a change to physics.py alone it loaded compiled.py's old code (the engines then disagreed)."""
+    import shutil
+
+    package = tmp_path / "bouncingball"
+    shutil.copytree(Path(bb.__file__).parent, package, ignore=shutil.ignore_patterns("__pycache__"))
+    code = ("import bouncingball as bb; b = bb.Ball(g=9.81); "
+            "r = [bb.simulate(b, 2.0, 0.0, 1.0, 1e-3, **o).events[0].time for o in ({'engine': 'compiled'}, "
+            "{'solver': 'exact'})]; print(r[0], r[1])")
+
+    def first_impacts() -> list[float]:
+        completed = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
+                                   timeout=300, check=True, env={**os.environ, "PYTHONPATH": str(tmp_path)})
+        return [float(word) for word in completed.stdout.split()]
+
+    compiled, exact = first_impacts()  # compiles and caches
+    assert compiled == pytest.approx(exact, abs=1e-12)
+    physics = package / "physics.py"
+    source = physics.read_text()
+    assert source.count("return -g + F_ext / m") == 1
+    physics.write_text(source.replace("return -g + F_ext / m", "return -2.0 * g + F_ext / m"))  # flight at 2 g
+    compiled_after, _ = first_impacts()  # the exact solution keeps its own closed forms: only CVODE sees 2 g
+    assert compiled_after == pytest.approx(math.sqrt(2.0 * (2.0 - 0.06) / (2.0 * 9.81)), rel=1e-6)  # not 0.629 s

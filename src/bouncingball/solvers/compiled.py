@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import ctypes
 import glob
+import hashlib
 import importlib.util
 import os
 import weakref
@@ -248,9 +249,41 @@ _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_
 (_P_M, _P_K, _P_B, _P_R, _P_G, _P_F_EXT, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
  _P_LENGTH, _P_SPEED, _P_SIZE) = range(16)
 
-# numba keys its disk cache by the source file; where a source is gone (an FMU's copy of the package,
-# whose unzipped folder the master deleted after the process imported physics from it), it compiles afresh.
-_CACHE = os.path.isfile(physics.__file__) and os.path.isfile(__file__)
+
+
+def _cache_here() -> bool:
+    """Whether numba may cache this module's compiled code on disk, after dropping code physics.py outdated.
+
+    numba keys each cached function by its own source file, and the callbacks below inline
+    physics.py's functions: after a change to physics.py alone it loaded this module's old code
+    (the compiled engine ran the previous right-hand side, found by the engines disagreeing). So a
+    digest of physics.py is kept beside the cache, and this module's cached code is removed when
+    the digest differs. Where a source is gone (an FMU's copy of the package, whose unzipped folder
+    the master deleted after the process imported physics from it), or the cache cannot be found
+    through numba's locators, nothing is cached: it compiles afresh.
+    """
+    if not (os.path.isfile(physics.__file__) and os.path.isfile(__file__)):
+        return False
+    try:
+        from numba.core.caching import CacheImpl  # numba's own search for the cache folder
+
+        locators = (cls.from_function(_cache_here, __file__) for cls in CacheImpl._locator_classes)
+        folder = next(locator for locator in locators if locator is not None).get_cache_path()
+        with open(physics.__file__, "rb") as source:
+            digest = hashlib.sha256(source.read()).hexdigest()
+        stamp = os.path.join(folder, f"{__name__.rpartition('.')[2]}.physics-sha256")
+        if not os.path.isfile(stamp) or open(stamp).read() != digest:
+            for stale in glob.glob(os.path.join(folder, f"{__name__.rpartition('.')[2]}.*.nb[ic]")):
+                os.remove(stale)
+            os.makedirs(folder, exist_ok=True)
+            with open(stamp, "w") as file:
+                file.write(digest)
+    except Exception:  # a numba without these internals, or a cache folder we cannot write
+        return False
+    return True
+
+
+_CACHE = _cache_here()
 
 _acceleration = njit(physics.gap_acceleration, cache=_CACHE)
 _rest_margin = njit(physics.rest_margin_value, cache=_CACHE)
