@@ -2,10 +2,11 @@
 
 import dataclasses
 
+import numpy as np
 import pytest
 
 import bouncingball as bb
-from bouncingball.accuracy import event_mismatches
+from bouncingball.accuracy import event_mismatches, impact_counts
 from bouncingball.solvers.exact import ExactSolution
 from bouncingball.solvers.result import DEPARTURE, IMPACT, Event
 
@@ -72,3 +73,32 @@ def test_an_event_within_its_tolerance_of_the_end_may_fall_on_either_side(articl
     assert event_mismatches([*before.events, early], before, TOLERANCE, MIN_HOP) == []  # found before it
     far = Event(early.time - 10 * TOLERANCE / abs(last.velocity), IMPACT, last.velocity)
     assert event_mismatches([*before.events, far], before, TOLERANCE, MIN_HOP) != []
+
+
+def test_impact_counts_without_mergeable_impacts_is_the_per_point_rule():
+    """Against the rule stated directly: before(t - tie) <= count <= up_to(t + tie), for non-decreasing counts."""
+    rng = np.random.default_rng(7)
+    for _ in range(500):
+        times = np.sort(rng.uniform(0.0, 10.0, rng.integers(0, 8)))
+        t = np.sort(rng.choice(np.linspace(0.0, 10.0, 41), rng.integers(1, 30)))
+        tie = float(rng.choice([0.0, 0.1, 0.3]))
+        exact = np.searchsorted(times, t, side="right")
+        counts = np.maximum.accumulate(np.maximum(exact + rng.choice([0, 0, 0, 1, -1], len(t)), 0))
+        wrong = (counts < np.searchsorted(times, t - tie, side="left")) | \
+            (counts > np.searchsorted(times, t + tie, side="right"))
+        assert np.array_equal(impact_counts(times, t, counts, tie).mismatches, np.flatnonzero(wrong))
+
+
+def test_impact_counts_lets_mergeable_impacts_go_missing_and_nothing_else():
+    times = np.array([1.0, 2.0, 3.0, 4.0])
+    t = np.array([0.5, 1.5, 2.5, 3.5, 4.5])
+    mergeable = np.array([False, True, True, False])
+    counts = impact_counts(times, t, np.array([0, 1, 1, 1, 2]), mergeable=mergeable)  # 2 and 3 merged
+    assert counts.mismatches.tolist() == [] and counts.merged.tolist() == [1, 2]
+    missing_4 = impact_counts(times, t, np.array([0, 1, 1, 1, 1]), mergeable=mergeable)
+    assert missing_4.mismatches.tolist() == [4]
+    assert impact_counts(times, t, np.array([0, 1, 1, 2, 3]), mergeable=mergeable).merged.tolist() == [1]
+    made_up = impact_counts(times, t, np.array([0, 1, 1, 1, 3]), mergeable=mergeable)  # 2 and 3 merged, one extra
+    assert made_up.mismatches.tolist() == [4]
+    went_back = impact_counts(times, t, np.array([0, 1, 2, 1, 2]), mergeable=mergeable)  # 2 counted, then uncounted
+    assert went_back.mismatches.tolist() == [3, 4]  # and at 4.5 s, 2 is one short of 1, 2 and 4

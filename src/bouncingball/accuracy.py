@@ -136,22 +136,27 @@ def max_event_time_error(events: list[Event], exact_events: list[Event]) -> floa
     return float(max((abs(a.time - b.time) for a, b in zip(events, exact_events, strict=False)), default=0.0))
 
 
-def impact_count_mismatches(impact_times: np.ndarray, t: np.ndarray, impacts: np.ndarray, tie=0.0) -> np.ndarray:
+def impact_count_mismatches(impact_times: np.ndarray, t: np.ndarray, impacts: np.ndarray, tie=0.0,
+                            mergeable: np.ndarray | None = None) -> np.ndarray:
     """Indices of the points whose impact count is wrong.
 
     impacts[i] must count the impacts up to t[i]; one within tie [s] of t[i] may count or not,
-    since a master that steps onto an impact may report it at that point or at the next one.
+    since a master that steps onto an impact may report it at that point or at the next one. An
+    impact marked mergeable (it ends a hop too small to matter, see event_hops) may be missing
+    from the count: see impact_counts.
 
     Parameters
     ----------
     impact_times : numpy.ndarray
         The exact impact times [s], increasing.
     t : numpy.ndarray
-        The times of the points [s].
+        The times of the points [s], non-decreasing.
     impacts : numpy.ndarray
         The impact count reported at each point.
     tie : float or numpy.ndarray
         How close [s] to an impact a point may count it either way (one value, or one per point).
+    mergeable : numpy.ndarray of bool, optional
+        One per exact impact: True where it may be missing (default: none may).
 
     Returns
     -------
@@ -162,17 +167,142 @@ def impact_count_mismatches(impact_times: np.ndarray, t: np.ndarray, impacts: np
     --------
     >>> impact_count_mismatches(np.array([0.5]), np.array([0.0, 1.0]), np.array([0, 0]))
     array([1])
+    >>> impact_count_mismatches(np.array([0.5]), np.array([0.0, 1.0]), np.array([0, 0]), mergeable=np.array([True]))
+    array([], dtype=int64)
     """
+    return impact_counts(impact_times, t, impacts, tie, mergeable).mismatches
+
+
+@dataclass(frozen=True)
+class ImpactCounts:
+    """An impacts column against the exact impacts: the points it is wrong at and the impacts it merged.
+
+    Attributes
+    ----------
+    mismatches : numpy.ndarray
+        Indices of the points whose count is wrong, increasing.
+    merged : numpy.ndarray
+        Indices (into the exact impact times) of the mergeable impacts the column lacks, increasing.
+    """
+
+    mismatches: np.ndarray
+    merged: np.ndarray
+
+
+def impact_counts(impact_times: np.ndarray, t: np.ndarray, impacts: np.ndarray, tie=0.0,
+                  mergeable: np.ndarray | None = None) -> ImpactCounts:
+    """Match an impacts column with the exact impacts, letting mergeable ones be missing.
+
+    A result that merges a hop into the contact around it lacks that hop's impact from then on.
+    The points are taken in order: at each, the exact impacts before t - tie that no earlier
+    point accounted for must be counted now or merged (only a mergeable one may be), and those
+    within tie of t may be counted now or later. A count that is too high, too low, or lower than
+    the count before it is wrong at that point; the points after it are judged as if it had been
+    right, so a count that stays one short is wrong at every point from there on.
+
+    Parameters
+    ----------
+    impact_times : numpy.ndarray
+        The exact impact times [s], increasing.
+    t : numpy.ndarray
+        The times of the points [s], non-decreasing.
+    impacts : numpy.ndarray
+        The impact count reported at each point.
+    tie : float or numpy.ndarray
+        How close [s] to an impact a point may count it either way (one value, or one per point).
+    mergeable : numpy.ndarray of bool, optional
+        One per exact impact: True where it may be missing (default: none may).
+
+    Returns
+    -------
+    ImpactCounts
+        The points whose count is wrong, and which exact impacts the column lacks (of the
+        mergeable ones a shortfall could stand for, the latest).
+
+    Examples
+    --------
+    >>> counts = impact_counts(np.array([0.5, 1.5]), np.array([0.0, 1.0, 2.0]), np.array([0, 0, 1]),
+    ...                        mergeable=np.array([True, False]))
+    >>> counts.mismatches, counts.merged
+    (array([], dtype=int64), array([0]))
+    """
+    impact_times = np.asarray(impact_times, dtype=float)
     t = np.asarray(t, dtype=float)
-    before = np.searchsorted(impact_times, t - tie, side="left")
-    up_to = np.searchsorted(impact_times, t + tie, side="right")
-    impacts = np.asarray(impacts)
-    return np.flatnonzero((impacts < before) | (impacts > up_to))
+    impacts = np.asarray(impacts).astype(np.int64)
+    mergeable = np.zeros(len(impact_times), bool) if mergeable is None else np.asarray(mergeable, bool)
+    before = np.searchsorted(impact_times, t - tie, side="left")  # these must be accounted for by now
+    up_to = np.searchsorted(impact_times, t + tie, side="right")  # these may be counted by now
+    wrong = np.zeros(len(t), bool)
+    # A point like the one before it (same impacts due, same count) gets the same verdict: only the others are walked.
+    changed = np.ones(len(t), bool)
+    changed[1:] = (np.diff(before) != 0) | (np.diff(up_to) != 0) | (np.diff(impacts) != 0)
+    merged: list[int] = []
+    p = counted = 0  # the exact impacts before p are accounted for: counted of them counted, the others merged
+    for i in np.flatnonzero(changed):
+        due = np.arange(p, max(p, before[i]))  # must be counted now or merged
+        optional = max(up_to[i] - max(p, before[i]), 0)  # may be counted now or later
+        must = int(np.count_nonzero(~mergeable[due]))
+        n = int(impacts[i]) - counted
+        wrong[i] = not must <= n <= len(due) + optional
+        n = min(max(n, must), len(due) + optional)  # past a wrong count, go on as if it had been right
+        merge = max(len(due) - n, 0)
+        if merge:
+            merged.extend(int(j) for j in due[mergeable[due]][-merge:])
+        p = max(p, before[i]) + max(n - len(due), 0)
+        counted += n
+    return ImpactCounts(np.flatnonzero(_spread(wrong, changed)), np.array(sorted(merged), dtype=np.int64))
+
+
+def _spread(values: np.ndarray, set_at: np.ndarray) -> np.ndarray:
+    """values where set_at is True, and elsewhere the value at the last such index before."""
+    last = np.maximum.accumulate(np.where(set_at, np.arange(len(values)), 0))
+    return values[last]
 
 
 def height_scale(h_exact: np.ndarray, R: float) -> float:
     """The scene's height scale [m]: max(|h_exact|, R). Errors are judged relative to it."""
     return max(float(np.max(np.abs(h_exact))), R)
+
+
+def flight_apex(exact: ExactSolution, t0: float, h0: float, v0: float) -> float:
+    """How high above R [m] a flight from (h0 [m], v0 [m/s]) at t0 [s] rises, up to the end of exact's run.
+
+    The apex's height above R in closed form; a flight that never comes back (the external
+    force lifts the ball) is measured by how high it gets by exact.t_end.
+    """
+    g_eff = exact.ball.effective_gravity(exact.F_ext)
+    if v0 > 0.0 and not g_eff > 0.0:
+        return h0 - exact.ball.R + v0 * (exact.t_end - t0)
+    return h0 - exact.ball.R + (0.5 * v0 * v0 / g_eff if v0 > 0.0 else 0.0)
+
+
+def event_hops(exact: ExactSolution) -> list[float]:
+    """The hop [m] above R each exact event bounds: the flight an impact ends or a departure starts.
+
+    The one measure of a hop that the rule for hops too small to matter applies to: a hop no
+    higher than a solver's hop resolution may be merged into the contact around it (see
+    event_mismatches, and impact_counts for a result that only counts impacts).
+
+    Parameters
+    ----------
+    exact : ExactSolution
+        The exact solution.
+
+    Returns
+    -------
+    list of float
+        One hop height [m] per event of exact.events, in order.
+
+    Examples
+    --------
+    >>> from bouncingball.physics import Ball
+    >>> [round(hop, 6) for hop in event_hops(ExactSolution(Ball(), 2.0, 0.0, 0.0, 1.0))]
+    [1.94, 1.406531]
+    """
+    flight_hops = [flight_apex(exact, p.t_start, p.h0, p.v0) if p.mode == Mode.FLIGHT else 0.0
+                   for p in exact.phases]
+    # exact.events[i] ends phase i and starts phase i + 1: the hop an event bounds is the flight on its side.
+    return [flight_hops[i] if e.kind == IMPACT else flight_hops[i + 1] for i, e in enumerate(exact.events)]
 
 
 def event_mismatches(events: list[Event], exact: ExactSolution, height_tolerance: float,
@@ -186,18 +316,8 @@ def event_mismatches(events: list[Event], exact: ExactSolution, height_tolerance
     contact then goes on through the hop) or, the other way round, present in events alone. An
     event within its time tolerance of the end may be in one list only: the other falls past it.
     """
-    g_eff = exact.ball.effective_gravity(exact.F_ext)
     R = exact.ball.R
-
-    def hop(t0: float, h0: float, v0: float) -> float:
-        """Apex above R [m] of a flight starting at (h0, v0) at t0, up to the end of the run."""
-        if v0 > 0.0 and not g_eff > 0.0:  # it never comes back: how high it gets by t_end
-            return h0 - R + v0 * (exact.t_end - t0)
-        return h0 - R + (0.5 * v0 * v0 / g_eff if v0 > 0.0 else 0.0)
-
-    flight_hops = [hop(p.t_start, p.h0, p.v0) if p.mode == Mode.FLIGHT else 0.0 for p in exact.phases]
-    # exact.events[i] ends phase i and starts phase i + 1: the hop an event bounds is the flight on its side.
-    bounded_hop = [flight_hops[i] if e.kind == IMPACT else flight_hops[i + 1] for i, e in enumerate(exact.events)]
+    bounded_hop = event_hops(exact)
     wanted, found = exact.events, events
 
     def allowed(event: Event) -> float:
@@ -216,7 +336,8 @@ def event_mismatches(events: list[Event], exact: ExactSolution, height_tolerance
         if i < len(wanted) and bounded_hop[i] <= min_hop:
             i += 2 if wanted[i].kind == DEPARTURE else 1  # a departure and its impact, or a first impact
             continue
-        if (j < len(found) and found[j].kind == DEPARTURE and hop(found[j].time, R, found[j].velocity) <= min_hop
+        if (j < len(found) and found[j].kind == DEPARTURE
+                and flight_apex(exact, found[j].time, R, found[j].velocity) <= min_hop
                 and (j + 1 == len(found) or found[j + 1].kind == IMPACT)):
             j += 2
             continue

@@ -49,15 +49,19 @@ def _build_parser() -> argparse.ArgumentParser:
                                                                    "(default: article)")
     check.add_argument("--fmu", help="the FMU to run (default: dist/BouncingBall.fmu, built if missing or stale)")
     judge = sub.add_parser("check", help="compare a master's result (CSV) with the exact solution at its own times")
-    judge.add_argument("result", metavar="RESULT.csv", help="the CSV a master wrote: a time and an h column "
-                                                          "(an impacts column is checked too)")
+    judge.add_argument("result", metavar="RESULT.csv", help="the CSV a master wrote (FMPy, OMSimulator, libcosim, "
+                                                          "ecos, ...): a time and an h column (an impacts column is "
+                                                          "checked too, parameter columns are taken)")
     judge.add_argument("scene", nargs="?", default="article", help="the scene the master ran: a built-in scene "
                                                                    "name or a .toml file (default: article)")
     judge.add_argument("--start-value", action="append", default=[], metavar="NAME=VALUE",
-                       help="a start value the master set on the FMU (m, k, b, R, g, h, v, F_ext; repeatable)")
+                       help="a start value the master set on the FMU (m, k, b, R, g, h, v, F_ext, rtol, atol; "
+                            "repeatable)")
     judge.add_argument("--tolerance", type=float, default=1e-6, help="allowed max |h - h_exact| [m] (default: 1e-6)")
     judge.add_argument("--start-time", type=float, default=0.0, help="when the master started the run [s] "
                                                                      "(default: 0)")
+    judge.add_argument("--instance", metavar="NAME", help="the instance of the ball to check when the file holds "
+                                                          "several (ball for ball::h or model.root.ball.h)")
     bench = sub.add_parser("bench", help="benchmark error against run time (or, with --stability, the stability "
                                          "matrix) and write the results")
     bench.add_argument("--quick", action="store_true", help="a small run that CI can afford")
@@ -155,7 +159,8 @@ def _check(args: argparse.Namespace) -> int:
         if not (equals and name.strip() and value.strip()):
             raise ValueError(f"--start-value {item!r} is not allowed: it must be NAME=VALUE, for example g=1.62")
         start_values[name.strip()] = value.strip()
-    outcome = check_result(args.result, args.scene, start_values, args.tolerance, args.start_time)
+    outcome = check_result(args.result, args.scene, start_values, args.tolerance, args.start_time,
+                           args.instance)
     print(outcome.report())
     return 0 if outcome.passed else EXIT_CHECK_FAILED
 

@@ -1,8 +1,9 @@
 """Judge a co-simulation master's result against the exact solution: `bouncingball check` as a Python function.
 
-A master (FMPy, fmusim, libcosim, your own) writes a CSV of the FMU's outputs; check_result()
-computes the exact solution at the CSV's own times for the scene and start values the master was
-given, and says how far the heights are from it and whether the impacts column counts right::
+A master (FMPy, OMSimulator, libcosim, ecos, fmusim, your own) writes a CSV of the FMU's
+outputs; check_result() reads it as the master wrote it (see bouncingball.result_files),
+computes the exact solution at the CSV's own times for the scene and start values the master
+was given, and says how far the heights are from it and whether the impacts column counts right::
 
     from bouncingball.testing import check_result
 
@@ -11,13 +12,15 @@ given, and says how far the heights are from it and whether the impacts column c
 
 The run starts at start_time (0 unless given: the FMU's default experiment starts at 0), from the
 scene's (h0, v0) with the start values applied; the CSV need not hold that first point (libcosim's
-observers start after the first step); the FMU's solver settings (rtol, atol, method, engine) are accepted
-and do not change the exact solution.
+observers start after the first step). Parameters the file carries as columns (libcosim and ecos
+write every variable) are taken from it; a start value that contradicts one is bad input. A file
+printed with fewer digits than the tolerance needs is judged within its printed resolution. The
+FMU's rtol and atol set which hops it may merge into the contact (cvode.merged_hop_limit): an
+impact ending such a hop, or one lower than the check's tolerance, may be missing from the count.
 """
 
 from __future__ import annotations
 
-import csv
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
@@ -26,21 +29,57 @@ from pathlib import Path
 import numpy as np
 
 from . import validation
-from .accuracy import exact_on_grid, impact_count_mismatches
+from .accuracy import event_hops, impact_counts
 from .fmu.variables import VARIABLES
-from .physics import Ball
+from .physics import Ball, Mode
+from .result_files import BadResultError, FileParameter, Printing, ResultFile, read_result_file
 from .scenes import BALL_KEYS, Scene, load_scene
+from .solvers.cvode import DEFAULT_RTOL, merged_hop_limit
+from .solvers.exact import ExactSolution
+from .solvers.result import IMPACT
+
+__all__ = ["DEFAULT_TOLERANCE", "BadResultError", "CheckResult", "MergedHops", "check_result", "read_result_csv",
+           "scene_with_start_values"]
 
 DEFAULT_TOLERANCE = 1e-6  # m
 IMPACT_TIE = 1e-6  # s: a point this close to an impact may count it or not
+START_SLACK = 1e-9  # relative: how far the first row's v and a may be from the start state's before it is said
 # The FMU's start values that set up the run, by the scene field each one sets; the others (rtol,
 # atol, method, engine) are solver settings, which the exact solution has no use for.
 SCENE_FIELD_OF_START_VALUE = {**{key: key for key in BALL_KEYS}, "h": "h0", "v": "v0", "F_ext": "F_ext"}
 SOLVER_SETTINGS = tuple(v.name for v in VARIABLES if v.causality == "parameter" and v.name not in BALL_KEYS)
 
 
-class BadResultError(ValueError):
-    """A result that cannot be checked: the message names the file, the row or column, and what is wrong."""
+@dataclass(frozen=True)
+class MergedHops:
+    """The hops a result merged into the contact around them, each class counted.
+
+    Attributes
+    ----------
+    by_solver : int
+        Hops no higher than the FMU's hop resolution (cvode.merged_hop_limit for its rtol and atol).
+    solver_limit : float
+        That limit [m].
+    by_tolerance : int
+        Hops higher than that but no higher than the check's tolerance, which the file cannot show.
+    tolerance : float
+        The check's tolerance [m].
+    """
+
+    by_solver: int
+    solver_limit: float
+    by_tolerance: int
+    tolerance: float
+
+    @property
+    def total(self) -> int:
+        """All the hops merged."""
+        return self.by_solver + self.by_tolerance
+
+    def __str__(self) -> str:
+        return (f"{self.total} hops merged into the contact: {self.by_solver} no higher than the FMU's hop "
+                f"resolution {self.solver_limit:.3g} m, {self.by_tolerance} no higher than the tolerance "
+                f"{self.tolerance:g} m")
 
 
 @dataclass(frozen=True)
@@ -52,13 +91,13 @@ class CheckResult:
     source : str
         The file checked (or "<columns>" for arrays passed directly).
     scene : Scene
-        The scene with the start values applied: the ball and the initial state of the run.
+        The scene with the start values (and the file's parameters) applied: the ball and the initial state.
     tolerance : float
-        The allowed max |h - h_exact| [m].
-    points : int
-        Number of points compared.
+        The allowed max |h - h_exact| [m] (beyond the file's printed resolution, if it has one).
     start_time : float
         When the run started from the scene's initial state [s].
+    points : int
+        Number of points compared.
     t_start, t_end : float
         First and last time in the result [s].
     max_height_error : float
@@ -71,6 +110,25 @@ class CheckResult:
         The last value of the result's impacts column; None when it has none.
     impact_mismatches : tuple of (time, found, exact)
         The points whose impact count is wrong (the exact count up to that time; empty if none).
+    points_over : int
+        Points whose |h - h_exact| exceeds the tolerance plus their printed resolution.
+    over_time, over_error, over_allowance : float
+        The point that exceeds its allowance most (or comes nearest to it): its time [s], its
+        |h - h_exact| [m] and what it was allowed [m].
+    printing : str
+        How the file prints its numbers ("full precision", "6 significant digits", "6 decimals").
+    max_resolution : float
+        The most any point was allowed beyond the tolerance for the file's printing [m].
+    instance : str
+        The instance checked, as the file's columns name it ("" when they name none).
+    parameters_from_file : str
+        The parameter columns the file has, and which of them differ from the scene and were
+        taken from it ("" when it has none).
+    merged_hops : MergedHops or None
+        The hops the impacts column merged into the contact (None without an impacts column).
+    first_row : tuple of str
+        How the first row (when it is the start) disagrees with the scene, each with the start value
+        that would match the file.
     """
 
     source: str
@@ -87,11 +145,21 @@ class CheckResult:
     impacts_exact: int
     impacts_found: int | None
     impact_mismatches: tuple[tuple[float, int, int], ...]
+    points_over: int = 0
+    over_time: float = math.nan
+    over_error: float = math.nan
+    over_allowance: float = math.nan
+    printing: str = "full precision"
+    max_resolution: float = 0.0
+    instance: str = ""
+    parameters_from_file: str = ""
+    merged_hops: MergedHops | None = None
+    first_row: tuple[str, ...] = ()
 
     @property
     def heights_pass(self) -> bool:
-        """True when max |h - h_exact| is within the tolerance."""
-        return self.max_height_error <= self.tolerance
+        """True when every |h - h_exact| is within the tolerance (plus the point's printed resolution)."""
+        return self.points_over == 0
 
     @property
     def passed(self) -> bool:
@@ -99,54 +167,80 @@ class CheckResult:
         return self.heights_pass and not self.impact_mismatches
 
     @property
+    def _within(self) -> str:
+        if not self.max_resolution:
+            return f"the tolerance {self.tolerance:g} m"
+        return f"the tolerance {self.tolerance:g} m plus the file's printed resolution ({self.printing})"
+
+    @property
     def verdict(self) -> str:
         """PASS or FAIL, with the reason."""
+        merged = f"; {self.merged_hops}" if self.merged_hops and self.merged_hops.total else ""
         if self.passed:
-            return f"PASS: max |h - h_exact| = {self.max_height_error:.3e} m is within the tolerance " \
-                   f"{self.tolerance:g} m" + ("" if self.impacts_found is None else ", impacts counted right")
+            return f"PASS: max |h - h_exact| = {self.max_height_error:.3e} m is within {self._within}" + \
+                   ("" if self.impacts_found is None else f", impacts counted right{merged}")
         reasons = []
+        if self.first_row:
+            reasons.append("the first row is not the scene's start: " + "; ".join(self.first_row))
         if not self.heights_pass:
-            reasons.append(f"max |h - h_exact| = {self.max_height_error:.3e} m at t = {self.worst_time!r} s "
-                           f"exceeds the tolerance {self.tolerance:g} m")
+            if self.max_resolution:
+                reasons.append(f"|h - h_exact| exceeds {self._within} at {self.points_over} of {self.points} "
+                               f"points, most at t = {self.over_time!r} s ({self.over_error:.3e} m, allowed "
+                               f"{self.over_allowance:.3e} m)")
+            else:
+                reasons.append(f"max |h - h_exact| = {self.max_height_error:.3e} m at t = {self.worst_time!r} s "
+                               f"exceeds the tolerance {self.tolerance:g} m (at {self.points_over} of {self.points} "
+                               "points)")
         if self.impact_mismatches:
             t, found, exact = self.impact_mismatches[0]
             reasons.append(f"the impacts column is wrong at {len(self.impact_mismatches)} points, first at "
-                           f"t = {t!r} s ({found}, exact {exact})")
+                           f"t = {t!r} s ({found}, exact {exact}){merged}")
         return "FAIL: " + "; ".join(reasons)
 
     def report(self) -> str:
         """The lines `bouncingball check` prints."""
         scene, ball = self.scene, self.scene.ball
-        lines = [f"check {self.source} against the exact solution of scene {scene.name}",
-                 f"  ball               m = {ball.m:g} kg, k = {ball.k:g} N/m, b = {ball.b:g} N s/m, "
-                 f"R = {ball.R:g} m, g = {ball.g:g} m/s2, F_ext = {scene.F_ext:g} N",
-                 f"  start              h = {scene.h0:.15g} m, v = {scene.v0:.15g} m/s at t = {self.start_time!r} s",
-                 f"  points compared    {self.points} (t = {self.t_start!r} to {self.t_end!r} s)",
-                 f"  max |h - h_exact|  {self.max_height_error:.3e} m at t = {self.worst_time!r} s "
-                 f"(h = {self.worst_h!r} m, exact {self.worst_h_exact!r} m)"]
+        lines = [f"check {self.source} against the exact solution of scene {scene.name}"]
+        if self.instance:
+            lines.append(f"  instance           {self.instance}")
+        lines += [f"  ball               m = {ball.m:g} kg, k = {ball.k:g} N/m, b = {ball.b:g} N s/m, "
+                  f"R = {ball.R:g} m, g = {ball.g:g} m/s2, F_ext = {scene.F_ext:g} N",
+                  f"  start              h = {scene.h0:.15g} m, v = {scene.v0:.15g} m/s at t = {self.start_time!r} s"]
+        if self.parameters_from_file:
+            lines.append(f"  file's parameters  {self.parameters_from_file}")
+        lines.append(f"  points compared    {self.points} (t = {self.t_start!r} to {self.t_end!r} s)")
+        if self.max_resolution:
+            lines.append(f"  printed            {self.printing}: each point is allowed its printed resolution "
+                         f"beyond the tolerance (that of h, plus |v| times that of time), at most "
+                         f"{self.max_resolution:.3e} m")
+        lines.append(f"  max |h - h_exact|  {self.max_height_error:.3e} m at t = {self.worst_time!r} s "
+                     f"(h = {self.worst_h!r} m, exact {self.worst_h_exact!r} m)")
+        merged = f"; {self.merged_hops}" if self.merged_hops and self.merged_hops.total else ""
         if self.impacts_found is None:
             lines.append(f"  impacts            no impacts column (exact: {self.impacts_exact})")
         elif not self.impact_mismatches:
             lines.append(f"  impacts            {self.impacts_found} at the end, exact {self.impacts_exact}; "
-                         "the count is right at every point")
+                         f"the count is right at every point{merged}")
         else:
             lines.append(f"  impacts            {self.impacts_found} at the end, exact {self.impacts_exact}; "
-                         f"the count is wrong at {len(self.impact_mismatches)} points:")
+                         f"the count is wrong at {len(self.impact_mismatches)} points{merged}:")
             lines += [f"    t = {t!r} s: {found}, exact {exact}" for t, found, exact in self.impact_mismatches[:5]]
         lines.append(f"  verdict            {self.verdict}")
         return "\n".join(lines)
 
 
-def read_result_csv(path: str | Path) -> dict[str, np.ndarray]:
-    """The time, h and (if present) impacts columns of a master's CSV.
+def read_result_csv(path: str | Path, instance: str | None = None) -> dict[str, np.ndarray]:
+    """The time, h and (if present) impacts columns of a master's CSV, read as the master wrote it.
 
-    The header names the columns, quoted or not (FMPy writes ``time,h,...``, fmusim
-    ``"time","h",...``), in any order; other columns are ignored.
+    See bouncingball.result_files.read_result_file for the dialects read (FMPy, OMSimulator,
+    libcosim, ecos) and what is bad input.
 
     Parameters
     ----------
     path : str or pathlib.Path
         The CSV file.
+    instance : str, optional
+        The instance of the ball to read when the file holds several.
 
     Returns
     -------
@@ -156,9 +250,8 @@ def read_result_csv(path: str | Path) -> dict[str, np.ndarray]:
     Raises
     ------
     BadResultError
-        The file cannot be read, has no time or h column, a cell that is not a finite number (or
-        not a whole number in impacts), no data row, or times that do not increase. The message
-        names the file, the row (its line number) or column, and what is wrong.
+        The file cannot be read or is not a result; the message names the file, the row (its
+        line number), the column and the value.
 
     Examples
     --------
@@ -166,48 +259,11 @@ def read_result_csv(path: str | Path) -> dict[str, np.ndarray]:
     >>> columns["time"][:2], columns["h"][:2]  # doctest: +SKIP
     (array([0.   , 0.001]), array([2.       , 1.9999951]))
     """
-    name = str(path)
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as file:
-            reader = csv.reader(file)
-            rows = [(reader.line_num, row) for row in reader if any(cell.strip() for cell in row)]
-    except (OSError, UnicodeDecodeError, csv.Error) as error:
-        raise BadResultError(f"{name}: cannot be read: {error}") from None
-    if not rows:
-        raise BadResultError(f"{name}: the file is empty: it needs a header with time and h columns")
-    _, header = rows[0]
-    header = [cell.strip().strip('"') for cell in header]
-    missing = [column for column in ("time", "h") if column not in header]
-    if missing:
-        raise BadResultError(f"{name}: no {missing[0]!r} column in the header (it has: {', '.join(header)})")
-    if len(rows) < 2:
-        raise BadResultError(f"{name}: no data rows after the header")
-    wanted = [column for column in ("time", "h", "impacts") if column in header]
-    columns: dict[str, list[float]] = {column: [] for column in wanted}
-    for number, row in rows[1:]:
-        for column in wanted:
-            index = header.index(column)
-            if index >= len(row):
-                raise BadResultError(f"{name}: row {number} has no {column!r} cell (it has {len(row)} cells)")
-            cell = row[index].strip()
-            try:
-                value = float(cell)
-            except ValueError:
-                value = math.nan
-            if not math.isfinite(value) or (column == "impacts" and value != int(value)):
-                kind = "a whole number" if column == "impacts" else "a finite number"
-                raise BadResultError(f"{name}: row {number}, column {column!r}: {cell!r} is not {kind}")
-            columns[column].append(value)
-    result = {column: np.array(values) for column, values in columns.items()}
-    if "impacts" in result:
-        result["impacts"] = result["impacts"].astype(np.int64)
-    t = result["time"]
-    decreasing = np.flatnonzero(np.diff(t) <= 0.0)
-    if decreasing.size:
-        i = int(decreasing[0]) + 1
-        raise BadResultError(f"{name}: row {rows[i + 1][0]}, column 'time': {float(t[i])!r} does not increase "
-                             f"(the row before has {float(t[i - 1])!r})")
-    return result
+    result = read_result_file(path, instance)
+    columns = {"time": result.time, "h": result.h}
+    if result.impacts is not None:
+        columns["impacts"] = result.impacts
+    return columns
 
 
 def scene_with_start_values(scene: Scene | str | Path = "article",
@@ -263,22 +319,26 @@ def scene_with_start_values(scene: Scene | str | Path = "article",
 
 
 def check_result(result, scene: Scene | str | Path = "article", start_values: Mapping[str, float | str] | None = None,
-                 tolerance: float = DEFAULT_TOLERANCE, start_time: float = 0.0) -> CheckResult:
+                 tolerance: float = DEFAULT_TOLERANCE, start_time: float = 0.0,
+                 instance: str | None = None) -> CheckResult:
     """Compare a master's result with the exact solution at its own times.
 
     Parameters
     ----------
     result : str, pathlib.Path, mapping or numpy structured array
-        A CSV file (read by read_result_csv), or columns by name: "time" [s] and "h" [m], and
-        optionally "impacts" (FMPy's simulate_fmu result will do).
+        A CSV file (read by bouncingball.result_files.read_result_file), or columns by name:
+        "time" [s] and "h" [m], and optionally "impacts" (FMPy's simulate_fmu result will do).
     scene : Scene, str or pathlib.Path
         The scene the master ran (default: the article's, which the FMU's defaults are).
     start_values : mapping of str to float or str, optional
-        The start values the master set on the FMU (see scene_with_start_values).
+        The start values the master set on the FMU (see scene_with_start_values); rtol and atol
+        set which hops the FMU may merge into the contact.
     tolerance : float
         The allowed max |h - h_exact| [m] (default 1e-6).
     start_time : float
         When the master started the run [s] (default 0); no time in the result may be earlier.
+    instance : str, optional
+        The instance of the ball to check, when the file holds several.
 
     Returns
     -------
@@ -288,7 +348,8 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
     Raises
     ------
     BadResultError
-        The result cannot be read (see read_result_csv).
+        The result cannot be read (see read_result_file), starts before start_time, or a start
+        value contradicts a parameter column beyond its printed resolution.
     ValueError
         A bad scene, start value, tolerance or start time.
 
@@ -302,41 +363,138 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
     """
     tolerance = validation.positive("tolerance", tolerance, "m")
     start_time = validation.finite("start_time", start_time, "s")
-    scene = scene_with_start_values(scene, start_values)
     if isinstance(result, str | Path):
-        source, columns = str(result), read_result_csv(result)
+        file = read_result_file(result, instance)
+    elif instance is not None:
+        raise ValueError("instance picks the columns of a file: pass the file, or the instance's columns alone")
     else:
-        source, columns = "<columns>", _columns_of(result)
-    t, h = columns["time"], columns["h"]
-    if t[0] < start_time:
+        file = _file_of_columns(result)
+    source = file.source
+    values = dict(start_values or {})
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
+    taken = []
+    for name, parameter in file.parameters.items():
+        if name in values:
+            given = _number(name, values[name])
+            if not _agree(given, parameter):
+                within = f" (beyond its printed resolution, {parameter.resolution:.1g})" if parameter.resolution else ""
+                raise BadResultError(f"{source}: row {parameter.row}, column {parameter.column!r}: {name} = "
+                                     f"{parameter.value!r} contradicts the start value {name} = {values[name]}{within}")
+        elif not _agree(_setting(scene, name), parameter):  # the scene's value, unless the file shows another
+            values[name] = parameter.value
+            taken.append(f"{name} = {parameter.value!r} (the scene has {_setting(scene, name)!r})")
+    try:
+        scene = scene_with_start_values(scene, values)
+        rtol = validation.in_range("rtol", _number("rtol", values.get("rtol", DEFAULT_RTOL)), 0.0, 1.0)
+        atol = validation.non_negative("atol", _number("atol", values.get("atol", 0.0)), "m") or None
+    except ValueError as error:
+        wrong = next((p for n, p in file.parameters.items() if n not in (start_values or {}) and
+                      str(error).startswith(f"{n} = ")), None)
+        if wrong is None:
+            raise
+        raise BadResultError(f"{source}: row {wrong.row}, column {wrong.column!r}: {error} (as printed: give the "
+                             f"value the master set with --start-value {wrong.name}=VALUE)") from None
+    file_parameters = ", ".join(file.parameters)
+    if file_parameters:
+        file_parameters += ": " + ("; ".join(taken) + " taken from it" if taken
+                                   else "as the scene and the FMU's defaults have them")
+    ball = scene.ball
+    t, h, t_res, h_res = file.time, file.h, file.time_resolution, file.h_resolution
+    if t[0] < start_time - t_res[0]:
         raise BadResultError(f"{source}: its first time, {float(t[0])!r} s, is before the start time {start_time!r} s "
                              "(give the start time the master used)")
-    exact = exact_on_grid(t, scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=start_time)
-    error = np.abs(h - exact.h)
-    worst = int(np.argmax(error))
-    impact_times = exact.impact_times
-    impacts_found, mismatches = None, ()
-    if "impacts" in columns:
-        impacts = columns["impacts"]
+    solution = ExactSolution(ball, scene.h0, scene.v0, start_time, max(float(np.max(t + t_res)), start_time),
+                             scene.F_ext)
+    h_exact, v_exact = solution.state(t)
+    allowance = tolerance + h_res
+    if np.any(t_res > 0.0):  # the time printed to t_res: the ball moves |v| t_res in that time
+        speed = np.abs(v_exact)
+        for shifted in (np.maximum(t - t_res, start_time), t + t_res):
+            speed = np.maximum(speed, np.abs(solution.state(shifted)[1]))
+        allowance = allowance + speed * t_res
+    error = np.abs(h - h_exact)
+    worst, most = int(np.argmax(error)), int(np.argmax(error - allowance))
+    events = solution.events
+    impact_times = np.array([e.time for e in events if e.kind == IMPACT])
+    hops = np.array([hop for e, hop in zip(events, event_hops(solution), strict=True) if e.kind == IMPACT])
+    impacts_exact = int(np.searchsorted(impact_times, t[-1], side="right"))
+    impacts_found, mismatches, merged = None, (), None
+    if file.impacts is not None:
+        impacts = file.impacts
         impacts_found = int(impacts[-1])
-        mismatches = tuple((float(t[i]), int(impacts[i]), int(exact.impacts[i]))
-                           for i in impact_count_mismatches(impact_times, t, impacts, IMPACT_TIE))
+        limit = merged_hop_limit(ball, rtol, atol, scene.F_ext)
+        counts = impact_counts(impact_times, t, impacts, IMPACT_TIE + t_res, hops <= max(limit, tolerance))
+        exact_counts = np.searchsorted(impact_times, t, side="right")
+        mismatches = tuple((float(t[i]), int(impacts[i]), int(exact_counts[i])) for i in counts.mismatches)
+        by_solver = int(np.count_nonzero(hops[counts.merged] <= limit))
+        merged = MergedHops(by_solver, limit, len(counts.merged) - by_solver, tolerance)
     return CheckResult(source, scene, tolerance, start_time, len(t), float(t[0]), float(t[-1]), float(error[worst]),
-                       float(t[worst]), float(h[worst]), float(exact.h[worst]), len(impact_times), impacts_found,
-                       mismatches)
+                       float(t[worst]), float(h[worst]), float(h_exact[worst]), impacts_exact, impacts_found,
+                       mismatches, int(np.count_nonzero(error > allowance)), float(t[most]), float(error[most]),
+                       float(allowance[most]), str(file.printing), float(np.max(allowance - tolerance)),
+                       file.instance, file_parameters, merged, _first_row(file, scene, tolerance, start_time))
 
 
-def _columns_of(result) -> dict[str, np.ndarray]:
+def _setting(scene: Scene, name: str) -> float:
+    """The value a run of scene has for the FMU's parameter name (rtol and atol: the FMU's defaults)."""
+    if name in BALL_KEYS:
+        return getattr(scene.ball, name)
+    return {"F_ext": scene.F_ext, "rtol": DEFAULT_RTOL, "atol": 0.0}[name]
+
+
+def _agree(value: float, parameter: FileParameter) -> bool:
+    """True when value is the parameter's printed value, to its printed resolution."""
+    return abs(value - parameter.value) <= parameter.resolution + math.ulp(max(abs(value), abs(parameter.value)))
+
+
+def _number(name: str, value) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"start value {name} = {value!r} is not allowed: it must be a number") from None
+
+
+def _first_row(file: ResultFile, scene: Scene, tolerance: float, start_time: float) -> tuple[str, ...]:
+    """How the file's first row, when it is the start, disagrees with the scene: each with the start value that fits."""
+    if abs(file.time[0] - start_time) > file.time_resolution[0]:
+        return ()  # the file starts later (libcosim's observers): its first row is not the start state
+    ball, F_ext = scene.ball, scene.F_ext
+    notes = []
+    h0 = float(file.h[0])
+    if abs(h0 - scene.h0) > tolerance + file.h_resolution[0]:
+        notes.append(f"h = {h0!r} m where the scene starts at {scene.h0!r} m (--start-value h={h0!r} would match it)")
+    v0 = scene.v0 if file.v is None else float(file.v[0])
+    if file.v is not None and abs(v0 - scene.v0) > file.v_resolution[0] + START_SLACK * max(1.0, abs(scene.v0)):
+        notes.append(f"v = {v0!r} m/s where the scene starts at {scene.v0!r} m/s (--start-value v={v0!r} would "
+                     "match it)")
+    if file.a is not None:  # at the file's own start state, a tells the ball's parameters apart
+        mode = ball.initial_mode(h0, v0, F_ext)
+        expected = ball.acceleration(h0, v0, mode, F_ext)
+        a0 = float(file.a[0])
+        if abs(a0 - expected) > file.a_resolution[0] + START_SLACK * max(1.0, abs(expected)):
+            g = F_ext / ball.m - a0
+            if "g" in file.parameters and (mode == Mode.FLIGHT or set(BALL_KEYS) <= set(file.parameters)):
+                fits = "the file's own parameter columns do not give the run it holds"
+            elif mode == Mode.FLIGHT and g >= 0.0:
+                fits = f"--start-value g={g!r} would match it"
+            else:
+                fits = "one of m, k, b, R, g, F_ext differs"
+            notes.append(f"a = {a0!r} m/s2 where the scene's ball has {expected!r} m/s2 there ({fits})")
+    return tuple(notes)
+
+
+def _file_of_columns(result) -> ResultFile:
     names = result.dtype.names if hasattr(result, "dtype") else tuple(result)
     missing = [column for column in ("time", "h") if column not in names]
     if missing:
         raise BadResultError(f"the result has no {missing[0]!r} column (it has: {', '.join(names)})")
-    columns = {"time": np.asarray(result["time"], dtype=float), "h": np.asarray(result["h"], dtype=float)}
-    if "impacts" in names:
-        columns["impacts"] = np.asarray(result["impacts"], dtype=np.int64)
-    t = columns["time"]
-    if t.size == 0 or t.shape != columns["h"].shape or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0.0):
-        raise BadResultError("the result's time column must be non-empty, finite, increasing and as long as h")
-    if not np.all(np.isfinite(columns["h"])):
+    t, h = np.asarray(result["time"], dtype=float), np.asarray(result["h"], dtype=float)
+    if t.size == 0 or t.shape != h.shape or not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0.0):
+        raise BadResultError("the result's time column must be non-empty, finite, non-decreasing and as long as h")
+    if not np.all(np.isfinite(h)):
         raise BadResultError("the result's h column has a value that is not a finite number")
-    return columns
+    impacts = np.asarray(result["impacts"], dtype=np.int64) if "impacts" in names else None
+    zero = np.zeros_like(t)
+    return ResultFile("<columns>", "", {"time": "time", "h": "h"}, np.arange(2, t.size + 2), t, h, impacts, None,
+                      None, Printing("full"), zero, zero)
