@@ -59,8 +59,8 @@ ONCE_HUNG = [
 # Contacts of 3 ps near t = 1e5 s, where an ulp of t is 1.5e-11 s: the exact solution's phases stopped
 # advancing t (it never ended); CVODE refused them already.
 ONCE_HUNG.append(("bouncingball.simulate(Ball(k=1e15, m=1e-9, b=0.0), 1.0, 0.0, 1e5, 1.0, solver={solver!r}{engine})",
-                  ["k = 1000000000000000.0 N/m with m = 1e-09 kg is not allowed up to t = 100000.0 s",
-                   "Shorten the run to t <= 1.415 s"]))
+                  ["k = 1000000000000000.0 N/m with m = 1e-09 kg is not allowed up to t = ",
+                   "Shorten the run to t <= 1.415 s"]))  # t_end (CVODE) or the first contact past 1.415 s (exact)
 OVERFLOWED = [
     ("bouncingball.simulate(Ball(R=1e300), 2, 0, 1, solver={solver!r}{engine})",
      ["R = 1e+300 m is not allowed: it must be <= 1e+150 m"]),

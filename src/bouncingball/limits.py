@@ -235,6 +235,7 @@ def resolvable_until(ball: Ball) -> float:
 
 def check_resolvable(ball: Ball, t: float) -> None:
     """Raise ValueError if a contact of this ball cannot be resolved at time t [s]."""
+    t = float(t)
     limit = resolvable_until(ball)
     if abs(t) > limit:
         duration = contact_duration(ball)

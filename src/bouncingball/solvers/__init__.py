@@ -82,7 +82,6 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     output_interval = validation.in_range("output_interval", output_interval, 0.0, t_end - t_start, "s")
     # Before any solver: what double precision cannot resolve is refused the same way by each.
     limits.check_scene(ball, h0, v0, F_ext, t_start, t_end, output_interval)
-    limits.check_resolvable(ball, t_end)
     if solver == "cvode":
         from .cvode import simulate_cvode as run
     elif solver == "scipy":

@@ -31,8 +31,6 @@ class ExactSolution:
 
     def __init__(self, ball: Ball, h0: float, v0: float, t_start: float = 0.0,
                  t_end: float = math.inf, F_ext: float = 0.0) -> None:
-        if math.isfinite(t_end):  # contacts too short for the times' ulps: phases would stop advancing t
-            limits.check_resolvable(ball, t_end)
         self.ball = ball
         self.F_ext = F_ext
         self.t_start = t_start
@@ -44,9 +42,13 @@ class ExactSolution:
 
     def _build(self, h: float, v: float) -> None:
         ball, R = self.ball, self.ball.R
+        resolvable_until = limits.resolvable_until(ball)
         t = self.t_start
         mode = ball.initial_mode(h, v, self.F_ext)
         while True:
+            if mode == Mode.CONTACT and t > resolvable_until:
+                # contacts too short for the ulps of t: the phases would stop advancing t (it never ended)
+                limits.check_resolvable(ball, t)
             self.phases.append(Phase(t, mode, h, v))
             if mode == Mode.FLIGHT:
                 tau, v_next = time_to_impact(h - R, v, ball.effective_gravity(self.F_ext))
