@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import shutil
 import subprocess
 import sys
@@ -258,3 +259,72 @@ def test_the_c_master_under_valgrind_makes_no_invalid_access(c_master, unzipped,
     table = np.loadtxt(completed.stdout.splitlines())
     h, _, impacts = exact_at(table[:, 0])
     assert np.max(np.abs(table[:, 1] - h)) < 1e-7 and table[-1, 2] == impacts[-1] == 1
+
+
+# --- a Python host that lacks what the FMU needs ----------------------------------------------------
+HOST_WITHOUT_SKSUNDAE = r"""
+import ctypes, json, sys
+from fmpy import calloc, extract, free, read_model_description
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
+                       fmi2CallbackLoggerTYPE)
+from fmpy.logging import addLoggerProxy
+
+fmu = sys.argv[1]
+description = read_model_description(fmu)
+log = []
+
+def logger(environment, instance, status, category, message):
+    log.append([status, (category or b"").decode(), (message or b"").decode()])
+
+callbacks = fmi2CallbackFunctions()
+callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+addLoggerProxy(ctypes.byref(callbacks))
+slave = FMU2Slave(guid=description.guid, unzipDirectory=extract(fmu),
+                  modelIdentifier=description.coSimulation.modelIdentifier, instanceName="ball")
+try:
+    slave.instantiate(loggingOn=False, callbacks=callbacks)
+    outcome = "instantiated"
+except Exception as error:
+    outcome = str(error)
+report = {"outcome": outcome, "log": log, "executable": sys.executable,
+          "pythonfmu ran": any(name.startswith("pythonfmu") for name in sys.modules)}
+
+# libcosim (C++) through libcosimpy's C API: the slave is NULL and libcosim's last error is the FMU's line.
+# (libcosimpy's add_local_slave passes that NULL on to cosim_execution_add_slave, which crashes: its bug.)
+from libcosimpy._internal import get_last_error_message
+from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+from libcosimpy.CosimSlave import CosimLocalSlave
+
+log_output_level(CosimLogLevel.ERROR)
+report["libcosim slave is NULL"] = not CosimLocalSlave(fmu_path=fmu, instance_name="ball").ptr()
+report["libcosim error"] = get_last_error_message()
+print(json.dumps(report))
+"""
+
+
+def test_a_python_host_without_scikit_sundae_gets_one_line_and_no_instance(fmu, tmp_path):
+    """A venv with FMPy, numpy and libcosimpy but no scikit-sundae: fmi2Instantiate returns NULL with one error
+    line naming the interpreter, what it lacks and the pip install that fixes it; pythonfmu never runs."""
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", venv], check=True, timeout=300)
+    python = venv / "bin" / "python"
+    installed = subprocess.run([python, "-m", "pip", "install", "--quiet", "fmpy", "numpy", "libcosimpy"],
+                               capture_output=True, text=True, check=False, timeout=600)
+    if installed.returncode != 0:
+        pytest.skip(f"cannot install fmpy, numpy and libcosimpy into a fresh venv: {installed.stderr[-500:]}")
+    completed = subprocess.run([python, "-c", HOST_WITHOUT_SKSUNDAE, str(fmu)], capture_output=True, text=True,
+                               check=False, timeout=300)
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    report = json.loads(completed.stdout.splitlines()[-1])
+    assert report["outcome"] == "Failed to instantiate model"
+    [(status, category, line)] = report["log"]
+    assert (status, category) == (3, "logStatusError")  # fmi2Error, not pythonfmu's fmi2Fatal
+    version = ".".join(map(str, sys.version_info[:3]))
+    assert "\n" not in line
+    assert f"{report['executable']} (Python {version})" in line
+    assert "has no scikit-sundae (ModuleNotFoundError: No module named 'sksundae')" in line
+    assert line.endswith(f"{report['executable']} -m pip install 'scikit-sundae>=1.2,<2'"), line
+    assert not report["pythonfmu ran"]  # the slave class was never looked up
+    assert report["libcosim slave is NULL"] and line in report["libcosim error"]
