@@ -1,6 +1,6 @@
 /* The BouncingBall FMU's binary: a thin FMI 2.0 layer in front of pythonfmu's binary.
  *
- * It does three things pythonfmu's Linux binary does not (see docs/fmu.md):
+ * It does what pythonfmu's Linux binary does not (see docs/fmu.md):
  *   1. In a master without Python (a plain C or C++ master) it starts a Python before pythonfmu's
  *      binary is loaded: the one the FMU was built with, or else one on PATH with the same
  *      version, numpy and scikit-sundae (find_python). It loads that libpython with RTLD_GLOBAL,
