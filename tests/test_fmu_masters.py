@@ -415,9 +415,9 @@ def test_two_balls_in_one_ecos_system(fmu, ecos, tmp_path, capsys, placement):
     Python host is then the subprocess's Python), each in a proxyfmu process (a C++ host: the FMU starts Python),
     or one of each."""
     result = tmp_path / "two_balls.csv"
-    try:
+    try:  # in tmp_path: proxyfmu writes logs/<instance>.txt where it runs
         completed = subprocess.run([sys.executable, "-c", TWO_BALLS_IN_ECOS, str(fmu), str(result), placement],
-                                   capture_output=True, text=True, check=False, timeout=45)
+                                   cwd=tmp_path, capture_output=True, text=True, check=False, timeout=45)
     except subprocess.TimeoutExpired:
         pytest.fail("ecos did not finish 8 s of two balls within 45 s (it takes ~3 s)")
     assert completed.returncode == 0, completed.stdout + completed.stderr
