@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import csv
 import shutil
+import stat
 import subprocess
 from ctypes import byref
 from pathlib import Path
@@ -27,6 +29,37 @@ def compile_c_master(target: Path, *flags: str) -> Path | None:
     subprocess.run([compiler, "-O1", "-Wall", "-Werror", *flags, f"-I{headers}", "-o", str(target), str(C_MASTER),
                     *(["-Wl,--no-as-needed", "-lsundials_cvode", "-lsundials_nvecserial"]
                       if "-DHOST_SUNDIALS" in flags else []), "-ldl"], check=True)
+    return target
+
+
+def ecos_executables() -> dict[str, Path]:
+    """ecospy's `ecos` (its command line) and `proxyfmu` (an FMU in a process of its own), made executable.
+
+    The ecospy wheel (0.7.2) ships both without the execute bit: the command line cannot start, and a
+    proxyfmu:// model fails with "Unable to create/bind proxyfmu process!". Set it once here.
+    """
+    import ecospy
+
+    binaries = Path(ecospy.__file__).parent / "binaries"
+    executables = {name: binaries / name for name in ("ecos", "proxyfmu")}
+    for path in executables.values():
+        mode = path.stat().st_mode
+        if mode & stat.S_IXUSR == 0:
+            path.chmod(mode | stat.S_IXUSR | stat.S_IXGRP | stat.S_IXOTH)
+    return executables
+
+
+def ecos_csv_to_check(path: Path, instance: str, target: Path) -> Path:
+    """ecos' CSV (`iterations, time, instance::h[REAL], instance::impacts[INT], ...`) as time,h,impacts for
+    `bouncingball check`, which does not read ecos' columns yet."""
+    with path.open(newline="") as file:
+        rows = list(csv.reader(file, skipinitialspace=True))
+    header = [name.strip() for name in rows[0]]
+    columns = [header.index(name) for name in ("time", f"{instance}::h[REAL]", f"{instance}::impacts[INT]")]
+    with target.open("w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(["time", "h", "impacts"])
+        writer.writerows([row[i] for i in columns] for row in rows[1:])
     return target
 
 

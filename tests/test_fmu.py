@@ -98,6 +98,37 @@ def test_the_loader_compiles_without_a_warning(tmp_path):
     assert completed.returncode == 0 and completed.stderr == "", completed.stderr
 
 
+def test_the_host_check_requires_what_pyproject_requires():
+    import tomllib
+
+    from bouncingball.fmu.host_check import REQUIREMENTS
+
+    pyproject = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
+    dependencies = {}
+    for requirement in pyproject["project"]["dependencies"]:
+        name, _, specifiers = requirement.partition(">=")
+        minimum, _, below = specifiers.partition(",<")
+        dependencies[name] = (minimum, below or None)
+    assert {distribution: (minimum, below) for _, distribution, minimum, below in REQUIREMENTS} == dependencies
+
+
+def test_the_host_check_names_the_python_what_it_lacks_and_the_fix():
+    from bouncingball.fmu.host_check import REQUIREMENTS, check_source, host_problem
+
+    assert host_problem(REQUIREMENTS) == ""  # this Python runs the FMU
+    line = host_problem((("no_such_module", "no-such-dist", "1.0", None), ("numpy", "numpy", "99", None),
+                         ("numpy", "numpy", "1", np.__version__)))
+    version = ".".join(map(str, sys.version_info[:3]))
+    numpy = np.__version__
+    assert line == (f"BouncingBall cannot run in the Python of this process, {sys.executable} (Python {version}): it "
+                    "has no no-such-dist (ModuleNotFoundError: No module named 'no_such_module') and numpy "
+                    f"{numpy} (it needs >=99) and numpy {numpy} (it needs >=1,<{numpy}); fix: "
+                    f"{sys.executable} -m pip install 'no-such-dist>=1.0' 'numpy>=99' 'numpy>=1,<{numpy}'")
+    namespace = {}  # as the loader runs it: a namespace of its own, only `problem` left in it
+    exec(check_source(), namespace)
+    assert {name: value for name, value in namespace.items() if name != "__builtins__"} == {"problem": ""}
+
+
 def test_fmpy_validate_reports_no_problem(fmu):
     completed = subprocess.run([BIN / "fmpy", "validate", fmu], capture_output=True, text=True, check=False)
     assert completed.returncode == 0, completed.stdout + completed.stderr

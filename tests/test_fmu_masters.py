@@ -1,8 +1,11 @@
-"""The BouncingBall FMU in other masters: the fmpy command line, libcosim (C++), a plain C master; and the CLI."""
+"""The BouncingBall FMU in other masters: the fmpy command line, libcosim (C++), ecos (C++), a plain C master; and the
+CLI."""
 
 from __future__ import annotations
 
 import csv
+import json
+import os
 import shutil
 import subprocess
 import sys
@@ -14,7 +17,7 @@ import pytest
 from bouncingball.cli import main
 from bouncingball.fmu.build import shared_libpython
 from bouncingball.physics import Ball
-from fmu_helpers import TIGHT, compile_c_master, exact_at
+from fmu_helpers import TIGHT, compile_c_master, ecos_csv_to_check, ecos_executables, exact_at
 
 fmpy = pytest.importorskip("fmpy", reason="the FMU tests need the [fmu] extra")
 pytest.importorskip("pythonfmu", reason="the FMU tests need the [fmu] extra")
@@ -258,3 +261,173 @@ def test_the_c_master_under_valgrind_makes_no_invalid_access(c_master, unzipped,
     table = np.loadtxt(completed.stdout.splitlines())
     h, _, impacts = exact_at(table[:, 0])
     assert np.max(np.abs(table[:, 1] - h)) < 1e-7 and table[-1, 2] == impacts[-1] == 1
+
+
+# --- a Python host that lacks what the FMU needs ----------------------------------------------------
+HOST_WITHOUT_SKSUNDAE = r"""
+import ctypes, json, sys
+from fmpy import calloc, extract, free, read_model_description
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
+                       fmi2CallbackLoggerTYPE)
+from fmpy.logging import addLoggerProxy
+
+fmu = sys.argv[1]
+description = read_model_description(fmu)
+log = []
+
+def logger(environment, instance, status, category, message):
+    log.append([status, (category or b"").decode(), (message or b"").decode()])
+
+callbacks = fmi2CallbackFunctions()
+callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+addLoggerProxy(ctypes.byref(callbacks))
+slave = FMU2Slave(guid=description.guid, unzipDirectory=extract(fmu),
+                  modelIdentifier=description.coSimulation.modelIdentifier, instanceName="ball")
+try:
+    slave.instantiate(loggingOn=False, callbacks=callbacks)
+    outcome = "instantiated"
+except Exception as error:
+    outcome = str(error)
+report = {"outcome": outcome, "log": log, "executable": sys.executable,
+          "pythonfmu ran": any(name.startswith("pythonfmu") for name in sys.modules)}
+
+# libcosim (C++) through libcosimpy's C API: the slave is NULL and libcosim's last error is the FMU's line.
+# (libcosimpy's add_local_slave passes that NULL on to cosim_execution_add_slave, which crashes: its bug.)
+from libcosimpy._internal import get_last_error_message
+from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+from libcosimpy.CosimSlave import CosimLocalSlave
+
+log_output_level(CosimLogLevel.ERROR)
+report["libcosim slave is NULL"] = not CosimLocalSlave(fmu_path=fmu, instance_name="ball").ptr()
+report["libcosim error"] = get_last_error_message()
+print(json.dumps(report))
+"""
+
+
+def test_a_python_host_without_scikit_sundae_gets_one_line_and_no_instance(fmu, tmp_path):
+    """A venv with FMPy, numpy and libcosimpy but no scikit-sundae: fmi2Instantiate returns NULL with one error
+    line naming the interpreter, what it lacks and the pip install that fixes it; pythonfmu never runs."""
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", venv], check=True, timeout=300)
+    python = venv / "bin" / "python"
+    installed = subprocess.run([python, "-m", "pip", "install", "--quiet", "fmpy", "numpy", "libcosimpy"],
+                               capture_output=True, text=True, check=False, timeout=600)
+    if installed.returncode != 0:
+        pytest.skip(f"cannot install fmpy, numpy and libcosimpy into a fresh venv: {installed.stderr[-500:]}")
+    completed = subprocess.run([python, "-c", HOST_WITHOUT_SKSUNDAE, str(fmu)], capture_output=True, text=True,
+                               check=False, timeout=300)
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    report = json.loads(completed.stdout.splitlines()[-1])
+    assert report["outcome"] == "Failed to instantiate model"
+    [(status, category, line)] = report["log"]
+    assert (status, category) == (3, "logStatusError")  # fmi2Error, not pythonfmu's fmi2Fatal
+    version = ".".join(map(str, sys.version_info[:3]))
+    assert "\n" not in line
+    assert f"{report['executable']} (Python {version})" in line
+    assert "has no scikit-sundae (ModuleNotFoundError: No module named 'sksundae')" in line
+    assert line.endswith(f"{report['executable']} -m pip install 'scikit-sundae>=1.2,<2'"), line
+    assert not report["pythonfmu ran"]  # the slave class was never looked up
+    assert report["libcosim slave is NULL"] and line in report["libcosim error"]
+
+
+# --- ecos (PyPI ecospy): its command line, its library in this process, its proxyfmu processes --------------------
+@pytest.fixture(scope="module")
+def ecos() -> dict[str, Path]:
+    """ecospy's executables; outside CI a skip with the reason when its wheel's libtbb.so.12 is missing."""
+    try:
+        import ecospy  # noqa: F401  (loads libecosc.so, which needs libtbb.so.12)
+    except ImportError:
+        pytest.skip("ecospy is not installed (the [test] extra has it)")
+    except OSError as error:
+        reason = f"ecos cannot load its library ({error}): apt-get install libtbb12 (.ci/run installs it)"
+        if os.environ.get("CI"):
+            pytest.fail(reason)
+        pytest.skip(reason)
+    return ecos_executables()
+
+
+def check_ecos_csv(path: Path, instance: str, tmp_path: Path, capsys, *start_values: str) -> str:
+    """`bouncingball check` on one instance's columns of ecos' CSV (6 decimals: 5e-7 m at best)."""
+    converted = ecos_csv_to_check(path, instance, tmp_path / f"{instance}.csv")
+    capsys.readouterr()
+    status = main(["check", str(converted), "article", "--tolerance", "1e-6",
+                   *(f"--start-value={value}" for value in start_values)])
+    report = capsys.readouterr().out
+    assert status == 0, report
+    return report
+
+
+def test_ecos_command_line_runs_the_article(fmu, ecos, tmp_path, capsys):
+    """`ecos simulate`: a C++ master without Python, in an environment without Python variables."""
+    completed = subprocess.run([ecos["ecos"], "simulate", "--path", fmu, "--stopTime", "8", "--stepSize", "0.01"],
+                               cwd=tmp_path, env={"PATH": "/usr/bin:/bin"}, capture_output=True, text=True,
+                               check=False, timeout=300)
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    result = tmp_path / "BouncingBall.csv"
+    converted = ecos_csv_to_check(result, "instance", tmp_path / "converted.csv")  # its one instance
+    table = np.loadtxt(converted, delimiter=",", skiprows=1)
+    assert table.shape == (801, 3) and table[-1, 0] == 8.0
+    h, _, impacts = exact_at(table[:, 0])
+    assert np.max(np.abs(table[:, 1] - h)) <= 5.1e-7  # ecos writes 6 decimals
+    np.testing.assert_array_equal(table[:, 2], impacts)
+    assert impacts[-1] == 21
+    check_ecos_csv(result, "instance", tmp_path, capsys)
+
+
+TWO_BALLS_IN_ECOS = r"""
+import json, sys
+from ecospy import EcosLib, EcosSimulation, EcosSimulationStructure, SimulationListener
+
+fmu, result, placement = sys.argv[1:4]
+EcosLib.set_log_level("warn")
+rows = []
+
+class Record(SimulationListener):  # every value at full precision after each step (the CSV has 6 decimals)
+    def post(self, info):
+        rows.append([info.time, *(f(f"{ball}::{name}") for ball in ("earth", "moon")
+                                  for f, name in ((simulation.get_real, "h"), (simulation.get_integer, "impacts")))])
+
+with EcosSimulationStructure() as structure:
+    for ball, proxy in (("earth", placement == "proxyfmu"), ("moon", placement in ("proxyfmu", "mixed"))):
+        structure.add_model(ball, f"proxyfmu://localhost?file={fmu}" if proxy else fmu)
+    structure.add_parameter_set("moon", {"moon::g": 1.62})
+    with EcosSimulation(structure=structure, step_size=0.01) as simulation:
+        simulation.add_listener("record", Record())
+        simulation.add_csv_writer(result)
+        simulation.init(parameter_set="moon")
+        simulation.step_until(8.0)
+        simulation.terminate()
+print(json.dumps(rows))
+"""
+
+
+@pytest.mark.parametrize("placement", [
+    "in-process",
+    "proxyfmu",
+    pytest.param("mixed", marks=pytest.mark.xfail(strict=True, reason=(
+        "deadlock: the FMU's SUNDIALS log reader calls fflush(NULL) (solvers/sundials_log.py) after each CVODE call, "
+        "which waits for the lock of every FILE; ecos holds the proxyfmu child's pipe in fgets for the whole run"))),
+])
+def test_two_balls_in_one_ecos_system(fmu, ecos, tmp_path, capsys, placement):
+    """Earth and Moon (g = 1.62, a parameter set through ecos) in one system: in ecos' own process (this FMU's
+    Python host is then the subprocess's Python), each in a proxyfmu process (a C++ host: the FMU starts Python),
+    or one of each."""
+    result = tmp_path / "two_balls.csv"
+    try:  # in tmp_path: proxyfmu writes logs/<instance>.txt where it runs
+        completed = subprocess.run([sys.executable, "-c", TWO_BALLS_IN_ECOS, str(fmu), str(result), placement],
+                                   cwd=tmp_path, capture_output=True, text=True, check=False, timeout=45)
+    except subprocess.TimeoutExpired:
+        pytest.fail("ecos did not finish 8 s of two balls within 45 s (it takes ~3 s)")
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    rows = np.array(json.loads(completed.stdout.splitlines()[-1]))
+    t = rows[:, 0]
+    assert len(t) == 800 and abs(t[-1] - 8.0) < 1e-12
+    for column, ball, expected in ((1, Ball(), 21), (3, Ball(g=1.62), 3)):
+        h, _, impacts = exact_at(t, ball)
+        assert np.max(np.abs(rows[:, column] - h)) < 1e-8
+        np.testing.assert_array_equal(rows[:, column + 1], impacts)
+        assert impacts[-1] == expected
+    check_ecos_csv(result, "earth", tmp_path, capsys)
+    check_ecos_csv(result, "moon", tmp_path, capsys, "g=1.62")

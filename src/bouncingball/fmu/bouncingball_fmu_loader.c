@@ -1,6 +1,6 @@
 /* The BouncingBall FMU's binary: a thin FMI 2.0 layer in front of pythonfmu's binary.
  *
- * It does three things pythonfmu's Linux binary does not (see docs/fmu.md):
+ * It does what pythonfmu's Linux binary does not (see docs/fmu.md):
  *   1. In a master without Python (a plain C or C++ master) it starts a Python before pythonfmu's
  *      binary is loaded: the one the FMU was built with, or else one on PATH with the same
  *      version, numpy and scikit-sundae (find_python). It loads that libpython with RTLD_GLOBAL,
@@ -21,10 +21,16 @@
  *      machine (ALLOWED, one row per call) and checks value references against the variable
  *      table (BB_VARIABLE_TYPES): a call not allowed in the current state, or a reference that is
  *      not a variable of that type, gets fmi2Error and a log line, and changes nothing.
+ *   5. pythonfmu, in a Python that lacks numpy or scikit-sundae, fails inside fmi2Instantiate with a
+ *      fmi2Fatal "[ctor] findClass ... ModuleNotFoundError" that some masters show only at debug level.
+ *      Before the first instance is forwarded, the loader runs BB_HOST_CHECK (bouncingball.fmu.host_check)
+ *      in the interpreter pythonfmu is about to use: if it lacks them, fmi2Instantiate logs one line
+ *      (that Python, what it lacks, the pip install that fixes it) and returns NULL; pythonfmu never runs.
  * Everything else is forwarded unchanged. Built by bouncingball.fmu.build with
  * -DBB_LIBPYTHON="path of libpython", -DBB_PYTHON="path of the python executable" and
  * -DBB_INNER="file name of pythonfmu's binary, next to this one", -DBB_PYTHON_VERSION="3.X" and
- * -DBB_VARIABLE_TYPES="RRI..." (the type of each value reference, from the variable table).
+ * -DBB_VARIABLE_TYPES="RRI..." (the type of each value reference, from the variable table) and
+ * -DBB_HOST_CHECK="Python code" (bouncingball.fmu.host_check.check_source()).
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
@@ -52,6 +58,9 @@
 #endif
 #ifndef BB_VARIABLE_TYPES
 #error "define BB_VARIABLE_TYPES, the type (R, I, B or S) of each value reference 0, 1, ... in order"
+#endif
+#ifndef BB_HOST_CHECK
+#error "define BB_HOST_CHECK, the Python code that leaves in `problem` what the host's Python lacks (\"\" if nothing)"
 #endif
 
 /* pythonfmu's functions, loaded once per process */
@@ -272,6 +281,72 @@ static void load(void)
     }
 }
 
+/* Whether the Python pythonfmu is about to use has what the FMU needs: runs BB_HOST_CHECK in it, in a
+ * namespace of its own, with the GIL. 1 if it has; else 0 with one line in problem. Once passed, it is
+ * not run again: what it imported stays imported. */
+static int host_ready(char *problem, size_t size)
+{
+    typedef void PyObject;
+    static int passed; /* read and written with the GIL held */
+    int (*ensure)(void);
+    void (*release)(int);
+    PyObject *(*new_dict)(void);
+    PyObject *(*builtins)(void);
+    int (*set_item)(PyObject *, const char *, PyObject *);
+    PyObject *(*get_item)(PyObject *, const char *);
+    PyObject *(*run)(const char *, int, PyObject *, PyObject *, void *);
+    const char *(*as_utf8)(PyObject *);
+    void (*clear_error)(void);
+    void (*decref)(PyObject *);
+    PyObject *globals = NULL, *result = NULL, *answer;
+    const char *text;
+    int gil, ready = 0;
+
+    *(void **)&ensure = dlsym(RTLD_DEFAULT, "PyGILState_Ensure");
+    *(void **)&release = dlsym(RTLD_DEFAULT, "PyGILState_Release");
+    *(void **)&new_dict = dlsym(RTLD_DEFAULT, "PyDict_New");
+    *(void **)&builtins = dlsym(RTLD_DEFAULT, "PyEval_GetBuiltins");
+    *(void **)&set_item = dlsym(RTLD_DEFAULT, "PyDict_SetItemString");
+    *(void **)&get_item = dlsym(RTLD_DEFAULT, "PyDict_GetItemString");
+    *(void **)&run = dlsym(RTLD_DEFAULT, "PyRun_StringFlags");
+    *(void **)&as_utf8 = dlsym(RTLD_DEFAULT, "PyUnicode_AsUTF8");
+    *(void **)&clear_error = dlsym(RTLD_DEFAULT, "PyErr_Clear");
+    *(void **)&decref = dlsym(RTLD_DEFAULT, "Py_DecRef");
+    if (ensure == NULL || release == NULL || new_dict == NULL || builtins == NULL || set_item == NULL ||
+        get_item == NULL || run == NULL || as_utf8 == NULL || clear_error == NULL || decref == NULL) {
+        snprintf(problem, size, "BouncingBall cannot check the Python of this process: its C API is not in the "
+                 "process's global scope (PyRun_StringFlags and others not found)");
+        return 0;
+    }
+    gil = ensure();
+    if (passed) {
+        release(gil);
+        return 1;
+    }
+    globals = new_dict();
+    if (globals != NULL && set_item(globals, "__builtins__", builtins()) == 0) {
+        result = run(BB_HOST_CHECK, 257 /* Py_file_input */, globals, globals, NULL);
+    }
+    answer = result != NULL ? get_item(globals, "problem") : NULL; /* borrowed */
+    text = answer != NULL ? as_utf8(answer) : NULL;
+    if (text == NULL) {
+        clear_error();
+        snprintf(problem, size, "BouncingBall could not run its check of the Python of this process");
+    } else if (text[0] != '\0') {
+        snprintf(problem, size, "%s", text);
+    } else {
+        ready = passed = 1;
+    }
+    if (result != NULL) {
+        decref(result);
+    }
+    if (globals != NULL) {
+        decref(globals);
+    }
+    release(gil);
+    return ready;
+}
+
 /* The logger pythonfmu calls: remember the worst status, pass the message on. pythonfmu always
  * logs here (it is instantiated with logging on); messages with status fmi2OK reach the master
  * only while it has logging on, warnings and errors always. */
@@ -389,6 +464,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                               fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
                               fmi2Boolean visible, fmi2Boolean loggingOn)
 {
+    char problem[4096];
     Instance *c;
     pthread_once(&load_once, load);
     if (load_error[0] != '\0') {
@@ -400,6 +476,13 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     }
     if (functions == NULL) {
         return NULL; /* FMI requires the callbacks; without a logger there is no one to tell */
+    }
+    if (!host_ready(problem, sizeof problem)) {
+        if (functions->logger != NULL) {
+            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError", "%s",
+                              problem);
+        }
+        return NULL;
     }
     c = calloc(1, sizeof *c);
     if (c == NULL) {

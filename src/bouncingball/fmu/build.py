@@ -26,6 +26,7 @@ from pathlib import Path
 
 from ..output import atomic_write
 from .documentation import index_html
+from .host_check import check_source
 from .variables import MODEL_NAME, UNITS, VARIABLES
 
 DEFAULT_OUTPUT = Path("dist") / f"{MODEL_NAME}.fmu"
@@ -202,7 +203,7 @@ def _compiler() -> str:
 
 
 def _c_string(text: str) -> str:
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
 
 
 def _compile_loader(target: Path) -> Path:
@@ -226,7 +227,8 @@ def loader_flags() -> list[str]:
     return ["-Wall", "-Wextra", f"-I{headers}", f"-DBB_LIBPYTHON={_c_string(str(libpython or ''))}",
             f"-DBB_PYTHON={_c_string(sys.executable)}", f"-DBB_INNER={_c_string(PYTHONFMU_BINARY)}",
             f"-DBB_PYTHON_VERSION={_c_string(f'{sys.version_info.major}.{sys.version_info.minor}')}",
-            f"-DBB_VARIABLE_TYPES={_c_string(''.join(variable.type[0] for variable in VARIABLES))}"]
+            f"-DBB_VARIABLE_TYPES={_c_string(''.join(variable.type[0] for variable in VARIABLES))}",
+            f"-DBB_HOST_CHECK={_c_string(check_source())}"]
 
 
 def shared_libpython() -> Path | None:
