@@ -7,15 +7,19 @@ the file to write them to from SUNLOGGER_WARNING_FILENAME when a solver's SUNDIA
 created; scikit-sundae (checked on 1.2.0) creates it at a CVODE object's first solve or
 init_step, and keeps it, with that file open, for the object's life. So each solver gets its own
 file (on Linux one without a name, reached through /proc/self/fd), set in the environment around
-its first call only, and read back after each call (after flushing C's stdio buffers, which SUNDIALS
-does not flush itself). Each cause (a message with its
-numbers taken out) is reported once per solver, as a SundialsWarning.
+its first call only, and read back after each call. Each cause (a message with its numbers taken
+out) is reported once per solver, as a SundialsWarning.
+
+SUNDIALS writes the file through a buffered C stream, which it flushes when the buffer is full
+(4 KiB) or when the solver is freed, so messages reach the file, and the warnings, then. The stream
+itself cannot be reached through scikit-sundae, and flushing every stream of the process instead
+(fflush(NULL)) locks each one in turn: in a host that holds one locked while it waits (ecos keeps
+a proxyfmu pipe in fgets for the whole run) the FMU's doStep waited for ever.
 """
 
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import os
 import re
 import tempfile
@@ -26,11 +30,6 @@ ENVIRONMENT_VARIABLE = "SUNLOGGER_WARNING_FILENAME"
 _OWN_DESCRIPTORS = "/proc/self/fd"
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 _MESSAGE = re.compile(r"^\[WARNING\]\[[^]]*\]\[[^]]*\]\[(?P<function>[^]]*)\] (?P<text>.*)$")
-
-try:
-    _fflush = ctypes.CDLL(None).fflush
-except (OSError, AttributeError):  # no process-wide C library to reach (Windows): read at the end
-    _fflush = None
 
 
 _NOTHING_TO_DO = contextlib.nullcontext()
@@ -79,9 +78,7 @@ class SundialsLog:
                 os.environ[ENVIRONMENT_VARIABLE] = previous
 
     def new_messages(self) -> list[str]:
-        """The messages written since the last call, one per new cause."""
-        if _fflush is not None:
-            _fflush(None)
+        """The messages SUNDIALS has written out since the last call, one per new cause."""
         try:
             size = os.lseek(self._descriptor, 0, os.SEEK_END)
             if size <= self._offset:
