@@ -286,6 +286,13 @@ FAMILIES = [
     *(article_lifted(z, n) for z, n in [(0.998, "0.998"), (0.999, "0.999"), (0.9999, "0.9999"),
                                          (1 - 1e-12, "1-1e-12"), (1.0, "1"), (1 + 1e-12, "1+1e-12"),
                                          (1.001, "1.001")]),
+    # found by exploring the near-critical region: F_ext one ulp above m g, which m g rounded onto (a rest was
+    # declared; the ball rises 3.6e-16 m above R and leaves at 42 s), and a start at R at rest with v0 = 0.0
+    # (atan2 of -0.0: a negative extremum time, then OverflowError)
+    Case("1-lifted-by-an-ulp", 10.0, 9.81, 19.809088823063014, 100.0, G, 90.0, 0.0, 17.163838429769175,
+         0.042909596074422934, F_ext=98.10000000000001),
+    Case("1-at-rest-on-r", 1.0, 98.1, 19.80906901397419, 1.0, G, 1.0, 0.0, 0.5048187773461522,
+         0.0012620469433653806),
     # 2. a stiff contact after a long fall
     Case("2-stiff-100m", 1e-6, 4.6e13, 0.0, 1e-3, G, 100.0, 0.0, 100.0, 0.02),
     Case("2-stiff-1000m", 1e-6, 5.5e13, 0.0, 1e-3, G, 1000.0, 0.0, 100.0, 0.02),

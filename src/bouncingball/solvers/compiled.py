@@ -247,7 +247,7 @@ _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_
 # The parameters (float64) the callbacks read.
 # CVODE integrates x / length and v / speed (x = h - R), the phase's frame set by PhaseSolver.set_frame.
 (_P_M, _P_K, _P_B, _P_R, _P_G, _P_F_EXT, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
- _P_LENGTH, _P_SPEED, _P_SIZE) = range(16)
+ _P_LENGTH, _P_SPEED, _P_LOAD, _P_SIZE) = range(17)
 
 
 
@@ -287,7 +287,6 @@ _CACHE = _cache_here()
 
 _acceleration = njit(physics.gap_acceleration, cache=_CACHE)
 _rest_margin = njit(physics.rest_margin_value, cache=_CACHE)
-_static_deflection = njit(physics.static_deflection_value, cache=_CACHE)
 _effective_gravity = njit(physics.effective_gravity_value, cache=_CACHE)
 
 _callback_data = types.CPointer(types.intp)
@@ -301,8 +300,8 @@ def _rhs(t, y, ydot, user_data):
     out = carray(_doubles(_call_p1(u[_U_GET_ARRAY], ydot)), 2)
     length, speed = p[_P_LENGTH], p[_P_SPEED]
     out[0] = (speed / length) * state[1]
-    out[1] = _acceleration(length * state[0], speed * state[1], p[_P_MODE], p[_P_F_EXT], p[_P_M], p[_P_K], p[_P_B],
-                           p[_P_G]) / speed
+    out[1] = _acceleration(length * state[0], speed * state[1], p[_P_MODE], p[_P_F_EXT], p[_P_LOAD], p[_P_M],
+                           p[_P_K], p[_P_B], p[_P_G]) / speed
     return 0
 
 
@@ -315,7 +314,7 @@ def _roots(t, y, gout, user_data):
     # as in BallIntegrator._make_solver: the scaled gap, its own side at 0; v; the rest margin
     out[0] = state[0] if state[0] != 0.0 else p[_P_OWN_SIDE]
     out[1] = state[1] if p[_P_MODE] == 1.0 or _effective_gravity(p[_P_F_EXT], p[_P_M], p[_P_G]) != 0.0 else 1.0
-    d = _static_deflection(p[_P_F_EXT], p[_P_M], p[_P_K], p[_P_G])
+    d = p[_P_LOAD] / p[_P_K]  # the static deflection (physics.static_deflection_value)
     if p[_P_MODE] == 1.0 and d > 0.0:
         out[2] = _rest_margin(p[_P_LENGTH] * state[0], p[_P_SPEED] * state[1], d, p[_P_HOP], p[_P_K] / p[_P_M])
     else:
@@ -472,6 +471,7 @@ class PhaseSolver:
         self.parameters = np.zeros(_P_SIZE)
         self.parameters[[_P_M, _P_K, _P_B, _P_R, _P_G]] = ball.m, ball.k, ball.b, ball.R, ball.g
         self.parameters[[_P_MODE, _P_OWN_SIDE]] = int(mode), own_side
+        self.F_ext = 0.0
         self.set_frame(1.0, 1.0, 0.0)
         self._directions = (ctypes.c_int * _NUM_ROOTS)(*directions)
         addresses = self._lib.addresses
@@ -547,6 +547,7 @@ class PhaseSolver:
     @F_ext.setter
     def F_ext(self, value: float) -> None:
         self.parameters[_P_F_EXT] = value
+        self.parameters[_P_LOAD] = physics.load_value(value, self.parameters[_P_M], self.parameters[_P_G])
 
     def set_frame(self, length: float, speed: float, hop_tolerance: float) -> None:
         """The phase's scales [m, m/s] and the rest root's margin [m] (Ball.rest_margin); set before init_step/solve."""

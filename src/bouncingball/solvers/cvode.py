@@ -17,7 +17,7 @@ from sksundae.cvode import CVODE
 
 from .. import limits, validation
 from ..limits import check_resolvable, resolvable_until
-from ..physics import Ball, Mode, gap_acceleration, rest_margin_value
+from ..physics import Ball, Mode, gap_acceleration, load_value, rest_margin_value
 from . import sksundae_events
 from .dense_output import interpolate, step_state
 from .exact import time_to_departure, time_to_impact, velocity_at_departure
@@ -329,7 +329,7 @@ class BallIntegrator:
         def rhs(t, y, yp):
             _, length, speed, _ = frame
             yp[0] = (speed / length) * y[1]
-            yp[1] = gap_acceleration(length * y[0], speed * y[1], mode, self._F_ext, m, k, b, g) / speed
+            yp[1] = gap_acceleration(length * y[0], speed * y[1], mode, self._F_ext, self._load, m, k, b, g) / speed
 
         def jac(t, y, yp, JJ):
             _, length, speed, _ = frame
@@ -431,7 +431,7 @@ class BallIntegrator:
     def acceleration(self) -> float:
         """dv/dt [m/s2] at t in the current mode."""
         ball = self.ball
-        return gap_acceleration(self._x, self._v, self._mode, self._F_ext, ball.m, ball.k, ball.b, ball.g)
+        return gap_acceleration(self._x, self._v, self._mode, self._F_ext, self._load, ball.m, ball.k, ball.b, ball.g)
 
     @property
     def contact_force(self) -> float:
@@ -493,7 +493,8 @@ class BallIntegrator:
         self._reinit_needed()
 
     def _sync_F_ext(self) -> None:
-        """The compiled callbacks read F_ext from their solver's parameters (the Python ones from self)."""
+        """The load m g - F_ext for the right-hand side; the compiled callbacks read both from their parameters."""
+        self._load = load_value(self._F_ext, self.ball.m, self.ball.g)
         if self.engine == "compiled":
             for solver in self._solvers.values():
                 solver.F_ext = self._F_ext

@@ -138,10 +138,11 @@ def time_to_departure(ball: Ball, x0: float, v0: float, F_ext: float = 0.0) -> f
         omega = math.sqrt(-disc)
         # The phase angle of the next extremum, in [0, pi], from the quadrant that holds it: atan2(a, b)
         # - pi rounds an extremum just ahead (a minimum at v0 = -1e-38) to pi instead of ~0.
+        # (|omega v0|: the sign of a zero, -0.0, would turn atan2's pi into -pi)
         if rising:
-            tau1 = math.atan2(omega * v0, q) / omega
+            tau1 = math.atan2(abs(omega * v0), q) / omega
         else:
-            tau1 = math.atan2(-omega * v0, -q) / omega
+            tau1 = math.atan2(abs(omega * v0), -q) / omega
         # Between two extrema v keeps its sign, so the first one is a maximum when the ball starts
         # rising and a minimum when it starts falling. Decided on the direction, never on the
         # value y(tau1): near critical damping that extremum lies many decay times away, and y(tau1)
