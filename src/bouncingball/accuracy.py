@@ -264,13 +264,14 @@ def height_scale(h_exact: np.ndarray, R: float) -> float:
     return max(float(np.max(np.abs(h_exact))), R)
 
 
-def flight_apex(exact: ExactSolution, t0: float, h0: float, v0: float) -> float:
+def flight_apex(exact: ExactSolution, t0: float, h0: float, v0: float, F_ext: float | None = None) -> float:
     """How high above R [m] a flight from (h0 [m], v0 [m/s]) at t0 [s] rises, up to the end of exact's run.
 
-    The apex's height above R in closed form; a flight that never comes back (the external
-    force lifts the ball) is measured by how high it gets by exact.t_end.
+    The apex's height above R in closed form, under F_ext [N] (default exact.F_ext, a constant); a
+    flight that never comes back (the external force lifts the ball) is measured by how high it gets
+    by exact.t_end.
     """
-    g_eff = exact.ball.effective_gravity(exact.F_ext)
+    g_eff = exact.ball.effective_gravity(exact.F_ext if F_ext is None else F_ext)
     if v0 > 0.0 and not g_eff > 0.0:
         return h0 - exact.ball.R + v0 * (exact.t_end - t0)
     return h0 - exact.ball.R + (0.5 * v0 * v0 / g_eff if v0 > 0.0 else 0.0)
@@ -299,10 +300,24 @@ def event_hops(exact: ExactSolution) -> list[float]:
     >>> [round(hop, 6) for hop in event_hops(ExactSolution(Ball(), 2.0, 0.0, 0.0, 1.0))]
     [1.94, 1.406531]
     """
-    flight_hops = [flight_apex(exact, p.t_start, p.h0, p.v0) if p.mode == Mode.FLIGHT else 0.0
+    flight_hops = [flight_apex(exact, p.t_start, p.h0, p.v0, p.F_ext) if p.mode == Mode.FLIGHT else 0.0
                    for p in exact.phases]
-    # exact.events[i] ends phase i and starts phase i + 1: the hop an event bounds is the flight on its side.
-    return [flight_hops[i] if e.kind == IMPACT else flight_hops[i + 1] for i, e in enumerate(exact.events)]
+    if len(exact.phases) == len(exact.events) + 1:
+        # exact.events[i] ends phase i and starts phase i + 1: the hop an event bounds is the flight on its side.
+        return [flight_hops[i] if e.kind == IMPACT else flight_hops[i + 1] for i, e in enumerate(exact.events)]
+    # F_ext changed in flight (a ForceTable): phases also start at the changes. An impact ends the flight
+    # phase before it, a departure starts the one at its time; the highest piece of that flight is its hop.
+    starts = np.array([p.t_start for p in exact.phases])
+    modes = [p.mode for p in exact.phases]
+    hops = []
+    for e in exact.events:
+        i = int(np.searchsorted(starts, e.time, side="right")) - (2 if e.kind == IMPACT else 1)
+        j = i
+        while 0 <= j < len(modes) and modes[j] == Mode.FLIGHT:  # the whole flight, across the changes
+            j += -1 if e.kind == IMPACT else 1
+        span = range(j + 1, i + 1) if e.kind == IMPACT else range(i, j)
+        hops.append(max((flight_hops[k] for k in span), default=0.0))
+    return hops
 
 
 def event_mismatches(events: list[Event], exact: ExactSolution, height_tolerance: float,

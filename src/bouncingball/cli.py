@@ -58,6 +58,10 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="a start value the master set on the FMU (m, k, b, R, g, h, v, F_ext, rtol, atol; "
                             "repeatable)")
     judge.add_argument("--tolerance", type=float, default=1e-6, help="allowed max |h - h_exact| [m] (default: 1e-6)")
+    judge.add_argument("--input-file", metavar="F.csv", help="the FMPy input file (time,F_ext) the master drove F_ext "
+                       "with: F_ext is held over each communication step at the value FMPy applies at its start")
+    judge.add_argument("--step-size", type=float, metavar="DT", help="with --input-file: the master's communication "
+                       "step [s] (default: the result's times are the communication points)")
     judge.add_argument("--start-time", type=float, default=0.0, help="when the master started the run [s] "
                                                                      "(default: 0)")
     judge.add_argument("--instance", metavar="NAME", help="the instance of the ball to check when the file holds "
@@ -160,7 +164,7 @@ def _check(args: argparse.Namespace) -> int:
             raise ValueError(f"--start-value {item!r} is not allowed: it must be NAME=VALUE, for example g=1.62")
         start_values[name.strip()] = value.strip()
     outcome = check_result(args.result, args.scene, start_values, args.tolerance, args.start_time,
-                           args.instance)
+                           args.instance, args.input_file, args.step_size)
     print(outcome.report())
     return 0 if outcome.passed else EXIT_CHECK_FAILED
 

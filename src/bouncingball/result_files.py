@@ -233,6 +233,9 @@ class ResultFile:
         The line number of each data row.
     time, h : numpy.ndarray
         The time [s] and height [m] of each row.
+    F_ext : numpy.ndarray or None
+        The F_ext column [N] where the file has one (an input: it may change; when it does not, it is
+        also a parameter).
     impacts, v, a : numpy.ndarray or None
         The impact count, velocity [m/s] and acceleration [m/s2] of each row, where the file has them.
     printing : Printing
@@ -258,6 +261,7 @@ class ResultFile:
     v_resolution: np.ndarray | None = None
     a_resolution: np.ndarray | None = None
     parameters: dict[str, FileParameter] = field(default_factory=dict)
+    F_ext: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -379,6 +383,8 @@ def read_result_file(path: str | Path, instance: str | None = None) -> ResultFil
     for variable in PARAMETERS:
         if variable in cells:
             first = cells[variable][0]
+            if variable == "F_ext" and any(printed.value != first.value for printed in cells[variable]):
+                continue  # an input that changed: the run's forcing, read from the F_ext column by the check
             for number, printed in zip(rows, cells[variable], strict=True):
                 if printed.value != first.value:
                     raise BadResultError(f"{name}: row {number}, column {wanted[variable].raw!r}: {printed.text} "
@@ -389,7 +395,83 @@ def read_result_file(path: str | Path, instance: str | None = None) -> ResultFil
     impacts = values("impacts")
     return ResultFile(name, chosen[0].prefix if chosen else "", {v: c.raw for v, c in wanted.items()}, rows, t,
                       values("h"), None if impacts is None else impacts.astype(np.int64), values("v"), values("a"),
-                      printing, resolution("time"), resolution("h"), resolution("v"), resolution("a"), parameters)
+                      printing, resolution("time"), resolution("h"), resolution("v"), resolution("a"), parameters,
+                      values("F_ext"))
+
+
+def read_input_file(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """The time and F_ext columns of an FMPy input file (``time,F_ext``; a step is two rows at the same time).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file: a header whose first column is the time, with an F_ext column.
+
+    Returns
+    -------
+    times, values : numpy.ndarray
+        The rows' times [s] (non-decreasing) and F_ext [N].
+
+    Raises
+    ------
+    BadResultError
+        The file cannot be read, has no time first or no F_ext column, no data row, a cell that is
+        not a finite number, or a time going back; the message names the file, the row, the column
+        and the value.
+    """
+    name = str(path)
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as file:
+            lines = [(number, row) for number, row in enumerate(csv.reader(file, skipinitialspace=True), 1)
+                     if any(cell.strip() for cell in row)]
+    except (OSError, UnicodeDecodeError, csv.Error) as error:
+        raise BadResultError(f"{name}: cannot be read: {error}") from None
+    if not lines:
+        raise BadResultError(f"{name}: the input file is empty: it needs a header time,F_ext")
+    header = [cell.strip() for cell in lines[0][1]]
+    if header[0].lower() != "time":
+        raise BadResultError(f"{name}: row {lines[0][0]}: the first column is {header[0]!r}: FMPy's input file "
+                             "starts with the time")
+    force = next((i for i, cell in enumerate(header) if cell.lower() == "f_ext"), None)
+    if force is None:
+        raise BadResultError(f"{name}: no 'F_ext' column in the header (it has: {', '.join(header)})")
+    if len(lines) < 2:
+        raise BadResultError(f"{name}: no data rows after the header")
+    times, values = [], []
+    for number, row in lines[1:]:
+        for index, into in ((0, times), (force, values)):
+            cell = row[index].strip() if index < len(row) else ""
+            printed = parse_number(cell)
+            if printed is None:
+                raise BadResultError(f"{name}: row {number}, column {header[index]!r}: {cell!r} is not a finite "
+                                     "number")
+            into.append(printed.value)
+        if len(times) > 1 and times[-1] < times[-2]:
+            raise BadResultError(f"{name}: row {number}, column {header[0]!r}: {times[-1]!r} goes back in time "
+                                 f"(the row before has {times[-2]!r})")
+    return np.array(times), np.array(values)
+
+
+def fmpy_input_value(times: np.ndarray, values: np.ndarray, t: float) -> float:
+    """The F_ext FMPy applies at the communication point t before the step from it (its Input.apply, after_event).
+
+    Before the first row the first value, after the last the last; at a time that several rows
+    share (math.isclose), the value of the last of them; else the linear interpolation of the rows
+    either side.
+    """
+    if times.size < 2:
+        return float(values[0])
+    i = int(np.searchsorted(times, t))
+    if i == 0:
+        return float(values[0])
+    if i == times.size:
+        return float(values[-1])
+    if math.isclose(t, times[i]) and i < times.size - 1 and math.isclose(times[i], times[i + 1]):
+        while i < times.size - 1 and math.isclose(times[i], times[i + 1]):
+            i += 1
+        return float(values[i])
+    w0 = (times[i] - t) / (times[i] - times[i - 1])
+    return float(w0 * values[i - 1] + (1.0 - w0) * values[i])
 
 
 def _header_columns(name: str, line: int, header: list[str]) -> list[_Column]:

@@ -32,10 +32,19 @@ from . import validation
 from .accuracy import event_hops, impact_counts
 from .fmu.variables import VARIABLES
 from .physics import Ball, Mode
-from .result_files import BadResultError, FileParameter, Printing, ResultFile, read_result_file
+from .result_files import (
+    BadResultError,
+    FileParameter,
+    Printing,
+    ResultFile,
+    fmpy_input_value,
+    read_input_file,
+    read_result_file,
+)
 from .scenes import BALL_KEYS, Scene, load_scene
 from .solvers.cvode import DEFAULT_RTOL, merged_hop_limit
 from .solvers.exact import ExactSolution
+from .solvers.forcing import ForceTable
 from .solvers.result import IMPACT
 
 __all__ = ["DEFAULT_TOLERANCE", "BadResultError", "CheckResult", "MergedHops", "check_result", "read_result_csv",
@@ -129,6 +138,8 @@ class CheckResult:
     first_row : tuple of str
         How the first row (when it is the start) disagrees with the scene, each with the start value
         that would match the file.
+    forcing : str
+        Where a changing F_ext came from ("" when it was constant: the scene's F_ext).
     """
 
     source: str
@@ -155,6 +166,7 @@ class CheckResult:
     parameters_from_file: str = ""
     merged_hops: MergedHops | None = None
     first_row: tuple[str, ...] = ()
+    forcing: str = ""
 
     @property
     def heights_pass(self) -> bool:
@@ -204,7 +216,8 @@ class CheckResult:
         if self.instance:
             lines.append(f"  instance           {self.instance}")
         lines += [f"  ball               m = {ball.m:g} kg, k = {ball.k:g} N/m, b = {ball.b:g} N s/m, "
-                  f"R = {ball.R:g} m, g = {ball.g:g} m/s2, F_ext = {scene.F_ext:g} N",
+                  f"R = {ball.R:g} m, g = {ball.g:g} m/s2, " +
+                  (f"F_ext {self.forcing}" if self.forcing else f"F_ext = {scene.F_ext:g} N"),
                   f"  start              h = {scene.h0:.15g} m, v = {scene.v0:.15g} m/s at t = {self.start_time!r} s"]
         if self.parameters_from_file:
             lines.append(f"  file's parameters  {self.parameters_from_file}")
@@ -320,7 +333,8 @@ def scene_with_start_values(scene: Scene | str | Path = "article",
 
 def check_result(result, scene: Scene | str | Path = "article", start_values: Mapping[str, float | str] | None = None,
                  tolerance: float = DEFAULT_TOLERANCE, start_time: float = 0.0,
-                 instance: str | None = None) -> CheckResult:
+                 instance: str | None = None, input_file: str | Path | None = None,
+                 step_size: float | None = None) -> CheckResult:
     """Compare a master's result with the exact solution at its own times.
 
     Parameters
@@ -339,6 +353,20 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
         When the master started the run [s] (default 0); no time in the result may be earlier.
     instance : str, optional
         The instance of the ball to check, when the file holds several.
+    input_file : str or pathlib.Path, optional
+        The FMPy input file (``time,F_ext``) the master drove the FMU's F_ext with. F_ext is then held
+        over each communication step [t_i, t_i+1) at the value FMPy applies at t_i (its linear
+        interpolation of the rows; after a step, two rows at one time, the later value): see
+        result_files.fmpy_input_value.
+    step_size : float, optional
+        The master's communication step [s] with input_file: the communication points are
+        start_time + k step_size and the input's step times (FMPy adds those for this FMU, which
+        takes variable steps). Without it they are the result's distinct times.
+
+    Where the result has an F_ext column that changes, it is what was applied, as FMPy records it:
+    each row holds the F_ext set at the start of the step that ended at its time (FMPy samples after
+    doStep), so F_ext over [t_i, t_i+1) is the value in the row at t_i+1. The column is then used
+    and input_file is not.
 
     Returns
     -------
@@ -404,8 +432,9 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
     if t[0] < start_time - t_res[0]:
         raise BadResultError(f"{source}: its first time, {float(t[0])!r} s, is before the start time {start_time!r} s "
                              "(give the start time the master used)")
-    solution = ExactSolution(ball, scene.h0, scene.v0, start_time, max(float(np.max(t + t_res)), start_time),
-                             scene.F_ext)
+    t_last = max(float(np.max(t + t_res)), start_time)
+    force, forcing = _forcing(file, scene.F_ext, start_time, float(t[-1]), input_file, step_size)
+    solution = ExactSolution(ball, scene.h0, scene.v0, start_time, t_last, force)
     h_exact, v_exact = solution.state(t)
     allowance = tolerance + h_res
     if np.any(t_res > 0.0):  # the time printed to t_res: the ball moves |v| t_res in that time
@@ -423,7 +452,7 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
     if file.impacts is not None:
         impacts = file.impacts
         impacts_found = int(impacts[-1])
-        limit = merged_hop_limit(ball, rtol, atol, scene.F_ext)
+        limit = max(merged_hop_limit(ball, rtol, atol, f) for f in getattr(force, "values", (force,)))
         counts = impact_counts(impact_times, t, impacts, IMPACT_TIE + t_res, hops <= max(limit, tolerance))
         exact_counts = np.searchsorted(impact_times, t, side="right")
         mismatches = tuple((float(t[i]), int(impacts[i]), int(exact_counts[i])) for i in counts.mismatches)
@@ -433,7 +462,41 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
                        float(t[worst]), float(h[worst]), float(h_exact[worst]), impacts_exact, impacts_found,
                        mismatches, int(np.count_nonzero(error > allowance)), float(t[most]), float(error[most]),
                        float(allowance[most]), str(file.printing), float(np.max(allowance - tolerance)),
-                       file.instance, file_parameters, merged, _first_row(file, scene, tolerance, start_time))
+                       file.instance, file_parameters, merged,
+                       _first_row(file, replace(scene, F_ext=float(ForceTable.of(force).at(start_time))
+                                                if forcing else scene.F_ext), tolerance, start_time), forcing)
+
+
+def _forcing(file: ResultFile, constant: float, start_time: float, t_end: float, input_file: str | Path | None,
+             step_size: float | None) -> tuple[float | ForceTable, str]:
+    """F_ext over the run and whence: the scene's constant with "", or a ForceTable with where it came from."""
+    if file.F_ext is not None and "F_ext" not in file.parameters:  # the column changes: what was applied
+        times, first = np.unique(file.time, return_index=True)
+        forces = file.F_ext[first]
+        if times[0] > start_time:
+            times, forces = np.concatenate(([start_time], times)), np.concatenate(([forces[0]], forces))
+        table = ForceTable.of((times[:-1], forces[1:]) if times.size > 1 else ([start_time], forces))
+        return table, f"from the file's {file.columns['F_ext']!r} column ({len(table.values)} steps; the row at " \
+                      "t_i+1 holds the value applied over [t_i, t_i+1))"
+    if input_file is None:
+        if step_size is not None:
+            raise ValueError("step_size names the communication points of an input file: give input_file too")
+        return constant, ""
+    input_times, input_values = read_input_file(input_file)
+    if step_size is None:
+        points = np.unique(np.concatenate(([start_time], file.time)))
+        points = points[points >= start_time]
+        whence = "the result's times"
+    else:
+        step_size = validation.positive("step_size", step_size, "s")
+        count = math.floor((t_end - start_time) / step_size * (1.0 + 1e-9))
+        regular = start_time + step_size * np.arange(count + 1)
+        events = input_times[:-1][np.diff(input_times) == 0.0]
+        points = np.unique(np.concatenate((regular, events[(events > start_time) & (events < t_end)])))
+        whence = f"every {step_size!r} s and at the input's steps"
+    values = [fmpy_input_value(input_times, input_values, float(p)) for p in points]
+    return ForceTable.of((points, values)), f"from {input_file} as FMPy applies it at each communication " \
+                                            f"point ({whence}), held over the step"
 
 
 def _setting(scene: Scene, name: str) -> float:

@@ -6,6 +6,8 @@ import inspect
 
 from .. import limits, validation
 from ..physics import Ball
+from . import forcing
+from .forcing import ForceTable
 from .result import Event, SimulationResult, SolverStats
 
 SOLVERS = ("cvode", "exact", "scipy")
@@ -16,7 +18,8 @@ _COMMON_PARAMETERS = ("ball", "h0", "v0", "t_end", "output_interval", "t_start",
 
 
 def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float = DEFAULT_OUTPUT_INTERVAL,
-             solver: str = "cvode", *, t_start: float = 0.0, F_ext: float = 0.0, **options) -> SimulationResult:
+             solver: str = "cvode", *, t_start: float = 0.0, F_ext: float | ForceTable | tuple = 0.0,
+             **options) -> SimulationResult:
     """Simulate the ball from (h0 [m], v0 [m/s]) at t_start to t_end [s] on a grid of output_interval [s].
 
     Parameters
@@ -34,8 +37,11 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
         article's SciPy algorithm (needs the [reference] extra).
     t_start : float, optional
         Start time [s].
-    F_ext : float, optional
-        Constant external force [N], positive upwards.
+    F_ext : float or (times, values), optional
+        External force [N], positive upwards: a constant, or a piecewise-constant table (times [s]
+        strictly increasing, values [N], as many) held at values[i] over [times[i], times[i+1]),
+        at values[0] before times[0] and values[-1] after the last time (a ForceTable will do).
+        Every solver runs a table piece by piece: the state is continuous at a change, the mode held.
     **options
         For cvode: rtol, atol, method ("auto", "Adams", "BDF"), max_step [s] (0: unbounded),
         engine ("auto", "compiled", "sksundae"). For scipy: method, rtol, atol, max_step,
@@ -75,13 +81,17 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     h0 = validation.finite("h0", h0, "m")
     v0 = validation.finite("v0", v0, "m/s")
     t_start = validation.finite("t_start", t_start, "s")
-    F_ext = validation.finite("F_ext", F_ext, "N")
+    F_ext = forcing.as_force(F_ext)
     t_end = validation.finite("t_end", t_end, "s")
     if not t_end > t_start:
         raise ValueError(f"t_end = {t_end!r} s is not allowed: it must be > t_start = {t_start!r} s")
     output_interval = validation.in_range("output_interval", output_interval, 0.0, t_end - t_start, "s")
     # Before any solver: what double precision cannot resolve is refused the same way by each.
-    limits.check_scene(ball, h0, v0, F_ext, t_start, t_end, output_interval)
+    if isinstance(F_ext, ForceTable):
+        for force in sorted(set(F_ext.values)):
+            limits.check_scene(ball, h0, v0, force, t_start, t_end, output_interval)
+    else:
+        limits.check_scene(ball, h0, v0, F_ext, t_start, t_end, output_interval)
     if solver == "cvode":
         from .cvode import simulate_cvode as run
     elif solver == "scipy":
@@ -100,4 +110,4 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     return run(ball, h0, v0, t_end, output_interval, t_start=t_start, F_ext=F_ext, **options)
 
 
-__all__ = ["ARTICLE_LABEL", "SOLVERS", "Event", "SimulationResult", "SolverStats", "simulate"]
+__all__ = ["ARTICLE_LABEL", "ForceTable", "SOLVERS", "Event", "SimulationResult", "SolverStats", "simulate"]

@@ -18,9 +18,10 @@ from sksundae.cvode import CVODE
 from .. import limits, validation
 from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode, gap_acceleration, load_value, rest_margin_value
-from . import sksundae_events
+from . import forcing, sksundae_events
 from .dense_output import interpolate, step_state
 from .exact import time_to_departure, time_to_impact, velocity_at_departure
+from .forcing import ForceTable
 from .result import (
     DEPARTURE,
     IMPACT,
@@ -821,19 +822,48 @@ class BallIntegrator:
         return Event(self._t, DEPARTURE, self._v)
 
 
+def _integrate_pieces(ball: Ball, h0: float, v0: float, grid: np.ndarray, table: ForceTable,
+                      settings: CvodeSettings) -> tuple[BallIntegrator, np.ndarray, np.ndarray, list[Event]]:
+    """integrate_grid piece by piece of constant F_ext: each piece's grid is its output times and its ends.
+
+    The integrator restarts CVODE where its F_ext changes (the state continuous, the mode held); a
+    grid point on a change time is the state there, taken at the end of the piece before.
+    """
+    constant_pieces = forcing.pieces(table, float(grid[0]), float(grid[-1]))
+    integrator = BallIntegrator(ball, h0, v0, float(grid[0]), constant_pieces[0][2], settings)
+    h, v = np.empty_like(grid), np.empty_like(grid)
+    h[0], v[0] = integrator.h, integrator.v
+    events: list[Event] = []
+    for start, end, F_ext in constant_pieces:
+        integrator.F_ext = F_ext
+        inside = (grid > start) & (grid <= end)
+        times = np.concatenate(([start], grid[inside]))
+        if times[-1] < end:
+            times = np.append(times, end)
+        h_piece, v_piece, piece_events = integrator.integrate_grid(times)
+        count = int(np.count_nonzero(inside))
+        h[inside], v[inside] = h_piece[1:1 + count], v_piece[1:1 + count]
+        events += piece_events
+    return integrator, h, v, events
+
+
 def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
-                   t_start: float = 0.0, F_ext: float = 0.0, rtol: float = DEFAULT_RTOL,
+                   t_start: float = 0.0, F_ext: float | ForceTable = 0.0, rtol: float = DEFAULT_RTOL,
                    atol: float | None = DEFAULT_ATOL, method: str = "auto", max_step: float = 0.0,
                    engine: str = "auto") -> SimulationResult:
     """Integrate with CVODE from t_start to t_end and return the solution on the output grid.
 
-    engine: see CvodeSettings; the engine that ran and why are in result.stats.
+    engine: see CvodeSettings; the engine that ran and why are in result.stats. F_ext: a constant [N]
+    or a forcing.ForceTable, integrated piece by piece of constant force.
     """
     settings = CvodeSettings(rtol=rtol, atol=atol, method=method, max_step=max_step, engine=engine)
     grid = output_grid(t_start, t_end, output_interval)
     started = time.perf_counter()
-    integrator = BallIntegrator(ball, h0, v0, t_start, F_ext, settings)
-    h, v, events = integrator.integrate_grid(grid)
+    if isinstance(F_ext, ForceTable):
+        integrator, h, v, events = _integrate_pieces(ball, h0, v0, grid, F_ext, settings)
+    else:
+        integrator = BallIntegrator(ball, h0, v0, t_start, F_ext, settings)
+        h, v, events = integrator.integrate_grid(grid)
     wall_time = time.perf_counter() - started
     stats = SolverStats(steps=integrator.steps, rhs_calls=integrator.rhs_calls, events=len(events),
                         wall_time=wall_time, engine=integrator.engine, engine_reason=integrator.engine_reason)

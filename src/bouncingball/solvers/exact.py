@@ -14,6 +14,8 @@ import numpy as np
 
 from .. import limits
 from ..physics import Ball, Mode, contact_gap_flow
+from . import forcing
+from .forcing import ForceTable
 from .result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
 
 
@@ -24,13 +26,19 @@ class Phase(NamedTuple):
     mode: Mode
     h0: float
     v0: float
+    F_ext: float = 0.0
 
 
 class ExactSolution:
-    """The ball's exact trajectory from (h0, v0) at t_start up to t_end, with a constant F_ext."""
+    """The ball's exact trajectory from (h0, v0) at t_start up to t_end.
+
+    F_ext [N] is a constant or a forcing.ForceTable (piecewise constant): the phases restart at each
+    change time inside (t_start, t_end), the state continuous and the mode held there; a rest is
+    only a rest under the last value.
+    """
 
     def __init__(self, ball: Ball, h0: float, v0: float, t_start: float = 0.0,
-                 t_end: float = math.inf, F_ext: float = 0.0) -> None:
+                 t_end: float = math.inf, F_ext: float | ForceTable = 0.0) -> None:
         self.ball = ball
         self.F_ext = F_ext
         self.t_start = t_start
@@ -43,27 +51,35 @@ class ExactSolution:
     def _build(self, h: float, v: float) -> None:
         ball, R = self.ball, self.ball.R
         resolvable_until = limits.resolvable_until(ball)
-        t = self.t_start
-        mode = ball.initial_mode(h, v, self.F_ext)
-        while True:
-            if mode == Mode.CONTACT and t > resolvable_until:
-                # contacts too short for the ulps of t: the phases would stop advancing t (it never ended)
-                limits.check_resolvable(ball, t)
-            self.phases.append(Phase(t, mode, h, v))
-            if mode == Mode.FLIGHT:
-                tau, v_next = time_to_impact(h - R, v, ball.effective_gravity(self.F_ext))
-                kind, next_mode = IMPACT, Mode.CONTACT
-            else:
-                tau = time_to_departure(ball, h - R, v, self.F_ext)
-                if math.isinf(tau):
-                    self.rest_time = t
-                    return
-                v_next = velocity_at_departure(ball, h - R, v, tau, self.F_ext)
-                kind, next_mode = DEPARTURE, Mode.FLIGHT
-            if not t + tau <= self.t_end:
-                return
-            t, h, v, mode = t + tau, R, v_next, next_mode
-            self.events.append(Event(t, kind, v))
+        constant_pieces = forcing.pieces(self.F_ext, self.t_start, self.t_end)
+        for number, (t, piece_end, F_ext) in enumerate(constant_pieces):
+            last = number == len(constant_pieces) - 1
+            if number == 0:
+                mode = ball.initial_mode(h, v, F_ext)
+            else:  # a change of F_ext: the state where the previous phase has it, the mode held
+                phase = self.phases[-1]
+                h, v = (float(y) for y in ball.flow(phase.mode, phase.h0, phase.v0, t - phase.t_start, phase.F_ext))
+                mode = phase.mode
+            while True:
+                if mode == Mode.CONTACT and t > resolvable_until:
+                    # contacts too short for the ulps of t: the phases would stop advancing t (it never ended)
+                    limits.check_resolvable(ball, t)
+                self.phases.append(Phase(t, mode, h, v, F_ext))
+                if mode == Mode.FLIGHT:
+                    tau, v_next = time_to_impact(h - R, v, ball.effective_gravity(F_ext))
+                    kind, next_mode = IMPACT, Mode.CONTACT
+                else:
+                    tau = time_to_departure(ball, h - R, v, F_ext)
+                    if math.isinf(tau):
+                        if last:
+                            self.rest_time = t
+                        break
+                    v_next = velocity_at_departure(ball, h - R, v, tau, F_ext)
+                    kind, next_mode = DEPARTURE, Mode.FLIGHT
+                if not t + tau <= piece_end:
+                    break
+                t, h, v, mode = t + tau, R, v_next, next_mode
+                self.events.append(Event(t, kind, v))
 
     # --- evaluation ---------------------------------------------------------------------------
     def state(self, t) -> tuple[np.ndarray, np.ndarray]:
@@ -80,13 +96,15 @@ class ExactSolution:
         modes = np.array([int(p.mode) for p in self.phases])
         h_start = np.array([p.h0 for p in self.phases])
         v_start = np.array([p.v0 for p in self.phases])
-        point_modes = modes[index]
+        forces = np.array([p.F_ext for p in self.phases])
+        point_modes, point_forces = modes[index], forces[index]
         for mode in Mode:
-            selected = point_modes == mode
-            if np.any(selected):
-                i = index[selected]
-                h[selected], v[selected] = self.ball.flow(mode, h_start[i], v_start[i], t[selected] - starts[i],
-                                                          self.F_ext)
+            for F_ext in np.unique(forces):
+                selected = (point_modes == mode) & (point_forces == F_ext)
+                if np.any(selected):
+                    i = index[selected]
+                    h[selected], v[selected] = self.ball.flow(mode, h_start[i], v_start[i], t[selected] - starts[i],
+                                                              float(F_ext))
         return h, v
 
     def modes(self, t) -> np.ndarray:
@@ -243,8 +261,8 @@ def _polish_root(f, a: float, b: float, guess: float | None = None, f_a: float |
 
 
 def simulate_exact(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
-                   t_start: float = 0.0, F_ext: float = 0.0) -> SimulationResult:
-    """The piecewise-analytic solution on the output grid."""
+                   t_start: float = 0.0, F_ext: float | ForceTable = 0.0) -> SimulationResult:
+    """The piecewise-analytic solution on the output grid; F_ext a constant [N] or a forcing.ForceTable."""
     started = time.perf_counter()
     grid = output_grid(t_start, t_end, output_interval)
     exact = ExactSolution(ball, h0, v0, t_start, t_end, F_ext)

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..limits import check_output_interval
 from ..physics import Ball
+from .forcing import ForceTable
 
 
 class EventKind(StrEnum):
@@ -69,8 +70,9 @@ class SimulationResult:
         Start [s] of the contact that never ends (the ball at rest), or None.
     stats : SolverStats
         Steps, right-hand-side calls, events, wall time; for CVODE the engine and why.
-    F_ext : float
-        The constant external force [N].
+    F_ext : float or ForceTable
+        The external force [N]: a float when it was constant, the validated forcing.ForceTable
+        (times, values) when it was a table.
     options : dict
         The solver's settings as used (for CVODE also the method chosen in contact).
 
@@ -94,7 +96,7 @@ class SimulationResult:
     events: list[Event]
     rest_time: float | None
     stats: SolverStats
-    F_ext: float = 0.0
+    F_ext: float | ForceTable = 0.0
     options: dict = field(default_factory=dict)
 
     @property
@@ -109,8 +111,9 @@ class SimulationResult:
 
     @property
     def energy(self) -> np.ndarray:
-        """Total energy [J] on the output grid."""
-        return self.ball.energy(self.h, self.v, self.F_ext)
+        """Total energy [J] on the output grid; with a table, the potential -F_ext h of the force at each time."""
+        F_ext = self.F_ext.at(self.t) if isinstance(self.F_ext, ForceTable) else self.F_ext
+        return self.ball.energy(self.h, self.v, F_ext)
 
 
 MAX_OUTPUT_POINTS = 50_000_000  # 1.2 GB of t, h and v: more would exhaust a workstation's memory

@@ -9,6 +9,8 @@ from scipy.integrate import solve_ivp
 
 from .. import validation
 from ..physics import Ball, Mode
+from . import forcing
+from .forcing import ForceTable
 from .result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
 
 METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
@@ -17,12 +19,14 @@ ARTICLE_MAX_STEP = 0.01
 
 
 def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
-                   t_start: float = 0.0, F_ext: float = 0.0, method: str = "RK45",
+                   t_start: float = 0.0, F_ext: float | ForceTable = 0.0, method: str = "RK45",
                    rtol: float = 1e-3, atol: float = 1e-6, max_step: float = ARTICLE_MAX_STEP,
                    max_events: int = 100_000) -> SimulationResult:
     """Integrate as the article does; defaults are the article's (RK45, max_step 0.01, SciPy's tolerances).
 
-    max_step = 0 means unbounded. A run that reports more than max_events events stops there
+    max_step = 0 means unbounded. F_ext: a constant [N] or a forcing.ForceTable, integrated piece by
+    piece of constant force (solve_ivp restarts at each change, the state continuous, the mode held).
+    A run that reports more than max_events events stops there
     (explicit methods chatter through false events on stiff scenes).
     """
     method = validation.choice("method", method, METHODS)
@@ -41,9 +45,13 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     h_out[0], v_out[0] = y
     filled = 1
     last_impact = t_start if mode == Mode.CONTACT else None
+    constant_pieces = forcing.pieces(F_ext, t_start, t_end)
     while t < t_end and len(events) < max_events:
-        def rhs(_t, state, mode=mode):
-            return [state[1], ball.acceleration(state[0], state[1], mode, F_ext)]
+        # the piece of constant force t lies in: solve_ivp stops at its end, and restarts with the next value
+        _, t_stop, force = next(p for p in reversed(constant_pieces) if p[0] <= t)
+
+        def rhs(_t, state, mode=mode, force=force):
+            return [state[1], ball.acceleration(state[0], state[1], mode, force)]
 
         def crossing(_t, state):
             return state[0] - ball.R
@@ -55,7 +63,7 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
         def jac(_t, _state, jacobian=jacobian):  # a callable: LSODA cannot take a constant array
             return jacobian
 
-        sol = solve_ivp(rhs, (t, t_end), y, method=method, rtol=rtol, atol=atol,
+        sol = solve_ivp(rhs, (t, t_stop), y, method=method, rtol=rtol, atol=atol,
                         max_step=max_step or np.inf, events=crossing, dense_output=True,
                         **({"jac": jac} if method in IMPLICIT else {}))
         stats.steps += len(sol.t) - 1
@@ -77,7 +85,7 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     stats.events = len(events)
     stats.wall_time = time.perf_counter() - started
     rest_time = None
-    if mode == Mode.CONTACT and ball.contact_is_permanent(y[0], y[1], F_ext):
+    if mode == Mode.CONTACT and ball.contact_is_permanent(y[0], y[1], constant_pieces[-1][2]):
         rest_time = last_impact
     options = {"method": method, "rtol": rtol, "atol": atol, "max_step": max_step}
     return SimulationResult("scipy", ball, grid, h_out, v_out, events, rest_time, stats, F_ext, options)
