@@ -293,6 +293,10 @@ FAMILIES = [
          0.042909596074422934, F_ext=98.10000000000001),
     Case("1-at-rest-on-r", 1.0, 98.1, 19.80906901397419, 1.0, G, 1.0, 0.0, 0.5048187773461522,
          0.0012620469433653806),
+    # ... and at R at rest with F_ext 2e-16 N below m g: g - F_ext/m rounded to 0 and the ball started in flight
+    # (the load's sign, from the exact product, now decides every mode and force)
+    Case("1-at-r-weighing-2e-16-n", 10.0**0.125, 130.8184524952221, 26.15168605220967, 1.0, G, 1.0, 0.0,
+         0.5048187773461522, 0.0012620469433653806, F_ext=13.081845249522209),
     # 2. a stiff contact after a long fall
     Case("2-stiff-100m", 1e-6, 4.6e13, 0.0, 1e-3, G, 100.0, 0.0, 100.0, 0.02),
     Case("2-stiff-1000m", 1e-6, 5.5e13, 0.0, 1e-3, G, 1000.0, 0.0, 100.0, 0.02),

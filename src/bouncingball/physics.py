@@ -86,15 +86,12 @@ class Ball:
         return self.b / (2.0 * math.sqrt(self.k * self.m))
 
     def effective_gravity(self, F_ext: float = 0.0) -> float:
-        """g - F_ext/m [m/s2]: the net downward acceleration in flight."""
-        return effective_gravity_value(F_ext, self.m, self.g)
+        """(m g - F_ext)/m [m/s2]: the net downward acceleration in flight, the load the spring holds in contact.
 
-    def contact_load(self, F_ext: float = 0.0) -> float:
-        """(m g - F_ext)/m [m/s2]: the net downward acceleration the spring holds; k/m times static_deflection.
-
-        g - F_ext/m in value, rounded as the static deflection is, so that both are zero together.
+        g - F_ext/m in value, from the one load_value, so that its sign, the static deflection's and
+        the mode a ball starts in agree to the last bit.
         """
-        return load_value(F_ext, self.m, self.g) / self.m
+        return effective_gravity_value(F_ext, self.m, self.g)
 
     def static_deflection(self, F_ext: float = 0.0) -> float:
         """(m g - F_ext)/k [m]: how far below R the centre rests; negative if F_ext lifts the ball."""
@@ -133,7 +130,7 @@ class Ball:
         if mode == Mode.FLIGHT:
             g_eff = self.effective_gravity(F_ext)
             return x0 + tau * (v0 - 0.5 * g_eff * tau), v0 - g_eff * tau
-        return contact_gap_flow(self.b / (2.0 * self.m), self.k / self.m, self.contact_load(F_ext), x0, v0, tau)
+        return contact_gap_flow(self.b / (2.0 * self.m), self.k / self.m, self.effective_gravity(F_ext), x0, v0, tau)
 
     def contact_force(self, h: float, v: float, mode: Mode) -> float:
         """Force of the ground on the ball [N], positive upwards; zero in flight.
@@ -190,25 +187,24 @@ class Ball:
 # engine compiles these same functions, so the physics has one definition.
 def mode_acceleration(h, v, mode, F_ext, m, k, b, R, g):
     """dv/dt [m/s2] in mode (0 or Mode.FLIGHT: flight, 1 or Mode.CONTACT: contact); see gap_acceleration."""
-    return gap_acceleration(h - R, v, mode, F_ext, load_value(F_ext, m, g), m, k, b, g)
+    return gap_acceleration(h - R, v, mode, load_value(F_ext, m, g), m, k, b)
 
 
-def gap_acceleration(x, v, mode, F_ext, load, m, k, b, g):
+def gap_acceleration(x, v, mode, load, m, k, b):
     """dv/dt [m/s2] in mode at the gap x = h - R [m]; load = load_value(F_ext, m, g) [N], the same for a whole phase.
 
     k x, not k h - k R: x is exact near R, whereas the two products of a stiff ball (k = 1e12)
-    would bury its deflection in their round-off.
+    would bury its deflection in their round-off. The load, not g - F_ext/m, which rounds
+    differently: a ball creeping to a rest height of exactly R felt a residual 2e-15 m/s2.
     """
     if mode == 0:
-        return -g + F_ext / m
-    # the load m g - F_ext as in the static deflection: zero exactly when the rest height is R (g - F_ext/m
-    # rounds differently, and a ball creeping to R felt a residual 2e-15 m/s2)
+        return -load / m
     return (-b * v - k * x - load) / m
 
 
 def effective_gravity_value(F_ext, m, g):
-    """g - F_ext/m [m/s2]; see Ball.effective_gravity."""
-    return g - F_ext / m
+    """(m g - F_ext)/m [m/s2]; see Ball.effective_gravity and load_value."""
+    return load_value(F_ext, m, g) / m
 
 
 def static_deflection_value(F_ext, m, k, g):

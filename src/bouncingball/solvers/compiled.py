@@ -287,7 +287,6 @@ _CACHE = _cache_here()
 
 _acceleration = njit(physics.gap_acceleration, cache=_CACHE)
 _rest_margin = njit(physics.rest_margin_value, cache=_CACHE)
-_effective_gravity = njit(physics.effective_gravity_value, cache=_CACHE)
 
 _callback_data = types.CPointer(types.intp)
 
@@ -300,8 +299,8 @@ def _rhs(t, y, ydot, user_data):
     out = carray(_doubles(_call_p1(u[_U_GET_ARRAY], ydot)), 2)
     length, speed = p[_P_LENGTH], p[_P_SPEED]
     out[0] = (speed / length) * state[1]
-    out[1] = _acceleration(length * state[0], speed * state[1], p[_P_MODE], p[_P_F_EXT], p[_P_LOAD], p[_P_M],
-                           p[_P_K], p[_P_B], p[_P_G]) / speed
+    out[1] = _acceleration(length * state[0], speed * state[1], p[_P_MODE], p[_P_LOAD], p[_P_M], p[_P_K],
+                           p[_P_B]) / speed
     return 0
 
 
@@ -313,7 +312,7 @@ def _roots(t, y, gout, user_data):
     out = carray(gout, 3)
     # as in BallIntegrator._make_solver: the scaled gap, its own side at 0; v; the rest margin
     out[0] = state[0] if state[0] != 0.0 else p[_P_OWN_SIDE]
-    out[1] = state[1] if p[_P_MODE] == 1.0 or _effective_gravity(p[_P_F_EXT], p[_P_M], p[_P_G]) != 0.0 else 1.0
+    out[1] = state[1] if p[_P_MODE] == 1.0 or p[_P_LOAD] != 0.0 else 1.0
     d = p[_P_LOAD] / p[_P_K]  # the static deflection (physics.static_deflection_value)
     if p[_P_MODE] == 1.0 and d > 0.0:
         out[2] = _rest_margin(p[_P_LENGTH] * state[0], p[_P_SPEED] * state[1], d, p[_P_HOP], p[_P_K] / p[_P_M])

@@ -140,7 +140,7 @@ def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tupl
 def time_to_departure(ball: Ball, x0: float, v0: float, F_ext: float = 0.0) -> float:
     """Time from the gap x0 = h0 - R [m] and v0 [m/s] in contact to the first upward crossing of h = R; inf if none."""
     sigma, w2 = ball.b / (2.0 * ball.m), ball.k / ball.m
-    d, g_eff = ball.static_deflection(F_ext), ball.contact_load(F_ext)
+    d, g_eff = ball.static_deflection(F_ext), ball.effective_gravity(F_ext)
     q = sigma * v0 + w2 * x0 + g_eff  # v = v0 C - q S (q = sigma v0 + w2 y0, y0 = x0 + d the deflection from rest)
 
     def excess(tau: float) -> tuple[float, float]:
