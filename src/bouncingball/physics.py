@@ -266,17 +266,16 @@ def unit_response(sigma: float, w2: float, tau):
     so there its Taylor series is summed; the over-damped closed form is written with expm1 of each
     rate, which cancels only where the series is used. Floats or arrays.
     """
-    reach = (sigma + math.sqrt(w2)) * np.abs(tau) if not isinstance(tau, float) else (sigma + math.sqrt(w2)) * abs(tau)
+    rate = sigma + math.sqrt(w2)
     if isinstance(tau, float):
-        if reach <= _SERIES_REACH:
+        if rate * abs(tau) <= _SERIES_REACH:
             return _series_response(sigma, w2, tau)
         try:
             return _closed_response(math, sigma, w2, tau)
         except OverflowError:  # numpy's inf, as for an array
-            tau = np.array([tau])
-            reach = np.abs(tau) * (sigma + math.sqrt(w2))
+            pass
     tau = np.asarray(tau, dtype=float)
-    near = reach <= _SERIES_REACH
+    near = rate * np.abs(tau) <= _SERIES_REACH
     out = np.empty_like(tau)
     out[near] = _series_response(sigma, w2, tau[near])
     with np.errstate(over="ignore", invalid="ignore"):

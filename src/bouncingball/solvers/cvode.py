@@ -342,8 +342,8 @@ class BallIntegrator:
             out[0] = y[0] if y[0] != 0.0 else own_side
             # Under zero net gravity v never changes in flight: a root function identically 0 would
             # only make CVODE warn.
-            out[1] = y[1] if contact or ball.effective_gravity(self._F_ext) != 0.0 else 1.0
-            d = ball.static_deflection(self._F_ext)
+            out[1] = y[1] if contact or self._load != 0.0 else 1.0
+            d = self._load / k  # ball.static_deflection, from the load kept for the phase (as the compiled roots)
             out[2] = rest_margin_value(length * y[0], speed * y[1], d, hop, w2) if contact and d > 0.0 else -1.0
             # CVODE evaluates the root functions once per step (and a few times per root found)
             self._phase_evaluations += 1
@@ -697,14 +697,14 @@ class BallIntegrator:
         on the spring) creeps towards its rest height for many spring time constants, which CVODE
         would crawl through at the spring's time scale (500,000 steps for k/m = 8e12 1/s). Such
         a contact has at most one extremum, so the exact flow decides at once whether it ever
-        reaches R; so it does for a contact too small to scale (MIN_PHASE_SCALE).
+        reaches R; so it does for a contact CVODE cannot resolve (_contact_unresolved).
         """
         if self._mode != Mode.CONTACT:
             return False
         ball, d = self.ball, self.ball.static_deflection(self._F_ext)
         if d > 0.0 and rest_margin_value(self._x, self._v, d, self.hop_tolerance, ball.k / ball.m) > 0.0:
             return True  # Ball.contact_is_permanent, in the gap
-        undecided = ball.damping_ratio >= 1.0 or d <= 0.0 or self._below_scale() or self._rest_height_unresolved()
+        undecided = ball.damping_ratio >= 1.0 or d <= 0.0 or self._contact_unresolved()
         return undecided and math.isinf(time_to_departure(ball, self._x, self._v, self._F_ext))
 
     def _rest_state(self, t: float) -> tuple[float, float]:
@@ -718,37 +718,33 @@ class BallIntegrator:
         x, v = self.ball.gap_flow(Mode.CONTACT, x0, v0, t - t0, self._F_ext)
         return float(x), float(v)
 
-    def _below_scale(self) -> bool:
-        """The current phase is smaller than MIN_PHASE_SCALE: its scaled state would not be representable."""
-        length, speed = phase_scales(self.ball, self._mode, self._x, self._v, self._F_ext)
-        return not (length >= MIN_PHASE_SCALE and speed > 0.0)
+    def _contact_unresolved(self) -> bool:
+        """In a contact CVODE cannot decide: smaller than MIN_PHASE_SCALE, or resting too close to R.
 
-    def _rest_height_unresolved(self) -> bool:
-        """The rest height lies closer to R than CVODE resolves in this contact (HOP_RESOLUTION rtol its amplitude).
-
-        CVODE's x then crosses 0 or not by its own error: a ball creeping to a rest height 1e-23 m below R
-        (F_ext within 2e-16 N of its weight), integrated to 5e-19 m, left the ground and came back.
+        Below MIN_PHASE_SCALE its scaled state would not be representable. A rest height closer to R
+        than CVODE resolves (HOP_RESOLUTION rtol the contact's amplitude) makes CVODE's x cross 0 or not
+        by its own error: a ball creeping to a rest height 1e-23 m below R (F_ext within 2e-16 N of its
+        weight), integrated to 5e-19 m, left the ground and came back.
         """
-        if self._mode != Mode.CONTACT:
-            return False
-        length, _ = phase_scales(self.ball, Mode.CONTACT, self._x, self._v, self._F_ext)
+        length, speed = phase_scales(self.ball, Mode.CONTACT, self._x, self._v, self._F_ext)
+        if not (length >= MIN_PHASE_SCALE and speed > 0.0):
+            return True
         return abs(self.ball.static_deflection(self._F_ext)) < HOP_RESOLUTION * self.settings.rtol * length
 
     def _event_in_closed_form(self) -> tuple[float, float, float] | None:
         """The event (t, x = 0, v) ending the current phase if CVODE is not to integrate it, else None.
 
-        A flight whose apex stays within hop_tolerance of R (a hop merged into the contacts around
-        it would be as right) or below MIN_PHASE_SCALE. A contact below MIN_PHASE_SCALE that ends.
-        A contact that cannot hold the ball (F_ext lifts more than its weight: the rest height is
-        above R), which always ends, but may creep towards a rest height closer to R than CVODE
-        resolves, where h never visibly crosses R (a weightless ball lifted by 1e-6 N stayed at R
-        instead of flying 4.5e-6 m in 3 s); and one whose rest height is that close to R on either
-        side (_rest_height_unresolved). Each mode's flow is exact, so such a phase is taken in
-        closed form: events of the right kind at the right times.
+        A flight whose apex stays within hop_tolerance of R (a hop merged into the contacts around it
+        would be as right) or below MIN_PHASE_SCALE. A contact CVODE cannot resolve
+        (_contact_unresolved) that ends. A contact that cannot hold the ball (F_ext lifts more than its
+        weight: the rest height is above R), which always ends, but may creep towards a rest height
+        closer to R than CVODE resolves, where h never visibly crosses R (a weightless ball lifted by
+        1e-6 N stayed at R instead of flying 4.5e-6 m in 3 s). Each mode's flow is exact, so such a
+        phase is taken in closed form: events of the right kind at the right times.
         """
         ball, x, v = self.ball, self._x, self._v
         if self._mode == Mode.CONTACT:
-            if not (self._below_scale() or ball.static_deflection(self._F_ext) < 0.0 or self._rest_height_unresolved()):
+            if not (ball.static_deflection(self._F_ext) < 0.0 or self._contact_unresolved()):
                 return None
             tau = time_to_departure(ball, x, v, self._F_ext)
             if math.isinf(tau):
