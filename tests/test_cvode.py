@@ -1,5 +1,6 @@
 """CVODE against the exact solution: the article, every built-in scene, the integrator object, random balls."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -110,24 +111,71 @@ def test_result_does_not_depend_on_how_the_interval_is_cut():
         assert abs(h - final[0][0]) <= 1e-10 and abs(v - final[0][1]) <= 1e-8
 
 
-def test_rollback_continues_within_tolerance_and_restores_identically():
+def test_rollback_continues_bit_for_bit_in_the_same_and_a_fresh_integrator():
     ball = Ball()
     exact = ExactSolution(ball, 2.0, 0.0, 0.0, 2.0)
     integrator = BallIntegrator(ball, 2.0, 0.0)
     integrator.advance(0.65)  # inside the first contact
     saved = integrator.get_state()
     integrator.advance(1.9)
-    first = (integrator.t, integrator.h, integrator.v, integrator.impacts, integrator.departures)
+    first = (integrator.t, integrator.h, integrator.v, integrator.impacts, integrator.departures,
+             integrator.steps, integrator.rhs_calls)
+    assert abs(first[1] - exact.state([1.9])[0][0]) <= 1e-7
     integrator.set_state(saved)
+    assert integrator.get_state() == saved
     integrator.advance(1.9)
-    again = (integrator.t, integrator.h, integrator.v, integrator.impacts, integrator.departures)
-    # a restore restarts CVODE at the snapshot: the same events, heights within the tolerance
-    assert again[0] == first[0] and again[3:] == first[3:]
-    assert abs(again[1] - first[1]) <= 1e-8 and abs(again[1] - exact.state([1.9])[0][0]) <= 1e-7
+    again = (integrator.t, integrator.h, integrator.v, integrator.impacts, integrator.departures,
+             integrator.steps, integrator.rhs_calls)
+    assert again == first
     fresh = BallIntegrator(Ball(), 0.0, 0.0)
     fresh.set_state(saved)
     fresh.advance(1.9)
-    assert (fresh.t, fresh.h, fresh.v, fresh.impacts, fresh.departures) == again
+    assert (fresh.t, fresh.h, fresh.v, fresh.impacts, fresh.departures, fresh.steps, fresh.rhs_calls) == first
+
+
+@pytest.mark.parametrize("engine", ["sksundae", "compiled"])
+@pytest.mark.parametrize("seed", range(4))
+def test_a_restored_state_continues_bit_for_bit_whatever_the_targets_and_forces(engine, seed):
+    """Random advances and F_ext changes; a state taken anywhere, restored in place and in a fresh integrator."""
+    if engine == "compiled":
+        pytest.importorskip("numba")
+    rng = np.random.default_rng(seed)
+    ball = Ball(b=float(rng.choice([0.0, 10.0, 30.0])))
+    settings = CvodeSettings(engine=engine)
+    targets = np.cumsum(rng.exponential(0.05, 120))
+    forces = {int(i): float(rng.normal(0.0, 5.0)) for i in rng.integers(0, 120, 5)}
+    taken_at = int(rng.integers(1, 60))
+
+    def run(integrator, start):
+        trace = []
+        for i, t in enumerate(targets[start:], start=start):
+            if i in forces:
+                integrator.F_ext = forces[i]
+            if i == taken_at and start == 0:
+                run.saved = integrator.get_state()
+            events = integrator.advance(t)
+            trace.append((integrator.t, integrator.h, integrator.v, [(e.time, e.velocity) for e in events],
+                          integrator.steps, integrator.rhs_calls))
+        return trace
+
+    original = BallIntegrator(ball, 2.0, 0.0, settings=settings)
+    uninterrupted = run(original, 0)[taken_at:]
+    assert sum(len(row[3]) for row in uninterrupted) > 0  # the continuation crosses events
+    for integrator in (original, BallIntegrator(ball, 1.0, 0.0, settings=settings)):
+        integrator.set_state(run.saved)
+        assert run(integrator, taken_at) == uninterrupted
+
+
+def test_a_restore_that_fails_changes_nothing():
+    integrator = BallIntegrator(Ball(), 2.0, 0.0)
+    integrator.advance(0.65)
+    saved = integrator.get_state()
+    integrator.advance(1.2)
+    before = integrator.get_state()
+    wrong = dataclasses.replace(saved, restart=dataclasses.replace(saved.restart, t=saved.t + 1.0))
+    with pytest.raises(ValueError, match="state restart at t = .* is not allowed"):
+        integrator.set_state(wrong)
+    assert integrator.get_state() == before
 
 
 def test_taking_a_state_does_not_disturb_the_run():

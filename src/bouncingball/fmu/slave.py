@@ -31,7 +31,7 @@ from .variables import VARIABLES
 
 # The namespace of each run of the FMU's slave script, kept alive for pythonfmu 0.7 (see that script).
 SCRIPT_NAMESPACES: list[dict] = []
-STATE_FORMAT = "bouncingball-fmu-state-4"  # 4: the master's tolerance only tightens rtol (3: it replaced rtol)
+STATE_FORMAT = "bouncingball-fmu-state-5"  # 5: with the restart point (4: the master's tolerance only tightens rtol)
 # Not "auto" as in process: the FMU's copy of the package is unzipped afresh by most masters, so numba's cache
 # (keyed by the source's path) is cold in each new process, and the compiled engine's first use costs seconds.
 DEFAULT_ENGINE = "sksundae"

@@ -191,8 +191,32 @@ def phase_scales(ball: Ball, mode: Mode, x: float, v: float, F_ext: float = 0.0)
 
 
 @dataclass(frozen=True)
+class RestartPoint:
+    """Where CVODE last restarted (an event, a change of F_ext, the start): the state and counters there.
+
+    From it, CVODE's steps depend on nothing else (not on the times it was advanced to), so
+    integrating again from it to a later time gives that time's state bit for bit.
+    """
+
+    t: float
+    gap: float  # h - R [m]
+    v: float
+    mode: Mode
+    impacts: int = 0
+    departures: int = 0
+    last_impact_time: float | None = None
+    rhs_calls: int = 0
+    steps: int = 0
+
+
+@dataclass(frozen=True)
 class IntegratorState:
-    """Everything needed to resume an integration exactly."""
+    """Everything needed to resume an integration exactly: the state at t and the restart point it came from.
+
+    restart: the RestartPoint at which the current phase's CVODE run began (a dict of its fields is
+    taken too, as a deserialized state holds); None restarts CVODE at t, within the tolerance of the
+    original run instead of bit for bit.
+    """
 
     t: float
     h: float
@@ -206,6 +230,12 @@ class IntegratorState:
     rhs_calls: int = 0
     steps: int = 0
     gap: float | None = None  # h - R [m] to every digit (h rounds a deflection to ulp(R)); None: h - R
+    restart: RestartPoint | None = None
+
+    def __post_init__(self) -> None:
+        """Take the restart point from a dict of its fields (a deserialized state); TypeError names a bad one."""
+        if isinstance(self.restart, dict):
+            object.__setattr__(self, "restart", RestartPoint(**self.restart))
 
 
 class BallIntegrator:
@@ -252,7 +282,7 @@ class BallIntegrator:
     t) is polished on the mode's flow to a few ulps, h is set to R, and CVODE restarts in the other
     mode.
 
-    Change F_ext between advances; set_state(get_state()) resumes within the tolerance of the original run.
+    Change F_ext between advances; a state restored by set_state(get_state()) continues bit for bit.
     """
 
     def __init__(self, ball: Ball, h0: float, v0: float, t0: float = 0.0, F_ext: float = 0.0,
@@ -424,9 +454,9 @@ class BallIntegrator:
     def F_ext(self, value: float) -> None:
         value = validation.finite("F_ext", value, "N")
         if value != self._F_ext:
-            self._reinit_needed()
             self._F_ext = value
             self._sync_F_ext()
+            self._reinit_needed()
 
     @property
     def acceleration(self) -> float:
@@ -453,42 +483,91 @@ class BallIntegrator:
     def get_state(self) -> IntegratorState:
         """A snapshot to resume from; taking it does not disturb the integration.
 
-        A restored snapshot restarts CVODE there, so it continues within the tolerance of the
-        original run, not bit for bit (CVODE's step history is not part of the snapshot).
+        It holds the point where CVODE last restarted (see RestartPoint): set_state integrates again
+        from there, so a restored snapshot continues bit for bit as the run it was taken from, in
+        this integrator or a fresh one with the same ball and settings.
         """
         return IntegratorState(t=self._t, h=self.h, v=self._v, mode=self._mode, F_ext=self._F_ext,
                                impacts=self._impacts, departures=self._departures,
                                last_impact_time=self._last_impact_time, t_start=self._t_start,
-                               rhs_calls=self.rhs_calls, steps=self._steps, gap=self._x)
+                               rhs_calls=self.rhs_calls, steps=self._steps, gap=self._x, restart=self._restart)
 
     def set_state(self, state: IntegratorState) -> None:
-        """Resume from state (one of get_state()); ValueError names a bad field, and then nothing changed."""
-        t = validation.finite("state t", state.t, "s")
-        h, v = validation.finite("state h", state.h, "m"), validation.finite("state v", state.v, "m/s")
-        F_ext = validation.finite("state F_ext", state.F_ext, "N")
+        """Resume from state (one of get_state()); ValueError names a bad field, and then nothing changed.
+
+        With a restart point, CVODE restarts there and integrates to state.t again (at most the
+        current phase), then the state is exactly the one taken.
+        """
+        t, x, v, mode, F_ext = self._checked_point("state", state.t, state.gap, state.h, state.v, state.mode,
+                                                   state.F_ext)
         t_start = validation.finite("state t_start", state.t_start, "s")
-        last_impact = None if state.last_impact_time is None else validation.finite(
-            "state last_impact_time", state.last_impact_time, "s")
-        counts = [state.impacts, state.departures, state.rhs_calls, state.steps]
-        if not all(isinstance(n, numbers.Integral) and not isinstance(n, bool) and n >= 0 for n in counts):
-            raise ValueError(f"state counts (impacts, departures, rhs_calls, steps) = {counts} are not allowed: "
-                             "they must be integers >= 0")
-        try:
-            mode = Mode(state.mode)
-        except ValueError:
-            raise ValueError(f"state mode = {state.mode!r} is not allowed: it must be one of "
-                             f"{', '.join(f'{m.value} ({m.name})' for m in Mode)}") from None
-        x = h - self.ball.R
-        if state.gap is not None:
-            x = validation.finite("state gap", state.gap, "m")
-            if not abs((self.ball.R + x) - h) <= 2.0 * math.ulp(max(abs(h), self.ball.R)):
-                raise ValueError(f"state gap = {x!r} m is not allowed with h = {h!r} m: R + gap must be h "
-                                 f"(R = {self.ball.R!r} m)")
+        counts = self._checked_counts("state", state)
+        restart = state.restart
+        if restart is not None:
+            if not isinstance(restart, RestartPoint):
+                raise ValueError(f"state restart = {restart!r} is not allowed: it must be a RestartPoint or None")
+            start = self._checked_point("state restart", restart.t, restart.gap, None, restart.v, restart.mode)
+            restart_counts = self._checked_counts("state restart", restart)
+            if not (start[0] <= t and start[3] == mode):
+                raise ValueError(f"state restart at t = {start[0]!r} s in {start[3].name.lower()} is not allowed "
+                                 f"for a state at t = {t!r} s in {mode.name.lower()}: it must be of the same mode, "
+                                 "no later")
         check_resolvable(self.ball, t)
-        self._t, self._x, self._v, self._mode, self._F_ext = t, x, v, mode, F_ext
-        self._impacts, self._departures = int(state.impacts), int(state.departures)
-        self._last_impact_time, self._t_start = last_impact, t_start
-        self._rhs_calls, self._steps = int(state.rhs_calls), int(state.steps)
+        previous = self.get_state() if hasattr(self, "_restart") else None
+        if restart is None:
+            self._restart_at((t, x, v, mode), F_ext, counts, t_start)
+            return
+        self._restart_at(start[:4], F_ext, restart_counts, t_start)
+        try:
+            self._advance(t)
+        except (SolverError, ValueError):
+            if previous is not None:
+                self.set_state(previous)
+            raise
+        finally:
+            self._report_sundials_warnings()
+        # The state as taken (the same numbers, unless it was a Taylor step within ulps of an earlier
+        # target), and the counters as they were: CVODE's step history is the original's.
+        self._t, self._x, self._v = t, x, v
+        self._impacts, self._departures, self._last_impact_time, rhs_calls, self._steps = counts
+        self._rhs_calls = rhs_calls - self._nfev_since_init
+
+    def _checked_point(self, name: str, t, gap, h, v, mode, F_ext=0.0) -> tuple[float, float, float, Mode, float]:
+        """(t, x, v, mode, F_ext) of a saved state, each field checked; ValueError names the bad one."""
+        t = validation.finite(f"{name} t", t, "s")
+        v = validation.finite(f"{name} v", v, "m/s")
+        F_ext = validation.finite(f"{name} F_ext", F_ext, "N")
+        try:
+            mode = Mode(mode)
+        except ValueError:
+            raise ValueError(f"{name} mode = {mode!r} is not allowed: it must be one of "
+                             f"{', '.join(f'{m.value} ({m.name})' for m in Mode)}") from None
+        if h is None:
+            return t, validation.finite(f"{name} gap", gap, "m"), v, mode, F_ext
+        h = validation.finite(f"{name} h", h, "m")
+        x = h - self.ball.R
+        if gap is not None:
+            x = validation.finite(f"{name} gap", gap, "m")
+            if not abs((self.ball.R + x) - h) <= 2.0 * math.ulp(max(abs(h), self.ball.R)):
+                raise ValueError(f"{name} gap = {x!r} m is not allowed with h = {h!r} m: R + gap must be h "
+                                 f"(R = {self.ball.R!r} m)")
+        return t, x, v, mode, F_ext
+
+    @staticmethod
+    def _checked_counts(name: str, saved) -> tuple[int, int, float | None, int, int]:
+        """(impacts, departures, last_impact_time, rhs_calls, steps) of a saved state, checked."""
+        counts = [saved.impacts, saved.departures, saved.rhs_calls, saved.steps]
+        if not all(isinstance(n, numbers.Integral) and not isinstance(n, bool) and n >= 0 for n in counts):
+            raise ValueError(f"{name} counts (impacts, departures, rhs_calls, steps) = {counts} are not allowed: "
+                             "they must be integers >= 0")
+        last_impact = None if saved.last_impact_time is None else validation.finite(
+            f"{name} last_impact_time", saved.last_impact_time, "s")
+        return int(saved.impacts), int(saved.departures), last_impact, int(saved.rhs_calls), int(saved.steps)
+
+    def _restart_at(self, point, F_ext: float, counts, t_start: float) -> None:
+        """Set the state (t, x, v, mode), F_ext and the counters; CVODE restarts there."""
+        (self._t, self._x, self._v, self._mode), self._F_ext, self._t_start = point, F_ext, t_start
+        self._impacts, self._departures, self._last_impact_time, self._rhs_calls, self._steps = counts
         self._nfev_since_init = 0
         self._sync_F_ext()
         self._reinit_needed()
@@ -510,6 +589,7 @@ class BallIntegrator:
             sksundae_events.clear(self._event_functions[mode])
 
     def _reinit_needed(self) -> None:
+        """CVODE restarts at the current state: it becomes the restart point (see get_state)."""
         self._rhs_calls += self._nfev_since_init
         self._nfev_since_init = 0
         self._phase_evaluations = 0
@@ -517,6 +597,8 @@ class BallIntegrator:
         self._segment = None
         self._event_pending = None
         self._rest_from = None
+        self._restart = RestartPoint(self._t, self._x, self._v, self._mode, self._impacts, self._departures,
+                                     self._last_impact_time, self._rhs_calls, self._steps)
 
     def _init_phase(self) -> CVODE:
         """Restart CVODE at the current state in the current mode."""
@@ -822,12 +904,14 @@ class BallIntegrator:
                               f"h = {self.h!r} m, v = {self._v!r} m/s): {result.message}")
 
     def _switch_mode(self) -> Event:
-        self._reinit_needed()
         if self._mode == Mode.FLIGHT:
             self._mode, self._impacts, self._last_impact_time = Mode.CONTACT, self._impacts + 1, self._t
-            return Event(self._t, IMPACT, self._v)
-        self._mode, self._departures = Mode.FLIGHT, self._departures + 1
-        return Event(self._t, DEPARTURE, self._v)
+            event = Event(self._t, IMPACT, self._v)
+        else:
+            self._mode, self._departures = Mode.FLIGHT, self._departures + 1
+            event = Event(self._t, DEPARTURE, self._v)
+        self._reinit_needed()
+        return event
 
 
 def _integrate_pieces(ball: Ball, h0: float, v0: float, grid: np.ndarray, table: ForceTable,
