@@ -224,8 +224,8 @@ def test_event_history_is_not_kept():
     integrator = BallIntegrator(Ball(b=0.0), 2.0, 0.0, settings=CvodeSettings(engine="sksundae"))
     integrator.advance(1000.0)
     assert integrator.impacts + integrator.departures == undamped_event_count(1.0, 1e4, 0.06, 9.81, 2.0, 1000.0)
-    for event_function in integrator._event_functions.values():
-        assert len(event_function._t) <= 1  # at most the root found beyond the last target
+    for solver in integrator._solvers.values():
+        assert len(solver._event._t) <= 1  # at most the root found beyond the last target
 
 
 def test_solver_failure_is_a_clear_error():
@@ -320,3 +320,29 @@ def test_the_sksundae_adapter_still_fits_scikit_sundae():
         assert hasattr(events, field), field
     sksundae_events.clear(events)
     assert sksundae_events.roots_found(events) == [] and not any(events._i_cnt)
+
+
+@pytest.mark.parametrize("engine", ["sksundae", "compiled"])
+def test_pooled_cvode_objects_integrate_as_new_ones(engine):
+    """simulate keeps its CVODE objects for the next run (solvers/stepper.py): another ball between two
+    runs, and a run on new objects, change no number."""
+    if engine == "compiled":
+        pytest.importorskip("numba")
+    from bouncingball.solvers import stepper
+
+    def run(ball, h0):
+        result = bouncingball.simulate(ball, h0, 0.0, 3.0, engine=engine)
+        return result.h, result.v, result.events, result.stats.steps, result.stats.rhs_calls
+
+    first = run(Ball(), 2.0)
+    other = run(Ball(m=0.1, k=1e6, b=3.0, R=0.01, g=1.62), 1.0)
+    again = run(Ball(), 2.0)
+    stepper._pool.clear()
+    fresh = run(Ball(), 2.0)
+    for result in (again, fresh):
+        np.testing.assert_array_equal(result[0], first[0])
+        np.testing.assert_array_equal(result[1], first[1])
+        assert result[2:] == first[2:]
+    exact = ExactSolution(Ball(m=0.1, k=1e6, b=3.0, R=0.01, g=1.62), 1.0, 0.0, 0.0, 3.0)
+    assert [e.kind for e in other[2]] == [e.kind for e in exact.events]
+    assert np.max(np.abs(other[0] - exact.state(output_grid(0.0, 3.0, 1e-3))[0])) <= 1e-8

@@ -39,6 +39,8 @@ from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
 from .. import physics
+from .stepper import PhaseResult
+from .sundials_log import SundialsLog
 
 # SUNDIALS' major version we bind: its C API (the declarations below) is stable within a major.
 SUPPORTED_MAJOR = 7
@@ -424,17 +426,6 @@ _FLAGS = {
 }
 
 
-@dataclass
-class PhaseResult:
-    """What BallIntegrator reads from a CVODE call: the step ends, CVode's flag and its message, RHS calls."""
-
-    t: np.ndarray | float
-    y: np.ndarray
-    status: int
-    message: str
-    nfev: int
-
-
 class PhaseSolver:
     """CVODE for one mode of the ball, with scikit-sundae's CVODE calls that BallIntegrator uses.
 
@@ -464,14 +455,13 @@ class PhaseSolver:
     def __init__(self, ball, mode, method: str, rtol: float, max_step: float, max_num_steps: int,
                  own_side: float, directions, max_evaluations: int) -> None:
         self._lib = library()
+        self.log = SundialsLog()
         self._method = CV_ADAMS if method == "Adams" else CV_BDF
         self._settings = (rtol, rtol, max_step, max_num_steps)
-        self._jacobian = ball.jacobian(mode)
+        self._mode = mode
         self.parameters = np.zeros(_P_SIZE)
-        self.parameters[[_P_M, _P_K, _P_B, _P_R, _P_G]] = ball.m, ball.k, ball.b, ball.R, ball.g
         self.parameters[[_P_MODE, _P_OWN_SIDE]] = int(mode), own_side
-        self.F_ext = 0.0
-        self.set_frame(1.0, 1.0, 0.0)
+        self.bind(ball)
         self._directions = (ctypes.c_int * _NUM_ROOTS)(*directions)
         addresses = self._lib.addresses
         self._user_data = np.zeros(_U_SIZE, dtype=np.intp)
@@ -538,7 +528,14 @@ class PhaseSolver:
         if self._handles:
             self._finalizer()
 
-    # --- the calls BallIntegrator makes ------------------------------------------------------------
+    # --- the calls BallIntegrator makes (solvers/stepper.py) ---------------------------------------
+    def bind(self, ball) -> None:
+        """Integrate ball's equations from now on (F_ext 0 and a unit frame until set)."""
+        self._jacobian = ball.jacobian(self._mode)
+        self.parameters[[_P_M, _P_K, _P_B, _P_R, _P_G]] = ball.m, ball.k, ball.b, ball.R, ball.g
+        self.F_ext = 0.0
+        self.set_frame(1.0, 1.0, 0.0)
+
     @property
     def F_ext(self) -> float:
         return self.parameters[_P_F_EXT]
@@ -635,4 +632,4 @@ def _free(functions, handles: dict) -> None:
         functions["SUNContext_Free"](ctypes.byref(handles.pop("context")))
 
 
-__all__ = ["EngineUnavailable", "PhaseResult", "PhaseSolver", "library", "unavailable_reason"]
+__all__ = ["EngineUnavailable", "PhaseSolver", "library", "unavailable_reason"]

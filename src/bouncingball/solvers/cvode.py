@@ -13,12 +13,11 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from sksundae.cvode import CVODE
 
 from .. import limits, validation
 from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode, gap_acceleration, load_value, rest_margin_value
-from . import forcing, sksundae_events
+from . import forcing, stepper
 from .dense_output import interpolate, step_state
 from .exact import time_to_departure, time_to_impact, velocity_at_departure
 from .forcing import ForceTable
@@ -30,7 +29,6 @@ from .result import (
     SolverStats,
     output_grid,
 )
-from .sundials_log import SundialsLog
 
 METHODS = ("auto", "Adams", "BDF")
 ENGINES = ("auto", "compiled", "sksundae")
@@ -61,7 +59,7 @@ MIN_PHASE_SCALE = 1e-200
 HOP_RESOLUTION = 10.0
 MERGED_HOP_MARGIN = 10.0
 SOFT_CONTACT_CAP = 1e3  # a contact's length scale is at most this many max(R, |gap|): see phase_scales
-# The value the root function h - R takes at h == R: the mode's own side (see _make_solver).
+# The value the root function h - R takes at h == R: the mode's own side (see _own_side).
 _OWN_SIDE = 1e-300
 _STEP_HORIZON = 1.0  # s; see advance()
 _MAX_STEPS_PER_CALL = 1_000_000
@@ -301,16 +299,15 @@ class BallIntegrator:
         limits.check_scene(ball, h0, v0, F_ext, t0)
         self.resolvable_until = resolvable_until(ball)
         check_resolvable(ball, t0)
-        self._logs = {mode: SundialsLog() for mode in Mode}
         self._cvode_called = False
         self.engine, self.engine_reason = choose_engine(self.settings.engine)
-        self._solvers: dict[Mode, CVODE] = {}
-        self._event_functions = {}
         # The phase's frame: CVODE's time is t - origin, its state (x / length, v / speed); see _start_frame.
         self._frames = {mode: [0.0, 1.0, 1.0, 0.0] for mode in Mode}  # origin, length, speed, hop tolerance
-        for mode in Mode:
-            make = self._make_compiled_solver if self.engine == "compiled" else self._make_solver
-            self._solvers[mode], self._event_functions[mode] = make(mode)
+        s = self.settings
+        self._solvers = {mode: stepper.acquire(self.engine, ball, mode, self.methods[mode], s.rtol, s.max_step,
+                                               _MAX_STEPS_PER_CALL, self._own_side(mode),
+                                               self._root_directions(mode), MAX_STEPS_PER_PHASE)
+                         for mode in Mode}
         self.set_state(IntegratorState(t=t0, h=h0, v=v0, mode=ball.initial_mode(h0, v0, F_ext), F_ext=F_ext,
                                        t_start=t0))
 
@@ -339,55 +336,6 @@ class BallIntegrator:
         """The highest hop [m] merged into the contact around it at the current F_ext; see hop_tolerance()."""
         return hop_tolerance(self.ball, self.settings.rtol, self.settings.atol, self._F_ext)
 
-    def _make_compiled_solver(self, mode: Mode):
-        """The same CVODE set-up as _make_solver, with the callbacks compiled from physics.py."""
-        from .compiled import PhaseSolver
-
-        s = self.settings
-        solver = PhaseSolver(self.ball, mode, self.methods[mode], s.rtol, s.max_step, _MAX_STEPS_PER_CALL,
-                             self._own_side(mode), self._root_directions(mode), MAX_STEPS_PER_PHASE)
-        return solver, None
-
-    def _make_solver(self, mode: Mode):
-        ball = self.ball
-        m, k, b = ball.m, ball.k, ball.b
-        w2, damping = k / m, b / m
-        own_side = self._own_side(mode)
-        contact = mode == Mode.CONTACT
-        frame = self._frames[mode]
-
-        # CVODE integrates x / length and v / speed (the frame's scales), in time from the frame's origin.
-        def rhs(t, y, yp):
-            _, length, speed, _ = frame
-            yp[0] = (speed / length) * y[1]
-            yp[1] = gap_acceleration(length * y[0], speed * y[1], mode, self._load, m, k, b) / speed
-
-        def jac(t, y, yp, JJ):
-            _, length, speed, _ = frame
-            JJ[0, 0], JJ[0, 1] = 0.0, speed / length
-            JJ[1, 0], JJ[1, 1] = (-w2 * length / speed, -damping) if contact else (0.0, 0.0)
-
-        def event(t, y, out):
-            _, length, speed, hop = frame
-            out[0] = y[0] if y[0] != 0.0 else own_side
-            # Under zero net gravity v never changes in flight: a root function identically 0 would
-            # only make CVODE warn.
-            out[1] = y[1] if contact or self._load != 0.0 else 1.0
-            d = self._load / k  # ball.static_deflection, from the load kept for the phase (as the compiled roots)
-            out[2] = rest_margin_value(length * y[0], speed * y[1], d, hop, w2) if contact and d > 0.0 else -1.0
-            # CVODE evaluates the root functions once per step (and a few times per root found)
-            self._phase_evaluations += 1
-            if self._phase_evaluations > MAX_STEPS_PER_PHASE:
-                raise self._too_many_steps(mode, t)
-
-        event.terminal = [True, False, True]
-        event.direction = self._root_directions(mode)
-        s = self.settings
-        # The scaled state is of order 1: atol = rtol asks for rtol times the phase's scale.
-        solver = CVODE(rhs, method=self.methods[mode], rtol=s.rtol, atol=s.rtol, max_step=s.max_step,
-                       eventsfn=event, num_events=3, jacfn=jac, max_num_steps=_MAX_STEPS_PER_CALL)
-        return solver, event
-
     def _start_frame(self) -> tuple[float, float, float]:
         """Fix the current phase's frame at the current state; (origin [s], length [m], speed [m/s]).
 
@@ -400,8 +348,7 @@ class BallIntegrator:
             length = s.atol / s.rtol
         hop = self.hop_tolerance
         self._frames[mode][:] = self._t, length, speed, hop
-        if self.engine == "compiled":
-            self._solvers[mode].set_frame(length, speed, hop)
+        self._solvers[mode].set_frame(length, speed, hop)
         return self._t, length, speed
 
     # --- read-only view --------------------------------------------------------------------
@@ -575,24 +522,22 @@ class BallIntegrator:
     def _sync_F_ext(self) -> None:
         """The load m g - F_ext for the right-hand side; the compiled callbacks read both from their parameters."""
         self._load = load_value(self._F_ext, self.ball.m, self.ball.g)
-        if self.engine == "compiled":
-            for solver in self._solvers.values():
-                solver.F_ext = self._F_ext
+        for solver in self._solvers.values():
+            solver.F_ext = self._F_ext
 
-    def _roots_found(self, mode: Mode) -> list[int]:
-        if self.engine == "compiled":
-            return self._solvers[mode].roots_found()
-        return sksundae_events.roots_found(self._event_functions[mode])
+    def close(self) -> None:
+        """Give the CVODE objects back to the process's pool for the next integrator; unusable after.
 
-    def _clear_roots(self, mode: Mode) -> None:
-        if self.engine != "compiled":
-            sksundae_events.clear(self._event_functions[mode])
+        simulate does it; an integrator never closed frees its CVODE objects when collected.
+        """
+        solvers, self._solvers = self._solvers, None
+        for solver in (solvers or {}).values():
+            stepper.release(solver)
 
     def _reinit_needed(self) -> None:
         """CVODE restarts at the current state: it becomes the restart point (see get_state)."""
         self._rhs_calls += self._nfev_since_init
         self._nfev_since_init = 0
-        self._phase_evaluations = 0
         self._needs_init = True
         self._segment = None
         self._event_pending = None
@@ -600,12 +545,11 @@ class BallIntegrator:
         self._restart = RestartPoint(self._t, self._x, self._v, self._mode, self._impacts, self._departures,
                                      self._last_impact_time, self._rhs_calls, self._steps)
 
-    def _init_phase(self) -> CVODE:
+    def _init_phase(self):
         """Restart CVODE at the current state in the current mode."""
         solver = self._solvers[self._mode]
-        self._clear_roots(self._mode)
         _, length, speed = self._start_frame()
-        with self._logs[self._mode].capturing():
+        with solver.log.capturing():
             solver.init_step(0.0, np.array([self._x / length, self._v / speed]))
         self._cvode_called = True
         self._needs_init = False
@@ -666,13 +610,12 @@ class BallIntegrator:
             tau, x, v = float(result.t), length * float(result.y[0]), speed * float(result.y[1])
             end = (origin + tau, x, v)
             if result.status == _CV_ROOT_RETURN:
-                roots = self._roots_found(self._mode)
+                roots = solver.roots_found()
                 if roots[0]:
                     tau, v = self._polish_event(tau_before, (tau, x, v))
                     end = self._event_pending = (origin + tau, 0.0, v)
                 elif roots[2]:
                     self._rest_from = end
-                self._clear_roots(self._mode)
             else:
                 self._steps += 1
             if self._event_pending is None:
@@ -730,16 +673,15 @@ class BallIntegrator:
                 if reached:
                     events.append(self._switch_mode())
                 continue
-            self._clear_roots(mode)
+            solver = self._solvers[mode]
             origin, length, speed = self._start_frame()
-            with self._logs[mode].capturing():
-                result = self._solvers[mode].solve(np.array([0.0, t_end - origin]),
-                                                   np.array([self._x / length, self._v / speed]))
+            with solver.log.capturing():
+                result = solver.solve(np.array([0.0, t_end - origin]), np.array([self._x / length, self._v / speed]))
             self._cvode_called = True
             self._check(result)
             taus, xs, vs = result.t.copy(), length * result.y[:, 0], speed * result.y[:, 1]
             xs[0], vs[0] = self._x, self._v  # the phase's start as it was, not scaled and back
-            roots = self._roots_found(mode) if result.status == _CV_ROOT_RETURN else [0, 0, 0]
+            roots = solver.roots_found() if result.status == _CV_ROOT_RETURN else [0, 0, 0]
             root, resting = bool(roots[0]), bool(roots[2])
             if root:
                 tau_before = float(taus[-2])
@@ -748,7 +690,6 @@ class BallIntegrator:
                 self._check_step_ends(origin + tau_before, xs[:-1])
             else:
                 self._check_step_ends(origin + float(taus[-1]), xs)
-            self._clear_roots(mode)
             ts = origin + taus
             if not (root or resting):  # CVODE stopped at t_end - origin, which may round off t_end
                 ts[-1] = t_end
@@ -768,8 +709,8 @@ class BallIntegrator:
     def _report_sundials_warnings(self) -> None:
         if self._cvode_called:
             self._cvode_called = False
-            for log in self._logs.values():
-                log.report(stacklevel=4)
+            for solver in self._solvers.values():
+                solver.log.report(stacklevel=4)
 
     def _at_rest(self) -> bool:
         """In a contact that can no longer lift the ball more than hop_tolerance above R, or never ends.
@@ -896,7 +837,7 @@ class BallIntegrator:
         return True
 
     def _check(self, result) -> None:
-        if result.status < 0 and self.engine == "compiled" and self._solvers[self._mode].exceeded:
+        if result.status < 0 and self._solvers[self._mode].exceeded:
             raise self._too_many_steps(self._mode, float(np.atleast_1d(result.t)[-1]))
         if result.status < 0:
             t = float(np.atleast_1d(result.t)[-1])
@@ -926,16 +867,19 @@ def _integrate_pieces(ball: Ball, h0: float, v0: float, grid: np.ndarray, table:
     h, v = np.empty_like(grid), np.empty_like(grid)
     h[0], v[0] = integrator.h, integrator.v
     events: list[Event] = []
-    for start, end, F_ext in constant_pieces:
-        integrator.F_ext = F_ext
-        inside = (grid > start) & (grid <= end)
-        times = np.concatenate(([start], grid[inside]))
-        if times[-1] < end:
-            times = np.append(times, end)
-        h_piece, v_piece, piece_events = integrator.integrate_grid(times)
-        count = int(np.count_nonzero(inside))
-        h[inside], v[inside] = h_piece[1:1 + count], v_piece[1:1 + count]
-        events += piece_events
+    try:
+        for start, end, F_ext in constant_pieces:
+            integrator.F_ext = F_ext
+            inside = (grid > start) & (grid <= end)
+            times = np.concatenate(([start], grid[inside]))
+            if times[-1] < end:
+                times = np.append(times, end)
+            h_piece, v_piece, piece_events = integrator.integrate_grid(times)
+            count = int(np.count_nonzero(inside))
+            h[inside], v[inside] = h_piece[1:1 + count], v_piece[1:1 + count]
+            events += piece_events
+    finally:
+        integrator.close()
     return integrator, h, v, events
 
 
@@ -955,7 +899,10 @@ def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interv
         integrator, h, v, events = _integrate_pieces(ball, h0, v0, grid, F_ext, settings)
     else:
         integrator = BallIntegrator(ball, h0, v0, t_start, F_ext, settings)
-        h, v, events = integrator.integrate_grid(grid)
+        try:
+            h, v, events = integrator.integrate_grid(grid)
+        finally:
+            integrator.close()
     wall_time = time.perf_counter() - started
     stats = SolverStats(steps=integrator.steps, rhs_calls=integrator.rhs_calls, events=len(events),
                         wall_time=wall_time, engine=integrator.engine, engine_reason=integrator.engine_reason)

@@ -77,6 +77,10 @@ class SundialsLog:
             else:
                 os.environ[ENVIRONMENT_VARIABLE] = previous
 
+    def forget_causes(self) -> None:
+        """Report every cause again from now on (a pooled solver's next run)."""
+        self._causes.clear()
+
     def new_messages(self) -> list[str]:
         """The messages SUNDIALS has written out since the last call, one per new cause."""
         try:

@@ -1,0 +1,185 @@
+"""The stepper protocol: what BallIntegrator asks of a CVODE engine for one mode, and the pool of them.
+
+Each engine offers a ``PhaseSolver`` for one mode of the ball (compiled.PhaseSolver, numba callbacks
+over the SUNDIALS library; SksundaePhaseSolver, scikit-sundae's CVODE object with Python callbacks)
+with the same calls and the same CVODE settings, so the event logic of BallIntegrator serves both:
+
+- ``bind(ball)``: the ball whose equations it integrates (a pooled solver serves many balls);
+- ``F_ext`` (settable) and ``set_frame(length, speed, hop_tolerance)``: the phase's constants;
+- ``init_step(t0, y0)`` then ``step(t_toward)``: one internal step (the FMU's path);
+- ``solve((t0, t_end), y0)``: every internal step to t_end or the first terminal root (simulate's path);
+- ``roots_found()``, ``exceeded`` and the ``log`` of SUNDIALS' warnings (solvers/sundials_log.py).
+
+Creating a CVODE object and its warnings file costs more than integrating a whole phase (~0.1 ms
+each, two per integrator), so solvers are kept per process in a pool, by engine, mode, method and
+settings: ``acquire`` takes one (or makes it), ``release`` gives it back for the next integrator.
+CVODE is re-initialised at every phase, so a pooled solver integrates as a new one does, bit for bit.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+from sksundae.cvode import CVODE
+
+from ..physics import Ball, Mode, gap_acceleration, load_value, rest_margin_value
+from . import sksundae_events
+from .sundials_log import SundialsLog
+
+CV_RTFUNC_FAIL = -12
+_POOL_SIZE = 4  # solvers kept per kind: the sweep's worker threads each hold one integrator at a time
+
+
+@dataclass
+class PhaseResult:
+    """What a solver returns from step or solve: the step ends, CVode's flag and its message, RHS calls."""
+
+    t: np.ndarray | float
+    y: np.ndarray
+    status: int
+    message: str
+    nfev: int
+
+
+class _TooManyEvaluations(Exception):
+    """Raised in the root function of a phase that took more evaluations than allowed."""
+
+
+class SksundaePhaseSolver:
+    """CVODE for one mode through scikit-sundae's CVODE object: the calls of compiled.PhaseSolver.
+
+    Parameters are those of compiled.PhaseSolver: the ball, its mode, "Adams" or "BDF", rtol (also the
+    absolute tolerance of the scaled state), max_step [s] (0: none), CVODE's steps per call, the value
+    of the gap root at 0 (the mode's own side), the roots' directions and the root evaluations
+    allowed per phase (beyond: status CV_RTFUNC_FAIL and ``exceeded``).
+    """
+
+    def __init__(self, ball: Ball, mode: Mode, method: str, rtol: float, max_step: float, max_num_steps: int,
+                 own_side: float, directions, max_evaluations: int) -> None:
+        self.log = SundialsLog()
+        self.exceeded = False
+        self._load = 0.0
+        self._frame = [1.0, 1.0, 0.0]  # length [m], speed [m/s], hop tolerance [m]
+        self._evaluations = 0
+        self.bind(ball)
+        contact = mode == Mode.CONTACT
+
+        # CVODE integrates x / length and v / speed (the frame's scales), in time from the phase's start.
+        def rhs(t, y, yp):
+            length, speed, _ = self._frame
+            yp[0] = (speed / length) * y[1]
+            yp[1] = gap_acceleration(length * y[0], speed * y[1], mode, self._load, self._m, self._k, self._b) / speed
+
+        def jac(t, y, yp, JJ):
+            length, speed, _ = self._frame
+            JJ[0, 0], JJ[0, 1] = 0.0, speed / length
+            JJ[1, 0], JJ[1, 1] = (-self._w2 * length / speed, -self._damping) if contact else (0.0, 0.0)
+
+        def event(t, y, out):
+            length, speed, hop = self._frame
+            out[0] = y[0] if y[0] != 0.0 else own_side
+            # Under zero net gravity v never changes in flight: a root function identically 0 would
+            # only make CVODE warn.
+            out[1] = y[1] if contact or self._load != 0.0 else 1.0
+            d = self._load / self._k  # the static deflection, from the load kept for the phase
+            out[2] = rest_margin_value(length * y[0], speed * y[1], d, hop, self._w2) if contact and d > 0.0 else -1.0
+            # CVODE evaluates the root functions once per step (and a few times per root found)
+            self._evaluations += 1
+            if self._evaluations > max_evaluations:
+                raise _TooManyEvaluations(t)
+
+        event.terminal = [True, False, True]
+        event.direction = list(directions)
+        self._event = event
+        # The scaled state is of order 1: atol = rtol asks for rtol times the phase's scale.
+        self._cvode = CVODE(rhs, method=method, rtol=rtol, atol=rtol, max_step=max_step, eventsfn=event,
+                            num_events=3, jacfn=jac, max_num_steps=max_num_steps)
+
+    def bind(self, ball: Ball) -> None:
+        """Integrate ball's equations from now on."""
+        self._m, self._k, self._b = ball.m, ball.k, ball.b
+        self._w2, self._damping = ball.k / ball.m, ball.b / ball.m
+        self._g = ball.g
+
+    @property
+    def F_ext(self) -> float:
+        """External force [N] of the phase, positive upwards."""
+        return self._F_ext
+
+    @F_ext.setter
+    def F_ext(self, value: float) -> None:
+        self._F_ext = value
+        self._load = load_value(value, self._m, self._g)
+
+    def set_frame(self, length: float, speed: float, hop_tolerance: float) -> None:
+        """The phase's scales [m, m/s] and the rest root's margin [m]; set before init_step/solve."""
+        self._frame[:] = length, speed, hop_tolerance
+
+    def roots_found(self) -> list[int]:
+        """CVodeGetRootInfo of the last root return: per root function, 0 or the crossing's sign."""
+        return sksundae_events.roots_found(self._event)
+
+    def _restart(self) -> None:
+        sksundae_events.clear(self._event)
+        self._evaluations = 0
+        self.exceeded = False
+
+    def init_step(self, t0: float, y0) -> None:
+        """(Re)start CVODE at t0 from y0."""
+        self._restart()
+        self._cvode.init_step(t0, y0)
+
+    def step(self, t_toward: float, method: str = "onestep"):
+        """One internal step toward t_toward; its end, or the root it stopped at."""
+        sksundae_events.clear(self._event)
+        try:
+            return self._cvode.step(t_toward, method=method)
+        except _TooManyEvaluations as stop:
+            return self._exceeded(float(stop.args[0]))
+
+    def solve(self, tspan, y0):
+        """From y0 at tspan[0] to tspan[-1] or the first terminal root: every step end."""
+        self._restart()
+        try:
+            return self._cvode.solve(tspan, y0)
+        except _TooManyEvaluations as stop:
+            return self._exceeded(float(stop.args[0]))
+
+    def _exceeded(self, t: float) -> PhaseResult:
+        self.exceeded = True
+        return PhaseResult(np.array([t]), np.full((1, 2), np.nan), CV_RTFUNC_FAIL, "too many steps", 0)
+
+
+_pool: dict[tuple, list] = {}
+_pool_lock = threading.Lock()
+
+
+def acquire(engine: str, ball: Ball, mode: Mode, method: str, rtol: float, max_step: float, max_num_steps: int,
+            own_side: float, directions, max_evaluations: int):
+    """A solver of engine ("compiled" or "sksundae") for ball's mode, from the pool or new; see the module's doc."""
+    key = (engine, mode, method, rtol, max_step, max_num_steps, own_side, tuple(directions), max_evaluations)
+    with _pool_lock:
+        kept = _pool.get(key)
+        solver = kept.pop() if kept else None
+    if solver is None:
+        if engine == "compiled":
+            from .compiled import PhaseSolver
+        else:
+            PhaseSolver = SksundaePhaseSolver
+        solver = PhaseSolver(ball, mode, method, rtol, max_step, max_num_steps, own_side, directions,
+                             max_evaluations)
+        solver.pool_key = key
+    else:
+        solver.bind(ball)
+        solver.log.forget_causes()
+    return solver
+
+
+def release(solver) -> None:
+    """Give solver back to the pool (it is freed instead when the pool holds enough of its kind)."""
+    with _pool_lock:
+        kept = _pool.setdefault(solver.pool_key, [])
+        if len(kept) < _POOL_SIZE:
+            kept.append(solver)
