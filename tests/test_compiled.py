@@ -178,13 +178,46 @@ def test_a_numba_that_cannot_compile_falls_back_with_the_reason(tmp_path):
     (tmp_path / "numba").mkdir()
     (tmp_path / "numba" / "__init__.py").write_text("raise RuntimeError('LLVM is broken here')\n")
     completed = subprocess.run(
-        [sys.executable, "-c", "import bouncingball as bb; r = bb.simulate(bb.Ball(), 2.0, 0.0, 1.0); "
+        [sys.executable, "-c", "import bouncingball as bb; r = bb.simulate(bb.Ball(b=0.0), 2.0, 0.0, 300.0); "
                                "print(r.stats.engine, '|', r.stats.engine_reason, '|', len(r.events))"],
         capture_output=True, text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(tmp_path)})
     assert completed.returncode == 0, completed.stderr
     engine, reason, events = completed.stdout.strip().split(" | ")
     assert engine == "sksundae" and "numba could not compile the engine (RuntimeError: LLVM is broken here)" in reason
-    assert int(events) == len(bb.simulate(ARTICLE, 2.0, 0.0, 1.0, engine="sksundae").events)
+    assert int(events) == len(bb.simulate(bb.Ball(b=0.0), 2.0, 0.0, 300.0, engine="sksundae").events)
+
+
+def test_auto_weighs_the_compiled_engines_first_use_against_the_run():
+    """In a fresh process a short run is cheaper on scikit-sundae than loading numba; a long one is not;
+    once loaded, the compiled engine takes every run. The set-up time is reported apart."""
+    completed = _run_python("""
+        import sys
+        import bouncingball as bb
+        short = bb.simulate(bb.Ball(), 2.0, 0.0, 8.0)
+        assert "numba" not in sys.modules
+        long = bb.simulate(bb.Ball(b=0.0), 2.0, 0.0, 1000.0)  # after scikit-sundae is loaded: 37,000 steps to pay
+        after = bb.simulate(bb.Ball(), 2.0, 0.0, 8.0)
+        for r in (short, long, after):
+            print(r.stats.engine, "|", r.stats.engine_reason, "|", r.stats.engine_setup_time, "|", r.stats.steps)
+    """)
+    assert completed.returncode == 0, completed.stderr
+    (short, long, after) = [line.split(" | ") for line in completed.stdout.splitlines()]
+    assert short[0] == "sksundae" and re.fullmatch(r"about \d+ CVODE steps expected, fewer than the \d+ over which "
+                                                   r"loading the compiled engine in this process pays back", short[1])
+    assert long[0] == "compiled" and after[0] == "compiled"
+    assert float(short[2]) > 0.05 and float(long[2]) > 0.05 and float(after[2]) < 0.05  # loading, then pooled
+
+
+@pytest.mark.parametrize("scene", ["article", "undamped", "stiff", "high-drop", "in-contact"])
+def test_the_expected_steps_are_the_right_size(scene):
+    """The estimate behind engine "auto" against the steps CVODE takes: within a factor 2."""
+    from bouncingball.scenes import load_scene
+    from bouncingball.solvers.cvode import expected_steps
+
+    s = load_scene(scene)
+    estimate = expected_steps(s.ball, s.h0, s.v0, 0.0, s.t_end)
+    steps = s.simulate().stats.steps
+    assert steps / 2 <= estimate <= 2 * steps, (estimate, steps)
 
 
 def test_the_sksundae_engine_and_import_never_load_numba():
@@ -395,3 +428,19 @@ def test_a_change_to_physics_reaches_the_compiled_engine_through_numbas_disk_cac
     physics.write_text(source.replace("        return -load / m\n", "        return -2.0 * load / m\n"))  # flight: 2 g
     compiled_after, _ = first_impacts()  # the exact solution keeps its own closed forms: only CVODE sees 2 g
     assert compiled_after == pytest.approx(math.sqrt(2.0 * (2.0 - 0.06) / (2.0 * 9.81)), rel=1e-6)  # not 0.629 s
+
+
+def test_many_short_runs_load_the_compiled_engine_once_they_would_have_paid_for_it():
+    completed = _run_python("""
+        import bouncingball as bb
+        from bouncingball.solvers import cvode
+        engines = [bb.simulate(bb.Ball(), 2.0, 0.0, 8.0).stats.engine for _ in range(30)]
+        first = engines.index("compiled")
+        break_even = int(cvode.COMPILED_FIRST_USE / cvode.STEP_SAVING)  # scikit-sundae loaded by the first run
+        print(first, engines[first:].count("sksundae"), cvode._sksundae_steps, break_even)
+    """)
+    assert completed.returncode == 0, completed.stderr
+    first, later_sksundae, sksundae_steps, break_even = map(int, completed.stdout.split())
+    assert later_sksundae == 0  # once loaded, always
+    assert sksundae_steps < break_even <= sksundae_steps + 1932  # switched on the run that reaches it
+    assert first == sksundae_steps // 1925

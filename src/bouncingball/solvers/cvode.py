@@ -7,8 +7,10 @@ re-initialises CVODE at the event, so no step ever straddles the discontinuity.
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import numbers
+import sys
 import time
 from dataclasses import dataclass
 
@@ -19,7 +21,7 @@ from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode, gap_acceleration, load_value, rest_margin_value
 from . import forcing, stepper
 from .dense_output import interpolate, step_state
-from .exact import time_to_departure, time_to_impact, velocity_at_departure
+from .exact import ExactSolution, time_to_departure, time_to_impact, velocity_at_departure
 from .forcing import ForceTable
 from .result import (
     DEPARTURE,
@@ -49,6 +51,14 @@ DEFAULT_ATOL = None
 # closed form.
 STIFF_DAMPING_RATIO = 2.0
 
+# engine="auto" (choose_engine): the first use of each engine in a process and what the compiled one
+# saves per CVODE step, measured by `bouncingball bench` (docs/benchmarks.md, "Choosing the engine").
+COMPILED_FIRST_USE = 0.50  # s: numba's import and the compiled code read from its disk cache
+SKSUNDAE_FIRST_USE = 0.43  # s: scikit-sundae's import (it loads SciPy)
+STEP_SAVING = 13.5e-6  # s per CVODE step
+STEPS_PER_PHASE = 46  # CVODE's steps per flight or contact at the default rtol (the article: 1925 in 42 phases)
+_COMPILED_MODULE = __name__.rpartition(".")[0] + ".compiled"
+_sksundae_steps = 0  # CVODE steps this process ran on scikit-sundae: what engine "auto" paid instead of loading
 _CV_ROOT_RETURN = 2
 _EPS = 2.0**-52
 # A phase whose length scale [m] is below this (a hop or contact of 1e-200 m) is taken on the exact
@@ -72,15 +82,52 @@ class SolverError(RuntimeError):
     """CVODE failed; the message carries its reason."""
 
 
-def choose_engine(engine: str = "auto") -> tuple[str, str]:
+def compiled_break_even() -> float:
+    """CVODE steps over which the compiled engine's first use in this process pays back; 0 once it is loaded.
+
+    Loading it (importing numba, reading the compiled code from its disk cache) costs
+    COMPILED_FIRST_USE, loading scikit-sundae's engine (its import loads SciPy) SKSUNDAE_FIRST_USE
+    (nothing once imported), and each CVODE step is STEP_SAVING cheaper compiled. Measured on the
+    article at the defaults: 5,200 steps in a fresh process, 37,000 once scikit-sundae is loaded.
+    """
+    if _COMPILED_MODULE in sys.modules:
+        return 0.0
+    sksundae_cost = 0.0 if "sksundae.cvode" in sys.modules else SKSUNDAE_FIRST_USE
+    return max(COMPILED_FIRST_USE - sksundae_cost, 0.0) / STEP_SAVING
+
+
+def expected_steps(ball: Ball, h0: float, v0: float, t_start: float, t_end: float,
+                   F_ext: float | ForceTable = 0.0, at_most: float = math.inf) -> float:
+    """CVODE's steps for a run, estimated from its phases (the exact solution's, counted up to at_most steps).
+
+    STEPS_PER_PHASE per flight or contact; a rest costs none (it is taken in closed form).
+    """
+    max_phases = None if math.isinf(at_most) else int(at_most / STEPS_PER_PHASE) + 2
+    exact = ExactSolution(ball, h0, v0, t_start, t_end, F_ext, max_phases=max_phases)
+    return STEPS_PER_PHASE * (len(exact.phases) - (exact.rest_time is not None))
+
+
+def choose_engine(engine: str = "auto", steps: float | None = None) -> tuple[str, str]:
     """The engine that runs ("compiled" or "sksundae") and why.
 
     "auto" takes the compiled engine when numba is installed and scikit-sundae's SUNDIALS library
-    can be bound, else scikit-sundae's own; "compiled" raises ImportError where it cannot run.
+    can be bound, else scikit-sundae's own, except for a run of fewer expected CVODE steps than
+    compiled_break_even(): there loading the compiled engine would cost more than it saves. The
+    steps this process already ran on scikit-sundae count too, so a process of many short runs
+    loads the compiled engine once they would have paid for it (renting until the rent paid equals
+    the price, then buying: never more than about twice the time of the better choice in hindsight).
+    steps: the run's expected steps (expected_steps), None when unknown (an integrator advanced
+    piece by piece, as the FMU's, or a process about to run many: the compiled engine).
+    "compiled" raises ImportError where it cannot run.
     """
     engine = validation.choice("engine", engine, ENGINES)
     if engine == "sksundae":
         return "sksundae", "requested"
+    if engine == "auto" and steps is not None and _numba_installed():
+        break_even = compiled_break_even()
+        if _sksundae_steps + steps < break_even:
+            return "sksundae", (f"about {steps:.0f} CVODE steps expected, fewer than the {break_even:.0f} over "
+                                "which loading the compiled engine in this process pays back")
     try:
         from . import compiled
     except ImportError as error:
@@ -95,6 +142,13 @@ def choose_engine(engine: str = "auto") -> tuple[str, str]:
     if engine == "compiled":
         raise ImportError(f"engine 'compiled' is not available: {reason}")
     return "sksundae", f"compiled engine unavailable: {reason}"
+
+
+def _numba_installed() -> bool:
+    try:
+        return importlib.util.find_spec("numba") is not None
+    except (ImportError, ValueError):  # a module set to None in sys.modules (hidden), or a broken one
+        return False
 
 
 def choose_method(ball: Ball) -> str:
@@ -251,6 +305,9 @@ class BallIntegrator:
         External force [N], positive upwards; change it between advances with the F_ext property.
     settings : CvodeSettings, optional
         Tolerances, method, maximum step and engine; the defaults if not given.
+    expected_steps : float, optional
+        The CVODE steps the caller expects to ask for (see expected_steps), for engine "auto"
+        (see choose_engine); None: unknown.
 
     Raises
     ------
@@ -284,7 +341,7 @@ class BallIntegrator:
     """
 
     def __init__(self, ball: Ball, h0: float, v0: float, t0: float = 0.0, F_ext: float = 0.0,
-                 settings: CvodeSettings | None = None) -> None:
+                 settings: CvodeSettings | None = None, expected_steps: float | None = None) -> None:
         self.ball = ball
         self.settings = settings or CvodeSettings()
         if self.settings.method == "auto":
@@ -300,7 +357,8 @@ class BallIntegrator:
         self.resolvable_until = resolvable_until(ball)
         check_resolvable(ball, t0)
         self._cvode_called = False
-        self.engine, self.engine_reason = choose_engine(self.settings.engine)
+        started = time.perf_counter()
+        self.engine, self.engine_reason = choose_engine(self.settings.engine, expected_steps)
         # The phase's frame: CVODE's time is t - origin, its state (x / length, v / speed); see _start_frame.
         self._frames = {mode: [0.0, 1.0, 1.0, 0.0] for mode in Mode}  # origin, length, speed, hop tolerance
         s = self.settings
@@ -308,6 +366,7 @@ class BallIntegrator:
                                                _MAX_STEPS_PER_CALL, self._own_side(mode),
                                                self._root_directions(mode), MAX_STEPS_PER_PHASE)
                          for mode in Mode}
+        self.setup_time = time.perf_counter() - started  # s: the engine's loading and CVODE objects
         self.set_state(IntegratorState(t=t0, h=h0, v=v0, mode=ball.initial_mode(h0, v0, F_ext), F_ext=F_ext,
                                        t_start=t0))
 
@@ -863,7 +922,8 @@ def _integrate_pieces(ball: Ball, h0: float, v0: float, grid: np.ndarray, table:
     grid point on a change time is the state there, taken at the end of the piece before.
     """
     constant_pieces = forcing.pieces(table, float(grid[0]), float(grid[-1]))
-    integrator = BallIntegrator(ball, h0, v0, float(grid[0]), constant_pieces[0][2], settings)
+    integrator = BallIntegrator(ball, h0, v0, float(grid[0]), constant_pieces[0][2], settings,
+                                _steps_for_auto(ball, h0, v0, grid, table, settings))
     h, v = np.empty_like(grid), np.empty_like(grid)
     h[0], v[0] = integrator.h, integrator.v
     events: list[Event] = []
@@ -883,6 +943,14 @@ def _integrate_pieces(ball: Ball, h0: float, v0: float, grid: np.ndarray, table:
     return integrator, h, v, events
 
 
+def _steps_for_auto(ball: Ball, h0: float, v0: float, grid: np.ndarray, F_ext: float | ForceTable,
+                    settings: CvodeSettings) -> float | None:
+    """The run's expected steps where engine "auto" has to weigh them (see choose_engine), else None."""
+    if settings.engine != "auto" or (break_even := compiled_break_even()) == 0.0:
+        return None
+    return expected_steps(ball, h0, v0, float(grid[0]), float(grid[-1]), F_ext, at_most=break_even)
+
+
 def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
                    t_start: float = 0.0, F_ext: float | ForceTable = 0.0, rtol: float = DEFAULT_RTOL,
                    atol: float | None = DEFAULT_ATOL, method: str = "auto", max_step: float = 0.0,
@@ -898,14 +966,19 @@ def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     if isinstance(F_ext, ForceTable):
         integrator, h, v, events = _integrate_pieces(ball, h0, v0, grid, F_ext, settings)
     else:
-        integrator = BallIntegrator(ball, h0, v0, t_start, F_ext, settings)
+        integrator = BallIntegrator(ball, h0, v0, t_start, F_ext, settings,
+                                    _steps_for_auto(ball, h0, v0, grid, F_ext, settings))
         try:
             h, v, events = integrator.integrate_grid(grid)
         finally:
             integrator.close()
-    wall_time = time.perf_counter() - started
+    wall_time = time.perf_counter() - started - integrator.setup_time
+    if integrator.engine == "sksundae":
+        global _sksundae_steps
+        _sksundae_steps += integrator.steps
     stats = SolverStats(steps=integrator.steps, rhs_calls=integrator.rhs_calls, events=len(events),
-                        wall_time=wall_time, engine=integrator.engine, engine_reason=integrator.engine_reason)
+                        wall_time=wall_time, engine=integrator.engine, engine_reason=integrator.engine_reason,
+                        engine_setup_time=integrator.setup_time)
     options = {"rtol": settings.rtol, "atol": settings.atol, "method": settings.method,
                "contact_method": integrator.methods[Mode.CONTACT], "max_step": settings.max_step,
                "engine": settings.engine}

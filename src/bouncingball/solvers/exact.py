@@ -38,8 +38,10 @@ class ExactSolution:
     """
 
     def __init__(self, ball: Ball, h0: float, v0: float, t_start: float = 0.0,
-                 t_end: float = math.inf, F_ext: float | ForceTable = 0.0) -> None:
+                 t_end: float = math.inf, F_ext: float | ForceTable = 0.0, max_phases: int | None = None) -> None:
+        """max_phases: stop after that many phases (a count for an estimate, not a solution to t_end)."""
         self.ball = ball
+        self._max_phases = math.inf if max_phases is None else max_phases
         self.F_ext = F_ext
         self.t_start = t_start
         self.t_end = t_end
@@ -65,6 +67,8 @@ class ExactSolution:
                     # contacts too short for the ulps of t: the phases would stop advancing t (it never ended)
                     limits.check_resolvable(ball, t)
                 self.phases.append(Phase(t, mode, h, v, F_ext))
+                if len(self.phases) >= self._max_phases:
+                    return
                 if mode == Mode.FLIGHT:
                     tau, v_next = time_to_impact(h - R, v, ball.effective_gravity(F_ext))
                     kind, next_mode = IMPACT, Mode.CONTACT

@@ -22,7 +22,6 @@ import threading
 from dataclasses import dataclass
 
 import numpy as np
-from sksundae.cvode import CVODE
 
 from ..physics import Ball, Mode, gap_acceleration, load_value, rest_margin_value
 from . import sksundae_events
@@ -93,6 +92,10 @@ class SksundaePhaseSolver:
         event.terminal = [True, False, True]
         event.direction = list(directions)
         self._event = event
+        # Imported here, not with the module: scikit-sundae's import takes ~0.4 s (it loads SciPy), which
+        # the compiled engine, needing only its SUNDIALS library, does not pay.
+        from sksundae.cvode import CVODE
+
         # The scaled state is of order 1: atol = rtol asks for rtol times the phase's scale.
         self._cvode = CVODE(rhs, method=method, rtol=rtol, atol=rtol, max_step=max_step, eventsfn=event,
                             num_events=3, jacfn=jac, max_num_steps=max_num_steps)
