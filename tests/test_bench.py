@@ -144,3 +144,18 @@ def test_fmu_steps_table_has_every_case_and_the_first_uses(markdown):
             assert re.search(rf"^\| {engine} \| {cache} \| \d+\.\d\d \|  \|$", section, re.M), (engine, cache)
     assert re.search(r"^Engine compiled (pays back its longer first use after [\d,]+ doSteps|did not make)", section,
                      re.M)
+
+
+def test_the_engine_choice_rows_measure_both_engines_first_use():
+    """bench/engine_choice.py: fresh processes; the compiled engine hot is the faster, its loading the dearer."""
+    pytest.importorskip("numba")
+    from bouncingball.bench import engine_choice
+
+    measured = engine_choice.measure(repeats=1)
+    compiled, sksundae = measured["compiled"], measured["sksundae"]
+    assert compiled.steps == sksundae.steps > 1000
+    assert compiled.hot < sksundae.hot and compiled.load > 0.05 and sksundae.load > 0.05
+    rows = engine_choice.break_even_rows(measured)
+    assert [row[0] for row in rows][-1] == "break-even once scikit-sundae is loaded [steps]"
+    saving = (sksundae.hot - compiled.hot) / compiled.steps
+    assert float(rows[-1][1]) == pytest.approx(compiled.load / saving, rel=1e-3)

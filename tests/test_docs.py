@@ -37,3 +37,19 @@ def test_public_examples_run(module):
     """The Examples sections of the public API's docstrings are true."""
     failed, attempted = doctest.testmod(importlib.import_module(module), optionflags=doctest.ELLIPSIS)
     assert failed == 0
+
+
+def test_the_readme_quotes_the_engine_choice_constants():
+    """The rule of engine "auto" as the code applies it (solvers/cvode.py), not as once typed."""
+    from bouncingball.solvers import cvode
+
+    text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    fresh = (cvode.COMPILED_FIRST_USE - cvode.SKSUNDAE_FIRST_USE) / cvode.STEP_SAVING
+    loaded = cvode.COMPILED_FIRST_USE / cvode.STEP_SAVING
+    for quote in (f"costs about {cvode.COMPILED_FIRST_USE:.2f} s in a fresh process",
+                  f"scikit-sundae's import {cvode.SKSUNDAE_FIRST_USE:.2f} s",
+                  f"each CVODE step is {cvode.STEP_SAVING * 1e6:g} us cheaper compiled",
+                  f"fewer than about {round(fresh, -2):,.0f} steps",
+                  f"({round(loaded, -3):,.0f} once scikit-sundae is loaded",
+                  f"the estimate is {cvode.STEPS_PER_PHASE} steps per flight or contact"):
+        assert quote in text, quote

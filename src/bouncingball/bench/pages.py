@@ -7,6 +7,7 @@ from pathlib import Path
 
 from ..output import atomic_write
 from ..scenes import Scene
+from . import engine_choice
 from .environment import environment_lines
 from .fmu_steps import EMPTY, ENGINES, FmuStepCosts
 from .stability import EXTRA_SCENES, CostPerEvent, Outcome, stability_solvers
@@ -42,7 +43,8 @@ def _matched_table(points: list[Point], section: str) -> list[str]:
 
 
 def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: CostPerEvent, step_costs: FmuStepCosts,
-                        settings: Settings, quick: bool, environment: dict[str, str], path: Path) -> Path:
+                        settings: Settings, quick: bool, environment: dict[str, str], path: Path,
+                        first_use: dict[str, engine_choice.FirstUse] | None = None) -> Path:
     targets = all_targets(points, stiff, per_event)
     kind = "a QUICK run: few tolerances and repeats, not the published numbers" if quick else "the full run"
     lines = [
@@ -118,6 +120,7 @@ def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: Co
                  ["last tenth", str(per_event.last_events), f"{per_event.last_time:.3f}",
                   f"{per_event.last * 1e6:.1f}"]]),
         "",
+        *(_engine_choice_section(first_use) if first_use else []),
         f"Raw numbers: `work_precision.csv` (every point and repeat), `{H_FILE}` (h on the grid for one "
         "tolerance per solver on the 1 ms grid and every point on the sparse grid).",
         "",
@@ -125,6 +128,21 @@ def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: Co
     with atomic_write(path) as temporary:
         temporary.write_text("\n".join(lines), encoding="utf-8")
     return path
+
+
+def _engine_choice_section(first_use: dict[str, engine_choice.FirstUse]) -> list[str]:
+    compiled = first_use["compiled"]
+    return [
+        "## Choosing the engine",
+        "",
+        f"`engine=\"auto\"` weighs the compiled engine's first use in a process against the CVODE steps of the run "
+        f"(`bouncingball.solvers.cvode.choose_engine`). Measured on the article ({compiled.steps} steps), each "
+        "engine in fresh processes: the first run minus a hot one is the engine's loading; median of "
+        f"{engine_choice.REPEATS} processes per engine, interleaved.",
+        "",
+        *table(["quantity", "measured", "used by choose_engine"], engine_choice.break_even_rows(first_use)),
+        "",
+    ]
 
 
 def _us(seconds: float) -> str:

@@ -7,7 +7,7 @@ import tempfile
 from pathlib import Path
 
 from ..scenes import load_scene
-from . import fmu_steps, runners, stability, work_precision
+from . import engine_choice, fmu_steps, runners, stability, work_precision
 from .environment import environment
 from .pages import write_benchmarks_md, write_stability_md
 from .plots import plot_work_precision
@@ -36,12 +36,13 @@ def run_benchmark(output_dir: Path, quick: bool = False) -> list[Path]:
         step_costs = fmu_steps.measure(fmus, work_precision.DENSE, scene.t_end, settings.repeats)
     stiff = stability.run_cases(stability.stiff_cases(), settings.stiff_cap, desc="stiff scenes")
     per_event = stability.cost_per_event(settings.undamped_t_end)
+    first_use = engine_choice.measure()
     written = [
         write_work_precision_csv(points, output_dir / work_precision.CSV_FILE),
         work_precision.save_h(points, output_dir / work_precision.H_FILE),
         plot_work_precision(points, output_dir / "work_precision.png"),
         write_benchmarks_md(points, stiff, per_event, step_costs, settings, quick, machine,
-                            output_dir / "benchmarks.md"),
+                            output_dir / "benchmarks.md", first_use),
     ]
     return written
 
