@@ -115,10 +115,10 @@ def test_advance_with_states_and_a_changing_force_matches():
 
 def test_a_method_fighting_stiffness_fails_with_the_same_reason(monkeypatch):
     """As test_cvode's: the cap lowered to 50 steps, which Adams needs more of for one k = 1e12 contact."""
-    import bouncingball.solvers.cvode as cvode
+    import bouncingball.solvers.integrator as integrator
 
-    monkeypatch.setattr(cvode, "MAX_STEPS_PER_PHASE", 50)
-    with pytest.raises(cvode.SolverError, match="took more than 50 steps in one contact phase.*use method 'BDF'"):
+    monkeypatch.setattr(integrator, "MAX_STEPS_PER_PHASE", 50)
+    with pytest.raises(integrator.SolverError, match="took more than 50 steps in one contact phase.*use method 'BDF'"):
         bb.simulate(bb.Ball(k=1e12), 2.0, 0.0, 1.0, 1e-3, method="Adams", engine="compiled")
 
 
@@ -433,11 +433,11 @@ def test_a_change_to_physics_reaches_the_compiled_engine_through_numbas_disk_cac
 def test_many_short_runs_load_the_compiled_engine_once_they_would_have_paid_for_it():
     completed = _run_python("""
         import bouncingball as bb
-        from bouncingball.solvers import cvode
+        from bouncingball.solvers import engines as rule
         engines = [bb.simulate(bb.Ball(), 2.0, 0.0, 8.0).stats.engine for _ in range(30)]
         first = engines.index("compiled")
-        break_even = int(cvode.COMPILED_FIRST_USE / cvode.STEP_SAVING)  # scikit-sundae loaded by the first run
-        print(first, engines[first:].count("sksundae"), cvode._sksundae_steps, break_even)
+        break_even = int(rule.COMPILED_FIRST_USE / rule.STEP_SAVING)  # scikit-sundae loaded by the first run
+        print(first, engines[first:].count("sksundae"), rule._sksundae_steps, break_even)
     """)
     assert completed.returncode == 0, completed.stderr
     first, later_sksundae, sksundae_steps, break_even = map(int, completed.stdout.split())

@@ -40,16 +40,16 @@ def test_public_examples_run(module):
 
 
 def test_the_readme_quotes_the_engine_choice_constants():
-    """The rule of engine "auto" as the code applies it (solvers/cvode.py), not as once typed."""
-    from bouncingball.solvers import cvode
+    """The rule of engine "auto" as the code applies it (solvers/engines.py), not as once typed."""
+    from bouncingball.solvers import engines
 
     text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
-    fresh = (cvode.COMPILED_FIRST_USE - cvode.SKSUNDAE_FIRST_USE) / cvode.STEP_SAVING
-    loaded = cvode.COMPILED_FIRST_USE / cvode.STEP_SAVING
-    for quote in (f"costs about {cvode.COMPILED_FIRST_USE:.2f} s in a fresh process",
-                  f"scikit-sundae's import {cvode.SKSUNDAE_FIRST_USE:.2f} s",
-                  f"each CVODE step is {cvode.STEP_SAVING * 1e6:g} us cheaper compiled",
+    fresh = (engines.COMPILED_FIRST_USE - engines.SKSUNDAE_FIRST_USE) / engines.STEP_SAVING
+    loaded = engines.COMPILED_FIRST_USE / engines.STEP_SAVING
+    for quote in (f"costs about {engines.COMPILED_FIRST_USE:.2f} s in a fresh process",
+                  f"scikit-sundae's import {engines.SKSUNDAE_FIRST_USE:.2f} s",
+                  f"each CVODE step is {engines.STEP_SAVING * 1e6:g} us cheaper compiled",
                   f"fewer than about {round(fresh, -2):,.0f} steps",
                   f"({round(loaded, -3):,.0f} once scikit-sundae is loaded",
-                  f"the estimate is {cvode.STEPS_PER_PHASE} steps per flight or contact"):
+                  f"the estimate is {engines.STEPS_PER_PHASE} steps per flight or contact"):
         assert quote in text, quote

@@ -42,10 +42,10 @@ from .result_files import (
     read_result_file,
 )
 from .scenes import BALL_KEYS, Scene, load_scene
-from .solvers.cvode import DEFAULT_RTOL, merged_hop_limit
 from .solvers.exact import ExactSolution
 from .solvers.forcing import ForceTable
 from .solvers.result import IMPACT
+from .solvers.settings import DEFAULT_RTOL, merged_hop_limit
 
 __all__ = ["DEFAULT_TOLERANCE", "BadResultError", "CheckResult", "MergedHops", "check_result", "read_result_csv",
            "scene_with_start_values"]

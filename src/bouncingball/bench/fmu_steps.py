@@ -178,7 +178,7 @@ def _run_child(job: dict) -> dict:
 
 def _engine_unavailable() -> str:
     """Why the compiled engine cannot run in this Python (so not in the FMU it runs either), or ""."""
-    from ..solvers.cvode import choose_engine
+    from ..solvers.engines import choose_engine
 
     try:
         choose_engine("compiled")

@@ -211,7 +211,7 @@ def _matrix_cell(outcome: Outcome) -> str:
 
 def write_stability_md(scenes: list[Scene], outcomes: list[Outcome], cap: float, quick: bool,
                        environment: dict[str, str], path: Path) -> Path:
-    from ..solvers.cvode import DEFAULT_RTOL  # (here: the bench's report imports no solver at load)
+    from ..solvers.settings import DEFAULT_RTOL  # (here: the bench's report imports no solver at load)
 
     labels = [solver.label for solver in stability_solvers(scenes[0])]
     by_scene: dict[str, dict[str, Outcome]] = {}

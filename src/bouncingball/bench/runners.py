@@ -145,7 +145,7 @@ def _run_fmu(solver: Solver, scene: Scene, tolerances: dict, fmus: FmuPaths | No
         if solver.engine:
             start_values["engine"] = solver.engine
         if solver.engine == "compiled":  # where it cannot run here, it cannot in the FMU: say why
-            from ..solvers.cvode import choose_engine
+            from ..solvers.engines import choose_engine
 
             choose_engine("compiled")
     # FMPy passes the DefaultExperiment's tolerance (the default rtol) unless told one, and the FMU's rtol is

@@ -262,7 +262,7 @@ def complete_model_description(xml: bytes) -> bytes:
 
     from .. import __version__
     from ..scenes import load_scene
-    from ..solvers.cvode import CvodeSettings
+    from ..solvers.settings import CvodeSettings
 
     root = ET.fromstring(xml)
     root.set("version", __version__)

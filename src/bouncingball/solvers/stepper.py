@@ -31,6 +31,10 @@ CV_RTFUNC_FAIL = -12
 _POOL_SIZE = 4  # solvers kept per kind: the sweep's worker threads each hold one integrator at a time
 
 
+class SolverError(RuntimeError):
+    """CVODE failed; the message carries its reason."""
+
+
 @dataclass
 class PhaseResult:
     """What a solver returns from step or solve: the step ends, CVode's flag and its message, RHS calls."""

@@ -11,8 +11,8 @@ import sys
 
 from ..accuracy import event_mismatches
 from ..bench import runners
-from ..solvers.cvode import DEFAULT_RTOL, merged_hop_limit
 from ..solvers.exact import ExactSolution
+from ..solvers.settings import DEFAULT_RTOL, merged_hop_limit
 from .capped import MEASURES
 from .grid import Cell, solver_spec, tolerances
 
@@ -83,7 +83,7 @@ def main() -> None:
     answers = os.fdopen(os.dup(1), "w", buffering=1)
     os.dup2(2, 1)
     import bouncingball
-    from bouncingball.solvers.cvode import choose_engine
+    from bouncingball.solvers.engines import choose_engine
 
     # Load the CVODE engines before the first cap starts: this process runs many (engine "auto" then
     # takes the compiled one, where it runs, for every run).

@@ -14,7 +14,7 @@ from .. import validation
 from ..bench import runners
 from ..physics import Ball
 from ..scenes import SCENE_DEFAULTS, Scene
-from ..solvers.cvode import DEFAULT_ATOL, DEFAULT_RTOL, METHODS
+from ..solvers.settings import DEFAULT_ATOL, DEFAULT_RTOL, METHODS
 
 _ARTICLE = Ball()
 DEFAULT_K = (1e2, 1e14, 13)  # N/m: (low, high, points), log-spaced

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..output import atomic_write
-from ..solvers.cvode import DEFAULT_RTOL
+from ..solvers.settings import DEFAULT_RTOL
 from . import store
 from .grid import Grid
 

@@ -1,0 +1,619 @@
+"""BallIntegrator: CVODE advanced phase by phase, with contact and departure found by root-finding.
+
+Each mode has its own CVODE solver (solvers/stepper.py: either engine), right-hand side and
+terminal root function (h - R, with direction -1 in flight and +1 in contact). At each root the
+integrator switches mode and re-initialises CVODE at the event, so no step ever straddles the
+discontinuity. The decisions around CVODE (scales, rests, phases in closed form, the polish of an
+event) are the plain functions of solvers/phases.py.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import limits, validation
+from ..limits import check_resolvable, resolvable_until
+from ..physics import Ball, Mode, gap_acceleration, load_value
+from . import phases, stepper
+from .dense_output import interpolate, step_state
+from .engines import choose_engine
+from .result import DEPARTURE, IMPACT, Event
+from .settings import CvodeSettings, choose_method, hop_tolerance
+from .stepper import SolverError
+
+_CV_ROOT_RETURN = 2
+# The value the root function h - R takes at h == R: the mode's own side (see _own_side).
+_OWN_SIDE = 1e-300
+_STEP_HORIZON = 1.0  # s; see advance()
+_MAX_STEPS_PER_CALL = 1_000_000
+# A phase that needs more steps than this is a method fighting stiffness (Adams creeping through
+# an over-damped contact on a k = 1e12 spring): fail with a reason instead of running for hours.
+MAX_STEPS_PER_PHASE = 500_000
+
+
+@dataclass(frozen=True)
+class RestartPoint:
+    """Where CVODE last restarted (an event, a change of F_ext, the start): the state and counters there.
+
+    From it, CVODE's steps depend on nothing else (not on the times it was advanced to), so
+    integrating again from it to a later time gives that time's state bit for bit.
+    """
+
+    t: float
+    gap: float  # h - R [m]
+    v: float
+    mode: Mode
+    impacts: int = 0
+    departures: int = 0
+    last_impact_time: float | None = None
+    rhs_calls: int = 0
+    steps: int = 0
+
+
+@dataclass(frozen=True)
+class IntegratorState:
+    """Everything needed to resume an integration exactly: the state at t and the restart point it came from.
+
+    restart: the RestartPoint at which the current phase's CVODE run began (a dict of its fields is
+    taken too, as a deserialized state holds); None restarts CVODE at t, within the tolerance of the
+    original run instead of bit for bit.
+    """
+
+    t: float
+    h: float
+    v: float
+    mode: Mode
+    F_ext: float
+    impacts: int = 0
+    departures: int = 0
+    last_impact_time: float | None = None
+    t_start: float = 0.0
+    rhs_calls: int = 0
+    steps: int = 0
+    gap: float | None = None  # h - R [m] to every digit (h rounds a deflection to ulp(R)); None: h - R
+    restart: RestartPoint | None = None
+
+    def __post_init__(self) -> None:
+        """Take the restart point from a dict of its fields (a deserialized state); TypeError names a bad one."""
+        if isinstance(self.restart, dict):
+            object.__setattr__(self, "restart", RestartPoint(**self.restart))
+
+
+class BallIntegrator:
+    """A ball integrated by CVODE that can be advanced piece by piece (the FMU's integrator).
+
+    Parameters
+    ----------
+    ball : Ball
+        The ball.
+    h0, v0 : float
+        Height [m] and velocity [m/s] at t0.
+    t0 : float, optional
+        Start time [s].
+    F_ext : float, optional
+        External force [N], positive upwards; change it between advances with the F_ext property.
+    settings : CvodeSettings, optional
+        Tolerances, method, maximum step and engine; the defaults if not given.
+    expected_steps : float, optional
+        The CVODE steps the caller expects to ask for (see expected_steps), for engine "auto"
+        (see choose_engine); None: unknown.
+
+    Raises
+    ------
+    ValueError
+        A value outside its range (naming it), or contacts too short to resolve in double
+        precision at t0 (see check_resolvable).
+
+    Examples
+    --------
+    >>> from bouncingball import Ball
+    >>> from bouncingball.solvers.cvode import BallIntegrator
+    >>> integrator = BallIntegrator(Ball(), h0=2.0, v0=0.0)
+    >>> [str(event.kind) for event in integrator.advance(1.0)]
+    ['impact', 'departure']
+    >>> state = integrator.get_state()  # roll back later with set_state(state)
+
+    Notes
+    -----
+    Each mode has its own CVODE object with three root functions: h - R, terminal, in the mode's
+    direction (impact downwards, departure upwards); v, non-terminal, which makes CVODE end a step
+    at every extremum of h so that no step can hold both crossings of a hop (h leaving R and coming
+    back within one step shows no sign change of h - R); and in contact the rest margin
+    (physics.Ball.rest_margin), terminal, which turns positive once the contact can never again
+    lift the ball more than hop_tolerance above R: the rest that follows is taken on the contact's
+    exact flow. Hops and contacts too small for CVODE to tell from its own error are also taken on
+    the mode's exact flow. At an impact or departure the event time CVODE located (to ~100 ulps of
+    t) is polished on the mode's flow to a few ulps, h is set to R, and CVODE restarts in the other
+    mode.
+
+    Change F_ext between advances; a state restored by set_state(get_state()) continues bit for bit.
+    """
+
+    def __init__(self, ball: Ball, h0: float, v0: float, t0: float = 0.0, F_ext: float = 0.0,
+                 settings: CvodeSettings | None = None, expected_steps: float | None = None) -> None:
+        self.ball = ball
+        self.settings = settings or CvodeSettings()
+        if self.settings.method == "auto":
+            # The parabola of flight is never stiff, and Adams integrates it exactly in a few steps.
+            self.methods = {Mode.FLIGHT: "Adams", Mode.CONTACT: choose_method(ball)}
+        else:
+            self.methods = dict.fromkeys(Mode, self.settings.method)
+        h0 = validation.finite("h0", h0, "m")
+        v0 = validation.finite("v0", v0, "m/s")
+        t0 = validation.finite("t0", t0, "s")
+        F_ext = validation.finite("F_ext", F_ext, "N")
+        limits.check_scene(ball, h0, v0, F_ext, t0)
+        self.resolvable_until = resolvable_until(ball)
+        check_resolvable(ball, t0)
+        self._cvode_called = False
+        started = time.perf_counter()
+        self.engine, self.engine_reason = choose_engine(self.settings.engine, expected_steps)
+        # The phase's frame: CVODE's time is t - origin, its state (x / length, v / speed); see _start_frame.
+        self._frames = {mode: [0.0, 1.0, 1.0, 0.0] for mode in Mode}  # origin, length, speed, hop tolerance
+        s = self.settings
+        self._solvers = {mode: stepper.acquire(self.engine, ball, mode, self.methods[mode], s.rtol, s.max_step,
+                                               _MAX_STEPS_PER_CALL, self._own_side(mode),
+                                               self._root_directions(mode), MAX_STEPS_PER_PHASE)
+                         for mode in Mode}
+        self.setup_time = time.perf_counter() - started  # s: the engine's loading and CVODE objects
+        self.set_state(IntegratorState(t=t0, h=h0, v=v0, mode=ball.initial_mode(h0, v0, F_ext), F_ext=F_ext,
+                                       t_start=t0))
+
+    # --- CVODE set-up ---------------------------------------------------------------------
+    # x = h - R is exactly 0 where a phase starts (at each event). CVODE takes a root function that
+    # is 0 at the start as inactive until it turns non-zero, and then misses the crossing (the ball
+    # fell through the floor); one that turns 0 later is a root (an "impact" on the way up). So
+    # x == 0 counts as the mode's own side: the crossing is where the ball truly leaves it.
+    @staticmethod
+    def _own_side(mode: Mode) -> float:
+        return _OWN_SIDE if mode == Mode.FLIGHT else -_OWN_SIDE
+
+    @staticmethod
+    def _root_directions(mode: Mode) -> list[int]:
+        """h - R: an impact downwards, a departure upwards; v: every extremum; the rest margin: turning positive."""
+        return [-1 if mode == Mode.FLIGHT else 1, 0, 1]
+
+    def _too_many_steps(self, mode: Mode, t: float) -> SolverError:
+        return SolverError(
+            f"CVODE ({self.methods[mode]}) took more than {MAX_STEPS_PER_PHASE} steps in one "
+            f"{mode.name.lower()} phase, at t = {t!r} s: the problem is stiff for this method; "
+            "use method 'BDF' (or 'auto')")
+
+    @property
+    def hop_tolerance(self) -> float:
+        """The highest hop [m] merged into the contact around it at the current F_ext; see hop_tolerance()."""
+        return hop_tolerance(self.ball, self.settings.rtol, self.settings.atol, self._F_ext)
+
+    def _start_frame(self) -> tuple[float, float, float]:
+        """Fix the current phase's frame at the current state; (origin [s], length [m], speed [m/s]).
+
+        Scales from phase_scales, capped so that rtol length <= atol where atol is given.
+        """
+        s, mode = self.settings, self._mode
+        length, speed = phases.phase_scales(self.ball, mode, self._x, self._v, self._F_ext)
+        if s.atol is not None and s.rtol * length > s.atol:
+            speed *= s.atol / (s.rtol * length)
+            length = s.atol / s.rtol
+        hop = self.hop_tolerance
+        self._frames[mode][:] = self._t, length, speed, hop
+        self._solvers[mode].set_frame(length, speed, hop)
+        return self._t, length, speed
+
+    # --- read-only view --------------------------------------------------------------------
+    @property
+    def t(self) -> float:
+        """Current time [s]."""
+        return self._t
+
+    @property
+    def h(self) -> float:
+        """Height of the centre [m] at t."""
+        return self.ball.R + self._x
+
+    @property
+    def v(self) -> float:
+        """Velocity [m/s] at t, positive upwards."""
+        return self._v
+
+    @property
+    def mode(self) -> Mode:
+        """The mode held at t: flight or contact."""
+        return self._mode
+
+    @property
+    def impacts(self) -> int:
+        """Impacts so far."""
+        return self._impacts
+
+    @property
+    def departures(self) -> int:
+        """Departures so far."""
+        return self._departures
+
+    @property
+    def rhs_calls(self) -> int:
+        """Right-hand-side evaluations so far."""
+        return self._rhs_calls + self._nfev_since_init
+
+    @property
+    def steps(self) -> int:
+        """CVODE's internal steps so far."""
+        return self._steps
+
+    @property
+    def F_ext(self) -> float:
+        """External force [N], positive upwards, held constant until changed; setting it restarts CVODE."""
+        return self._F_ext
+
+    @F_ext.setter
+    def F_ext(self, value: float) -> None:
+        value = validation.finite("F_ext", value, "N")
+        if value != self._F_ext:
+            self._F_ext = value
+            self._sync_F_ext()
+            self._reinit_needed()
+
+    @property
+    def acceleration(self) -> float:
+        """dv/dt [m/s2] at t in the current mode."""
+        ball = self.ball
+        return gap_acceleration(self._x, self._v, self._mode, self._load, ball.m, ball.k, ball.b)
+
+    @property
+    def contact_force(self) -> float:
+        """Force of the ground on the ball [N] at t, positive upwards; zero in flight."""
+        return 0.0 if self._mode == Mode.FLIGHT else -self.ball.k * self._x - self.ball.b * self._v
+
+    @property
+    def rest_time(self) -> float | None:
+        """Start of the current contact if it can never again lift the ball above R + hop_tolerance, else None.
+
+        F_ext is taken as held constant from now on.
+        """
+        if self._at_rest():
+            return self._last_impact_time if self._last_impact_time is not None else self._t_start
+        return None
+
+    # --- state ---------------------------------------------------------------------------------
+    def get_state(self) -> IntegratorState:
+        """A snapshot to resume from; taking it does not disturb the integration.
+
+        It holds the point where CVODE last restarted (see RestartPoint): set_state integrates again
+        from there, so a restored snapshot continues bit for bit as the run it was taken from, in
+        this integrator or a fresh one with the same ball and settings.
+        """
+        return IntegratorState(t=self._t, h=self.h, v=self._v, mode=self._mode, F_ext=self._F_ext,
+                               impacts=self._impacts, departures=self._departures,
+                               last_impact_time=self._last_impact_time, t_start=self._t_start,
+                               rhs_calls=self.rhs_calls, steps=self._steps, gap=self._x, restart=self._restart)
+
+    def set_state(self, state: IntegratorState) -> None:
+        """Resume from state (one of get_state()); ValueError names a bad field, and then nothing changed.
+
+        With a restart point, CVODE restarts there and integrates to state.t again (at most the
+        current phase), then the state is exactly the one taken.
+        """
+        t, x, v, mode, F_ext = self._checked_point("state", state.t, state.gap, state.h, state.v, state.mode,
+                                                   state.F_ext)
+        t_start = validation.finite("state t_start", state.t_start, "s")
+        counts = self._checked_counts("state", state)
+        restart = state.restart
+        if restart is not None:
+            if not isinstance(restart, RestartPoint):
+                raise ValueError(f"state restart = {restart!r} is not allowed: it must be a RestartPoint or None")
+            start = self._checked_point("state restart", restart.t, restart.gap, None, restart.v, restart.mode)
+            restart_counts = self._checked_counts("state restart", restart)
+            if not (start[0] <= t and start[3] == mode):
+                raise ValueError(f"state restart at t = {start[0]!r} s in {start[3].name.lower()} is not allowed "
+                                 f"for a state at t = {t!r} s in {mode.name.lower()}: it must be of the same mode, "
+                                 "no later")
+        check_resolvable(self.ball, t)
+        previous = self.get_state() if hasattr(self, "_restart") else None
+        if restart is None:
+            self._restart_at((t, x, v, mode), F_ext, counts, t_start)
+            return
+        self._restart_at(start[:4], F_ext, restart_counts, t_start)
+        try:
+            self._advance(t)
+        except (SolverError, ValueError):
+            if previous is not None:
+                self.set_state(previous)
+            raise
+        finally:
+            self._report_sundials_warnings()
+        # The state as taken (the same numbers, unless it was a Taylor step within ulps of an earlier
+        # target), and the counters as they were: CVODE's step history is the original's.
+        self._t, self._x, self._v = t, x, v
+        self._impacts, self._departures, self._last_impact_time, rhs_calls, self._steps = counts
+        self._rhs_calls = rhs_calls - self._nfev_since_init
+
+    def _checked_point(self, name: str, t, gap, h, v, mode, F_ext=0.0) -> tuple[float, float, float, Mode, float]:
+        """(t, x, v, mode, F_ext) of a saved state, each field checked; ValueError names the bad one."""
+        t = validation.finite(f"{name} t", t, "s")
+        v = validation.finite(f"{name} v", v, "m/s")
+        F_ext = validation.finite(f"{name} F_ext", F_ext, "N")
+        try:
+            mode = Mode(mode)
+        except ValueError:
+            raise ValueError(f"{name} mode = {mode!r} is not allowed: it must be one of "
+                             f"{', '.join(f'{m.value} ({m.name})' for m in Mode)}") from None
+        if h is None:
+            return t, validation.finite(f"{name} gap", gap, "m"), v, mode, F_ext
+        h = validation.finite(f"{name} h", h, "m")
+        x = h - self.ball.R
+        if gap is not None:
+            x = validation.finite(f"{name} gap", gap, "m")
+            if not abs((self.ball.R + x) - h) <= 2.0 * math.ulp(max(abs(h), self.ball.R)):
+                raise ValueError(f"{name} gap = {x!r} m is not allowed with h = {h!r} m: R + gap must be h "
+                                 f"(R = {self.ball.R!r} m)")
+        return t, x, v, mode, F_ext
+
+    @staticmethod
+    def _checked_counts(name: str, saved) -> tuple[int, int, float | None, int, int]:
+        """(impacts, departures, last_impact_time, rhs_calls, steps) of a saved state, checked."""
+        counts = [saved.impacts, saved.departures, saved.rhs_calls, saved.steps]
+        if not all(isinstance(n, numbers.Integral) and not isinstance(n, bool) and n >= 0 for n in counts):
+            raise ValueError(f"{name} counts (impacts, departures, rhs_calls, steps) = {counts} are not allowed: "
+                             "they must be integers >= 0")
+        last_impact = None if saved.last_impact_time is None else validation.finite(
+            f"{name} last_impact_time", saved.last_impact_time, "s")
+        return int(saved.impacts), int(saved.departures), last_impact, int(saved.rhs_calls), int(saved.steps)
+
+    def _restart_at(self, point, F_ext: float, counts, t_start: float) -> None:
+        """Set the state (t, x, v, mode), F_ext and the counters; CVODE restarts there."""
+        (self._t, self._x, self._v, self._mode), self._F_ext, self._t_start = point, F_ext, t_start
+        self._impacts, self._departures, self._last_impact_time, self._rhs_calls, self._steps = counts
+        self._nfev_since_init = 0
+        self._sync_F_ext()
+        self._reinit_needed()
+
+    def _sync_F_ext(self) -> None:
+        """The load m g - F_ext for the right-hand side; the compiled callbacks read both from their parameters."""
+        self._load = load_value(self._F_ext, self.ball.m, self.ball.g)
+        for solver in self._solvers.values():
+            solver.F_ext = self._F_ext
+
+    def close(self) -> None:
+        """Give the CVODE objects back to the process's pool for the next integrator; unusable after.
+
+        simulate does it; an integrator never closed frees its CVODE objects when collected.
+        """
+        solvers, self._solvers = self._solvers, None
+        for solver in (solvers or {}).values():
+            stepper.release(solver)
+
+    def _reinit_needed(self) -> None:
+        """CVODE restarts at the current state: it becomes the restart point (see get_state)."""
+        self._rhs_calls += self._nfev_since_init
+        self._nfev_since_init = 0
+        self._needs_init = True
+        self._segment = None
+        self._event_pending = None
+        self._rest_from = None
+        self._restart = RestartPoint(self._t, self._x, self._v, self._mode, self._impacts, self._departures,
+                                     self._last_impact_time, self._rhs_calls, self._steps)
+
+    def _init_phase(self):
+        """Restart CVODE at the current state in the current mode."""
+        solver = self._solvers[self._mode]
+        _, length, speed = self._start_frame()
+        with solver.log.capturing():
+            solver.init_step(0.0, np.array([self._x / length, self._v / speed]))
+        self._cvode_called = True
+        self._needs_init = False
+        self._step_start = (self._t, self._x, self._v)
+        return solver
+
+    # --- integration -------------------------------------------------------------------------
+    def advance(self, t_target: float) -> list[Event]:
+        """Integrate to t_target [s], resolving every impact and departure on the way.
+
+        CVODE takes one internal step at a time, and its steps do not depend on the sequence of
+        targets; a target inside the last step is read off the step's dense output, so a short
+        advance usually costs no CVODE call at all.
+        """
+        try:
+            return self._advance(float(t_target))
+        finally:
+            self._report_sundials_warnings()
+
+    def _advance(self, t_target: float) -> list[Event]:
+        if not t_target >= self._t:
+            raise ValueError(f"t_target = {t_target!r} s is not allowed: it must be >= the current time {self._t!r} s")
+        if t_target > self.resolvable_until:
+            check_resolvable(self.ball, t_target)
+        events: list[Event] = []
+        while self._t < t_target:
+            segment = self._segment
+            if segment is not None:
+                mode, start, end = segment
+                if t_target <= end[0]:
+                    x, v = step_state(self.ball, self._F_ext, mode, start, end, t_target)
+                    self._t, self._x, self._v = t_target, float(x), float(v)
+                    break
+                if self._event_pending is not None:
+                    self._t, self._x, self._v = self._event_pending
+                    events.append(self._switch_mode())
+                    continue
+            if self._rest_from is None and self._needs_init and self._at_rest():
+                self._rest_from = (self._t, self._x, self._v)
+            if self._rest_from is not None:
+                x, v = phases.rest_state(self.ball, self._rest_from, t_target, self._F_ext)
+                self._t, self._x, self._v = t_target, x, v
+                break
+            if self._close_enough(t_target):
+                break
+            if self._needs_init and (event := self._event_in_closed_form()) is not None:
+                self._segment = (self._mode, (self._t, self._x, self._v), event)
+                self._event_pending = event
+                continue
+            solver = self._init_phase() if self._needs_init else self._solvers[self._mode]
+            # The far target only orients CVODE and bounds its first step: the same for every
+            # way of cutting the interval.
+            origin, length, speed, _ = self._frames[self._mode]
+            tau_before = self._step_start[0] - origin
+            result = solver.step(tau_before + _STEP_HORIZON, method="onestep")
+            self._cvode_called = True
+            self._check(result)
+            self._nfev_since_init = result.nfev
+            tau, x, v = float(result.t), length * float(result.y[0]), speed * float(result.y[1])
+            end = (origin + tau, x, v)
+            if result.status == _CV_ROOT_RETURN:
+                roots = solver.roots_found()
+                if roots[0]:
+                    tau, v = self._polish_event(tau_before, (tau, x, v))
+                    end = self._event_pending = (origin + tau, 0.0, v)
+                elif roots[2]:
+                    self._rest_from = end
+            else:
+                self._steps += 1
+            if self._event_pending is None:
+                self._check_side(end[0], x)
+            self._segment = (self._mode, self._step_start, end)
+            self._step_start = end
+        return events
+
+    def integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
+        """Integrate through the increasing output times grid (grid[0] = current time).
+
+        CVODE returns each internal step, phase by phase; the grid values come from the same
+        dense output as in advance(), evaluated for all grid points in one pass at the end,
+        which costs far less per output point than asking CVODE for each one.
+        """
+        try:
+            return self._integrate_grid(np.asarray(grid, dtype=float))
+        finally:
+            self._report_sundials_warnings()
+
+    def _integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
+        t_end = grid[-1]
+        check_resolvable(self.ball, t_end)
+        times, gaps, velocities, modes = [], [], [], []
+        events: list[Event] = []
+
+        def record(ts, xs, vs, mode: Mode) -> None:
+            """Keep a piece of trajectory in one mode (gaps x = h - R), and move to its last point."""
+            times.append(ts)
+            gaps.append(xs)
+            velocities.append(vs)
+            modes.append(np.full(len(ts), int(mode)))
+            self._t, self._x, self._v = float(ts[-1]), float(xs[-1]), float(vs[-1])
+
+        def record_to(end: tuple[float, float, float], mode: Mode) -> None:
+            """A piece from here to end = (t, x, v) on the mode's exact flow."""
+            record(np.array([self._t, end[0]]), np.array([self._x, end[1]]), np.array([self._v, end[2]]), mode)
+
+        record(np.array([self._t]), np.array([self._x]), np.array([self._v]), self._mode)
+        self._reinit_needed()
+        resting = False  # set when CVODE stops at the start of a rest
+        while self._t < t_end and not self._close_enough(t_end):
+            mode = self._mode
+            if resting or self._at_rest():
+                self._rest_from = (self._t, self._x, self._v)
+                record_to((t_end, *phases.rest_state(self.ball, self._rest_from, t_end, self._F_ext)), mode)
+                break
+            event = self._event_in_closed_form()
+            if event is not None:
+                reached = event[0] <= t_end
+                if not reached:
+                    x_end, v_end = self.ball.gap_flow(mode, self._x, self._v, t_end - self._t, self._F_ext)
+                    event = (t_end, float(x_end), float(v_end))
+                record_to(event, mode)
+                if reached:
+                    events.append(self._switch_mode())
+                continue
+            solver = self._solvers[mode]
+            origin, length, speed = self._start_frame()
+            with solver.log.capturing():
+                result = solver.solve(np.array([0.0, t_end - origin]), np.array([self._x / length, self._v / speed]))
+            self._cvode_called = True
+            self._check(result)
+            taus, xs, vs = result.t.copy(), length * result.y[:, 0], speed * result.y[:, 1]
+            xs[0], vs[0] = self._x, self._v  # the phase's start as it was, not scaled and back
+            roots = solver.roots_found() if result.status == _CV_ROOT_RETURN else [0, 0, 0]
+            root, resting = bool(roots[0]), bool(roots[2])
+            if root:
+                tau_before = float(taus[-2])
+                taus[-1], vs[-1] = self._polish_event(tau_before, (float(taus[-1]), float(xs[-1]), float(vs[-1])))
+                xs[-1] = 0.0
+                self._check_step_ends(origin + tau_before, xs[:-1])
+            else:
+                self._check_step_ends(origin + float(taus[-1]), xs)
+            ts = origin + taus
+            if not (root or resting):  # CVODE stopped at t_end - origin, which may round off t_end
+                ts[-1] = t_end
+            # A phase's first point is the previous phase's last: one copy per mode, so that no
+            # dense-output segment straddles the switch.
+            record(ts, xs, vs, mode)
+            self._steps += len(ts) - 1
+            self._rhs_calls += int(result.nfev)
+            if root:
+                events.append(self._switch_mode())
+        if self._t > times[-1][-1]:  # finished by a Taylor step within a few ulps of t_end
+            record(np.array([self._t]), np.array([self._x]), np.array([self._v]), self._mode)
+        x_out, v_out = interpolate(self.ball, self._F_ext, np.concatenate(times), np.concatenate(gaps),
+                                   np.concatenate(velocities), np.concatenate(modes), grid)
+        return self.ball.R + x_out, v_out, events
+
+    def _at_rest(self) -> bool:
+        return phases.at_rest(self.ball, self._mode, self._x, self._v, self._F_ext, self.hop_tolerance,
+                              self.settings.rtol)
+
+    def _event_in_closed_form(self) -> tuple[float, float, float] | None:
+        return phases.event_in_closed_form(self.ball, self._mode, self._t, self._x, self._v, self._F_ext,
+                                           self.hop_tolerance, self.settings.rtol)
+
+    def _polish_event(self, tau_before: float, root: tuple[float, float, float]) -> tuple[float, float]:
+        return phases.polish_event(self.ball, self._mode, self._F_ext, self._frames[self._mode][1], tau_before, root)
+
+    def _report_sundials_warnings(self) -> None:
+        if self._cvode_called:
+            self._cvode_called = False
+            for solver in self._solvers.values():
+                solver.log.report(stacklevel=4)
+
+    def _check_side(self, t: float, x: float) -> None:
+        """A step end (gap x [m] at t) must lie on the mode's side of R: else CVODE stepped over an event unseen."""
+        flight = self._mode == Mode.FLIGHT
+        margin = phases.side_margin(self.hop_tolerance, self.settings.rtol, self._frames[self._mode][1])
+        if (x < -margin) if flight else (x > margin):
+            R = self.ball.R
+            raise SolverError(f"CVODE stepped over an {'impact' if flight else 'departure'} unseen near "
+                              f"t = {t!r} s (h = {R + x!r} m, R = {R!r} m); "
+                              "the result would be wrong: tighten rtol/atol or set max_step")
+
+    def _check_step_ends(self, t: float, gaps: np.ndarray) -> None:
+        """_check_side for a phase's step ends up to t: only the extreme on the side an unseen event would leave."""
+        self._check_side(t, float(gaps.min() if self._mode == Mode.FLIGHT else gaps.max()))
+
+    def _close_enough(self, t_target: float) -> bool:
+        """Within a few ulps of t_target CVODE refuses to step (CV_TOO_CLOSE): finish by Taylor."""
+        dt = t_target - self._t
+        if dt > 32.0 * math.ulp(max(abs(t_target), abs(self._t), 1e-300)):
+            return False
+        a = self.acceleration
+        self._t, self._x, self._v = t_target, self._x + dt * (self._v + 0.5 * dt * a), self._v + dt * a
+        return True
+
+    def _check(self, result) -> None:
+        if result.status < 0 and self._solvers[self._mode].exceeded:
+            raise self._too_many_steps(self._mode, float(np.atleast_1d(result.t)[-1]))
+        if result.status < 0:
+            t = float(np.atleast_1d(result.t)[-1])
+            raise SolverError(f"CVODE failed at t = {t!r} s ({self._mode.name.lower()}, "
+                              f"h = {self.h!r} m, v = {self._v!r} m/s): {result.message}")
+
+    def _switch_mode(self) -> Event:
+        if self._mode == Mode.FLIGHT:
+            self._mode, self._impacts, self._last_impact_time = Mode.CONTACT, self._impacts + 1, self._t
+            event = Event(self._t, IMPACT, self._v)
+        else:
+            self._mode, self._departures = Mode.FLIGHT, self._departures + 1
+            event = Event(self._t, DEPARTURE, self._v)
+        self._reinit_needed()
+        return event

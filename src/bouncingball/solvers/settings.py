@@ -1,0 +1,99 @@
+"""CVODE's settings and the rules that follow from its tolerance (the hops it may merge).
+
+Kept apart from the integrator, so that reports, the sweep's grid and the check of a master's
+result can read them without loading an engine.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .. import validation
+from ..physics import Ball
+
+METHODS = ("auto", "Adams", "BDF")
+ENGINES = ("auto", "compiled", "sksundae")
+# Each contact's departure speed comes out ~20 rtol off (CVODE's local errors over its ~50 steps),
+# and a ball that keeps its energy keeps those errors: event times drift with the square of the
+# number of bounces. Measured with the state scaled to each phase: at 1e-11 an R = 1 um ball of
+# 912 events ends 2e-5 of its height scale off; at 1e-12 5e-8, in 8% fewer steps (Adams' order
+# rises); the article 1e-10 m.
+DEFAULT_RTOL = 1e-12
+# No absolute bound by default: CVODE integrates the gap x = h - R scaled to each phase (see
+# phase_scales), so rtol is relative to the phase's own size whatever R, the drop height or the
+# stiffness. An atol, where given, only tightens that rule.
+DEFAULT_ATOL = None
+# The contact oscillator is stiff for Adams when it is strongly over-damped (fast and slow rates
+# far apart). A high natural frequency alone is not: a bounce must be resolved for accuracy
+# anyway, where Adams beats BDF (an undamped k = 1e8 N/m ball over 39 contacts: 1.1e-9 m in 1707
+# steps against 5.7e-8 m in 3842), and a rest, where BDF's large steps paid off, is taken in
+# closed form.
+STIFF_DAMPING_RATIO = 2.0
+# A hop whose apex is within this many rtol of the static deflection above R cannot be told from the
+# contact's own error (CVODE controls the contact relative to its amplitude, ~ the deflection near rest).
+HOP_RESOLUTION = 10.0
+MERGED_HOP_MARGIN = 10.0
+
+
+def choose_method(ball: Ball) -> str:
+    """The rule behind method="auto": BDF for a stiff contact, Adams otherwise.
+
+    Stiff means damping ratio >= 2 (over-damped, the fast and slow rates differ by >= 14x).
+    Flight is never stiff.
+    """
+    return "BDF" if ball.damping_ratio >= STIFF_DAMPING_RATIO else "Adams"
+
+
+@dataclass(frozen=True)
+class CvodeSettings:
+    """rtol [-], atol [m] (None: no absolute bound), method ("auto", "Adams", "BDF"), max_step [s] (0: none), engine.
+
+    rtol is relative to each phase's own scale (see phase_scales); atol, where given, is an upper
+    bound on the absolute error of h and never loosens that rule.
+
+    engine: "sksundae" (scikit-sundae's CVODE with Python callbacks), "compiled" (the same CVODE
+    library driven by compiled callbacks and a compiled stepping loop, needs numba) or "auto"
+    (compiled where it can run); see choose_engine.
+    """
+
+    rtol: float = DEFAULT_RTOL
+    atol: float | None = DEFAULT_ATOL
+    method: str = "auto"
+    max_step: float = 0.0
+    engine: str = "auto"
+
+    def __post_init__(self) -> None:
+        """Check every setting before the settings exist."""
+        object.__setattr__(self, "rtol", validation.in_range("rtol", self.rtol, 0.0, 1.0))
+        if self.atol is not None:
+            object.__setattr__(self, "atol", validation.positive("atol", self.atol, "m"))
+        object.__setattr__(self, "method", validation.choice("method", self.method, METHODS))
+        object.__setattr__(self, "max_step", validation.non_negative("max_step", self.max_step, "s"))
+        object.__setattr__(self, "engine", validation.choice("engine", self.engine, ENGINES))
+
+
+def hop_tolerance(ball: Ball, rtol: float = DEFAULT_RTOL, atol: float | None = DEFAULT_ATOL,
+                  F_ext: float = 0.0) -> float:
+    """The highest hop [m] above R that CVODE may merge into the contact around it: the tolerance's one hop rule.
+
+    Near rest CVODE controls a contact to rtol times its amplitude, which is then about the static
+    deflection d, so a hop rising less than HOP_RESOLUTION rtol d above R cannot be told from that
+    error: a contact that cannot lift the ball higher is taken as a rest, and a flight lower than
+    that is taken in closed form. An undamped contact never comes to rest (its energy is kept), and
+    neither does a lifted one (d <= 0): there the rule is 0, every hop is integrated.
+    """
+    d = ball.static_deflection(F_ext)
+    if ball.b == 0.0 or not d > 0.0:
+        return 0.0
+    tolerance = HOP_RESOLUTION * rtol * d
+    return tolerance if atol is None else min(tolerance, HOP_RESOLUTION * atol)
+
+
+def merged_hop_limit(ball: Ball, rtol: float = DEFAULT_RTOL, atol: float | None = DEFAULT_ATOL,
+                     F_ext: float = 0.0) -> float:
+    """The highest hop [m] a CVODE result may lack or add against the exact solution: MERGED_HOP_MARGIN hop_tolerance.
+
+    CVODE decides a rest on its own state, which is off by its tolerance, so a hop a little above
+    hop_tolerance may be merged too. The one rule every comparison with the exact solution uses.
+    """
+    return MERGED_HOP_MARGIN * hop_tolerance(ball, rtol, atol, F_ext)
