@@ -9,9 +9,10 @@ from pathlib import Path
 
 from . import limits, validation
 from .physics import Ball
+from .solvers.result import DEFAULT_OUTPUT_INTERVAL
 
 BALL_KEYS = ("m", "k", "b", "R", "g")
-SCENE_DEFAULTS = {"h0": 2.0, "v0": 0.0, "t_end": 8.0, "output_interval": 1e-3, "F_ext": 0.0}
+SCENE_DEFAULTS = {"h0": 2.0, "v0": 0.0, "t_end": 8.0, "output_interval": DEFAULT_OUTPUT_INTERVAL, "F_ext": 0.0}
 ALLOWED_KEYS = ("description", *BALL_KEYS, *SCENE_DEFAULTS)
 REST = "rest"
 

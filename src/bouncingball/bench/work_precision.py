@@ -17,10 +17,11 @@ import numpy as np
 from ..accuracy import Accuracy
 from ..output import atomic_write
 from ..scenes import Scene
+from ..solvers.result import DEFAULT_OUTPUT_INTERVAL
 from . import runners
 from .runners import ARTICLE, EXACT, EXACT_EVALUATION, FmuPaths, Run, Solver
 
-DENSE = 1e-3  # the article's 1 ms output grid [s]
+DENSE = DEFAULT_OUTPUT_INTERVAL  # the article's 1 ms output grid [s]
 SPARSE = 0.1  # a sparse grid, where output overhead does not dominate [s]
 ATOL_PER_RTOL = 1e-3  # atol = 1e-3 * rtol
 SAVED_RTOL = 1e-6  # on the dense grid, h is saved for the tolerance nearest this one (all points on the sparse grid)

@@ -8,12 +8,11 @@ from .. import limits, validation
 from ..physics import Ball
 from . import forcing
 from .forcing import ForceTable
-from .result import Event, SimulationResult, SolverStats
+from .result import DEFAULT_OUTPUT_INTERVAL, Event, SimulationResult, SolverStats
 
 SOLVERS = ("cvode", "exact", "scipy")
 # The "scipy" solver at its defaults is the reference article's algorithm: its name in every table.
 ARTICLE_LABEL = "article (RK45, max_step 0.01)"
-DEFAULT_OUTPUT_INTERVAL = 1e-3
 _COMMON_PARAMETERS = ("ball", "h0", "v0", "t_end", "output_interval", "t_start", "F_ext")
 
 

@@ -17,7 +17,7 @@ from ..physics import Ball, Mode
 from . import engines, forcing
 from .engines import choose_engine, expected_steps
 from .forcing import ForceTable
-from .integrator import BallIntegrator, IntegratorState, RestartPoint
+from .integrator import BallIntegrator
 from .phases import phase_scales
 from .result import Event, SimulationResult, SolverStats, output_grid
 from .settings import (
@@ -30,6 +30,7 @@ from .settings import (
     hop_tolerance,
     merged_hop_limit,
 )
+from .state import IntegratorState, RestartPoint
 from .stepper import SolverError
 
 __all__ = ["DEFAULT_ATOL", "DEFAULT_RTOL", "ENGINES", "METHODS", "BallIntegrator", "CvodeSettings",

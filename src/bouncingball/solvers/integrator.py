@@ -10,9 +10,7 @@ event) are the plain functions of solvers/phases.py.
 from __future__ import annotations
 
 import math
-import numbers
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -20,10 +18,12 @@ from .. import limits, validation
 from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode, gap_acceleration, load_value
 from . import phases, stepper
+from . import state as state_checks
 from .dense_output import interpolate, step_state
 from .engines import choose_engine
 from .result import DEPARTURE, IMPACT, Event
 from .settings import CvodeSettings, choose_method, hop_tolerance
+from .state import IntegratorState, RestartPoint
 from .stepper import SolverError
 
 _CV_ROOT_RETURN = 2
@@ -34,54 +34,6 @@ _MAX_STEPS_PER_CALL = 1_000_000
 # A phase that needs more steps than this is a method fighting stiffness (Adams creeping through
 # an over-damped contact on a k = 1e12 spring): fail with a reason instead of running for hours.
 MAX_STEPS_PER_PHASE = 500_000
-
-
-@dataclass(frozen=True)
-class RestartPoint:
-    """Where CVODE last restarted (an event, a change of F_ext, the start): the state and counters there.
-
-    From it, CVODE's steps depend on nothing else (not on the times it was advanced to), so
-    integrating again from it to a later time gives that time's state bit for bit.
-    """
-
-    t: float
-    gap: float  # h - R [m]
-    v: float
-    mode: Mode
-    impacts: int = 0
-    departures: int = 0
-    last_impact_time: float | None = None
-    rhs_calls: int = 0
-    steps: int = 0
-
-
-@dataclass(frozen=True)
-class IntegratorState:
-    """Everything needed to resume an integration exactly: the state at t and the restart point it came from.
-
-    restart: the RestartPoint at which the current phase's CVODE run began (a dict of its fields is
-    taken too, as a deserialized state holds); None restarts CVODE at t, within the tolerance of the
-    original run instead of bit for bit.
-    """
-
-    t: float
-    h: float
-    v: float
-    mode: Mode
-    F_ext: float
-    impacts: int = 0
-    departures: int = 0
-    last_impact_time: float | None = None
-    t_start: float = 0.0
-    rhs_calls: int = 0
-    steps: int = 0
-    gap: float | None = None  # h - R [m] to every digit (h rounds a deflection to ulp(R)); None: h - R
-    restart: RestartPoint | None = None
-
-    def __post_init__(self) -> None:
-        """Take the restart point from a dict of its fields (a deserialized state); TypeError names a bad one."""
-        if isinstance(self.restart, dict):
-            object.__setattr__(self, "restart", RestartPoint(**self.restart))
 
 
 class BallIntegrator:
@@ -298,26 +250,15 @@ class BallIntegrator:
         With a restart point, CVODE restarts there and integrates to state.t again (at most the
         current phase), then the state is exactly the one taken.
         """
-        t, x, v, mode, F_ext = self._checked_point("state", state.t, state.gap, state.h, state.v, state.mode,
-                                                   state.F_ext)
-        t_start = validation.finite("state t_start", state.t_start, "s")
-        counts = self._checked_counts("state", state)
-        restart = state.restart
-        if restart is not None:
-            if not isinstance(restart, RestartPoint):
-                raise ValueError(f"state restart = {restart!r} is not allowed: it must be a RestartPoint or None")
-            start = self._checked_point("state restart", restart.t, restart.gap, None, restart.v, restart.mode)
-            restart_counts = self._checked_counts("state restart", restart)
-            if not (start[0] <= t and start[3] == mode):
-                raise ValueError(f"state restart at t = {start[0]!r} s in {start[3].name.lower()} is not allowed "
-                                 f"for a state at t = {t!r} s in {mode.name.lower()}: it must be of the same mode, "
-                                 "no later")
+        checked = state_checks.checked(self.ball, state)
+        t, x, v, mode, F_ext = checked.point
+        counts, t_start = checked.counts, checked.t_start
         check_resolvable(self.ball, t)
         previous = self.get_state() if hasattr(self, "_restart") else None
-        if restart is None:
+        if checked.restart_point is None:
             self._restart_at((t, x, v, mode), F_ext, counts, t_start)
             return
-        self._restart_at(start[:4], F_ext, restart_counts, t_start)
+        self._restart_at(checked.restart_point, F_ext, checked.restart_counts, t_start)
         try:
             self._advance(t)
         except (SolverError, ValueError):
@@ -331,38 +272,6 @@ class BallIntegrator:
         self._t, self._x, self._v = t, x, v
         self._impacts, self._departures, self._last_impact_time, rhs_calls, self._steps = counts
         self._rhs_calls = rhs_calls - self._nfev_since_init
-
-    def _checked_point(self, name: str, t, gap, h, v, mode, F_ext=0.0) -> tuple[float, float, float, Mode, float]:
-        """(t, x, v, mode, F_ext) of a saved state, each field checked; ValueError names the bad one."""
-        t = validation.finite(f"{name} t", t, "s")
-        v = validation.finite(f"{name} v", v, "m/s")
-        F_ext = validation.finite(f"{name} F_ext", F_ext, "N")
-        try:
-            mode = Mode(mode)
-        except ValueError:
-            raise ValueError(f"{name} mode = {mode!r} is not allowed: it must be one of "
-                             f"{', '.join(f'{m.value} ({m.name})' for m in Mode)}") from None
-        if h is None:
-            return t, validation.finite(f"{name} gap", gap, "m"), v, mode, F_ext
-        h = validation.finite(f"{name} h", h, "m")
-        x = h - self.ball.R
-        if gap is not None:
-            x = validation.finite(f"{name} gap", gap, "m")
-            if not abs((self.ball.R + x) - h) <= 2.0 * math.ulp(max(abs(h), self.ball.R)):
-                raise ValueError(f"{name} gap = {x!r} m is not allowed with h = {h!r} m: R + gap must be h "
-                                 f"(R = {self.ball.R!r} m)")
-        return t, x, v, mode, F_ext
-
-    @staticmethod
-    def _checked_counts(name: str, saved) -> tuple[int, int, float | None, int, int]:
-        """(impacts, departures, last_impact_time, rhs_calls, steps) of a saved state, checked."""
-        counts = [saved.impacts, saved.departures, saved.rhs_calls, saved.steps]
-        if not all(isinstance(n, numbers.Integral) and not isinstance(n, bool) and n >= 0 for n in counts):
-            raise ValueError(f"{name} counts (impacts, departures, rhs_calls, steps) = {counts} are not allowed: "
-                             "they must be integers >= 0")
-        last_impact = None if saved.last_impact_time is None else validation.finite(
-            f"{name} last_impact_time", saved.last_impact_time, "s")
-        return int(saved.impacts), int(saved.departures), last_impact, int(saved.rhs_calls), int(saved.steps)
 
     def _restart_at(self, point, F_ext: float, counts, t_start: float) -> None:
         """Set the state (t, x, v, mode), F_ext and the counters; CVODE restarts there."""

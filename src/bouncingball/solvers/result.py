@@ -120,6 +120,7 @@ class SimulationResult:
         return self.ball.energy(self.h, self.v, F_ext)
 
 
+DEFAULT_OUTPUT_INTERVAL = 1e-3  # s: the article's output grid, every default grid's (simulate, scenes, bench)
 MAX_OUTPUT_POINTS = 50_000_000  # 1.2 GB of t, h and v: more would exhaust a workstation's memory
 
 
