@@ -13,6 +13,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "c_floor_sundials.h"
 
@@ -103,7 +104,8 @@ static void basis(double sigma, double w2, double tau, double *c, double *s) { /
     *s = decay * sin(omega * tau) / omega;
 }
 
-static double unit_response(double sigma, double w2, double tau) {
+/* c, s: basis(sigma, w2, tau), which the closed form reuses. */
+static double unit_response(double sigma, double w2, double tau, double c, double s) {
     if ((sigma + sqrt(w2)) * fabs(tau) <= SERIES_REACH) {
         double before = 0.5 * tau * tau, term = -sigma * tau * tau * tau / 3.0, total = before + term;
         for (int n = 2; n < SERIES_TERMS; n++) {
@@ -115,8 +117,6 @@ static double unit_response(double sigma, double w2, double tau) {
         }
         return total;
     }
-    double c, s;
-    basis(sigma, w2, tau, &c, &s);
     return (1.0 - c - sigma * s) / w2;
 }
 
@@ -130,7 +130,7 @@ static void gap_flow(const struct run *r, int mode, double x0, double v0, double
     }
     double sigma = c->b / (2.0 * c->m), w2 = c->k / c->m, cc, s, p;
     basis(sigma, w2, tau, &cc, &s);
-    p = unit_response(sigma, w2, tau);
+    p = unit_response(sigma, w2, tau, cc, s);
     *x = x0 * cc + (v0 + sigma * x0) * s - r->g_eff * p;
     *v = v0 * cc - (sigma * v0 + w2 * x0) * s - r->g_eff * s;
 }
@@ -378,26 +378,36 @@ static int integrate_phase(struct run *r, double t_end, int *resting, double *ev
 /* x and v on the grid from the step ends (dense_output.interpolate): each mode's flow plus the end's mismatch. */
 static void fill(const struct run *r, const double *grid, long n_grid, double *h, double *v) {
     const struct points *p = &r->p;
-    long i = 0;
+    long i = 0, a = -1;
+    double dt = 0.0, x_end = 0.0, v_end = 0.0;
     for (long g = 0; g < n_grid; g++) {
-        double t = grid[g];
+        double t = grid[g], x, vv;
         while (i + 1 < p->n && p->t[i + 1] <= t) i++;
-        long a = i < p->n - 2 ? i : p->n - 2;
-        int mode = p->mode[a];
-        double dt = p->t[a + 1] - p->t[a], tau = t - p->t[a], x_end, v_end, x, vv;
-        gap_flow(r, mode, p->x[a], p->v[a], dt, &x_end, &v_end);
-        double s = dt > 0.0 ? tau / dt : 0.0;
-        gap_flow(r, mode, p->x[a], p->v[a], tau, &x, &vv);
+        if ((i < p->n - 2 ? i : p->n - 2) != a) { /* a new step: its flow to the end, once */
+            a = i < p->n - 2 ? i : p->n - 2;
+            dt = p->t[a + 1] - p->t[a];
+            gap_flow(r, p->mode[a], p->x[a], p->v[a], dt, &x_end, &v_end);
+        }
+        double tau = t - p->t[a], s = dt > 0.0 ? tau / dt : 0.0;
+        gap_flow(r, p->mode[a], p->x[a], p->v[a], tau, &x, &vv);
         h[g] = r->c->R + (x + s * (p->x[a + 1] - x_end));
         v[g] = vv + s * (p->v[a + 1] - v_end);
     }
 }
 
+static double now(void) {
+    struct timespec time;
+    clock_gettime(CLOCK_MONOTONIC, &time);
+    return (double)time.tv_sec + 1e-9 * (double)time.tv_nsec;
+}
+
 /* The run: grid[0] is the start, grid[n_grid - 1] the end. Returns 0, or < 0 with message set.
- * counts receives the steps, right-hand-side calls and events; events (t, 0 impact or 1 departure, v). */
+ * counts receives the steps, right-hand-side calls and events; events (t, 0 impact or 1 departure, v);
+ * seconds the wall time spent in here. */
 int c_floor_run(const struct sundials *S, const struct floor_settings *c, const double *grid, long n_grid,
-                double *h, double *v, double *events, long max_events, long *counts, char *message,
-                long message_size) {
+                double *h, double *v, double *events, long max_events, long *counts, double *seconds,
+                char *message, long message_size) {
+    double started = now();
     struct run r;
     memset(&r, 0, sizeof r);
     r.c = c, r.S = S, r.message = message, r.message_size = message_size;
@@ -439,5 +449,6 @@ int c_floor_run(const struct sundials *S, const struct floor_settings *c, const 
     counts[0] = r.steps, counts[1] = r.rhs_calls, counts[2] = n_events;
     for (int mode = FLIGHT; mode <= CONTACT; mode++) free_solver(S, &r.solvers[mode]);
     free(r.p.t), free(r.p.x), free(r.p.v), free(r.p.mode);
+    *seconds = now() - started;
     return status;
 }

@@ -121,7 +121,7 @@ def _load():
         entry.restype = ctypes.c_int
         entry.argtypes = [ctypes.c_void_p, ctypes.POINTER(_Settings), ctypes.c_void_p, ctypes.c_long,
                           ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long, ctypes.c_void_p,
-                          ctypes.c_char_p, ctypes.c_long]
+                          ctypes.POINTER(ctypes.c_double), ctypes.c_char_p, ctypes.c_long]
         _LOADED = (entry, table)
     return _LOADED
 
@@ -137,7 +137,8 @@ def unavailable_reason() -> str | None:
 
 @dataclass
 class FloorResult:
-    """The C floor's run: the grid t [s], h [m], v [m/s], the events, CVODE's steps and right-hand-side calls."""
+    """The C floor's run: the grid t [s], h [m], v [m/s], the events, CVODE's steps and right-hand-side calls, and
+    the wall time spent in C [s] (the call from Python, making the grid and arrays, aside)."""
 
     t: np.ndarray
     h: np.ndarray
@@ -145,6 +146,7 @@ class FloorResult:
     events: list
     steps: int
     rhs_calls: int
+    seconds_in_c: float
 
 
 def settings(ball, h0: float, v0: float, t0: float, F_ext: float, rtol: float, atol: float | None,
@@ -184,15 +186,15 @@ def run(ball, h0: float, v0: float, t_end: float, output_interval: float, F_ext:
     h, v = np.empty_like(grid), np.empty_like(grid)
     events = np.empty((10_000, 3))
     counts = np.zeros(3, dtype=np.int64)  # C longs
-    message = ctypes.create_string_buffer(512)
+    message, seconds = ctypes.create_string_buffer(512), ctypes.c_double()
     c = settings(ball, float(h0), float(v0), 0.0, float(F_ext), settings_.rtol, settings_.atol, settings_.method)
     status = entry(ctypes.byref(table), ctypes.byref(c), grid.ctypes.data, len(grid), h.ctypes.data, v.ctypes.data,
-                   events.ctypes.data, len(events), counts.ctypes.data, message, len(message))
+                   events.ctypes.data, len(events), counts.ctypes.data, ctypes.byref(seconds), message, len(message))
     if status != 0:
         raise RuntimeError(f"the C floor failed ({status}): {message.value.decode()}")
     found = [Event(float(t), IMPACT if kind == 0.0 else DEPARTURE, float(speed))
              for t, kind, speed in events[:counts[2]]]
-    return FloorResult(grid, h, v, found, int(counts[0]), int(counts[1]))
+    return FloorResult(grid, h, v, found, int(counts[0]), int(counts[1]), seconds.value)
 
 
 if __name__ == "__main__":  # the generated header, for reading

@@ -36,6 +36,7 @@ class Timed:
     rhs_calls: int | None = None
     runs: int = 1  # runs it took to find rtol (the bisection), the timed ones aside
     times: list[float] = field(default_factory=list)
+    times_in_c: list[float] = field(default_factory=list)  # the C floor: the part of each call spent in C
 
     @property
     def atol(self) -> float | None:
@@ -73,10 +74,11 @@ class FloorStudy:
 
     @property
     def ratio(self) -> tuple[float, float]:
-        """The compiled engine's time over the floor's: (from min times, from medians)."""
-        if self.compiled is None or self.floor is None:
+        """The compiled engine's time over the floor's time in C: (from min times, from medians)."""
+        if self.compiled is None or self.floor is None or not self.floor.times_in_c:
             return math.nan, math.nan
-        return self.compiled.minimum / self.floor.minimum, self.compiled.median / self.floor.median
+        return (self.compiled.minimum / min(self.floor.times_in_c),
+                self.compiled.median / statistics.median(self.floor.times_in_c))
 
 
 def _run(case: Timed, scene: Scene, record: bool = True):
@@ -92,7 +94,10 @@ def _interleave(cases: list[Timed], scene: Scene, repeats: int, bar) -> None:
         _run(case, scene, record=False)
     for _ in range(repeats):
         for case in cases:
-            case.times.append(_run(case, scene, record=False).wall_time)
+            run = _run(case, scene, record=False)
+            case.times.append(run.wall_time)
+            if run.wall_time_in_c is not None:
+                case.times_in_c.append(run.wall_time_in_c)
         bar.update()
 
 

@@ -79,6 +79,7 @@ class Run:
     rhs_calls: int | None
     steps: int
     wall_time: float
+    wall_time_in_c: float | None = None  # the C floor: the part of wall_time spent in C
 
 
 @dataclass(frozen=True)
@@ -143,7 +144,7 @@ def _run_floor(solver: Solver, scene: Scene, output_interval: float, rtol: float
                          solver.method)
     wall_time = time.perf_counter() - started
     return Run(result.t, result.h, result.v, result.events, sum(e.kind == IMPACT for e in result.events),
-               result.rhs_calls, result.steps, wall_time)
+               result.rhs_calls, result.steps, wall_time, result.seconds_in_c)
 
 
 def _run_fmu(solver: Solver, scene: Scene, tolerances: dict, fmus: FmuPaths | None, record: bool) -> Run:
