@@ -18,37 +18,29 @@ from dataclasses import dataclass, field
 
 from ..scenes import Scene
 from . import runners
-from .work_precision import ATOL_PER_RTOL, DENSE, Settings
+from .work_precision import DENSE, Point, Settings
 
 CSV_FILE = "floor.csv"
 MATCHED_SOLVERS = (runners.CVODE_COMPILED, runners.scipy("DOP853"))
 
 
-@dataclass
-class Timed:
-    """One case: a solver at an rtol (None: its defaults), its max height error, work and timed calls [s]."""
+@dataclass(eq=False)
+class Timed(Point):
+    """A point on the 1 ms grid with its run's events, the runs it took to find its rtol (the bisection), and for the
+    C floor the part of each timed call spent in C [s]."""
 
-    solver: runners.Solver
-    rtol: float | None
-    error: float = math.nan
     events: list | None = None
-    steps: int = 0
-    rhs_calls: int | None = None
-    runs: int = 1  # runs it took to find rtol (the bisection), the timed ones aside
-    times: list[float] = field(default_factory=list)
-    times_in_c: list[float] = field(default_factory=list)  # the C floor: the part of each call spent in C
+    runs: int = 1
+    times_in_c: list[float] = field(default_factory=list)
 
     @property
-    def atol(self) -> float | None:
-        return None if self.rtol is None else ATOL_PER_RTOL * self.rtol
+    def error(self) -> float:
+        """The max height error [m] against the exact solution; nan before the run."""
+        return self.errors.max_height_error if self.errors else math.nan
 
-    @property
-    def median(self) -> float:
-        return statistics.median(self.times) if self.times else math.nan
 
-    @property
-    def minimum(self) -> float:
-        return min(self.times) if self.times else math.nan
+def _case(solver: runners.Solver, rtol: float | None) -> Timed:
+    return Timed("dense", solver, rtol, DENSE)
 
 
 @dataclass
@@ -84,7 +76,7 @@ class FloorStudy:
 def _run(case: Timed, scene: Scene, record: bool = True):
     run = runners.run_solver(case.solver, scene, DENSE, case.rtol, case.atol)
     if record:
-        case.error = runners.errors_against_exact(scene, run).max_height_error
+        case.status, case.errors = "ok", runners.errors_against_exact(scene, run)
         case.events, case.steps, case.rhs_calls = run.events, run.steps, run.rhs_calls
     return run
 
@@ -106,13 +98,15 @@ def match(solver: runners.Solver, scene: Scene, target: float, loosest: float, t
     """The loosest rtol in [tightest, loosest] whose run's max height error is <= target, by bisection in log10 rtol.
 
     None if even tightest does not reach it; loosest if already it does. Each rtol is run, not interpolated.
+    Where the error does not grow with rtol (DOP853's jumps with its event times), the rtol found reaches the
+    target and a looser one within the last bisection step does not; a looser one further away may.
     """
     runs = 0
 
     def at(log_rtol: float) -> Timed:
         nonlocal runs
         runs += 1
-        case = Timed(solver, 10.0**log_rtol)
+        case = _case(solver, 10.0**log_rtol)
         _run(case, scene)
         return case
 
@@ -159,7 +153,7 @@ def measure(scene: Scene, settings: Settings, errors: tuple[float, ...]) -> Floo
             runners.run_solver(runners.CVODE_COMPILED, scene, DENSE)
         except ImportError as error:
             reason = f"the compiled engine cannot run here: {error}"
-    floors = [Timed(runners.CVODE_COMPILED, None), Timed(runners.C_FLOOR, None)] if reason is None else []
+    floors = [_case(runners.CVODE_COMPILED, None), _case(runners.C_FLOOR, None)] if reason is None else []
     for case in floors:
         _run(case, scene)
     with tqdm(total=settings.matched_repeats + settings.floor_repeats, desc="C floor, matched DOP853",
