@@ -14,7 +14,7 @@ from bouncingball.bench import c_floor, pages, runners
 from bouncingball.bench.stability import Case, run_case
 from bouncingball.bench.work_precision import CSV_FILE, H_FILE, QUICK, solvers
 from bouncingball.cli import main
-from bouncingball.scenes import load_scene
+from bouncingball.scenes import BUILTIN_SCENES, load_scene
 from bouncingball.solvers.exact import ExactSolution
 from bouncingball.solvers.forcing import ForceTable
 from bouncingball.solvers.result import IMPACT, output_grid
@@ -180,6 +180,25 @@ def test_the_c_floor_does_the_compiled_engines_work(rtol, method):
     assert [e.kind for e in floor.events] == [e.kind for e in exact.events]
     if rtol is None:
         assert np.max(np.abs(floor.h - exact.state(floor.t)[0])) < 1e-9
+
+
+@pytest.mark.parametrize("name", BUILTIN_SCENES)
+def test_on_every_builtin_scene_the_c_floor_does_the_same_work_or_refuses(name):
+    """Never a different answer: the compiled engine's events and steps, or a refusal naming the path it lacks."""
+    _floor_or_skip()
+    scene = load_scene(name)
+    if isinstance(scene.F_ext, ForceTable):
+        pytest.skip("a force table: the C floor takes a constant force")
+    t_end = min(scene.t_end, 20.0)
+    ours = scene.simulate("cvode", engine="compiled", t_end=t_end)
+    try:
+        floor = c_floor.run(scene.ball, scene.h0, scene.v0, t_end, min(scene.output_interval, t_end), scene.F_ext)
+    except RuntimeError as error:
+        assert "not the article's path" in str(error)
+        return
+    assert floor.events == ours.events
+    assert (floor.steps, floor.rhs_calls) == (ours.stats.steps, ours.stats.rhs_calls)
+    np.testing.assert_allclose(floor.h, ours.h, rtol=0.0, atol=1e-15 * max(1.0, scene.h0))
 
 
 def test_the_c_floor_refuses_what_it_does_not_implement(monkeypatch):
