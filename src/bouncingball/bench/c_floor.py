@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..output import atomic_write
+
 SOURCE = Path(__file__).with_name("c_floor.c")
 HEADER = "c_floor_sundials.h"
 # Only these flags keep C's arithmetic Python's: no fused multiply-adds, no sin and cos merged into sincos.
@@ -71,24 +73,27 @@ def header() -> str:
 
 
 def build() -> Path:
-    """Compile c_floor.c (once per source, header and compiler) into a shared library in the temporary directory."""
+    """Compile c_floor.c (once per source, header and compiler) into a shared library in the user's cache folder.
+
+    Not a shared temporary folder, where another user could have put a library of that name first.
+    """
     command, text, source = compiler(), header(), SOURCE.read_text(encoding="utf-8")
     key = hashlib.sha256("\0".join([*command, *FLAGS, text, source]).encode()).hexdigest()[:16]
-    folder = Path(tempfile.gettempdir()) / f"bouncingball-c-floor-{key}"
+    folder = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "bouncingball" / f"c-floor-{key}"
     library = folder / "c_floor.so"
     if library.is_file():
         return library
-    folder.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(dir=folder))
-    (work / HEADER).write_text(text, encoding="utf-8")
-    shutil.copy(SOURCE, work / SOURCE.name)
-    built = work / library.name
-    completed = subprocess.run([*command, *FLAGS, "-o", str(built), str(work / SOURCE.name), "-lm"],
-                               capture_output=True, text=True, cwd=work)
-    if completed.returncode != 0:
-        raise FloorUnavailable(f"the C compiler failed on {SOURCE.name}: {completed.stderr.strip()[:2000]}")
-    os.replace(built, library)  # atomic: a concurrent build finds a whole library or none
-    shutil.rmtree(work, ignore_errors=True)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise FloorUnavailable(f"cannot make the C floor's cache folder {folder}: {error}") from error
+    with tempfile.TemporaryDirectory(dir=folder) as work, atomic_write(library) as built:
+        (Path(work) / HEADER).write_text(text, encoding="utf-8")
+        shutil.copy(SOURCE, Path(work) / SOURCE.name)
+        completed = subprocess.run([*command, *FLAGS, "-o", str(built), SOURCE.name, "-lm"], capture_output=True,
+                                   text=True, cwd=work)
+        if completed.returncode != 0:
+            raise FloorUnavailable(f"the C compiler failed on {SOURCE.name}: {completed.stderr.strip()[:2000]}")
     return library
 
 
