@@ -9,12 +9,14 @@ import sys
 import numpy as np
 import pytest
 
-from bouncingball.bench import pages, runners
+from bouncingball import Ball
+from bouncingball.bench import c_floor, pages, runners
 from bouncingball.bench.stability import Case, run_case
 from bouncingball.bench.work_precision import CSV_FILE, H_FILE, QUICK, solvers
 from bouncingball.cli import main
-from bouncingball.scenes import load_scene
+from bouncingball.scenes import BUILTIN_SCENES, load_scene
 from bouncingball.solvers.exact import ExactSolution
+from bouncingball.solvers.forcing import ForceTable
 from bouncingball.solvers.result import IMPACT, output_grid
 
 ARTICLE = load_scene("article")
@@ -43,7 +45,7 @@ def expected_labels(section):
 
 
 def test_writes_every_file(quick):
-    for name in ("benchmarks.md", CSV_FILE, H_FILE, "work_precision.png"):
+    for name in ("benchmarks.md", CSV_FILE, H_FILE, "work_precision.png", "floor.csv"):
         assert (quick / name).stat().st_size > 0, name
     assert (quick / "work_precision.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -59,6 +61,8 @@ def test_every_solver_in_every_section_of_the_csv(rows):
 
 @pytest.mark.parametrize("label", expected_labels("dense"))
 def test_every_solver_ran_and_was_timed(rows, label):
+    if label == runners.C_FLOOR.label and c_floor.unavailable_reason():
+        pytest.skip(c_floor.unavailable_reason())
     ok = [row for row in rows if row["solver"] == label and row["status"] == "ok"]
     assert ok, f"{label}: no run finished"
     for row in ok:
@@ -104,7 +108,7 @@ def test_cvode_is_accurate_where_it_claims(rows):
 def test_markdown_states_machine_versions_and_every_target(markdown):
     for word in ("cores", "Python 3", "numpy", "scikit-sundae", "scipy", "FMPy", "pythonfmu", "date:"):
         assert word in markdown, word
-    for tag, count in (("a", 2), ("b", 1), ("c", 1), ("d", 1), ("e", 1), ("f", 2), ("g", 1)):
+    for tag, count in (("a", 2), ("b", 1), ("c", 1), ("d", 1), ("e", 1), ("f", 2), ("g", 1), ("h", 1), ("i", 2)):
         lines = re.findall(rf"^- \*\*\({tag}\)\*\* .*: \*\*(?:met|not met)\*\*\. \S.*$", markdown, re.M)
         assert len(lines) == count, tag
 
@@ -159,3 +163,85 @@ def test_the_engine_choice_rows_measure_both_engines_first_use():
     assert [row[0] for row in rows][-1] == "break-even once scikit-sundae is loaded [steps]"
     saving = (sksundae.hot - compiled.hot) / compiled.steps
     assert float(rows[-1][1]) == pytest.approx(compiled.load / saving, rel=1e-3)
+
+
+# --- the C floor: the compiled engine's CVODE work in C ----------------------------------------------
+def _floor_or_skip():
+    reason = c_floor.unavailable_reason()
+    if reason:
+        pytest.skip(reason)
+
+
+@pytest.mark.parametrize(("rtol", "method"), [(None, "auto"), (10.0**-9, "BDF"), (10.0**-6, "auto")])
+def test_the_c_floor_does_the_compiled_engines_work(rtol, method):
+    """The compiled engine's events to the bit, its steps and RHS calls; on the grid, its heights and the exact ones.
+
+    rtol 1e-9 with BDF: with the C library's hypot, 1 ulp off Python's, a contact's scale moved and an event
+    speed came out 1e-14 m/s off.
+    """
+    _floor_or_skip()
+    atol = None if rtol is None else 1e-3 * rtol
+    tolerances = {} if rtol is None else {"rtol": rtol, "atol": atol}
+    ours = ARTICLE.simulate("cvode", engine="compiled", method=method, **tolerances)
+    floor = c_floor.run(ARTICLE.ball, ARTICLE.h0, ARTICLE.v0, ARTICLE.t_end, ARTICLE.output_interval, ARTICLE.F_ext,
+                        rtol, atol, method)
+    assert floor.events == ours.events  # times, kinds and speeds, bit for bit
+    assert (floor.steps, floor.rhs_calls) == (ours.stats.steps, ours.stats.rhs_calls)
+    np.testing.assert_array_equal(floor.t, ours.t)
+    # the same step ends; numpy's vectorised exp, sin and cos may round the flows differently from C's (7e-18 m)
+    np.testing.assert_allclose(floor.h, ours.h, rtol=0.0, atol=1e-15)
+    np.testing.assert_allclose(floor.v, ours.v, rtol=0.0, atol=1e-13)
+    exact = ExactSolution(ARTICLE.ball, ARTICLE.h0, ARTICLE.v0, 0.0, ARTICLE.t_end)
+    assert [e.kind for e in floor.events] == [e.kind for e in exact.events]
+    if rtol is None:
+        assert np.max(np.abs(floor.h - exact.state(floor.t)[0])) < 1e-9
+
+
+@pytest.mark.parametrize("name", BUILTIN_SCENES)
+def test_on_every_builtin_scene_the_c_floor_does_the_same_work_or_refuses(name):
+    """Never a different answer: the compiled engine's events and steps, or a refusal naming the path it lacks."""
+    _floor_or_skip()
+    scene = load_scene(name)
+    if isinstance(scene.F_ext, ForceTable):
+        pytest.skip("a force table: the C floor takes a constant force")
+    t_end = min(scene.t_end, 20.0)
+    ours = scene.simulate("cvode", engine="compiled", t_end=t_end)
+    try:
+        floor = c_floor.run(scene.ball, scene.h0, scene.v0, t_end, min(scene.output_interval, t_end), scene.F_ext)
+    except RuntimeError as error:
+        assert "not the article's path" in str(error)
+        return
+    assert floor.events == ours.events
+    assert (floor.steps, floor.rhs_calls) == (ours.stats.steps, ours.stats.rhs_calls)
+    np.testing.assert_allclose(floor.h, ours.h, rtol=0.0, atol=1e-15 * max(1.0, scene.h0))
+
+
+def test_the_c_floor_refuses_what_it_does_not_implement(monkeypatch):
+    _floor_or_skip()
+    with pytest.raises(RuntimeError, match="not the article's path"):  # an over-damped contact's rest
+        c_floor.run(Ball(b=1e3), 2.0, 0.0, 8.0, 1e-3)
+    with pytest.raises(ValueError, match="constant force"):
+        c_floor.run(Ball(), 2.0, 0.0, 1.0, 1e-3, F_ext=ForceTable((0.0, 0.5), (0.0, 1.0)))
+    monkeypatch.setenv("CC", "no-such-compiler-here")
+    with pytest.raises(c_floor.FloorUnavailable, match="no C compiler"):
+        c_floor.compiler()
+
+
+def test_the_c_floors_callback_types_are_the_ones_scikit_sundae_declares():
+    """The prototypes come from compiled.FUNCTIONS (checked in test_compiled); the callbacks are declared here."""
+    from test_compiled import _c_type, _pxd_declarations
+
+    declarations, typedefs = _pxd_declarations()
+    for name, (restype, argtypes) in c_floor.CALLBACKS.items():
+        declared_restype, declared_args = declarations[name]
+        assert ([_c_type(t, typedefs) for t in (restype, *argtypes)]
+                == [_c_type(t, typedefs) for t in (declared_restype, *declared_args)]), name
+    assert typedefs["sunindextype"] == c_floor._BASIC["sunindextype"]
+
+
+def test_the_floor_section_says_the_work_was_the_same(markdown):
+    if c_floor.unavailable_reason():
+        pytest.skip(c_floor.unavailable_reason())
+    section = markdown.split("## The C floor, and DOP853 at matched errors")[1].split("## FMU overhead")[0]
+    assert "Event times bit-identical: yes; steps and RHS calls equal: yes." in section
+    assert "no `gc.collect()` before a timed call; min and median" in section

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
+import statistics
 from pathlib import Path
 
 from ..output import atomic_write
 from ..scenes import Scene
 from . import engine_choice
 from .environment import environment_lines
+from .floor import FloorStudy
 from .fmu_steps import EMPTY, ENGINES, FmuStepCosts
 from .stability import EXTRA_SCENES, CostPerEvent, Outcome, stability_solvers
 from .targets import MATCHED_ERRORS, all_targets, fmu_step_costs, per_step
@@ -44,8 +46,9 @@ def _matched_table(points: list[Point], section: str) -> list[str]:
 
 def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: CostPerEvent, step_costs: FmuStepCosts,
                         settings: Settings, quick: bool, environment: dict[str, str], path: Path,
-                        first_use: dict[str, engine_choice.FirstUse] | None = None) -> Path:
-    targets = all_targets(points, stiff, per_event)
+                        floor: FloorStudy | None = None, first_use: dict[str, engine_choice.FirstUse] | None = None
+                        ) -> Path:
+    targets = all_targets(points, stiff, per_event, floor)
     kind = "a QUICK run: few tolerances and repeats, not the published numbers" if quick else "the full run"
     lines = [
         "# Benchmarks",
@@ -90,6 +93,7 @@ def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: Co
         "",
         *table(POINT_HEADER, [point_row(p) for p in points if p.section == "sparse"]),
         "",
+        *([] if floor is None else [*_floor_section(floor, settings), ""]),
         "## FMU overhead per doStep",
         "",
         "Median wall time of a whole `simulate_fmu` run divided by its number of doStep calls; the empty "
@@ -136,13 +140,51 @@ def _engine_choice_section(first_use: dict[str, engine_choice.FirstUse]) -> list
         "## Choosing the engine",
         "",
         f"`engine=\"auto\"` weighs the compiled engine's first use in a process against the CVODE steps of the run "
-        f"(`bouncingball.solvers.cvode.choose_engine`). Measured on the article ({compiled.steps} steps), each "
+        f"(`bouncingball.solvers.engines.choose_engine`). Measured on the article ({compiled.steps} steps), each "
         "engine in fresh processes: the first run minus a hot one is the engine's loading; median of "
         f"{engine_choice.REPEATS} processes per engine, interleaved.",
         "",
         *table(["quantity", "measured", "used by choose_engine"], engine_choice.break_even_rows(first_use)),
         "",
     ]
+
+
+def _floor_section(study: FloorStudy, settings: Settings) -> list[str]:
+    lines = [
+        "## The C floor, and DOP853 at matched errors",
+        "",
+        "The C floor (`bench/c_floor.c`, built with the system C compiler at bench time) does the compiled engine's "
+        "CVODE work on the article: the same SUNDIALS library (scikit-sundae's wheel), CVODE settings, scaled gap "
+        "state, root functions, re-init at each event, event polish and rest on the exact flow, and the grid filled "
+        "from the step ends, with no Python between phases. Timing protocol: interleaved hot calls, each case run "
+        "once untimed, then the calls round-robin over the cases; no `gc.collect()` before a timed call; min and "
+        f"median. Against the C floor: the article at the defaults, {study.repeats} calls each. At a matched "
+        "error: each solver at the loosest rtol (atol = "
+        f"{ATOL_PER_RTOL:g} rtol) whose max height error reaches the target, found by a bisection on log10 rtol over "
+        f"the swept range ({settings.bisection_steps} steps) with every rtol run, {settings.matched_repeats} calls "
+        "each.",
+        "",
+    ]
+    if study.note:
+        lines += [f"C floor not measured: {study.note}.", ""]
+    else:
+        lines += table(["solver", "events", "steps", "RHS calls", "max abs h error [m]", "min [ms]", "median [ms]"],
+                       [[case.solver.label, str(len(case.events or [])), str(case.steps), str(case.rhs_calls),
+                         num(case.error), ms(case.minimum), ms(case.median)] for case in (study.compiled, study.floor)])
+        by_min, by_median = study.ratio
+        in_c = study.floor.times_in_c
+        lines += ["", f"Event times bit-identical: {'yes' if study.same_events else 'NO'}; steps and RHS calls equal: "
+                  f"{'yes' if study.same_steps else 'NO'}. The floor's time in C alone: min {ms(min(in_c))} ms, median "
+                  f"{ms(statistics.median(in_c))} ms (the rest of its row is the call from Python: grid, arrays, "
+                  f"ctypes). Compiled engine / C floor in C: {by_min:.2f}x from min times, {by_median:.2f}x from "
+                  "medians.", ""]
+    rows = []
+    for matched in study.matched:
+        for label, case in matched.cases.items():
+            rows.append([f"{matched.target:.0e}", label] + (["not reached", "", "", "", ""] if case is None else [
+                f"{case.rtol:.3g}", num(case.error), str(case.runs), ms(case.minimum), ms(case.median)]))
+    return lines + table(["target error [m]", "solver", "rtol found", "its error [m]", "runs to find it", "min [ms]",
+                          "median [ms]"], rows)
 
 
 def _us(seconds: float) -> str:

@@ -21,7 +21,8 @@ EXPLICIT_SCIPY_METHODS = ("RK45", "DOP853")
 
 @dataclass(frozen=True)
 class Solver:
-    """One solver configuration: kind is cvode, scipy, article, exact, fmu or empty (the empty pythonfmu slave)."""
+    """One solver configuration: kind is cvode, scipy, article, exact, fmu, empty (the empty pythonfmu slave) or floor
+    (the compiled engine's CVODE work in C, bench/c_floor.py)."""
 
     label: str
     kind: str
@@ -31,7 +32,7 @@ class Solver:
 
     @property
     def takes_tolerances(self) -> bool:
-        return self.kind in ("cvode", "scipy", "fmu")
+        return self.kind in ("cvode", "scipy", "fmu", "floor")
 
     @property
     def is_fmu(self) -> bool:
@@ -63,6 +64,7 @@ CVODE_COMPILED = cvode("auto", "compiled")
 ARTICLE = Solver(ARTICLE_LABEL, "article", "RK45")
 EXACT = Solver("exact solution", "exact")
 EXACT_EVALUATION = Solver("exact solution, evaluation only", "evaluation")
+C_FLOOR = Solver("C floor (the compiled engine's CVODE work in C)", "floor", "auto", engine="compiled")
 
 
 @dataclass
@@ -77,6 +79,7 @@ class Run:
     rhs_calls: int | None
     steps: int
     wall_time: float
+    wall_time_in_c: float | None = None  # the C floor: the part of wall_time spent in C
 
 
 @dataclass(frozen=True)
@@ -104,6 +107,8 @@ def run_solver(solver: Solver, scene: Scene, output_interval: float, rtol: float
         return _run_fmu(solver, scene, tolerances, fmus, record)
     if solver.kind == "evaluation":
         return _run_exact_evaluation(scene, output_interval)
+    if solver.kind == "floor":
+        return _run_floor(solver, scene, output_interval, rtol, atol)
     options = {"output_interval": output_interval}
     if solver.kind == "cvode":
         options.update(method=solver.method, engine=solver.engine, **tolerances)
@@ -129,6 +134,17 @@ def _run_exact_evaluation(scene: Scene, output_interval: float) -> Run:
     events = list(solution.events)
     return Run(grid, h, v, events, sum(event.kind == IMPACT for event in events), None, len(solution.phases),
                wall_time)
+
+
+def _run_floor(solver: Solver, scene: Scene, output_interval: float, rtol: float | None, atol: float | None) -> Run:
+    from . import c_floor
+
+    started = time.perf_counter()
+    result = c_floor.run(scene.ball, scene.h0, scene.v0, scene.t_end, output_interval, scene.F_ext, rtol, atol,
+                         solver.method)
+    wall_time = time.perf_counter() - started
+    return Run(result.t, result.h, result.v, result.events, sum(e.kind == IMPACT for e in result.events),
+               result.rhs_calls, result.steps, wall_time, result.seconds_in_c)
 
 
 def _run_fmu(solver: Solver, scene: Scene, tolerances: dict, fmus: FmuPaths | None, record: bool) -> Run:

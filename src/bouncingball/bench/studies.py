@@ -7,11 +7,12 @@ import tempfile
 from pathlib import Path
 
 from ..scenes import load_scene
-from . import engine_choice, fmu_steps, runners, stability, work_precision
+from . import c_floor, engine_choice, floor, fmu_steps, runners, stability, work_precision
 from .environment import environment
 from .pages import write_benchmarks_md, write_stability_md
 from .plots import plot_work_precision
-from .tables import write_stability_csv, write_work_precision_csv
+from .tables import write_floor_csv, write_stability_csv, write_work_precision_csv
+from .targets import MATCHED_ERRORS
 
 
 def run_benchmark(output_dir: Path, quick: bool = False) -> list[Path]:
@@ -24,6 +25,7 @@ def run_benchmark(output_dir: Path, quick: bool = False) -> list[Path]:
         scene.simulate("cvode", t_end=1.0, engine="compiled")
     except ImportError:
         pass  # its rows say why
+    c_floor.unavailable_reason()  # build (or find built) and bind the C floor; where it cannot, its rows say why
     with tempfile.TemporaryDirectory(prefix="bouncingball_bench_") as temp:
         fmus = runners.build_fmus(Path(temp))
         try:  # the FMU's compiled engine too: its first use (seconds) is timed apart, by fmu_steps
@@ -34,6 +36,7 @@ def run_benchmark(output_dir: Path, quick: bool = False) -> list[Path]:
         points = work_precision.make_points(settings)
         work_precision.sweep(scene, points, settings, fmus)
         step_costs = fmu_steps.measure(fmus, work_precision.DENSE, scene.t_end, settings.repeats)
+    floors = floor.measure(scene, settings, MATCHED_ERRORS)
     stiff = stability.run_cases(stability.stiff_cases(), settings.stiff_cap, desc="stiff scenes")
     per_event = stability.cost_per_event(settings.undamped_t_end)
     first_use = engine_choice.measure()
@@ -41,8 +44,9 @@ def run_benchmark(output_dir: Path, quick: bool = False) -> list[Path]:
         write_work_precision_csv(points, output_dir / work_precision.CSV_FILE),
         work_precision.save_h(points, output_dir / work_precision.H_FILE),
         plot_work_precision(points, output_dir / "work_precision.png"),
+        write_floor_csv(floors, output_dir / floor.CSV_FILE),
         write_benchmarks_md(points, stiff, per_event, step_costs, settings, quick, machine,
-                            output_dir / "benchmarks.md", first_use),
+                            output_dir / "benchmarks.md", floors, first_use),
     ]
     return written
 

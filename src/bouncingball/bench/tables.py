@@ -6,6 +6,7 @@ import csv
 from pathlib import Path
 
 from ..output import atomic_write
+from .floor import FloorStudy
 from .stability import Outcome
 from .text import repr_or_blank
 from .work_precision import Point
@@ -30,6 +31,24 @@ def write_work_precision_csv(points: list[Point], path: Path) -> Path:
                 repr_or_blank(p.rhs_calls), p.steps, repr_or_blank(p.median if p.times else None),
                 repr_or_blank(p.minimum if p.times else None), len(p.times), ";".join(repr(t) for t in p.times),
                 p.key if p.h is not None else ""])
+    return path
+
+
+FLOOR_COLUMNS = ("case", "target_error", "solver", "rtol", "atol", "max_height_error", "steps", "rhs_calls",
+                 "runs_to_find_rtol", "median_time", "min_time", "repeats", "times")
+
+
+def write_floor_csv(study: FloorStudy, path: Path) -> Path:
+    """bench/floor.py's cases, one row each: against the C floor at the defaults, then matched; every call [s]."""
+    cases = [("defaults", None, case) for case in (study.compiled, study.floor) if case is not None]
+    cases += [("matched", m.target, case) for m in study.matched for case in m.cases.values() if case is not None]
+    with atomic_write(path) as temporary, open(temporary, "w", newline="", encoding="utf-8") as file:
+        writer = csv.writer(file)
+        writer.writerow(FLOOR_COLUMNS)
+        for name, target, c in cases:
+            writer.writerow([name, repr_or_blank(target), c.solver.label, repr_or_blank(c.rtol), repr_or_blank(c.atol),
+                             repr(c.error), c.steps, repr_or_blank(c.rhs_calls), c.runs, repr(c.median),
+                             repr(c.minimum), len(c.times), ";".join(repr(t) for t in c.times)])
     return path
 
 

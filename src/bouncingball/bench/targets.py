@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import math
+import statistics
 from dataclasses import dataclass
 
 from . import runners
+from .floor import FloorStudy, Matched
 from .stability import STIFF_TARGET, CostPerEvent, Outcome
 from .text import events_text, ms, rtol_text
 from .work_precision import DENSE, Point, by_solver, time_at_error
@@ -17,6 +19,8 @@ FMU_FLOOR_RATIO = 2.0  # FMU doStep at most this multiple of the empty slave's
 FLAT_RATIO = 1.5  # cost per event "flat": last tenth at most this multiple of the first tenth
 COMPILED_SPEEDUP = 10.0  # the compiled engine at least this much faster than every solve_ivp method
 EVALUATION_RATIO = 1.5  # the exact solution within this factor of its own vectorised evaluation
+FLOOR_RATIO = 1.5  # the compiled engine at most this multiple of the C floor (min of interleaved hot calls)
+MATCHED_DOP853_SPEEDUP = 15.0  # the compiled engine at least this much faster than DOP853 run at the matched error
 
 
 @dataclass(frozen=True)
@@ -296,7 +300,52 @@ def target_exact_evaluation(points: list[Point]) -> Target:
     return Target("g", goal, met, measured)
 
 
-def all_targets(points: list[Point], stiff: list[Outcome], per_event: CostPerEvent) -> list[Target]:
+def target_floor(study: FloorStudy) -> Target:
+    """(h): the compiled engine against the C floor, the same CVODE work in C, at the defaults."""
+    goal = (f"the compiled engine within {FLOOR_RATIO:g}x of the C floor (its CVODE work done in C) on the article at "
+            "the defaults, from the minimum of interleaved hot calls")
+    compiled, floor = study.compiled, study.floor
+    if compiled is None or floor is None:
+        return Target("h", goal, False, f"not measured: {study.note}.")
+    by_min, by_median = study.ratio
+    in_c, in_c_median = min(floor.times_in_c), statistics.median(floor.times_in_c)
+    same = study.same_events and study.same_steps
+    measured = (f"compiled {ms(compiled.minimum)} ms, C floor {ms(in_c)} ms in C: {by_min:.2f}x (medians "
+                f"{ms(compiled.median)} and {ms(in_c_median)} ms: {by_median:.2f}x), {study.repeats} interleaved "
+                f"calls each; called from Python (grid and arrays made, ctypes) the floor takes {ms(floor.minimum)} "
+                f"ms ({compiled.minimum / floor.minimum:.2f}x). The same work: event times "
+                f"{'bit-identical' if study.same_events else 'DIFFER'}, steps {compiled.steps} and {floor.steps}, "
+                f"RHS calls {compiled.rhs_calls} and {floor.rhs_calls}.")
+    if not same:
+        measured += " Reason: the C floor did not do the compiled engine's work, so the ratio is no verdict."
+    elif by_min > FLOOR_RATIO:
+        measured += (f" Reason: CVODE's calls and steps are the same in both, so the difference, "
+                     f"{ms(compiled.minimum - in_c)} ms per run, is the Python around them (per-phase event "
+                     "logic, set-up, the grid filled in numpy, the result).")
+    return Target("h", goal, same and by_min <= FLOOR_RATIO, measured)
+
+
+def target_matched_dop853(matched: Matched) -> Target:
+    """(i): the compiled engine against DOP853, each run at the rtol that reaches the error (found by bisection)."""
+    goal = (f"at a matched height error of {matched.target:.0e} m on the 1 ms grid, the compiled engine >= "
+            f"{MATCHED_DOP853_SPEEDUP:g}x faster than solve_ivp DOP853, each run at the rtol reaching that error "
+            "(found by running it, not interpolated), from the minimum of interleaved hot calls")
+    ours, theirs = matched.cases.get(runners.CVODE_COMPILED.label), matched.cases.get(runners.scipy("DOP853").label)
+    if ours is None or theirs is None:
+        return Target("i", goal, False, f"not measured: {matched.note}.")
+    by_min, by_median = theirs.minimum / ours.minimum, theirs.median / ours.median
+    parts = [f"{label} at rtol {case.rtol:.3g} (error {case.error:.2e} m, found in {case.runs} runs): "
+             f"{ms(case.minimum)} ms (median {ms(case.median)} ms)" for label, case in
+             (("compiled", ours), ("DOP853", theirs))]
+    measured = (f"{'; '.join(parts)}; {by_min:.1f}x from min times ({by_median:.1f}x from medians), "
+                f"{len(ours.times)} interleaved calls each.")
+    return Target("i", goal, by_min >= MATCHED_DOP853_SPEEDUP, measured)
+
+
+def all_targets(points: list[Point], stiff: list[Outcome], per_event: CostPerEvent,
+                floor: FloorStudy | None = None) -> list[Target]:
+    """Every target; those of the C floor study (h, i) only where it ran."""
+    floors = [] if floor is None else [target_floor(floor), *(target_matched_dop853(m) for m in floor.matched)]
     return [*(target_versus_peers(points, error) for error in MATCHED_ERRORS), target_versus_exact(points),
             target_fmu(points), target_stiff(stiff), target_cost_per_event(per_event),
-            *(target_compiled(points, error) for error in MATCHED_ERRORS), target_exact_evaluation(points)]
+            *(target_compiled(points, error) for error in MATCHED_ERRORS), target_exact_evaluation(points), *floors]

@@ -32,7 +32,9 @@ CSV_FILE = "work_precision.csv"
 @dataclass(frozen=True)
 class Settings:
     """How big a run is: tolerances, timed repeats, the per-run time budget [s] past which a solver's tighter
-    tolerances are skipped, FMU communication steps [s], the undamped run's length [s] and the stiff cases' cap [s]."""
+    tolerances are skipped, FMU communication steps [s], the undamped run's length [s] and the stiff cases' cap [s];
+    for bench/floor.py the interleaved calls timed against the C floor and at matched errors, and the bisection's
+    steps."""
 
     rtols: tuple[float, ...]
     repeats: int
@@ -40,10 +42,14 @@ class Settings:
     comm_steps: tuple[float, ...] = (1e-3, 1e-2)
     undamped_t_end: float = 10_000.0
     stiff_cap: float = 5.0
+    floor_repeats: int = 400
+    matched_repeats: int = 20
+    bisection_steps: int = 8
 
 
 FULL = Settings(rtols=tuple(10.0**-k for k in range(3, 13)), repeats=5, budget=2.0)
-QUICK = Settings(rtols=(1e-3, 1e-6, 1e-9, 1e-12), repeats=2, budget=0.3, undamped_t_end=1000.0, stiff_cap=0.5)
+QUICK = Settings(rtols=(1e-3, 1e-6, 1e-9, 1e-12), repeats=2, budget=0.3, undamped_t_end=1000.0, stiff_cap=0.5,
+                 floor_repeats=10, matched_repeats=2, bisection_steps=2)
 
 
 @dataclass(eq=False)
@@ -82,7 +88,7 @@ class Point:
 
 def solvers(section: str, settings: Settings) -> list[Solver]:
     """The solvers of a section, in the order of the tables."""
-    ours = [runners.cvode(method) for method in ("Adams", "BDF", "auto")] + [runners.CVODE_COMPILED]
+    ours = [runners.cvode(method) for method in ("Adams", "BDF", "auto")] + [runners.CVODE_COMPILED, runners.C_FLOOR]
     fmus = ([runners.fmu(step, engine) for engine in ("sksundae", "compiled") for step in settings.comm_steps]
             if section == "dense" else [])
     floors = [runners.empty_slave(step) for step in settings.comm_steps] if section == "dense" else []
