@@ -165,7 +165,8 @@ def settings(ball, h0: float, v0: float, t0: float, F_ext: float, rtol: float, a
     codes = [compiled.CV_ADAMS if m == "Adams" else compiled.CV_BDF for m in integrator_methods]
     s = _Settings(m=ball.m, k=ball.k, b=ball.b, R=ball.R, g=ball.g, F_ext=F_ext, h0=h0, v0=v0, t0=t0, rtol=rtol,
                   atol=0.0 if atol is None else atol, max_step=0.0,
-                  own_side=integrator.BallIntegrator._own_side(Mode.FLIGHT), hop_resolution=solver_settings.HOP_RESOLUTION,
+                  own_side=integrator.BallIntegrator._own_side(Mode.FLIGHT),
+                  hop_resolution=solver_settings.HOP_RESOLUTION,
                   soft_contact_cap=phases.SOFT_CONTACT_CAP, min_phase_scale=phases.MIN_PHASE_SCALE,
                   max_num_steps=integrator._MAX_STEPS_PER_CALL, max_steps_per_phase=integrator.MAX_STEPS_PER_PHASE,
                   max_nonlin_iters=compiled._MAX_NONLIN_ITERS, max_conv_fails=compiled._MAX_CONV_FAILS)
@@ -184,7 +185,8 @@ def run(ball, h0: float, v0: float, t_end: float, output_interval: float, F_ext:
     from ..solvers import settings as solver_settings
     from ..solvers.result import DEPARTURE, IMPACT, Event, output_grid
 
-    settings_ = solver_settings.CvodeSettings(rtol=solver_settings.DEFAULT_RTOL if rtol is None else rtol, atol=atol, method=method)
+    settings_ = solver_settings.CvodeSettings(rtol=solver_settings.DEFAULT_RTOL if rtol is None else rtol, atol=atol,
+                                              method=method)
     if not isinstance(F_ext, (int, float)):
         raise ValueError(f"F_ext = {F_ext!r} is not allowed: the C floor takes a constant force [N] only")
     entry, table = _load()
