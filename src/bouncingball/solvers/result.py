@@ -41,7 +41,10 @@ class Event:
 class SolverStats:
     """Work done: internal steps, right-hand-side calls, events and wall time [s].
 
-    For CVODE also the engine that ran ("compiled" or "sksundae") and why it was chosen.
+    For CVODE also the engine that ran ("compiled" or "sksundae") and why it was chosen, and
+    first_use_time [s]: on the compiled engine's first use in the process, the time spent making it
+    ready before the run (importing numba and the engine, compiling its functions or loading them
+    from numba's disk cache, one bounce to compile the rest), which wall_time leaves out.
     """
 
     steps: int = 0
@@ -50,6 +53,7 @@ class SolverStats:
     wall_time: float = 0.0
     engine: str = ""
     engine_reason: str = ""
+    first_use_time: float = 0.0
 
 
 @dataclass
