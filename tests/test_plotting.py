@@ -33,6 +33,16 @@ def _overlaps(a, b) -> bool:
     return a.x0 < b.x1 and b.x0 < a.x1 and a.y0 < b.y1 and b.y0 < a.y1
 
 
+def _assert_legends_outside_every_panel(fig):
+    fig.canvas.draw()
+    legends = [ax.get_legend() for ax in fig.axes]
+    assert all(legends)
+    for legend in legends:
+        box = legend.get_window_extent()
+        assert not any(_overlaps(box, ax.get_window_extent()) for ax in fig.axes)
+        assert box.x1 <= fig.bbox.x1  # and inside the figure
+
+
 def test_decimate_keeps_every_extreme_and_at_most_four_points_per_column():
     t = np.linspace(0.0, 10.0, 200_001)
     y = np.sin(7.0 * t) * np.exp(-0.1 * t) + 1e-3 * np.cos(900.0 * t)
@@ -52,7 +62,7 @@ def test_article_has_height_and_log_error_panels_and_the_legend_outside_them():
     fig = height_figure(result, exact)
     height, error = fig.axes
     assert error.get_yscale() == "log" and height.get_yscale() == "linear"
-    labels = fig.legends[0].texts
+    labels = height.get_legend().texts
     assert [t.get_text() for t in labels][:4] == ["cvode", "exact solution", "21 impacts", "20 departures"]
     # the exact solution is drawn (not hidden), and the error drawn is the run's own against it
     lines = {line.get_label(): line for line in height.get_lines()}
@@ -62,9 +72,7 @@ def test_article_has_height_and_log_error_panels_and_the_legend_outside_them():
     assert drawn.get_ydata().min() == exact.h.min() and drawn.get_ydata().max() == exact.h.max()
     drawn_error = error.get_lines()[0].get_ydata()
     assert np.nanmax(drawn_error) == pytest.approx(np.max(np.abs(result.h - exact.h)), rel=0)
-    fig.canvas.draw()
-    legend = fig.legends[0].get_window_extent()
-    assert not any(_overlaps(legend, ax.get_window_extent()) for ax in fig.axes)
+    _assert_legends_outside_every_panel(fig)
     # impacts at the exact impact times, on h = R
     impact_line = lines["21 impacts"]
     exact_impacts = [e.time for e in ExactSolution(bb.Ball(), 2.0, 0.0, 0.0, 8.0).events if e.kind == "impact"]
@@ -87,9 +95,7 @@ def test_undamped_long_run_draws_few_points_keeps_the_extremes_and_adds_an_energ
     drawn = energy.get_lines()[0].get_ydata()
     assert drawn.min() == drift.min() and drawn.max() == drift.max()
     assert energy.get_ylabel() == "(E - E0) / |E0|"
-    fig.canvas.draw()
-    legend = fig.legends[0].get_window_extent()
-    assert not any(_overlaps(legend, ax.get_window_extent()) for ax in fig.axes)
+    _assert_legends_outside_every_panel(fig)
 
 
 def test_a_damped_ball_has_no_energy_panel_and_the_exact_solver_no_error_panel():
@@ -105,7 +111,7 @@ def test_plot_range_zooms_and_counts_the_events_inside():
     assert fig.axes[-1].get_xlim() == (995.0, 1000.0)
     inside = [e for e in ExactSolution(bb.Ball(b=0.0), 2.0, 0.0, 0.0, 1000.0).events if 995.0 <= e.time <= 1000.0]
     impacts = sum(e.kind == "impact" for e in inside)
-    labels = [t.get_text() for t in fig.legends[0].texts]
+    labels = [t.get_text() for t in fig.axes[0].get_legend().texts]
     assert f"{impacts} impacts" in labels and "exact solution" in labels  # few bounces: drawn as lines again
     assert "drawn from t = 995 to 1000 s" in fig._suptitle.get_text()
 
@@ -131,4 +137,4 @@ def test_titles_say_one_event_not_one_events(tmp_path, capsys):
     assert len(result.events) == 1
     fig = height_figure(result)
     assert fig._suptitle.get_text() == "exact, 1 event"
-    assert {"1 impact", "0 departures"} <= {t.get_text() for t in fig.legends[0].texts}
+    assert {"1 impact", "0 departures"} <= {t.get_text() for t in fig.axes[0].get_legend().texts}

@@ -115,7 +115,7 @@ def test_the_compiled_engines_first_use_is_measured_apart_from_the_run():
     cli = subprocess.run([sys.executable, "-m", "bouncingball.cli", "run", "stiff-rest", "--engine", "compiled"],
                          capture_output=True, text=True, check=True)
     line = next(line for line in cli.stdout.splitlines() if line.startswith("  first use"))
-    assert "ms before the run, not in its wall time" in line
+    assert "ms before the run (not in its wall time)" in line
     plain = subprocess.run([sys.executable, "-m", "bouncingball.cli", "run", "stiff-rest", "--engine", "sksundae"],
                            capture_output=True, text=True, check=True)
     assert "first use" not in plain.stdout

@@ -104,7 +104,7 @@ def height_figure(result: SimulationResult, exact: SimulationResult | None = Non
     -------
     matplotlib.figure.Figure
         One column of panels sharing the time axis (height, then error, then energy, as they
-        apply), the legend outside them on the right.
+        apply), each with its legend outside it on the right.
     """
     require_matplotlib()
     import matplotlib
@@ -135,12 +135,8 @@ def height_figure(result: SimulationResult, exact: SimulationResult | None = Non
     axes[panels[-1]].set_xlim(*shown)
     title = title or f"{result.solver}, {plural(len(result.events), 'event')}"
     fig.suptitle(title if t_range is None else f"{title}; drawn from t = {t_range[0]:g} to {t_range[1]:g} s")
-    handles, labels = [], []
-    for ax in axes.values():
-        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
-            handles.append(handle)
-            labels.append(label)
-    fig.legend(handles, labels, loc="outside right upper", fontsize=8, frameon=False)
+    for ax in axes.values():  # beside its panel, outside the data
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8, frameon=False)
     return fig
 
 
@@ -229,7 +225,7 @@ def _energy_panel(ax, result: SimulationResult, selected: slice) -> None:
     drift = (energy - energy[0]) / abs(energy[0]) if energy[0] else energy - energy[0]
     t, drift = result.t[selected], drift[selected]
     keep = decimate(t, drift)
-    ax.plot(t[keep], drift[keep], color="C4", lw=1.0, label="energy of the run (b = 0: the exact one is constant)")
+    ax.plot(t[keep], drift[keep], color="C4", lw=1.0, label="energy of the run\n(b = 0: the exact one\nis constant)")
     ax.axhline(0.0, color="0.4", lw=0.6)
     ax.set_ylabel("(E - E0) / |E0|" if energy[0] else "E - E0 [J]")
     ax.grid(True, color="0.92")

@@ -35,7 +35,7 @@ def event_counts(events: list[Event]) -> str:
 def event_lines(events: list[Event], shown: int = EVENTS_SHOWN) -> list[str]:
     """The first and last `shown` events, one line each (time, kind, velocity), the others counted between."""
     def line(number: int, event: Event) -> str:
-        return f"#{number:<5d} t = {event.time:<16.12g} s  {event.kind:9s}  v = {event.velocity:+.6g} m/s"
+        return f"#{number:<5d} {f't = {event.time:.12g} s':22s}  {event.kind:9s}  v = {event.velocity:+.6g} m/s"
 
     if len(events) <= 2 * shown + 1:
         return [line(i + 1, e) for i, e in enumerate(events)]
@@ -116,6 +116,5 @@ def first_use_note(first_use_time: float) -> str:
     """The compiled engine's first use in the process, which the run's wall time leaves out; '' if none."""
     if not first_use_time:
         return ""
-    return (f"{first_use_time * 1e3:.0f} ms before the run, not in its wall time, to make the compiled engine "
-            "ready: importing numba, compiling its functions (or loading them from numba's disk cache) and one "
-            "bounce")
+    return (f"{first_use_time * 1e3:.0f} ms before the run (not in its wall time) to import numba and compile the "
+            "engine or load it from numba's cache")
