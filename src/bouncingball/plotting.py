@@ -135,7 +135,7 @@ def height_figure(result: SimulationResult, exact: SimulationResult | None = Non
     axes[panels[-1]].set_xlim(*shown)
     title = title or f"{result.solver}, {plural(len(result.events), 'event')}"
     fig.suptitle(title if t_range is None else f"{title}; drawn from t = {t_range[0]:g} to {t_range[1]:g} s")
-    for ax in axes.values():  # beside its panel, outside the data
+    for ax in (ax for ax in axes.values() if ax.get_legend_handles_labels()[1]):  # beside its panel, outside it
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8, frameon=False)
     return fig
 
@@ -188,9 +188,9 @@ def _height_panel(ax, result, t, h, exact, selected, events) -> None:
             h_exact = exact.h[selected]
             keep = decimate(t, h_exact)
             ax.plot(t[keep], h_exact[keep], color="k", lw=0.8, ls=(0, (4, 3)), label="exact solution")
-        ax.plot(impacts, [R] * len(impacts), "v", color="C3", ms=5, label=plural(len(impacts), "impact"))
-        ax.plot(departures, [R] * len(departures), "^", color="C2", ms=5,
-                label=plural(len(departures), "departure"))
+        for times, marker, colour, kind in ((impacts, "v", "C3", "impact"), (departures, "^", "C2", "departure")):
+            if times:
+                ax.plot(times, [R] * len(times), marker, color=colour, ms=5, label=plural(len(times), kind))
     ax.axhline(R, color="0.4", lw=0.6, ls="--", label=f"h = R = {R:g} m (contact)")
     if result.rest_time is not None and t[0] <= result.rest_time <= t[-1]:
         ax.axvline(result.rest_time, color="0.4", lw=0.8, ls=":", label=f"at rest from {result.rest_time:.4g} s")
@@ -207,6 +207,7 @@ def _error_panel(ax, solver: str, t: np.ndarray, error: np.ndarray, dense: bool)
     positive = error > 0.0
     if not np.any(positive):
         ax.text(0.5, 0.5, "h equals h_exact at every output time", transform=ax.transAxes, ha="center", va="center")
+        ax.set_yticks([])
     elif dense:  # its dips at each bounce would fill the panel: the largest error in each pixel column
         centres, _, high = envelope(t[positive], error[positive])
         ax.plot(centres, high, color="C1", lw=1.2, label=f"largest |h - h_exact| of {solver}\n"
