@@ -198,7 +198,7 @@ def test_auto_weighs_the_compiled_engines_first_use_against_the_run():
         long = bb.simulate(bb.Ball(b=0.0), 2.0, 0.0, 1000.0)  # after scikit-sundae is loaded: 37,000 steps to pay
         after = bb.simulate(bb.Ball(), 2.0, 0.0, 8.0)
         for r in (short, long, after):
-            print(r.stats.engine, "|", r.stats.engine_reason, "|", r.stats.engine_setup_time, "|", r.stats.steps)
+            print(r.stats.engine, "|", r.stats.engine_reason, "|", r.stats.first_use_time, "|", r.stats.steps)
     """)
     assert completed.returncode == 0, completed.stderr
     (short, long, after) = [line.split(" | ") for line in completed.stdout.splitlines()]

@@ -36,7 +36,9 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--output-interval", type=float, help="output interval [s] (default: the scene's)")
     run.add_argument("--output", metavar="CSV", help="write time,h,v to this file")
     run.add_argument("--events", metavar="CSV", help="write time,kind,v of each event to this file")
-    run.add_argument("--plot", metavar="PNG", help="draw height against time with the events marked")
+    run.add_argument("--plot", metavar="PNG", help="draw height against time with the events marked, its error "
+                     "against the exact solution and, for an undamped ball, its energy")
+    run.add_argument("--plot-range", metavar="T0:T1", help="draw only from T0 to T1 [s] (default: the whole run)")
 
     sub.add_parser("scenes", help="list the built-in scenes")
 
@@ -97,12 +99,19 @@ def _build_parser() -> argparse.ArgumentParser:
 def _run(args: argparse.Namespace) -> int:
     from .accuracy import compare, exact_counterpart
     from .output import check_output_path, write_events_csv, write_solution_csv
+    from .run_report import first_use_note, plural
     from .scenes import load_scene
 
     scene = load_scene(args.scene)
     for option in ("output", "events", "plot"):  # before the work, so that none of it is lost
         if getattr(args, option):
             check_output_path(f"--{option}", getattr(args, option))
+    plot_range = None
+    if args.plot_range is not None:
+        from .plotting import parse_time_range
+
+        t_end = scene.t_end if args.t_end is None else args.t_end
+        plot_range = parse_time_range("--plot-range", args.plot_range, 0.0, t_end)
     if args.plot:
         from .plotting import require_matplotlib
 
@@ -120,7 +129,6 @@ def _run(args: argparse.Namespace) -> int:
     exact = result if result.solver == "exact" else exact_counterpart(result, scene.h0, scene.v0)
 
     ball = scene.ball
-    impacts = result.impacts
     print(f"scene {scene.name}: {scene.description}")
     print(f"  ball        m = {ball.m:g} kg, k = {ball.k:g} N/m, b = {ball.b:g} N s/m, R = {ball.R:g} m, "
           f"g = {ball.g:g} m/s2")
@@ -128,14 +136,14 @@ def _run(args: argparse.Namespace) -> int:
           f"output every {result.t[1] - result.t[0]:g} s")
     settings = ", ".join(f"{key} {value}" for key, value in result.options.items())
     print(f"  solver      {result.solver}" + (f" ({settings})" if settings else ""))
-    print(f"  events      {len(result.events)} ({impacts} impacts, {len(result.events) - impacts} departures)"
-          + ("" if exact is result else f"; exact solution: {len(exact.events)}"))
-    rest = "none" if result.rest_time is None else f"at rest from t = {result.rest_time:.12g} s"
-    print(f"  rest        {rest}")
+    _print_events(result, exact, scene)
     print(f"  final state h = {result.h[-1]:.12g} m, v = {result.v[-1]:.6g} m/s at t = {result.t[-1]:g} s")
     stats = result.stats
+    first_use = first_use_note(stats.first_use_time, stats.engine)
     print(f"  wall time   {stats.wall_time * 1e3:.2f} ms ({stats.steps} steps, {stats.rhs_calls} "
           "right-hand-side calls)")
+    if first_use:
+        print(f"  first use   {first_use}")
     if stats.engine:
         print(f"  engine      {stats.engine} ({stats.engine_reason})")
     if exact is not result:
@@ -149,9 +157,30 @@ def _run(args: argparse.Namespace) -> int:
     if args.plot:
         from .plotting import plot_height
 
-        title = f"scene {scene.name}: {result.solver}, {len(result.events)} events"
-        print(f"  wrote {plot_height(result, args.plot, title, exact=exact)}")
+        title = f"scene {scene.name}: {result.solver}, {plural(len(result.events), 'event')}"
+        print(f"  wrote {plot_height(result, args.plot, title, exact=exact, t_range=plot_range)}")
     return 0
+
+
+def _print_events(result, exact, scene) -> None:
+    """The events line, the first and last events, how they differ from the exact ones and why, the rest."""
+    from .accuracy import max_height_error
+    from .run_report import event_counts, event_differences, event_lines
+    from .solvers.exact import ExactSolution
+
+    print(f"  events      {event_counts(result.events)}"
+          + ("" if exact is result else f"; exact solution: {len(exact.events)}"))
+    for line in event_lines(result.events):
+        print(f"              {line}")
+    if exact is not result:
+        solution = ExactSolution(result.ball, scene.h0, scene.v0, float(result.t[0]), float(result.t[-1]),
+                                 result.F_ext)
+        # Events match within the time the ball moves by the run's own height error.
+        tolerance = max_height_error(result.h, exact.h)
+        for number, line in enumerate(event_differences(result, solution, tolerance)):
+            print(f"  {'' if number else 'differences':11s} {line}")
+    rest = "none" if result.rest_time is None else f"at rest from t = {result.rest_time:.12g} s"
+    print(f"  rest        {rest}")
 
 
 def _check(args: argparse.Namespace) -> int:

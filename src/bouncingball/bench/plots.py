@@ -1,12 +1,23 @@
-"""The work-precision plot: max height error against median wall time, one line per solver."""
+"""The work-precision plot: max height error against median wall time, one line per solver, grouped by family.
+
+Redraw docs/work_precision.png from docs/work_precision.csv without rerunning the benchmark:
+``python -m bouncingball.bench.plots docs/work_precision.csv docs/work_precision.png``.
+"""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from ..output import atomic_write
 from .targets import MATCHED_ERRORS
 from .work_precision import DENSE, SPARSE, Point, by_solver
+
+# The families, in the legend's order: (heading, the solver kinds in it).
+FAMILIES = (("CVODE (this package)", ("cvode",)), ("the FMU through FMPy", ("fmu",)),
+            ("SciPy solve_ivp", ("article", "scipy")), ("floors and references", ("exact", "evaluation", "empty")))
+SCIPY_COLOURS = {"RK45": "C9", "DOP853": "C8", "LSODA": "C5", "Radau": "#d4a017", "BDF": "C7"}  # muted, apart
+FLOORS = ("exact", "evaluation", "empty")  # no error to plot: their time is a floor, drawn as a vertical line
 
 
 def _curve(points: list[Point]) -> tuple[list[float], list[float]]:
@@ -14,41 +25,116 @@ def _curve(points: list[Point]) -> tuple[list[float], list[float]]:
     return [p.median for p in ok], [max(p.errors.max_height_error, 1e-16) for p in ok]
 
 
-def plot_work_precision(points: list[Point], path: Path) -> Path:
-    """Max height error against median wall time, log-log, one line per solver; one panel per output grid."""
-    import matplotlib
+def _style(point: Point, index: int) -> dict:
+    """How one solver's line looks: its family sets the colour range and the line style."""
+    solver = point.solver
+    if solver.kind == "cvode":
+        return {"color": ("C0", "C1", "C2", "C3")[index % 4], "ls": "-", "lw": 2.2, "marker": "o", "ms": 4}
+    if solver.kind == "fmu":  # one family: purple, the compiled engine darker; the step as the marker
+        compiled = solver.engine == "compiled"
+        return {"color": "#54278f" if compiled else "#9e9ac8", "ls": "--", "lw": 1.3,
+                "marker": "s" if solver.comm_step > DENSE else "o", "ms": 4}
+    if solver.kind == "article":
+        return {"color": "0.35", "ls": "none", "marker": "*", "ms": 13}
+    return {"color": SCIPY_COLOURS.get(solver.method, "0.5"), "ls": "-.", "lw": 1.0, "marker": "o", "ms": 3}
 
-    matplotlib.use("Agg")
+
+def _label(point: Point) -> str:
+    """The solver's name within its family (the family's heading says the rest)."""
+    solver = point.solver
+    if solver.kind == "fmu":
+        return f"{solver.comm_step * 1e3:g} ms steps" + (", compiled engine" if solver.engine == "compiled" else "")
+    if solver.kind == "empty":
+        return f"empty pythonfmu slave, {solver.comm_step * 1e3:g} ms steps"
+    return solver.label.removeprefix("solve_ivp ").removeprefix("CVODE ")
+
+
+def plot_work_precision(points: list[Point], path: Path) -> Path:
+    """Save work_precision_figure(points) to path as PNG."""
     import matplotlib.pyplot as plt
 
-    palette = matplotlib.colormaps["tab20"]
-    labels = list(by_solver(points, "dense"))
-    colours = {label: palette((2 * i) % 20 + (2 * i) // 20) for i, label in enumerate(labels)}
-    fig, axes = plt.subplots(1, 2, figsize=(14, 5.5), layout="constrained", sharey=True)
-    for ax, section, title in ((axes[0], "dense", f"{DENSE * 1e3:g} ms"), (axes[1], "sparse", f"{SPARSE:g} s")):
-        for label, group in by_solver(points, section).items():
-            kind = group[0].solver.kind
-            times = [p.median for p in group if p.status == "ok"]
-            if kind in ("exact", "empty"):  # no error to plot: their time is a floor
-                if times:
-                    ax.axvline(times[0], color="k" if kind == "exact" else colours[label],
-                               ls="-" if kind == "exact" else ":", lw=1.2, label=label)
-                continue
-            x, y = _curve(group)
-            if x:
-                ax.plot(x, y, "-" if kind == "cvode" else "--" if kind == "fmu" else "-.",
-                        marker="*" if kind == "article" else "o", ms=12 if kind == "article" else 4,
-                        lw=2.0 if kind == "cvode" else 1.0, color=colours[label], label=label)
-        for target in MATCHED_ERRORS:
-            ax.axhline(target, color="0.55", lw=0.8, ls="--", zorder=1)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("median wall time [s]")
-        ax.set_title(f"article scene, {title} output grid")
-        ax.grid(True, which="major", color="0.92")
-    axes[0].set_ylabel("max |h - h_exact| [m]")
-    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside right center", fontsize=8)
+    fig = work_precision_figure(points)
     with atomic_write(path) as temporary:
         fig.savefig(temporary, dpi=100, format="png")
     plt.close(fig)
     return path
+
+
+def work_precision_figure(points: list[Point]):
+    """Max height error against median wall time, log-log, one line per solver; one panel per output grid.
+
+    The legend groups the solvers by family beside the panels; the dashed horizontal lines are
+    the errors the benchmark's tables compare the solvers at, named beside the panels; the
+    vertical lines are times without an error (the exact solution, the empty FMU).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
+    fig, axes = plt.subplots(1, 2, figsize=(14, 6), layout="constrained", sharey=True)
+    entries: dict[str, dict[str, object]] = {heading: {} for heading, _ in FAMILIES}
+    family_of = {kind: heading for heading, kinds in FAMILIES for kind in kinds}
+    for ax, section, title in ((axes[0], "dense", f"{DENSE * 1e3:g} ms"), (axes[1], "sparse", f"{SPARSE:g} s")):
+        for index, group in enumerate(by_solver(points, section).values()):
+            first = group[0]
+            times = [p.median for p in group if p.status == "ok"]
+            if first.solver.kind in FLOORS:
+                if times:
+                    empty = "0.6" if first.solver.comm_step <= DENSE else "0.3"  # the empty FMU, by its step
+                    colour = {"exact": "k", "evaluation": "0.45"}.get(first.solver.kind, empty)
+                    ls = {"exact": "-", "evaluation": "--"}.get(first.solver.kind, ":")
+                    line = ax.axvline(times[0], color=colour, ls=ls, lw=1.2)
+                    if first.solver.kind != "empty":  # left of the data: named on the plot too
+                        ax.annotate(_label(first), (times[0], 1.0), xycoords=("data", "axes fraction"),
+                                    xytext=(-3, -4), textcoords="offset points", rotation=90, ha="right", va="top",
+                                    fontsize=8, color=colour)
+                    entries[family_of[first.solver.kind]].setdefault(_label(first), line)
+                continue
+            x, y = _curve(group)
+            if x:
+                line, = ax.plot(x, y, **_style(first, index))
+                entries[family_of[first.solver.kind]].setdefault(_label(first), line)
+        for target in MATCHED_ERRORS:
+            matched = ax.axhline(target, color="0.55", lw=0.8, ls="--", zorder=1)
+            if ax is axes[-1]:  # named beside the panels, where no data is
+                ax.annotate(f"{target:.0e} m".replace("e-0", "e-"), (1.0, target), xycoords=("axes fraction", "data"),
+                            xytext=(4, 0), textcoords="offset points", ha="left", va="center", fontsize=9,
+                            color="0.3")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("median wall time [s]", fontsize=11)
+        ax.set_title(f"article scene, {title} output grid", fontsize=12)
+        ax.tick_params(labelsize=10)
+        ax.grid(True, which="major", color="0.92")
+    axes[0].set_ylabel("max |h - h_exact| [m]", fontsize=11)
+    entries[FAMILIES[-1][0]]["the errors the tables compare at"] = matched
+    handles, labels, headings = [], [], []
+    for heading, lines in entries.items():
+        if lines:
+            headings.append(len(labels))
+            handles.append(Line2D([], [], ls="none"))
+            labels.append(heading)
+            handles += list(lines.values())
+            labels += list(lines)
+    legend = fig.legend(handles, labels, loc="outside right upper", fontsize=9, frameon=False)
+    for index in headings:
+        legend.get_texts()[index].set_fontweight("bold")
+    return fig
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Redraw the plot from the CSV the benchmark wrote: ``python -m bouncingball.bench.plots CSV PNG``."""
+    from .tables import read_work_precision_csv
+
+    args = sys.argv[1:] if argv is None else argv
+    if len(args) != 2:
+        print("usage: python -m bouncingball.bench.plots WORK_PRECISION.csv OUT.png", file=sys.stderr)
+        return 2
+    print(f"wrote {plot_work_precision(read_work_precision_csv(Path(args[0])), Path(args[1]))}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -5,8 +5,10 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+from ..accuracy import Accuracy
 from ..output import atomic_write
 from .floor import FloorStudy
+from .runners import Solver
 from .stability import Outcome
 from .text import repr_or_blank
 from .work_precision import Point
@@ -50,6 +52,28 @@ def write_floor_csv(study: FloorStudy, path: Path) -> Path:
                              repr(c.error), c.steps, repr_or_blank(c.rhs_calls), c.runs, repr(c.median),
                              repr(c.minimum), len(c.times), ";".join(repr(t) for t in c.times)])
     return path
+
+
+def read_work_precision_csv(path: Path) -> list[Point]:
+    """The points write_work_precision_csv wrote (without their h values), to redraw the plot from them."""
+    def number(text: str, kind=float):
+        return None if text == "" else kind(text)
+
+    points = []
+    with open(path, newline="", encoding="utf-8") as file:
+        for row in csv.DictReader(file):
+            kind = row["kind"]
+            grid = float(row["output_interval"])
+            engine = "compiled" if "(compiled)" in row["solver"] else "sksundae" if kind in ("cvode", "fmu") else ""
+            solver = Solver(row["solver"], kind, row["method"], grid if kind in ("fmu", "empty") else 0.0, engine)
+            errors = None
+            if row["max_height_error"]:
+                errors = Accuracy(float(row["max_height_error"]), float(row["max_event_time_error"] or "nan"),
+                                  number(row["events_found"], int), number(row["events_exact"], int), row["counted"])
+            times = [float(t) for t in row["times"].split(";") if t]
+            points.append(Point(row["section"], solver, number(row["rtol"]), grid, row["status"], row["note"], errors,
+                                number(row["rhs_calls"], int), int(row["steps"] or 0), times))
+    return points
 
 
 STABILITY_COLUMNS = ("scene", "solver", "kind", "method", "rtol", "atol", "status", "note", "max_height_error",

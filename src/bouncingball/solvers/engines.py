@@ -91,6 +91,12 @@ def _numba_installed() -> bool:
         return False
 
 
+def loaded() -> set[str]:
+    """The engines already loaded in this process ("compiled", "sksundae"): their first use is paid."""
+    return ({"compiled"} if _COMPILED_MODULE in sys.modules else set()) | (
+        {"sksundae"} if "sksundae.cvode" in sys.modules else set())
+
+
 def note_sksundae_steps(steps: int) -> None:
     """Count steps run on scikit-sundae in this process (what engine "auto" weighs; see choose_engine)."""
     global _sksundae_steps

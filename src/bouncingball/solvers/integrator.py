@@ -17,7 +17,7 @@ import numpy as np
 from .. import limits, validation
 from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode, gap_acceleration, load_value
-from . import phases, stepper
+from . import engines, phases, stepper
 from . import state as state_checks
 from .dense_output import interpolate, step_state
 from .engines import choose_engine
@@ -103,7 +103,7 @@ class BallIntegrator:
         self.resolvable_until = resolvable_until(ball)
         check_resolvable(ball, t0)
         self._cvode_called = False
-        started = time.perf_counter()
+        loaded, started = engines.loaded(), time.perf_counter()
         self.engine, self.engine_reason = choose_engine(self.settings.engine, expected_steps)
         # The phase's frame: CVODE's time is t - origin, its state (x / length, v / speed); see _start_frame.
         self._frames = {mode: [0.0, 1.0, 1.0, 0.0] for mode in Mode}  # origin, length, speed, hop tolerance
@@ -112,7 +112,8 @@ class BallIntegrator:
                                                _MAX_STEPS_PER_CALL, self._own_side(mode),
                                                self._root_directions(mode), MAX_STEPS_PER_PHASE)
                          for mode in Mode}
-        self.setup_time = time.perf_counter() - started  # s: the engine's loading and CVODE objects
+        # s: the engine's first use in the process (its import, and its first CVODE objects); 0 after
+        self.first_use_time = 0.0 if self.engine in loaded else time.perf_counter() - started
         self.set_state(IntegratorState(t=t0, h=h0, v=v0, mode=ball.initial_mode(h0, v0, F_ext), F_ext=F_ext,
                                        t_start=t0))
 

@@ -42,9 +42,9 @@ class SolverStats:
     """Work done: internal steps, right-hand-side calls, events and wall time [s].
 
     For CVODE also the engine that ran ("compiled" or "sksundae"), why it was chosen, and
-    engine_setup_time [s]: loading the engine on its first use in the process (importing numba and
-    reading the compiled code, or importing scikit-sundae) and making its CVODE objects, which
-    wall_time leaves out.
+    first_use_time [s]: making the engine ready before the run (on its first use in the process:
+    importing numba and compiling its functions or loading them from numba's disk cache, or
+    importing scikit-sundae; its CVODE objects), which wall_time leaves out.
     """
 
     steps: int = 0
@@ -53,7 +53,7 @@ class SolverStats:
     wall_time: float = 0.0
     engine: str = ""
     engine_reason: str = ""
-    engine_setup_time: float = 0.0
+    first_use_time: float = 0.0
 
 
 @dataclass

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -48,51 +49,99 @@ def file_stem(solver: str) -> str:
 
 
 def write_heat_maps(frame, grid: Grid, output_dir: Path) -> list[Path]:
-    """One PNG per solver: event-count correctness, log10 height error and log10 wall time over (k, zeta);
-    one row of panels per (m, h0)."""
+    """One PNG per solver (heat_map_figure), named after it in output_dir."""
+    import matplotlib.pyplot as plt
+
+    written = []
+    for solver in grid.solvers:
+        figure = heat_map_figure(frame, grid, solver)
+        path = output_dir / f"{file_stem(solver)}.png"
+        with atomic_write(path) as temporary:
+            figure.savefig(temporary, dpi=90, format="png")
+        plt.close(figure)
+        written.append(path)
+    return written
+
+
+def _tick(value: float) -> str:
+    """1e+04 as 1e4; a value between powers of ten with 2 digits."""
+    exponent = math.log10(value)
+    return f"1e{round(exponent)}" if abs(exponent - round(exponent)) < 1e-9 else f"{value:.2g}"
+
+
+def heat_map_figure(frame, grid: Grid, solver: str):
+    """One solver's heat maps: event-count correctness, log10 height error and log10 wall time over (k, zeta).
+
+    One row of panels per (m, h0). A cell of the error or time map that is white has no value:
+    its run timed out or failed (the left map says which); a white cell of the left map was not
+    run. A legend under each map with white cells says so.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
 
     ks, zetas = grid.axis("k"), grid.axis("zeta")
     pairs = [(m, h0) for m in grid.axis("m") for h0 in grid.axis("h0")]
     colours = ListedColormap(["#4daf4a", "#a6d96a", "#e41a1c", "#984ea3", "#999999"])
-    written = []
-    for solver in grid.solvers:
-        rows = frame[frame["solver"] == solver]
-        figure, axes = plt.subplots(len(pairs), 3, figsize=(15, 4.2 * len(pairs)), squeeze=False)
-        for row_axes, (m, h0) in zip(axes, pairs, strict=True):
-            part = rows[(rows["m"] == m) & (rows["h0"] == h0)]
-            maps = [np.full((len(zetas), len(ks)), np.nan) for _ in range(3)]
-            for _, run in part.iterrows():
-                i, j = zetas.index(run["zeta"]), ks.index(run["k"])
-                maps[0][i, j] = outcome(part.loc[[run.name]])[0]
-                finished = run["status"] == "finished"
-                maps[1][i, j] = math.log10(max(run["max_height_error"], 1e-16)) if finished else np.nan
-                maps[2][i, j] = math.log10(run["wall_time"]) if finished else np.nan
-            titles = ("events vs exact", "log10 max |h - h_exact| [m]", "log10 wall time [s]")
-            for panel, (axis, values, title) in enumerate(zip(row_axes, maps, titles, strict=True)):
-                if panel == 0:
-                    image = axis.imshow(values, origin="lower", cmap=colours, vmin=-0.5, vmax=4.5, aspect="auto")
-                    bar = figure.colorbar(image, ax=axis, ticks=range(5))
-                    bar.ax.set_yticklabels(OUTCOMES)
-                else:
-                    image = axis.imshow(values, origin="lower", cmap="viridis", aspect="auto")
-                    figure.colorbar(image, ax=axis)
-                axis.set_xticks(range(len(ks)), [f"{k:.0e}" for k in ks], rotation=90, fontsize=7)
-                axis.set_yticks(range(len(zetas)), [f"{z:.0e}" for z in zetas], fontsize=7)
-                axis.set_xlabel("k [N/m]")
-                axis.set_ylabel("damping ratio")
-                axis.set_title(f"{solver}: {title}\nm = {m:g} kg, h0 = {h0:g} m", fontsize=9)
-        figure.tight_layout()
-        path = output_dir / f"{file_stem(solver)}.png"
-        with atomic_write(path) as temporary:
-            figure.savefig(temporary, dpi=80, format="png")
-        plt.close(figure)
-        written.append(path)
-    return written
+    rows = frame[frame["solver"] == solver]
+    figure, axes = plt.subplots(len(pairs), 3, figsize=(17, 5.2 * len(pairs)), squeeze=False, layout="constrained")
+    for row_axes, (m, h0) in zip(axes, pairs, strict=True):
+        part = rows[(rows["m"] == m) & (rows["h0"] == h0)]
+        maps = [np.full((len(zetas), len(ks)), np.nan) for _ in range(3)]
+        for _, run in part.iterrows():
+            i, j = zetas.index(run["zeta"]), ks.index(run["k"])
+            maps[0][i, j] = outcome(part.loc[[run.name]])[0]
+            finished = run["status"] == "finished"
+            maps[1][i, j] = math.log10(max(run["max_height_error"], 1e-16)) if finished else np.nan
+            maps[2][i, j] = math.log10(run["wall_time"]) if finished else np.nan
+        titles = ("events against the exact solution", "log10 max |h - h_exact| [m]", "log10 wall time [s]")
+        blanks = ("white: not run", "white: no data (the run timed out\nor failed, as the left map shows)",
+                  "white: no data (the run timed out\nor failed, as the left map shows)")
+        for panel, (axis, values, title, blank) in enumerate(zip(row_axes, maps, titles, blanks, strict=True)):
+            if panel == 0:
+                image = axis.imshow(values, origin="lower", cmap=colours, vmin=-0.5, vmax=4.5, aspect="auto")
+                bar = figure.colorbar(image, ax=axis, ticks=range(5))
+                bar.ax.set_yticklabels(OUTCOMES, fontsize=10)
+            else:
+                image = axis.imshow(values, origin="lower", cmap="viridis", aspect="auto")
+                figure.colorbar(image, ax=axis).ax.tick_params(labelsize=10)
+            axis.set_xticks(range(len(ks)), [_tick(k) for k in ks], rotation=60, fontsize=10)
+            axis.set_yticks(range(len(zetas)), [_tick(z) for z in zetas], fontsize=10)
+            axis.set_xlabel("stiffness k [N/m]", fontsize=11)
+            axis.set_ylabel("damping ratio zeta", fontsize=11)
+            axis.set_title(f"{solver}: {title}\nm = {m:g} kg, h0 = {h0:g} m", fontsize=11)
+            if np.isnan(values).any():
+                axis.legend(handles=[Patch(facecolor="white", edgecolor="0.4", label=blank)], loc="upper center",
+                            bbox_to_anchor=(0.5, -0.22), fontsize=10, frameon=False)
+    return figure
+
+
+def grid_of(frame) -> Grid:
+    """The Grid a sweep's table was run on: each axis from its values, the solvers in the order they come."""
+    axes = {}
+    for field in ("k", "zeta", "m", "h0"):
+        values = np.unique(frame[field].to_numpy(dtype=float))
+        axes[field] = (float(values[0]), float(values[-1]), len(values))
+    return Grid(**axes, t_end=float(frame["t_end"].iloc[0]), output_interval=float(frame["output_interval"].iloc[0]),
+                solvers=tuple(dict.fromkeys(frame["solver"])))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Redraw the heat maps from a sweep's stored table: ``python -m bouncingball.sweep.report DIR``."""
+    import pyarrow.parquet as pq
+
+    args = sys.argv[1:] if argv is None else argv
+    if len(args) != 1:
+        print(f"usage: python -m bouncingball.sweep.report DIR (the folder holding {TABLE_PARQUET})", file=sys.stderr)
+        return 2
+    output_dir = Path(args[0])
+    frame = pq.read_table(output_dir / TABLE_PARQUET).to_pandas()
+    for path in write_heat_maps(frame, grid_of(frame), output_dir):
+        print(f"wrote {path}")
+    return 0
 
 
 def write_tables(frame, output_dir: Path) -> list[Path]:
@@ -192,3 +241,7 @@ def write_markdown(frame, grid: Grid, info: dict, output_dir: Path, images: list
     with atomic_write(path) as temporary:
         temporary.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path
+
+
+if __name__ == "__main__":
+    sys.exit(main())

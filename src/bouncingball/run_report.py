@@ -1,0 +1,121 @@
+"""What `bouncingball run` says about a result beyond its numbers: its events, and why they differ from the exact ones.
+
+The rule for the differences is the package's one rule for hops too small to resolve
+(cvode.merged_hop_limit, the rule `check` applies): CVODE may merge a hop no higher than it into
+the contact around it. accuracy.event_mismatches lists what that rule does not explain.
+"""
+
+from __future__ import annotations
+
+from .accuracy import event_hops, event_mismatches
+from .solvers.exact import ExactSolution
+from .solvers.result import Event, SimulationResult
+
+EVENTS_SHOWN = 3  # the first and the last this many events are listed
+MISMATCHES_SHOWN = 3
+
+
+def plural(count: int, noun: str) -> str:
+    """'1 event', '2 events', '0 events'.
+
+    Examples
+    --------
+    >>> plural(1, "impact"), plural(0, "departure"), plural(41, "event")
+    ('1 impact', '0 departures', '41 events')
+    """
+    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
+
+
+def event_counts(events: list[Event]) -> str:
+    """'41 (21 impacts, 20 departures)', '2 (1 impact, 1 departure)': the plurals right."""
+    impacts = sum(event.kind == "impact" for event in events)
+    return f"{len(events)} ({plural(impacts, 'impact')}, {plural(len(events) - impacts, 'departure')})"
+
+
+def event_lines(events: list[Event], shown: int = EVENTS_SHOWN) -> list[str]:
+    """The first and last `shown` events, one line each (time, kind, velocity), the others counted between."""
+    def line(number: int, event: Event) -> str:
+        return f"#{number:<5d} {f't = {event.time:.12g} s':22s}  {event.kind:9s}  v = {event.velocity:+.6g} m/s"
+
+    if len(events) <= 2 * shown + 1:
+        return [line(i + 1, e) for i, e in enumerate(events)]
+    hidden = len(events) - 2 * shown
+    return ([line(i + 1, e) for i, e in enumerate(events[:shown])] + [f"... {plural(hidden, 'more event')}"]
+            + [line(len(events) - shown + i + 1, e) for i, e in enumerate(events[-shown:])])
+
+
+def hop_limit(result: SimulationResult) -> float:
+    """The highest hop [m] the result's solver may merge into the contact: cvode.merged_hop_limit; 0 for the others.
+
+    Under a table of forces, the largest of the limits of its values (as `check` takes it).
+    """
+    if result.solver != "cvode":
+        return 0.0
+    from .solvers.cvode import merged_hop_limit  # CVODE's rule, imported where a CVODE run already has
+
+    rtol, atol = result.options["rtol"], result.options["atol"]
+    forces = getattr(result.F_ext, "values", (result.F_ext,))
+    return max(merged_hop_limit(result.ball, rtol, atol, float(force)) for force in forces)
+
+
+def event_differences(result: SimulationResult, exact: ExactSolution, height_tolerance: float) -> list[str]:
+    """Why the result's events differ from the exact solution's; [] when they are the same in number and kind.
+
+    Events of the same kinds in the same order differ only in time, which the run's max event
+    time error says; otherwise the exact events the solver's hop resolution lets it merge are
+    counted, and what that rule does not explain is listed.
+
+    Parameters
+    ----------
+    result : SimulationResult
+        A solver's result.
+    exact : ExactSolution
+        The exact solution over the result's time span.
+    height_tolerance : float
+        How far [m] the ball may be off where an event is (at least the check's default
+        tolerance, testing.DEFAULT_TOLERANCE): an event matches when it is within
+        height_tolerance / |v| of the exact one.
+
+    Returns
+    -------
+    list of str
+        The lines to print: the exact events the solver's hop resolution lets it merge (when the
+        counts differ), then the differences that rule does not explain.
+    """
+    if [event.kind for event in result.events] == [event.kind for event in exact.events]:
+        return []
+    from .testing import DEFAULT_TOLERANCE  # here: the common case above needs none of what it imports
+
+    height_tolerance = max(height_tolerance, DEFAULT_TOLERANCE)
+    limit = hop_limit(result)
+    problems = event_mismatches(result.events, exact, height_tolerance, limit)
+    lines = []
+    if len(result.events) != len(exact.events):
+        lines.append(f"{plural(len(result.events), 'event')} where the exact solution has "
+                     f"{len(exact.events)}")
+        small = [event for event, hop in zip(exact.events, event_hops(exact), strict=True) if hop <= limit]
+        if small:
+            lines.append(f"{plural(len(small), 'exact event')} (from t = {small[0].time:.6g} s) bound hops no "
+                         f"higher than {limit:.3g} m above R, CVODE's hop resolution at rtol "
+                         f"{result.options['rtol']:g} (cvode.merged_hop_limit, as `check` "
+                         "allows): it merges such hops into the contact around them")
+        if not problems:
+            lines.append(f"every other event is within the time the ball moves {height_tolerance:.3g} m of the "
+                         "exact one")
+    if problems:
+        rule = f" beyond the hops up to {limit:.3g} m that CVODE may merge" if limit > 0.0 else ""
+        lines.append(f"{plural(len(problems), 'difference')} from the exact events{rule}, events matched to "
+                     f"within the time the ball moves {height_tolerance:.3g} m:")
+        lines += ["  " + problem for problem in problems[:MISMATCHES_SHOWN]]
+        if len(problems) > MISMATCHES_SHOWN:
+            lines.append(f"  ... {plural(len(problems) - MISMATCHES_SHOWN, 'more difference')}")
+    return lines
+
+
+def first_use_note(first_use_time: float, engine: str) -> str:
+    """The engine's first use in the process, which the run's wall time leaves out; '' if none."""
+    if not first_use_time:
+        return ""
+    loading = ("import numba and compile the engine or load it from numba's cache" if engine == "compiled"
+               else "import scikit-sundae")
+    return f"{first_use_time * 1e3:.0f} ms before the run (not in its wall time) to {loading}"
