@@ -132,6 +132,11 @@ def test_unwritable_and_odd_output_paths_and_formats_are_one_line_before_the_run
     assert sorted(tmp_path.iterdir()) == [afile] and afile.read_text() == ""  # nothing written, not even a.csv
     completed = _cli("build-fmu", "-o", str(afile / "x.fmu"))
     assert f"{str(afile)!r} is a file, not a folder" in _one_line(completed)
+    for command in (["bench", "--quick"], ["sweep", "--quick"]):
+        for folder, reason in [("/proc/x", "a file cannot be created in '/proc'"), (afile, "it is a file")]:
+            line = _one_line(_cli(*command, "--output-dir", str(folder)))
+            assert line.startswith(f"bouncingball: error: --output-dir = {str(folder)!r} is not allowed") and \
+                reason in line, line
 
 
 def test_output_dash_writes_the_csv_to_stdout_and_the_summary_to_stderr(tmp_path):
@@ -265,3 +270,21 @@ def test_bench_writes_to_a_folder_of_its_own_unless_told():
     from bouncingball.cli import _build_parser
 
     assert _build_parser().parse_args(["bench", "--quick"]).output_dir == "bench-results"
+
+
+def test_sundials_own_error_text_stays_off_the_terminal():
+    """scikit-sundae prints "[CVode, Error: -2] At t = 0, too much accuracy requested." to stdout on a failure."""
+    completed = _cli("run", "article", "--rtol", "1e-300", "--engine", "sksundae")
+    line = _one_line(completed, code=1)
+    assert line.startswith("bouncingball: solver failed: CVODE failed at t = 0.0 s") and "accuracy" in line
+    assert completed.stdout == "" and "Error: -2" not in completed.stderr
+
+
+def test_text_printed_during_a_solver_call_other_than_sundials_errors_is_passed_on(capsys):
+    from bouncingball.solvers.sundials_log import ErrorsOffStdout
+
+    with ErrorsOffStdout():
+        print("before")
+        print("\n[CVode, Error: -2] At t = 0, too much accuracy requested.\n")
+        print("after")
+    assert capsys.readouterr().out == "before\nafter\n"

@@ -44,6 +44,18 @@ def check_output_path(name: str, path: str | Path, make_folders: bool = False) -
     raise ValueError(f"{name} = {str(path)!r} is not allowed: {reason}")
 
 
+def check_output_folder(name: str, folder: str | Path) -> Path:
+    """folder if it is one, or can be made, and files can be written in it; else ValueError as check_output_path."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"{name} = {str(folder)!r} is not allowed: it is a file, not a folder")
+    try:
+        check_output_path(name, folder / "probe", make_folders=True)
+    except ValueError as error:  # said of the folder, not of the probe's name inside it
+        raise ValueError(str(error).replace(repr(str(folder / "probe")), repr(str(folder)), 1)) from None
+    return folder
+
+
 class _Probed(Exception):
     """Raised inside atomic_write by check_output_path: the temporary file was created."""
 

@@ -30,7 +30,7 @@ from .result import (
     SolverStats,
     output_grid,
 )
-from .sundials_log import SundialsLog
+from .sundials_log import ErrorsOffStdout, SundialsLog
 
 METHODS = ("auto", "Adams", "BDF")
 ENGINES = ("auto", "compiled", "sksundae")
@@ -523,7 +523,7 @@ class BallIntegrator:
         solver = self._solvers[self._mode]
         self._clear_roots(self._mode)
         _, length, speed = self._start_frame()
-        with self._logs[self._mode].capturing():
+        with self._logs[self._mode].capturing(), ErrorsOffStdout():
             solver.init_step(0.0, np.array([self._x / length, self._v / speed]))
         self._cvode_called = True
         self._needs_init = False
@@ -650,7 +650,7 @@ class BallIntegrator:
                 continue
             self._clear_roots(mode)
             origin, length, speed = self._start_frame()
-            with self._logs[mode].capturing():
+            with self._logs[mode].capturing(), ErrorsOffStdout():
                 result = self._solvers[mode].solve(np.array([0.0, t_end - origin]),
                                                    np.array([self._x / length, self._v / speed]))
             self._cvode_called = True

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import sys
 import time
-from pathlib import Path
 
 from .. import validation
+from ..output import check_output_folder
 from . import grid as grids
 from .capped import DEFAULT_TIME_CAP
 
@@ -51,9 +51,7 @@ def sweep_command(args) -> int:
     connect_timeout = validation.positive("--connect-timeout", args.connect_timeout, "s")
     if args.scheduler and args.workers:
         raise ValueError(f"--workers = {args.workers} is not allowed with --scheduler: the cluster has its own")
-    output_dir = Path(args.output_dir)
-    if output_dir.exists() and not output_dir.is_dir():
-        raise ValueError(f"--output-dir = {args.output_dir!r} is not allowed: it is a file, not a directory")
+    output_dir = check_output_folder("--output-dir", args.output_dir)
     for module in ("distributed", "pandas", "pyarrow", "matplotlib", "tqdm"):  # before the hours of work
         __import__(module)
     from distributed import Client
