@@ -279,3 +279,24 @@ def test_a_leftover_temporary_part_neither_fails_a_sweep_nor_stops_its_report(tm
     assert "2 runs (0 run now)" in resumed.stderr and "Traceback" not in resumed.stderr
     assert (tmp_path / "stability_map.md").is_file() and (tmp_path / "stability_map_cvode.png").is_file()
     assert not parts.exists() and len(_table(tmp_path)) == 2
+
+
+def test_ctrl_c_on_a_sweep_is_one_line_without_worker_tracebacks(tmp_path):
+    """Ctrl-C signals the terminal's whole process group; each Dask worker printed its KeyboardInterrupt."""
+    import os
+    import time
+
+    process = subprocess.Popen([sys.executable, "-m", "bouncingball.cli", "sweep", "--quick", "--workers", "2",
+                                "--output-dir", str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not list((tmp_path / "sweep_parts").glob("*.parquet")) and time.monotonic() < deadline:
+            time.sleep(0.2)  # until the workers have finished a batch: the sweep is under way
+        os.killpg(process.pid, signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert process.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "bouncingball: interrupted"
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
