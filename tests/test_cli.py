@@ -288,3 +288,33 @@ def test_text_printed_during_a_solver_call_other_than_sundials_errors_is_passed_
         print("\n[CVode, Error: -2] At t = 0, too much accuracy requested.\n")
         print("after")
     assert capsys.readouterr().out == "before\nafter\n"
+
+
+def test_a_long_run_shows_its_progress_on_a_terminal_only():
+    """A run past PROGRESS_AFTER seconds draws a tqdm bar of the simulated time on a terminal's stderr."""
+    import fcntl
+    import pty
+    import struct
+    import termios
+
+    pytest.importorskip("tqdm")
+    args = [sys.executable, "-m", "bouncingball.cli", "run", "undamped", "--engine", "sksundae", "--t-end", "4000",
+            "--output-interval", "1"]  # ~4 s of CVODE
+    terminal, secondary = pty.openpty()
+    fcntl.ioctl(secondary, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # a terminal 100 columns wide
+    process = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=secondary, stdin=subprocess.DEVNULL)
+    os.close(secondary)
+    seen = b""
+    while True:
+        try:
+            data = os.read(terminal, 65536)
+        except OSError:  # the terminal closed with the process
+            break
+        if not data:
+            break
+        seen += data
+    os.close(terminal)
+    out = process.stdout.read().decode()
+    assert process.wait(timeout=60) == 0
+    assert b"simulated time: " in seen and b"/4000 s" in seen and "simulated time" not in out
+    assert "simulated time" not in _cli(*args[3:]).stderr  # not a terminal: no bar

@@ -16,6 +16,7 @@ EXIT_SOLVER_FAILED = 1
 EXIT_CHECK_FAILED = 1  # `check`: the result is not within the tolerance of the exact solution
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 CONNECT_TIMEOUT = 10.0  # s: how long `sweep --scheduler` waits for the scheduler to answer
+PROGRESS_AFTER = 2.0  # s: `run` shows a progress bar once it has taken this long (on a terminal, with tqdm)
 EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE: the reader (`| head`) stopped reading
 # The optional modules a command may need, and the extra that installs each.
 EXTRA_OF_MODULE = {"fmpy": "fmu", "pythonfmu": "fmu", "scipy": "reference", "matplotlib": "plot", "tqdm": "bench",
@@ -157,7 +158,10 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
     if args.solver == "scipy":
         print(f"bouncingball: running the article's SciPy algorithm on {scene.name} (minutes on a stiff scene; "
               "Ctrl-C stops it)", file=sys.stderr)
-    result = scene.simulate(args.solver, **options)
+    with _progress_bar(options.get("t_end", scene.t_end)) as progress:
+        if progress is not None and args.solver == "cvode":
+            options["progress"] = progress
+        result = scene.simulate(args.solver, **options)
     exact = result if result.solver == "exact" else exact_counterpart(result, scene.h0, scene.v0)
 
     ball = scene.ball
@@ -196,6 +200,24 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
         title = f"scene {scene.name}: {result.solver}, {len(result.events)} events"
         print(f"  wrote {plot_height(result, args.plot, title, exact=exact)}")
     return 0
+
+
+@contextlib.contextmanager
+def _progress_bar(t_end: float):
+    """A callback that shows the simulated time on a tqdm bar on stderr, or None: no terminal or no tqdm.
+
+    The bar appears once the run has taken PROGRESS_AFTER seconds, and is cleared at its end.
+    """
+    from importlib.util import find_spec
+
+    if not (sys.stderr.isatty() and find_spec("tqdm")):
+        yield None
+        return
+    from tqdm import tqdm
+
+    with tqdm(total=t_end, unit="s", desc="simulated time", delay=PROGRESS_AFTER, leave=False,
+              file=sys.stderr, bar_format="{desc}: {n:.4g}/{total:.4g} s {bar} [{elapsed}<{remaining}]") as bar:
+        yield lambda t: bar.update(t - bar.n)
 
 
 def _check(args: argparse.Namespace) -> int:

@@ -44,7 +44,8 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
         Every solver runs a table piece by piece: the state is continuous at a change, the mode held.
     **options
         For cvode: rtol, atol, method ("auto", "Adams", "BDF"), max_step [s] (0: unbounded),
-        engine ("auto", "compiled", "sksundae"). For scipy: method, rtol, atol, max_step,
+        engine ("auto", "compiled", "sksundae"), progress (called with the time reached [s] as the
+        run goes on, for a progress display). For scipy: method, rtol, atol, max_step,
         max_events. exact takes none.
 
     Returns

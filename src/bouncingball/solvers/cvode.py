@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import numbers
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -254,6 +255,8 @@ class BallIntegrator:
 
     Change F_ext between advances; set_state(get_state()) resumes within the tolerance of the original run.
     """
+
+    progress: Callable[[float], None] | None = None  # integrate_grid tells it the time reached, phase by phase
 
     def __init__(self, ball: Ball, h0: float, v0: float, t0: float = 0.0, F_ext: float = 0.0,
                  settings: CvodeSettings | None = None) -> None:
@@ -633,6 +636,8 @@ class BallIntegrator:
         self._reinit_needed()
         resting = False  # set when CVODE stops at the start of a rest
         while self._t < t_end and not self._close_enough(t_end):
+            if self.progress is not None:
+                self.progress(self._t)
             mode = self._mode
             if resting or self._at_rest():
                 self._rest_from = (self._t, self._x, self._v)
@@ -831,7 +836,8 @@ class BallIntegrator:
 
 
 def _integrate_pieces(ball: Ball, h0: float, v0: float, grid: np.ndarray, table: ForceTable,
-                      settings: CvodeSettings) -> tuple[BallIntegrator, np.ndarray, np.ndarray, list[Event]]:
+                      settings: CvodeSettings, progress: Callable[[float], None] | None = None
+                      ) -> tuple[BallIntegrator, np.ndarray, np.ndarray, list[Event]]:
     """integrate_grid piece by piece of constant F_ext: each piece's grid is its output times and its ends.
 
     The integrator restarts CVODE where its F_ext changes (the state continuous, the mode held); a
@@ -839,6 +845,7 @@ def _integrate_pieces(ball: Ball, h0: float, v0: float, grid: np.ndarray, table:
     """
     constant_pieces = forcing.pieces(table, float(grid[0]), float(grid[-1]))
     integrator = BallIntegrator(ball, h0, v0, float(grid[0]), constant_pieces[0][2], settings)
+    integrator.progress = progress
     h, v = np.empty_like(grid), np.empty_like(grid)
     h[0], v[0] = integrator.h, integrator.v
     events: list[Event] = []
@@ -858,19 +865,21 @@ def _integrate_pieces(ball: Ball, h0: float, v0: float, grid: np.ndarray, table:
 def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
                    t_start: float = 0.0, F_ext: float | ForceTable = 0.0, rtol: float = DEFAULT_RTOL,
                    atol: float | None = DEFAULT_ATOL, method: str = "auto", max_step: float = 0.0,
-                   engine: str = "auto") -> SimulationResult:
+                   engine: str = "auto", progress: Callable[[float], None] | None = None) -> SimulationResult:
     """Integrate with CVODE from t_start to t_end and return the solution on the output grid.
 
     engine: see CvodeSettings; the engine that ran and why are in result.stats. F_ext: a constant [N]
-    or a forcing.ForceTable, integrated piece by piece of constant force.
+    or a forcing.ForceTable, integrated piece by piece of constant force. progress: called with the
+    time reached [s] after each phase, for a progress display.
     """
     settings = CvodeSettings(rtol=rtol, atol=atol, method=method, max_step=max_step, engine=engine)
     grid = output_grid(t_start, t_end, output_interval)
     started = time.perf_counter()
     if isinstance(F_ext, ForceTable):
-        integrator, h, v, events = _integrate_pieces(ball, h0, v0, grid, F_ext, settings)
+        integrator, h, v, events = _integrate_pieces(ball, h0, v0, grid, F_ext, settings, progress)
     else:
         integrator = BallIntegrator(ball, h0, v0, t_start, F_ext, settings)
+        integrator.progress = progress
         h, v, events = integrator.integrate_grid(grid)
     wall_time = time.perf_counter() - started
     stats = SolverStats(steps=integrator.steps, rhs_calls=integrator.rhs_calls, events=len(events),
