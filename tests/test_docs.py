@@ -1,5 +1,6 @@
 """The shipped code and the docs stand on their own: no reference to notes or threads a reader cannot see."""
 
+import ast
 import doctest
 import importlib
 import re
@@ -37,3 +38,28 @@ def test_public_examples_run(module):
     """The Examples sections of the public API's docstrings are true."""
     failed, attempted = doctest.testmod(importlib.import_module(module), optionflags=doctest.ELLIPSIS)
     assert failed == 0
+
+
+# The code that writes the generated pages: every figure in them is measured or formatted from a constant.
+PAGE_WRITERS = ("bench/targets.py", "bench/pages.py", "bench/stability.py", "sweep/report.py", "fmu/documentation.py")
+APPROXIMATE = re.compile(r"~\s*\d|\babout \d")
+FIGURE_WITH_UNIT = re.compile(r"(?<![\w.{+-])\d+(\.\d+)?(e[-+]?\d+)? ?(us|ms|m|s|N/m|kg|m/s2|N s/m)\b")
+
+
+def _page_text_literals(path: Path) -> list[tuple[int, str]]:
+    """The string constants of a module (f-strings' literal parts too), its docstrings left out."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    docstrings = {id(node.body[0].value) for node in ast.walk(tree)
+                  if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef)) and node.body
+                  and isinstance(node.body[0], ast.Expr) and isinstance(node.body[0].value, ast.Constant)}
+    return [(node.lineno, node.value) for node in ast.walk(tree)
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings]
+
+
+@pytest.mark.parametrize("module", PAGE_WRITERS)
+def test_generated_pages_type_no_figure(module):
+    """No "~4 us", "about 4 evaluations" or "R = 0.06 m" typed into a page: measured, or formatted from the code."""
+    path = ROOT / "src" / "bouncingball" / module
+    typed = [(line, text) for line, text in _page_text_literals(path)
+             if APPROXIMATE.search(text) or FIGURE_WITH_UNIT.search(text)]
+    assert typed == []

@@ -9,18 +9,17 @@ from scipy.integrate import solve_ivp
 
 from .. import validation
 from ..physics import Ball, Mode
-from . import forcing
+from . import ARTICLE_ATOL, ARTICLE_MAX_STEP, ARTICLE_METHOD, ARTICLE_RTOL, forcing
 from .forcing import ForceTable
 from .result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
 
 METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 IMPLICIT = ("Radau", "BDF", "LSODA")
-ARTICLE_MAX_STEP = 0.01
 
 
 def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
-                   t_start: float = 0.0, F_ext: float | ForceTable = 0.0, method: str = "RK45",
-                   rtol: float = 1e-3, atol: float = 1e-6, max_step: float = ARTICLE_MAX_STEP,
+                   t_start: float = 0.0, F_ext: float | ForceTable = 0.0, method: str = ARTICLE_METHOD,
+                   rtol: float = ARTICLE_RTOL, atol: float = ARTICLE_ATOL, max_step: float = ARTICLE_MAX_STEP,
                    max_events: int = 100_000) -> SimulationResult:
     """Integrate as the article does; defaults are the article's (RK45, max_step 0.01, SciPy's tolerances).
 
