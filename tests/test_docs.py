@@ -63,3 +63,35 @@ def test_generated_pages_type_no_figure(module):
     typed = [(line, text) for line, text in _page_text_literals(path)
              if APPROXIMATE.search(text) or FIGURE_WITH_UNIT.search(text)]
     assert typed == []
+
+
+# A passage that quotes a generated page: every number in it (code spans aside) is printed on that page.
+QUOTED = re.compile(r"<!-- figures from (?P<page>\S+) -->(?P<text>.*?)<!-- end of figures -->", re.DOTALL)
+NUMBER = re.compile(r"(?<![\w.-])\d+(?:,\d{3})*(?:\.\d+)?(?:e[-+]?\d+)?")
+
+
+@pytest.mark.parametrize("document", ["README.md", "docs/fmu.md"])
+def test_a_quoted_figure_is_the_generated_pages(document):
+    """README's benchmark headlines and docs/fmu.md's costs are docs/benchmarks.md's numbers, as it prints them."""
+    path = ROOT / document
+    if not path.is_file():
+        pytest.skip("runs in a source checkout")
+    text = path.read_text(encoding="utf-8")
+    passages = QUOTED.findall(text)
+    assert passages and len(passages) == text.count("<!-- end of figures -->"), "a marker is malformed"
+    for page, text in passages:
+        generated = (ROOT / page).read_text(encoding="utf-8")
+        figures = NUMBER.findall(re.sub(r"`[^`]*`", "", text))
+        assert len(figures) > 5
+        missing = [figure for figure in figures
+                   if not re.search(rf"(?<![\w.-]){re.escape(figure)}(?!\.?\d)", generated)]
+        assert missing == [], f"{document} quotes figures {page} does not print: {missing}"
+
+
+def test_the_python_hosts_the_docs_name_are_those_tested():
+    from bouncingball.fmu.host_check import TESTED_PYTHON_HOSTS
+
+    for document in ("README.md", "docs/fmu.md"):
+        text = (ROOT / document).read_text(encoding="utf-8")
+        assert all(version in text for version in TESTED_PYTHON_HOSTS), document
+    assert "Python of the version the FMU was built with, with numpy" not in (ROOT / "README.md").read_text()

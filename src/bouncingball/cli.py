@@ -19,8 +19,8 @@ CONNECT_TIMEOUT = 10.0  # s: how long `sweep --scheduler` waits for the schedule
 PROGRESS_AFTER = 2.0  # s: `run` shows a progress bar once it has taken this long (on a terminal, with tqdm)
 EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE: the reader (`| head`) stopped reading
 # The optional modules a command may need, and the extra that installs each.
-EXTRA_OF_MODULE = {"fmpy": "fmu", "pythonfmu": "fmu", "scipy": "reference", "matplotlib": "plot", "tqdm": "bench",
-                   "dask": "sweep", "distributed": "sweep", "pandas": "sweep", "pyarrow": "sweep"}
+EXTRA_OF_MODULE = {"fmpy": "fmu", "pythonfmu": "fmu", "docutils": "fmu", "scipy": "reference", "matplotlib": "plot",
+                   "tqdm": "bench", "dask": "sweep", "distributed": "sweep", "pandas": "sweep", "pyarrow": "sweep"}
 
 
 def _build_parser() -> argparse.ArgumentParser:

@@ -53,10 +53,12 @@ def build_fmu(output: str | Path = DEFAULT_OUTPUT) -> Path:
     _check_build_host()
     compiler = _compiler()
     try:
+        import docutils  # noqa: F401  (it renders documentation/index.html)
         import fmpy  # noqa: F401  (its FMI 2.0 headers compile the loader)
         from pythonfmu import FmuBuilder
     except ImportError as error:
-        raise ImportError(f"build-fmu needs pythonfmu and FMPy ({error}): pip install 'bouncingball[fmu]'") from None
+        raise ImportError(f"build-fmu needs pythonfmu, FMPy and docutils ({error}): pip install "
+                          "'bouncingball[fmu]'") from None
 
     with tempfile.TemporaryDirectory(prefix="bouncingball_fmu_") as temp:
         temp = Path(temp)
