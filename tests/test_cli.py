@@ -318,3 +318,14 @@ def test_a_long_run_shows_its_progress_on_a_terminal_only():
     assert process.wait(timeout=60) == 0
     assert b"simulated time: " in seen and b"/4000 s" in seen and "simulated time" not in out
     assert "simulated time" not in _cli(*args[3:]).stderr  # not a terminal: no bar
+
+
+@pytest.mark.parametrize("solver", ["cvode", "scipy"])
+def test_progress_is_told_the_time_reached_phase_by_phase(solver):
+    import bouncingball
+
+    reached = []
+    result = bouncingball.simulate(Ball(), 2.0, 0.0, 8.0, solver=solver, progress=reached.append)
+    impacts = [event.time for event in result.events if event.kind == "impact"]
+    assert reached[0] == 0.0 and all(a < b for a, b in zip(reached, reached[1:], strict=False))
+    assert len(reached) >= len(result.events) and reached[-1] >= impacts[-1]  # told at each phase's start

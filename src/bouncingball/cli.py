@@ -159,7 +159,7 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
         print(f"bouncingball: running the article's SciPy algorithm on {scene.name} (minutes on a stiff scene; "
               "Ctrl-C stops it)", file=sys.stderr)
     with _progress_bar(options.get("t_end", scene.t_end)) as progress:
-        if progress is not None and args.solver == "cvode":
+        if progress is not None and args.solver in ("cvode", "scipy"):
             options["progress"] = progress
         result = scene.simulate(args.solver, **options)
     exact = result if result.solver == "exact" else exact_counterpart(result, scene.h0, scene.v0)

@@ -49,7 +49,7 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
         For cvode: rtol, atol, method ("auto", "Adams", "BDF"), max_step [s] (0: unbounded),
         engine ("auto", "compiled", "sksundae"), progress (called with the time reached [s] as the
         run goes on, for a progress display). For scipy: method, rtol, atol, max_step,
-        max_events. exact takes none.
+        max_events, progress. exact takes none.
 
     Returns
     -------
