@@ -328,3 +328,13 @@ def test_the_map_page_formats_every_constant_from_the_code(tmp_path, monkeypatch
         assert fragment in text, fragment
     for typed in ("0.06 m", "9.81", "1e-10 m + 1e-9 R", "max_step 0.01", "1e-5 m", "1e-6 m"):
         assert typed not in text, typed
+
+
+def test_the_csv_holds_the_tables_doubles_in_their_shortest_form(local_sweep):
+    csv = pd.read_csv(local_sweep / "stability_map.csv", keep_default_na=False, na_values=[""])
+    table = _table(local_sweep)
+    for column in ("k", "zeta", "b", "max_height_error", "max_event_time_error", "wall_time"):
+        assert csv[column].tolist() == table[column].tolist(), column  # read back, the same doubles
+    text = (local_sweep / "stability_map.csv").read_text()
+    assert not any(len(cell) > len(repr(float(cell))) for line in text.splitlines()[1:]
+                   for cell in line.split(",") if cell.replace(".", "", 1).isdigit())

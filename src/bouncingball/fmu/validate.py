@@ -143,7 +143,8 @@ def _fmu_row(fmu: Path, scene: Scene, exact) -> tuple[Row, bool]:
 def check_fmu_file(fmu: Path) -> None:
     """ValueError naming fmu unless it is a zip archive with a modelDescription.xml, as every FMU is."""
     if not fmu.is_file():
-        raise ValueError(f"--fmu = {str(fmu)!r} is not allowed: no such file")
+        reason = "it is a folder" if fmu.is_dir() else "no such file"
+        raise ValueError(f"--fmu = {str(fmu)!r} is not allowed: {reason}")
     if not zipfile.is_zipfile(fmu):
         raise ValueError(f"--fmu = {str(fmu)!r} is not allowed: it is not an FMU (not a zip archive)")
     with zipfile.ZipFile(fmu) as archive:

@@ -98,11 +98,14 @@ def write_heat_maps(frame, grid: Grid, output_dir: Path) -> list[Path]:
 
 
 def write_tables(frame, output_dir: Path) -> list[Path]:
-    """The whole table as CSV (full precision; without the run keys) and Parquet (with them, as --resume reads)."""
+    """The whole table as CSV (without the run keys) and Parquet (with them, as --resume reads).
+
+    The CSV's numbers are pandas' default, the shortest text that reads back as the same double.
+    """
     columns = [column for column in frame.columns if column != "key"]
     csv_path = output_dir / TABLE_CSV
     with atomic_write(csv_path) as temporary:
-        frame[columns].to_csv(temporary, index=False, float_format="%.17g")
+        frame[columns].to_csv(temporary, index=False)
     return [csv_path, store.write_table(frame, output_dir)]
 
 
