@@ -1,5 +1,9 @@
+import os
 import subprocess
 import sys
+import tempfile
+import time
+import zipfile
 
 import numpy as np
 import pytest
@@ -21,7 +25,12 @@ def test_run_article_prints_summary_and_writes_files(tmp_path, capsys):
     error = float(text.split("max |h - h_exact|")[1].split()[0])
     assert 0 < error <= 1e-6
     columns = read_solution_csv(out)
-    assert out.read_text().splitlines()[0] == "time,h,v"
+    lines = out.read_text().splitlines()
+    assert lines[0] == _fmpy_header("time", "h", "v")
+    assert lines[299].startswith("0.298,")  # the shortest form that reads back, as FMPy writes it
+    assert all(float(text) == value for line, t, h, v in zip(lines[1:], columns["time"], columns["h"], columns["v"],
+                                                             strict=True)
+               for text, value in zip(line.split(","), (t, h, v), strict=True))
     assert len(columns["time"]) == 8001
     h_exact, _ = ExactSolution(Ball(), 2.0, 0.0, 0.0, 8.0).state(columns["time"])
     assert np.max(np.abs(columns["h"] - h_exact)) <= 1e-6
@@ -53,8 +62,27 @@ def test_scenes_table_lists_every_scene(capsys):
         assert f"\n{name} " in text
 
 
-def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "bouncingball.cli", *args], capture_output=True, text=True)
+def _fmpy_header(*names):
+    """The header row FMPy's own write_csv writes for a result with these columns."""
+    from fmpy.util import write_csv
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = os.path.join(folder, "fmpy.csv")
+        write_csv(path, np.zeros(1, dtype=[(name, float) for name in names]))
+        with open(path) as file:
+            return file.readline().rstrip("\n")
+
+
+def _cli(*args, env=None):
+    return subprocess.run([sys.executable, "-m", "bouncingball.cli", *args], capture_output=True, text=True,
+                          env=None if env is None else {**os.environ, **env})
+
+
+def _one_line(completed, code=2):
+    assert completed.returncode == code, completed.stderr
+    [line] = completed.stderr.strip().splitlines()
+    assert line.startswith("bouncingball: ") and "Traceback" not in completed.stderr
+    return line
 
 
 def test_bad_input_is_one_line_and_exit_code_2():
@@ -86,6 +114,112 @@ def test_output_paths_are_checked_before_the_run_and_nothing_partial_is_left(tmp
             assert line.startswith(f"bouncingball: error: {option} = {str(path)!r} is not allowed") and reason in line
             assert completed.stdout == ""  # refused before the run printed anything
     assert list(tmp_path.iterdir()) == [folder] and list(folder.iterdir()) == []
+
+
+def test_unwritable_and_odd_output_paths_and_formats_are_one_line_before_the_run(tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    cases = [(["--output", "/proc/nope.csv"], "a file cannot be created in '/proc'"),
+             (["--events", "/sys/x.csv"], "a file cannot be created in '/sys'"),
+             (["--output", str(afile / "x.csv")], f"{str(afile)!r} is a file, not a folder"),
+             (["--plot", str(afile / "deeper" / "x.png")], f"{str(afile)!r} is a file, not a folder"),
+             (["--output", str(tmp_path / "a.csv"), "--plot", str(tmp_path / "out.txt")], "its format 'txt'"),
+             (["--events", "-"], "only --output writes to stdout")]
+    for options, reason in cases:
+        line = _one_line(_cli("run", "undamped", *options))  # 1000 s: a run would take seconds
+        assert line.startswith(f"bouncingball: error: {options[-2]} = {options[-1]!r} is not allowed") and \
+            reason in line, line
+    assert sorted(tmp_path.iterdir()) == [afile] and afile.read_text() == ""  # nothing written, not even a.csv
+    completed = _cli("build-fmu", "-o", str(afile / "x.fmu"))
+    assert f"{str(afile)!r} is a file, not a folder" in _one_line(completed)
+    for command in (["bench", "--quick"], ["sweep", "--quick"]):
+        for folder, reason in [("/proc/x", "a file cannot be created in '/proc'"), (afile, "it is a file")]:
+            line = _one_line(_cli(*command, "--output-dir", str(folder)))
+            assert line.startswith(f"bouncingball: error: --output-dir = {str(folder)!r} is not allowed") and \
+                reason in line, line
+
+
+def test_output_dash_writes_the_csv_to_stdout_and_the_summary_to_stderr(tmp_path):
+    completed = _cli("run", "article", "--engine", "sksundae", "--output", "-")
+    assert completed.returncode == 0, completed.stderr
+    assert completed.stderr.startswith("scene article:") and "max |h - h_exact|" in completed.stderr
+    lines = completed.stdout.splitlines()
+    assert lines[0] == _fmpy_header("time", "h", "v") and len(lines) == 8002
+    h_exact, _ = ExactSolution(Ball(), 2.0, 0.0, 0.0, 8.0).state(np.array([float(line.split(",")[0])
+                                                                             for line in lines[1:]]))
+    assert np.max(np.abs(np.array([float(line.split(",")[1]) for line in lines[1:]]) - h_exact)) <= 1e-6
+    assert not (tmp_path / "-").exists() and not os.path.exists("-")
+
+
+def test_a_closed_pipe_ends_the_run_quietly():
+    process = subprocess.Popen([sys.executable, "-m", "bouncingball.cli", "run", "undamped", "--engine", "sksundae",
+                                "--output", "-"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert process.stdout.readline() == b'"time","h","v"\n'
+    process.stdout.close()  # as `| head -1` does
+    err = process.stderr.read().decode()
+    process.wait(timeout=120)
+    assert process.returncode == 141 and "Traceback" not in err and "BrokenPipe" not in err, err
+
+
+def test_version_is_the_installed_distributions():
+    from importlib.metadata import version
+
+    completed = _cli("--version")
+    assert completed.returncode == 0 and completed.stdout.strip() == f"bouncingball {version('bouncingball')}"
+
+
+def test_a_scene_file_that_is_not_utf8_is_named(tmp_path):
+    scene = tmp_path / "latin1.toml"
+    scene.write_bytes("description = 'h\xf6he'\n".encode("latin-1"))
+    line = _one_line(_cli("run", str(scene)))
+    assert f"scene file {str(scene)!r} is not UTF-8" in line
+
+
+def test_a_refused_bound_is_printed_exactly(tmp_path):
+    """Rounded to 6 digits, (0, 1.23457] would seem to hold the refused 1.2345679."""
+    completed = _cli("run", "article", "--t-end", "1.23456789", "--output-interval", "1.2345679")
+    assert "output_interval = 1.2345679 s is not allowed: it must be in (0, 1.23456789]" in _one_line(completed)
+
+
+def test_build_fmu_without_a_working_compiler_names_it_and_cc(tmp_path):
+    line = _one_line(_cli("build-fmu", "-o", str(tmp_path / "x.fmu"), env={"CC": "nonexistent-cc"}), code=1)
+    assert "the C compiler 'nonexistent-cc' from $CC cannot be run" in line and "set CC to" in line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_validate_names_a_bad_fmu_before_any_stage(tmp_path):
+    for content, reason in [(b"not a zip", "not a zip archive"), (None, "no modelDescription.xml")]:
+        fmu = tmp_path / "bad.fmu"
+        if content is None:
+            with zipfile.ZipFile(fmu, "w") as archive:
+                archive.writestr("readme.txt", "no model here")
+        else:
+            fmu.write_bytes(content)
+        line = _one_line(_cli("validate", "--fmu", str(fmu)))  # one line: no "validate: <stage>" before it
+        assert line == f"bouncingball: error: --fmu = {str(fmu)!r} is not allowed: it is not an FMU ({reason})"
+
+
+def test_validate_skips_stages_and_caps_scipy():
+    started = time.perf_counter()
+    completed = _cli("validate", "tiny-mass", "--skip", "fmu", "--skip", "cvode", "--time-cap", "1")
+    assert completed.returncode == 0, completed.stderr
+    assert time.perf_counter() - started < 30  # not the 60 s SciPy took to be stopped before
+    rows = completed.stdout.splitlines()[3:]
+    assert [row.split()[0] for row in rows] == ["article", "exact"] and "killed after 1 s" in rows[0]
+    assert "FMU skipped" in completed.stdout and "CVODE" not in completed.stdout
+    assert "--skip = 'fem' is not allowed" in _one_line(_cli("validate", "--skip", "fem"))
+    assert "--time-cap = 0.0 s is not allowed" in _one_line(_cli("validate", "--time-cap", "0"))
+
+
+def test_an_unreachable_scheduler_is_one_line_within_the_connect_timeout(tmp_path):
+    pytest.importorskip("distributed")
+    started = time.perf_counter()
+    completed = _cli("sweep", "--quick", "--scheduler", "tcp://127.0.0.1:1", "--connect-timeout", "2",
+                     "--output-dir", str(tmp_path / "sweep"))
+    assert time.perf_counter() - started < 15
+    line = _one_line(completed)
+    assert "--scheduler = 'tcp://127.0.0.1:1' is not allowed" in line and "2 s" in line
+    assert not (tmp_path / "sweep").exists()
 
 
 def test_a_grid_too_large_for_memory_is_refused_with_the_interval_that_fits():
@@ -136,3 +270,62 @@ def test_bench_writes_to_a_folder_of_its_own_unless_told():
     from bouncingball.cli import _build_parser
 
     assert _build_parser().parse_args(["bench", "--quick"]).output_dir == "bench-results"
+
+
+def test_sundials_own_error_text_stays_off_the_terminal():
+    """scikit-sundae prints "[CVode, Error: -2] At t = 0, too much accuracy requested." to stdout on a failure."""
+    completed = _cli("run", "article", "--rtol", "1e-300", "--engine", "sksundae")
+    line = _one_line(completed, code=1)
+    assert line.startswith("bouncingball: solver failed: CVODE failed at t = 0.0 s") and "accuracy" in line
+    assert completed.stdout == "" and "Error: -2" not in completed.stderr
+
+
+def test_text_printed_during_a_solver_call_other_than_sundials_errors_is_passed_on(capsys):
+    from bouncingball.solvers.sundials_log import ErrorsOffStdout
+
+    with ErrorsOffStdout():
+        print("before")
+        print("\n[CVode, Error: -2] At t = 0, too much accuracy requested.\n")
+        print("after")
+    assert capsys.readouterr().out == "before\nafter\n"
+
+
+def test_a_long_run_shows_its_progress_on_a_terminal_only():
+    """A run past PROGRESS_AFTER seconds draws a tqdm bar of the simulated time on a terminal's stderr."""
+    import fcntl
+    import pty
+    import struct
+    import termios
+
+    pytest.importorskip("tqdm")
+    args = [sys.executable, "-m", "bouncingball.cli", "run", "undamped", "--engine", "sksundae", "--t-end", "4000",
+            "--output-interval", "1"]  # ~4 s of CVODE
+    terminal, secondary = pty.openpty()
+    fcntl.ioctl(secondary, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # a terminal 100 columns wide
+    process = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=secondary, stdin=subprocess.DEVNULL)
+    os.close(secondary)
+    seen = b""
+    while True:
+        try:
+            data = os.read(terminal, 65536)
+        except OSError:  # the terminal closed with the process
+            break
+        if not data:
+            break
+        seen += data
+    os.close(terminal)
+    out = process.stdout.read().decode()
+    assert process.wait(timeout=60) == 0
+    assert b"simulated time: " in seen and b"/4000 s" in seen and "simulated time" not in out
+    assert "simulated time" not in _cli(*args[3:]).stderr  # not a terminal: no bar
+
+
+@pytest.mark.parametrize("solver", ["cvode", "scipy"])
+def test_progress_is_told_the_time_reached_phase_by_phase(solver):
+    import bouncingball
+
+    reached = []
+    result = bouncingball.simulate(Ball(), 2.0, 0.0, 8.0, solver=solver, progress=reached.append)
+    impacts = [event.time for event in result.events if event.kind == "impact"]
+    assert reached[0] == 0.0 and all(a < b for a, b in zip(reached, reached[1:], strict=False))
+    assert len(reached) >= len(result.events) and reached[-1] >= impacts[-1]  # told at each phase's start

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import html
+import re
 import zipfile
 
 import numpy as np
@@ -31,6 +32,21 @@ def test_the_fmu_documentation_names_every_variable_with_its_unit(fmu):
                  "numpy and scikit-sundae", "bouncingball check", "BouncingBall_ref.csv"):
         assert html.escape(text, quote=False) in page, text
     assert "<td>m</td><td>parameter</td><td>kg</td><td>1</td><td>&gt; 0</td>" in page
+
+
+def test_the_fmu_documentation_is_rendered_from_the_docstrings_not_shown_raw(fmu):
+    """docutils renders numpydoc's sections: no "Parameters ----------", no >>> outside a code block."""
+    from bouncingball.solvers.cvode import DEFAULT_RTOL
+    from bouncingball.validation import exact
+
+    with zipfile.ZipFile(fmu) as archive:
+        page = archive.read("documentation/index.html").decode("utf-8")
+    assert "----" not in page and "<h3>Parameters</h3>" in page
+    assert '<dt>m<span class="classifier">float</span></dt>' in page  # the parameter list, a definition list
+    assert "&gt;&gt;&gt;" not in re.sub(r"<pre.*?</pre>", "", page, flags=re.DOTALL)  # examples only as code
+    assert f"tolerance {exact(DEFAULT_RTOL)} (the default rtol)" in page and f"<td>{exact(DEFAULT_RTOL)}</td>" in page
+    assert not re.search(r"\d\.\d{12,}", page)  # every value in its shortest form (no 9.999999999999999e-13)
+    assert "(0.059019 m with the defaults)" in page  # R - m g / k = 0.06 - 9.81 / 1e4, not 0.059018999999999995
 
 
 def test_fmpy_info_still_reads_the_fmu(fmu):

@@ -60,7 +60,7 @@ ONCE_HUNG = [
 # advancing t (it never ended); CVODE refused them already.
 ONCE_HUNG.append(("bouncingball.simulate(Ball(k=1e15, m=1e-9, b=0.0), 1.0, 0.0, 1e5, 1.0, solver={solver!r}{engine})",
                   ["k = 1000000000000000.0 N/m with m = 1e-09 kg is not allowed up to t = ",
-                   "Shorten the run to t <= 1.415 s"]))  # t_end (CVODE) or the first contact past 1.415 s (exact)
+                   "Shorten the run to t <= 1.41"]))  # t_end (CVODE) or the first contact past 1.415 s (exact)
 OVERFLOWED = [
     ("bouncingball.simulate(Ball(R=1e300), 2, 0, 1, solver={solver!r}{engine})",
      ["R = 1e+300 m is not allowed: it must be <= 1e+150 m"]),
@@ -105,7 +105,7 @@ def test_an_output_interval_below_the_float_spacing_is_refused(solver):
         bouncingball.simulate(Ball(), 2.0, 0.0, 1e6 + 1.4e-8, 1e-10, solver=solver, t_start=1e6)
     message = str(info.value)
     assert "output_interval = 1e-10 s is not allowed from t_start = 1000000.0 s" in message
-    assert f"it must be >= {4 * math.ulp(1e6 + 1.4e-8):.4g} s" in message
+    assert f"it must be >= {4 * math.ulp(1e6 + 1.4e-8)!r} s" in message  # exactly: a rounded bound misleads
     with pytest.raises(ValueError, match="output_interval = 1e-10 s is not allowed"):
         output_grid(1e6, 1e6 + 1.4e-8, 1e-10)
 
@@ -166,7 +166,8 @@ def test_a_ball_flying_away_is_refused_beyond_the_time_its_height_stays_finite()
     with pytest.raises(ValueError) as info:
         bouncingball.simulate(ball, 2.0, 0.0, 1e160, 1e157, solver="exact", F_ext=100.0)
     assert "t_end = 1e+160 s is not allowed for this scene" in str(info.value)
-    assert "it must be <= t_start + 1.109e+148 s" in str(info.value)
+    bound = float(str(info.value).split("it must be <= t_start + ")[1].split()[0])
+    assert bound == pytest.approx(1.109e148, rel=1e-3)  # printed exactly, not to 4 digits
 
 
 @pytest.mark.parametrize(("text", "fragment"), [

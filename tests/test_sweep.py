@@ -279,3 +279,62 @@ def test_a_leftover_temporary_part_neither_fails_a_sweep_nor_stops_its_report(tm
     assert "2 runs (0 run now)" in resumed.stderr and "Traceback" not in resumed.stderr
     assert (tmp_path / "stability_map.md").is_file() and (tmp_path / "stability_map_cvode.png").is_file()
     assert not parts.exists() and len(_table(tmp_path)) == 2
+
+
+def test_ctrl_c_on_a_sweep_is_one_line_without_worker_tracebacks(tmp_path):
+    """Ctrl-C signals the terminal's whole process group; each Dask worker printed its KeyboardInterrupt."""
+    import os
+    import time
+
+    process = subprocess.Popen([sys.executable, "-m", "bouncingball.cli", "sweep", "--quick", "--workers", "2",
+                                "--output-dir", str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not list((tmp_path / "sweep_parts").glob("*.parquet")) and time.monotonic() < deadline:
+            time.sleep(0.2)  # until the workers have finished a batch: the sweep is under way
+        os.killpg(process.pid, signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert process.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "bouncingball: interrupted"
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+
+
+def test_the_map_page_formats_every_constant_from_the_code(tmp_path, monkeypatch):
+    """R, g, the tolerances, the solvers' settings and the acceptance rule follow the code's constants."""
+    from bouncingball.sweep import report, store
+
+    monkeypatch.setattr(report, "ARTICLE_BALL", bb.Ball(R=0.07, g=1.62))
+    monkeypatch.setattr(report, "DEFAULT_RTOL", 3e-10)
+    monkeypatch.setattr(report, "HEIGHT_LIMIT", 2e-4)
+    monkeypatch.setattr(report, "MERGED_HOP_MARGIN", 7.0)
+    monkeypatch.setattr(report, "HOP_RESOLUTION", 11.0)
+    monkeypatch.setattr(report, "HEIGHT_TOLERANCE", 4e-7)
+    monkeypatch.setattr(report, "ARTICLE_LABEL", "article (RK23, max_step 0.5)")
+    row = dict.fromkeys(store.COLUMNS, 0)
+    row.update(key="a", k=1e11, zeta=0.1, m=1.0, h0=2.0, solver="cvode", status="finished", reason="",
+               events_found=71, events_exact=73, event_mismatches=0, first_mismatch="", max_height_error=7e-10,
+               wall_time=0.01, rhs_calls=100)
+    frame = pd.DataFrame([row], columns=list(store.COLUMNS))
+    frame.attrs.update(workers=1, threads=1, wall_time=1.0, runs_done=1, overhead=0.005, batch_size=1)
+    grid = Grid(k=(1e11, 1e11, 1), zeta=(0.1, 0.1, 1), solvers=("cvode",))
+    info = {"command": "bouncingball sweep", "time_cap": 2.0, "cluster": "test", "scaling": None}
+    text = report.write_markdown(frame, grid, info, tmp_path, []).read_text()
+    for fragment in ("R = 0.07 m, g = 1.62 m/s2", "default rtol 3e-10", "article: article (RK23, max_step 0.5)",
+                     "max error <= 0.0002 m", "7 x 11 rtol times the static deflection", "(rtol 3e-10)",
+                     "move 4e-07 m", "stayed within 0.0002 m"):
+        assert fragment in text, fragment
+    for typed in ("0.06 m", "9.81", "1e-10 m + 1e-9 R", "max_step 0.01", "1e-5 m", "1e-6 m"):
+        assert typed not in text, typed
+
+
+def test_the_csv_holds_the_tables_doubles_in_their_shortest_form(local_sweep):
+    csv = pd.read_csv(local_sweep / "stability_map.csv", keep_default_na=False, na_values=[""])
+    table = _table(local_sweep)
+    for column in ("k", "zeta", "b", "max_height_error", "max_event_time_error", "wall_time"):
+        assert csv[column].tolist() == table[column].tolist(), column  # read back, the same doubles
+    text = (local_sweep / "stability_map.csv").read_text()
+    assert not any(len(cell) > len(repr(float(cell))) for line in text.splitlines()[1:]
+                   for cell in line.split(",") if cell.replace(".", "", 1).isdigit())

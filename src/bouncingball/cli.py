@@ -3,22 +3,31 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
 import sys
 from collections.abc import Sequence
 
-from . import SOLVERS
+from . import SOLVERS, __version__
+from .output import STANDARD_OUTPUT
 
 EXIT_BAD_INPUT = 2
 EXIT_SOLVER_FAILED = 1
 EXIT_CHECK_FAILED = 1  # `check`: the result is not within the tolerance of the exact solution
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
+CONNECT_TIMEOUT = 10.0  # s: how long `sweep --scheduler` waits for the scheduler to answer
+PROGRESS_AFTER = 2.0  # s: `run` shows a progress bar once it has taken this long (on a terminal, with tqdm)
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE: the reader (`| head`) stopped reading
 # The optional modules a command may need, and the extra that installs each.
-EXTRA_OF_MODULE = {"fmpy": "fmu", "pythonfmu": "fmu", "scipy": "reference", "matplotlib": "plot", "tqdm": "bench",
-                   "dask": "sweep", "distributed": "sweep", "pandas": "sweep", "pyarrow": "sweep"}
+EXTRA_OF_MODULE = {"fmpy": "fmu", "pythonfmu": "fmu", "docutils": "fmu", "scipy": "reference", "matplotlib": "plot",
+                   "tqdm": "bench", "dask": "sweep", "distributed": "sweep", "pandas": "sweep", "pyarrow": "sweep"}
 
 
 def _build_parser() -> argparse.ArgumentParser:
+    from .fmu.validate import SCIPY_CAP, STAGES
+
     parser = argparse.ArgumentParser(prog="bouncingball", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser("run", help="simulate a scene and print a summary")
@@ -34,7 +43,8 @@ def _build_parser() -> argparse.ArgumentParser:
                                       "'bouncingball[fast]') or sksundae")
     run.add_argument("--t-end", type=float, help="end time [s] (default: the scene's)")
     run.add_argument("--output-interval", type=float, help="output interval [s] (default: the scene's)")
-    run.add_argument("--output", metavar="CSV", help="write time,h,v to this file")
+    run.add_argument("--output", metavar="CSV", help="write time,h,v to this file (-: to stdout, the summary then "
+                                                     "goes to stderr)")
     run.add_argument("--events", metavar="CSV", help="write time,kind,v of each event to this file")
     run.add_argument("--plot", metavar="PNG", help="draw height against time with the events marked, its error "
                      "against the exact solution and, for an undamped ball, its energy")
@@ -50,6 +60,11 @@ def _build_parser() -> argparse.ArgumentParser:
     check.add_argument("scene", nargs="?", default="article", help="built-in scene name or a .toml file "
                                                                    "(default: article)")
     check.add_argument("--fmu", help="the FMU to run (default: dist/BouncingBall.fmu, built if missing or stale)")
+    check.add_argument("--skip", action="append", default=[], metavar="STAGE",
+                       help=f"a stage not to run: {', '.join(STAGES)} (repeatable; without exact, its row is left "
+                            "out, the others are still judged by the exact solution)")
+    check.add_argument("--time-cap", type=float, default=SCIPY_CAP, metavar="S",
+                       help=f"wall time the SciPy stage may take before it is stopped [s] (default: {SCIPY_CAP:g})")
     judge = sub.add_parser("check", help="compare a master's result (CSV) with the exact solution at its own times")
     judge.add_argument("result", metavar="RESULT.csv", help="the CSV a master wrote (FMPy, OMSimulator, libcosim, "
                                                           "ecos, ...): a time and an h column (an impacts column is "
@@ -84,6 +99,8 @@ def _build_parser() -> argparse.ArgumentParser:
                                          "(default: cvode,article,scipy:DOP853)")
     sweep.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786 "
                                                               "(default: a LocalCluster)")
+    sweep.add_argument("--connect-timeout", type=float, default=CONNECT_TIMEOUT, metavar="S",
+                       help=f"how long to wait for --scheduler to answer [s] (default: {CONNECT_TIMEOUT:g})")
     sweep.add_argument("--workers", type=int, help="LocalCluster worker processes (default: one per core)")
     sweep.add_argument("--time-cap", type=float, help="wall time a run may take [s] (default: 2; --quick: 1)")
     sweep.add_argument("--batch-size", type=int, help="runs per Dask task (default: from the measured overhead)")
@@ -97,25 +114,50 @@ def _build_parser() -> argparse.ArgumentParser:
 
 
 def _run(args: argparse.Namespace) -> int:
+    if args.output == STANDARD_OUTPUT:  # the CSV alone on stdout, for a pipe; what `run` says goes to stderr
+        stdout = sys.stdout
+        with contextlib.redirect_stdout(sys.stderr):
+            return _run_and_summarise(args, csv_stream=stdout)
+    return _run_and_summarise(args)
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Every output path and format, before the work, so that none of it is lost."""
+    from .output import check_output_path
+
+    for option in ("output", "events", "plot"):
+        path = getattr(args, option)
+        if path == STANDARD_OUTPUT and option != "output":
+            raise ValueError(f"--{option} = {path!r} is not allowed: only --output writes to stdout")
+        if path and path != STANDARD_OUTPUT:
+            check_output_path(f"--{option}", path)
+    if args.plot:
+        from .plotting import require_matplotlib
+
+        require_matplotlib()
+        from matplotlib.backend_bases import FigureCanvasBase
+
+        formats = FigureCanvasBase.get_supported_filetypes()
+        suffix = os.path.splitext(args.plot)[1].lstrip(".").lower() or "png"
+        if suffix not in formats:
+            raise ValueError(f"--plot = {args.plot!r} is not allowed: its format {suffix!r} is not one of "
+                             f"{', '.join(sorted(formats))}")
+
+
+def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
     from .accuracy import compare, exact_counterpart
-    from .output import check_output_path, write_events_csv, write_solution_csv
+    from .output import print_solution_csv, write_events_csv, write_solution_csv
     from .run_report import first_use_note, plural
     from .scenes import load_scene
 
     scene = load_scene(args.scene)
-    for option in ("output", "events", "plot"):  # before the work, so that none of it is lost
-        if getattr(args, option):
-            check_output_path(f"--{option}", getattr(args, option))
+    _check_outputs(args)
     plot_range = None
     if args.plot_range is not None:
         from .plotting import parse_time_range
 
         t_end = scene.t_end if args.t_end is None else args.t_end
         plot_range = parse_time_range("--plot-range", args.plot_range, 0.0, t_end)
-    if args.plot:
-        from .plotting import require_matplotlib
-
-        require_matplotlib()
     options = {name: getattr(args, name) for name in ("method", "rtol", "atol", "max_step", "engine")
                if getattr(args, name) is not None}
     if args.t_end is not None:
@@ -125,7 +167,10 @@ def _run(args: argparse.Namespace) -> int:
     if args.solver == "scipy":
         print(f"bouncingball: running the article's SciPy algorithm on {scene.name} (minutes on a stiff scene; "
               "Ctrl-C stops it)", file=sys.stderr)
-    result = scene.simulate(args.solver, **options)
+    with _progress_bar(options.get("t_end", scene.t_end)) as progress:
+        if progress is not None and args.solver in ("cvode", "scipy"):
+            options["progress"] = progress
+        result = scene.simulate(args.solver, **options)
     exact = result if result.solver == "exact" else exact_counterpart(result, scene.h0, scene.v0)
 
     ball = scene.ball
@@ -150,7 +195,10 @@ def _run(args: argparse.Namespace) -> int:
         accuracy = compare(result, exact)
         print(f"  max |h - h_exact|          {accuracy.max_height_error:.3e} m")
         print(f"  max event time error       {accuracy.max_event_time_error:.3e} s")
-    if args.output:
+    if csv_stream is not None:
+        print_solution_csv(result, csv_stream)
+        print("  wrote time,h,v to stdout")
+    elif args.output:
         print(f"  wrote {write_solution_csv(result, args.output)}")
     if args.events:
         print(f"  wrote {write_events_csv(result, args.events)}")
@@ -181,6 +229,24 @@ def _print_events(result, exact, scene) -> None:
             print(f"  {'' if number else 'differences':11s} {line}")
     rest = "none" if result.rest_time is None else f"at rest from t = {result.rest_time:.12g} s"
     print(f"  rest        {rest}")
+
+
+@contextlib.contextmanager
+def _progress_bar(t_end: float):
+    """A callback that shows the simulated time on a tqdm bar on stderr, or None: no terminal or no tqdm.
+
+    The bar appears once the run has taken PROGRESS_AFTER seconds, and is cleared at its end.
+    """
+    from importlib.util import find_spec
+
+    if not (sys.stderr.isatty() and find_spec("tqdm")):
+        yield None
+        return
+    from tqdm import tqdm
+
+    with tqdm(total=t_end, unit="s", desc="simulated time", delay=PROGRESS_AFTER, leave=False,
+              file=sys.stderr, bar_format="{desc}: {n:.4g}/{total:.4g} s {bar} [{elapsed}<{remaining}]") as bar:
+        yield lambda t: bar.update(t - bar.n)
 
 
 def _check(args: argparse.Namespace) -> int:
@@ -216,27 +282,15 @@ def _scenes() -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     args = _build_parser().parse_args(argv)
     try:
-        if args.command == "run":
-            return _run(args)
-        if args.command == "build-fmu":
-            from .fmu.build import build_command
-
-            return build_command(args.output)
-        if args.command == "validate":
-            from .fmu.validate import validate_command
-
-            return validate_command(args.scene, args.fmu)
-        if args.command == "check":
-            return _check(args)
-        if args.command == "bench":
-            from .bench import bench_command
-
-            return bench_command(args.output_dir, args.quick, args.stability)
-        if args.command == "sweep":
-            from .sweep.command import sweep_command
-
-            return sweep_command(args)
-        return _scenes()
+        code = _command(args)
+        sys.stdout.flush()  # here, where a closed pipe can still be told apart from a failure
+        return code
+    except BrokenPipeError:
+        # `bouncingball run --output - | head`: the reader has what it wanted. Python would report the
+        # pipe again when it flushes stdout at exit, so stdout goes to /dev/null from here on.
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
     except ImportError as error:
         extra = EXTRA_OF_MODULE.get((error.name or "").split(".")[0])
         hint = f" (pip install 'bouncingball[{extra}]')" if extra and "pip install" not in str(error) else ""
@@ -251,6 +305,30 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RuntimeError as error:  # a solver that failed says why
         print(f"bouncingball: solver failed: {error}", file=sys.stderr)
         return EXIT_SOLVER_FAILED
+
+
+def _command(args: argparse.Namespace) -> int:
+    if args.command == "run":
+        return _run(args)
+    if args.command == "build-fmu":
+        from .fmu.build import build_command
+
+        return build_command(args.output)
+    if args.command == "validate":
+        from .fmu.validate import validate_command
+
+        return validate_command(args.scene, args.fmu, args.skip, args.time_cap)
+    if args.command == "check":
+        return _check(args)
+    if args.command == "bench":
+        from .bench import bench_command
+
+        return bench_command(args.output_dir, args.quick, args.stability)
+    if args.command == "sweep":
+        from .sweep.command import sweep_command
+
+        return sweep_command(args)
+    return _scenes()
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ import math
 
 from . import validation
 from .physics import Ball
+from .validation import exact
 
 SQUARE_LIMIT = 1e300  # any square the solvers form: [m2/s2], [1/s2], [m2], and the energies [J]
 SCALE_LIMIT = 1e150  # its square root: lengths in contact [m], speeds [m/s], rates [1/s]
@@ -46,7 +47,7 @@ def check_output_interval(t_start: float, t_end: float, output_interval: float) 
     if not output_interval >= smallest:
         raise ValueError(
             f"output_interval = {output_interval!r} s is not allowed from t_start = {t_start!r} s to "
-            f"t_end = {t_end!r} s: it must be >= {smallest:.4g} s ({MIN_GRID_ULPS:g} ulps of "
+            f"t_end = {t_end!r} s: it must be >= {exact(smallest)} s ({MIN_GRID_ULPS:g} ulps of "
             f"{max(abs(t_start), abs(t_end))!r} s): double precision cannot hold distinct increasing times "
             "closer than that")
 
@@ -101,7 +102,7 @@ def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: f
     >>> check_scene(Ball(b=0.0), h0=-1e200, v0=0.0)
     Traceback (most recent call last):
     ...
-    ValueError: h0 = -1e+200 m is not allowed for this ball (...): it must be in [-1e+148, 5.097e+298] m; ...
+    ValueError: h0 = -1e+200 m is not allowed for this ball (...): it must be in [-1e+148, 5.09683995922528e+298] m; ...
     """
     h0, v0 = validation.finite("h0", h0, "m"), validation.finite("v0", v0, "m/s")
     F_ext, t_start = validation.finite("F_ext", F_ext, "N"), validation.finite("t_start", t_start, "s")
@@ -113,13 +114,15 @@ def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: f
     # --- the ball ------------------------------------------------------------------------------
     sigma = b / (2.0 * m)
     if not sigma <= SCALE_LIMIT:
-        raise ValueError(f"b = {b!r} N s/m is not allowed with m = {m!r} kg: it must be <= {2.0 * SCALE_LIMIT * m:.4g} "
-                         f"N s/m (the damping rate b/(2m) = {sigma:.4g} 1/s must be <= {SCALE_LIMIT:g} 1/s: its "
-                         "square, in the contact's characteristic equation, would overflow)")
+        raise ValueError(f"b = {b!r} N s/m is not allowed with m = {m!r} kg: it must be <= "
+                         f"{exact(2.0 * SCALE_LIMIT * m)} N s/m (the damping rate b/(2m) = {sigma:.4g} 1/s must be "
+                         f"<= {SCALE_LIMIT:g} 1/s: its square, in the contact's characteristic equation, would "
+                         "overflow)")
     w2 = k / m
     if not MIN_RATE_SQUARED <= w2 <= SQUARE_LIMIT:
         raise ValueError(f"k = {k!r} N/m is not allowed with m = {m!r} kg: it must be in "
-                         f"[{MIN_RATE_SQUARED * m:.4g}, {SQUARE_LIMIT * m:.4g}] N/m (k/m = {w2:.4g} 1/s2 must be in "
+                         f"[{exact(MIN_RATE_SQUARED * m)}, {exact(SQUARE_LIMIT * m)}] N/m (k/m = {w2:.4g} 1/s2 must "
+                         "be in "
                          f"[{MIN_RATE_SQUARED:g}, {SQUARE_LIMIT:g}] 1/s2, or the oscillator's w^2 or m/k overflows)")
     if not R <= SCALE_LIMIT:
         raise ValueError(f"R = {R!r} m is not allowed: it must be <= {SCALE_LIMIT:g} m (lengths are squared in the "
@@ -135,9 +138,9 @@ def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: f
         rest = f"the energy at R, (g - F_ext/m)^2 m/k = {g_eff * g_eff / w2:.4g} m2/s2, is out of range: {why}"
         if not ball.g <= g_max:
             raise ValueError(f"g = {ball.g!r} m/s2 is not allowed for this ball ({about}): it must be <= "
-                             f"{g_max:.4g} m/s2 ({rest})")
+                             f"{exact(g_max)} m/s2 ({rest})")
         raise ValueError(f"F_ext = {F_ext!r} N is not allowed for this ball ({about}, g = {ball.g:g} m/s2): it must "
-                         f"be in [{m * (ball.g - g_max):.4g}, {m * (ball.g + g_max):.4g}] N ({rest})")
+                         f"be in [{exact(m * (ball.g - g_max))}, {exact(m * (ball.g + g_max))}] N ({rest})")
     d = g_eff / w2  # the static deflection [m]
 
     # --- the start state ------------------------------------------------------------------------------
@@ -145,12 +148,12 @@ def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: f
     high = HEIGHT_LIMIT if g_eff <= 0.0 else min(HEIGHT_LIMIT, R + (budget - w2 * d * d) / (2.0 * g_eff))
     energy = _energy_of_height(ball, h0, v0, F_ext, w2, d, g_eff)
     if not (h0 <= HEIGHT_LIMIT and energy <= budget):
-        raise ValueError(f"h0 = {h0!r} m is not allowed for this ball ({about}): it must be in [{low:.4g}, "
-                         f"{high:.4g}] m; {why} (from h0 alone it is {_amount(energy)})")
+        raise ValueError(f"h0 = {h0!r} m is not allowed for this ball ({about}): it must be in [{exact(low)}, "
+                         f"{exact(high)}] m; {why} (from h0 alone it is {_amount(energy)})")
     v_max = math.sqrt(budget - energy)
     if not abs(v0) <= v_max:
         raise ValueError(f"v0 = {v0!r} m/s is not allowed from h0 = {h0!r} m for this ball ({about}): it must be in "
-                         f"[{-v_max:.4g}, {v_max:.4g}] m/s; {why}")
+                         f"[{exact(-v_max)}, {exact(v_max)}] m/s; {why}")
 
     # --- the run --------------------------------------------------------------------------------------
     if t_end is None:
@@ -163,7 +166,7 @@ def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: f
     span_max = _longest_run(g_eff, speed, max(abs(h0), R), SQUARE_LIMIT * min(1.0, 1.0 / m))
     if not span <= span_max:
         raise ValueError(f"t_end = {t_end!r} s is not allowed for this scene (h0 = {h0!r} m, v0 = {v0!r} m/s, "
-                         f"g - F_ext/m = {g_eff:.4g} m/s2): it must be <= t_start + {span_max:.4g} s; the ball "
+                         f"g - F_ext/m = {g_eff:.4g} m/s2): it must be <= t_start + {exact(span_max)} s; the ball "
                          f"flies away from the ground, and later its height would pass {HEIGHT_LIMIT:g} m or its "
                          f"speed^2 or energy m v^2 {SQUARE_LIMIT:g}")
     if output_interval is not None:
@@ -242,5 +245,5 @@ def check_resolvable(ball: Ball, t: float) -> None:
         raise ValueError(
             f"k = {ball.k!r} N/m with m = {ball.m!r} kg is not allowed up to t = {t!r} s: a contact lasts "
             f"{duration:.3g} s, but double precision resolves time only to {math.ulp(t):.3g} s there "
-            f"(a contact must span {MIN_CONTACT_ULPS:g} ulps of t). Shorten the run to t <= {limit:.4g} s, "
+            f"(a contact must span {MIN_CONTACT_ULPS:g} ulps of t). Shorten the run to t <= {exact(limit)} s, "
             "or lower k or raise m (a longer contact)")

@@ -83,6 +83,10 @@ def load_scene(name_or_path: str | Path) -> Scene:
             values = tomllib.loads(path.read_text(encoding="utf-8"))
         except tomllib.TOMLDecodeError as error:
             raise ValueError(f"scene file {text!r} is not valid TOML: {error}") from None
+        except UnicodeDecodeError as error:
+            raise ValueError(f"scene file {text!r} is not UTF-8 text (as TOML must be): {error}") from None
+        except OSError as error:
+            raise ValueError(f"scene file {text!r} cannot be read: {error.strerror or error}") from None
         return scene_from_mapping(path.stem, values)
     raise ValueError(f"scene = {text!r} is not allowed: it must be a built-in scene "
                      f"({', '.join(table)}) or a .toml file")

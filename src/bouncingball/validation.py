@@ -42,8 +42,23 @@ def in_range(name: str, value: object, low: float, high: float, unit: str = "") 
     """Return value as a float if low < value <= high."""
     x = _as_float(name, value)
     if not (math.isfinite(x) and low < x <= high):
-        raise ValueError(f"{name} = {value!r}{_unit(unit)} is not allowed: it must be in ({low:g}, {high:g}]")
+        raise ValueError(f"{name} = {value!r}{_unit(unit)} is not allowed: it must be in ({exact(low)}, {exact(high)}]")
     return x
+
+
+def exact(x: float) -> str:
+    """x in the shortest text that reads back as the same double, without a trailing ".0" (8, 0.1, 1e-12).
+
+    Bounds in messages are printed so: a bound rounded to fewer digits could make a refused value
+    look inside the range.
+
+    Examples
+    --------
+    >>> exact(8.0), exact(0.1 + 0.2), exact(1e-12)
+    ('8', '0.30000000000000004', '1e-12')
+    """
+    text = repr(float(x))
+    return text[:-2] if text.endswith(".0") else text
 
 
 def choice(name: str, value: object, allowed: Iterable[str]) -> str:

@@ -14,7 +14,9 @@ from pathlib import Path
 
 def bench_command(output_dir: str | Path = "bench-results", quick: bool = False, stability: bool = False) -> int:
     """`bouncingball bench`: run the work-precision study (or, with stability, the stability matrix)."""
-    output_dir = Path(output_dir)
+    from ..output import check_output_folder
+
+    output_dir = check_output_folder("--output-dir", output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     if stability:

@@ -7,17 +7,24 @@ import statistics
 from pathlib import Path
 
 from ..output import atomic_write
-from ..scenes import Scene
+from ..scenes import Scene, load_scene
+from ..solvers import ARTICLE_SETTINGS
 from . import engine_choice
 from .environment import environment_lines
 from .floor import FloorStudy
 from .fmu_steps import EMPTY, ENGINES, FmuStepCosts
-from .stability import EXTRA_SCENES, CostPerEvent, Outcome, stability_solvers
+from .stability import COST_CHUNKS, EXTRA_SCENES, STIFF_REPEATS, CostPerEvent, Outcome, stability_solvers
 from .targets import MATCHED_ERRORS, all_targets, fmu_step_costs, per_step
 from .text import events_text, ms, num, rtol_text, table
-from .work_precision import ATOL_PER_RTOL, H_FILE, SPARSE, Point, Settings, by_solver, time_at_error
+from .work_precision import ATOL_PER_RTOL, DENSE, H_FILE, SPARSE, Point, Settings, by_solver, time_at_error
 
 REGENERATE = "bouncingball bench --output-dir docs && bouncingball bench --stability --output-dir docs"
+
+
+def _scene_text(scene: Scene) -> str:
+    ball = scene.ball
+    return (f"m = {ball.m:g} kg, k = {ball.k:g} N/m, b = {ball.b:g} N s/m, R = {ball.R:g} m, dropped from "
+            f"{scene.h0:g} m, {scene.t_end:g} s")
 
 
 def point_row(p: Point) -> list[str]:
@@ -58,14 +65,14 @@ def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: Co
         "",
         *environment_lines(environment),
         "",
-        "Scene `article` (m = 1 kg, k = 1e4 N/m, b = 10 N s/m, R = 0.06 m, dropped from 2 m, 8 s). Error = max "
+        f"Scene `article` ({_scene_text(load_scene('article'))}). Error = max "
         "|h - h_exact| on the output grid and the max event time error, both against the exact solution; "
         "events found against the exact count. Time = median (and min) wall time of "
         f"{settings.repeats} runs in one process after a warm-up run, all solvers interleaved round-robin. "
         f"rtol swept over {', '.join(rtol_text(r) for r in settings.rtols)} with atol = {ATOL_PER_RTOL:g} rtol. "
         f"A solver's tighter tolerances are skipped once one run takes over {settings.budget:g} s. "
-        "solve_ivp methods use the article's event restart without max_step; the article's algorithm is RK45 with "
-        "max_step 0.01 at SciPy's default tolerances. The FMU rows run the FMU built by "
+        "solve_ivp methods use the article's event restart without max_step; the article's algorithm is "
+        f"{ARTICLE_SETTINGS} (SciPy's default tolerances). The FMU rows run the FMU built by "
         "`bouncingball.fmu.build.build_fmu` (into a temporary directory) through `fmpy.simulate_fmu` (output h) "
         "with the communication step shown; their error is measured on that grid "
         "and they count impacts (the FMU's `impacts` output), not events.",
@@ -81,7 +88,7 @@ def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: Co
         "Wall time at a matched max height error, interpolated log-log between swept tolerances "
         "(`<=`: already the loosest tolerance is that accurate).",
         "",
-        "### 1 ms output grid",
+        f"### {DENSE * 1e3:g} ms output grid",
         "",
         *_matched_table(points, "dense"),
         "",
@@ -108,15 +115,16 @@ def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: Co
         "## Stiff scenes",
         "",
         f"Each run in a child process killed after {settings.stiff_cap:g} s; CVODE auto at its defaults (median of "
-        "3 runs), the explicit SciPy methods at SciPy's default tolerances without max_step, and the article's "
-        "algorithm as published.",
+        f"{STIFF_REPEATS} runs), the explicit SciPy methods at SciPy's default tolerances without max_step, and the "
+        "article's algorithm as published.",
         "",
         *_stiff_table(stiff),
         "",
         "## Cost per event",
         "",
         f"The undamped ball (b = 0) for {per_event.t_end:,.0f} s in one CVODE integrator (auto, default tolerances, "
-        "0.01 s output grid), timed in 100 chunks; per event: the least of a tenth's chunks.",
+        f"{EXTRA_SCENES['undamped-10000s']['output_interval']:g} s output grid), timed in {COST_CHUNKS} chunks; per "
+        "event: the least of a tenth's chunks.",
         "",
         *table(["part", "events", "wall time [s]", "least per event [us]"],
                 [["first tenth", str(per_event.first_events), f"{per_event.first_time:.3f}",
@@ -126,7 +134,7 @@ def write_benchmarks_md(points: list[Point], stiff: list[Outcome], per_event: Co
         "",
         *(_engine_choice_section(first_use) if first_use else []),
         f"Raw numbers: `work_precision.csv` (every point and repeat), `{H_FILE}` (h on the grid for one "
-        "tolerance per solver on the 1 ms grid and every point on the sparse grid).",
+        f"tolerance per solver on the {DENSE * 1e3:g} ms grid and every point on the sparse grid).",
         "",
     ]
     with atomic_write(path) as temporary:
@@ -282,8 +290,8 @@ def write_stability_md(scenes: list[Scene], outcomes: list[Outcome], cap: float,
         f"Every scene with every solver, each run in its own child process, killed after {cap:g} s. The numerical "
         f"solvers run at CVODE's default rtol {DEFAULT_RTOL:g} (solve_ivp with atol rtol times the scene's height), "
         "solve_ivp "
-        "without max_step and with the article's event restart; the article's algorithm runs as published (RK45, "
-        "max_step 0.01, rtol 1e-3, atol 1e-6); the FMU runs through `fmpy.simulate_fmu` with the scene's output "
+        f"without max_step and with the article's event restart; the article's algorithm runs as published "
+        f"({ARTICLE_SETTINGS}); the FMU runs through `fmpy.simulate_fmu` with the scene's output "
         "interval as communication step and counts impacts. Errors are against the exact solution on the output grid.",
         "",
         "## Scenes",

@@ -15,7 +15,8 @@ from .work_precision import DENSE, SPARSE, Point, by_solver
 
 # The families, in the legend's order: (heading, the solver kinds in it).
 FAMILIES = (("CVODE (this package)", ("cvode",)), ("the FMU through FMPy", ("fmu",)),
-            ("SciPy solve_ivp", ("article", "scipy")), ("floors and references", ("exact", "evaluation", "empty")))
+            ("SciPy solve_ivp", ("article", "scipy")),
+            ("floors and references", ("floor", "exact", "evaluation", "empty")))
 SCIPY_COLOURS = {"RK45": "C9", "DOP853": "C8", "LSODA": "C5", "Radau": "#d4a017", "BDF": "C7"}  # muted, apart
 FLOORS = ("exact", "evaluation", "empty")  # no error to plot: their time is a floor, drawn as a vertical line
 
@@ -36,6 +37,8 @@ def _style(point: Point, index: int) -> dict:
                 "marker": "s" if solver.comm_step > DENSE else "o", "ms": 4}
     if solver.kind == "article":
         return {"color": "0.35", "ls": "none", "marker": "*", "ms": 13}
+    if solver.kind == "floor":  # the compiled engine's work in C: its colour, a thin line of its own
+        return {"color": "C3", "ls": ":", "lw": 1.6, "marker": "D", "ms": 3}
     return {"color": SCIPY_COLOURS.get(solver.method, "0.5"), "ls": "-.", "lw": 1.0, "marker": "o", "ms": 3}
 
 

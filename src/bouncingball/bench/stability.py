@@ -11,26 +11,36 @@ import numpy as np
 
 from ..accuracy import Accuracy
 from ..capped import FINISHED, run_capped
+from ..limits import contact_duration
 from ..physics import Ball
 from ..scenes import BUILTIN_SCENES, Scene, load_scene, scene_from_mapping
 from . import runners
 from .runners import ARTICLE, CVODE_AUTO, EXACT, FmuPaths, Run, Solver
 
 _DEFAULT = Ball()
+
+
+def _extra(description: str, **values) -> dict:
+    """A scene's keys, its description formatted from them (and the contact's duration, as {contact})."""
+    contact = contact_duration(Ball(**{key: values.get(key, getattr(_DEFAULT, key)) for key in ("m", "k", "b")}))
+    return {"description": description.format(**values, contact=contact), **values}
+
+
 # Extreme scenes beyond the built-in ones: each holds only what differs from the article's defaults.
 EXTRA_SCENES = {
-    "critical": {"description": "critical damping, b = 2 sqrt(k m) = 200 N s/m",
-                 "b": 2.0 * math.sqrt(_DEFAULT.k * _DEFAULT.m)},
-    "thrown-up": {"description": "thrown upwards, v0 = +5 m/s", "v0": 5.0},
-    "at-surface": {"description": "starts exactly at h0 = R, at rest", "h0": _DEFAULT.R},
-    "k1e14": {"description": "k = 1e14 N/m: contacts last ~0.3 us", "k": 1e14},
-    "undamped-10000s": {"description": "b = 0 for 10,000 s: energy drift and cost per event", "b": 0.0,
-                        "t_end": 10_000.0, "output_interval": 0.01},
+    "critical": _extra("critical damping, b = 2 sqrt(k m) = {b:g} N s/m", b=2.0 * math.sqrt(_DEFAULT.k * _DEFAULT.m)),
+    "thrown-up": _extra("thrown upwards, v0 = {v0:+g} m/s", v0=5.0),
+    "at-surface": _extra("starts exactly at h0 = R, at rest", h0=_DEFAULT.R),
+    "k1e14": _extra("k = {k:g} N/m: contacts last {contact:.2g} s", k=1e14),
+    "undamped-10000s": _extra("b = {b:g} for {t_end:,.0f} s: energy drift and cost per event", b=0.0, t_end=10_000.0,
+                              output_interval=0.01),
 }
 STIFF_SCENES = ("stiff", "stiff-rest", "tiny-mass", "overdamped")
 STIFF_TARGET = 0.1  # CVODE finishes each stiff scene within this wall time [s]
 FULL_CAP = 30.0  # [s] per run in the stability matrix (CVODE needs ~15 s for the 10,000 s run)
 QUICK_CAP = 2.0
+STIFF_REPEATS = 3  # CVODE's runs of each stiff scene, of which the median is shown
+COST_CHUNKS = 100  # the cost per event is timed in this many chunks of the run
 CSV_FILE = "stability.csv"
 FMU_LABEL = "FMU via FMPy"
 
@@ -87,11 +97,12 @@ def stability_cases(scenes: list[Scene]) -> list[Case]:
 
 
 def stiff_cases() -> list[Case]:
-    """The stiff scenes: CVODE (median of 3) and the explicit SciPy methods at their default tolerances."""
+    """The stiff scenes: CVODE (median of STIFF_REPEATS) and the explicit SciPy methods at their default tolerances."""
     cases = []
     for name in STIFF_SCENES:
         scene = load_scene(name)
-        cases += [Case(scene, CVODE_AUTO, repeats=3), Case(scene, runners.CVODE_COMPILED, repeats=3)]
+        cases += [Case(scene, CVODE_AUTO, repeats=STIFF_REPEATS),
+                  Case(scene, runners.CVODE_COMPILED, repeats=STIFF_REPEATS)]
         cases += [Case(scene, ARTICLE), *(Case(scene, runners.scipy(m)) for m in runners.EXPLICIT_SCIPY_METHODS)]
     return cases
 
@@ -149,7 +160,7 @@ class CostPerEvent:
         return self.last / self.first
 
 
-def cost_per_event(t_end: float, chunks: int = 100) -> CostPerEvent:
+def cost_per_event(t_end: float, chunks: int = COST_CHUNKS) -> CostPerEvent:
     """The undamped ball for t_end [s] in one CVODE integrator, timed chunk by chunk (0.01 s output grid)."""
     from tqdm import tqdm
 

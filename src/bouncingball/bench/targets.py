@@ -21,6 +21,7 @@ COMPILED_SPEEDUP = 10.0  # the compiled engine at least this much faster than ev
 EVALUATION_RATIO = 1.5  # the exact solution within this factor of its own vectorised evaluation
 FLOOR_RATIO = 1.5  # the compiled engine at most this multiple of the C floor (min of interleaved hot calls)
 MATCHED_DOP853_SPEEDUP = 15.0  # the compiled engine at least this much faster than DOP853 run at the matched error
+GRID = f"{DENSE * 1e3:g} ms"  # the dense output grid, as the goals name it
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,7 @@ def target_versus_peers(points: list[Point], error: float) -> Target:
     """(a): CVODE auto against every solve_ivp method and the article's algorithm at a matched height error."""
     groups = by_solver(points, "dense")
     ours, _ = _times_at(groups, runners.CVODE_AUTO.label, error)
-    goal = (f"at a matched height error of {error:.0e} m on the 1 ms grid, CVODE faster than every solve_ivp "
+    goal = (f"at a matched height error of {error:.0e} m on the {GRID} grid, CVODE faster than every solve_ivp "
             f"method and >= {ARTICLE_SPEEDUP:g}x faster than the article's algorithm")
     if ours is None:
         return Target("a", goal, False, f"CVODE auto does not reach {error:.0e} m at any swept tolerance.")
@@ -88,9 +89,10 @@ def target_versus_peers(points: list[Point], error: float) -> Target:
             nearest = _nearest_point(groups.get(runners.CVODE_AUTO.label, []), error)
             reasons.append(f"the article's algorithm makes {article.rhs_calls} right-hand-side calls, CVODE auto "
                            f"{nearest.rhs_calls} (rtol {rtol_text(nearest.rtol)}), but the wall time per call is about "
-                           f"the same ({_per_call(article)} against {_per_call(nearest)} us): CVODE's cost is "
-                           "dominated by its Python callbacks (~4 us each in scikit-sundae) and per-event overheads, "
-                           "not by the integration, so fewer calls buy only that ratio")
+                           f"the same ({_per_call(article)} against {_per_call(nearest)} us, each run's time over its "
+                           "calls): CVODE's cost is dominated by its Python callbacks in scikit-sundae (one per "
+                           "right-hand-side call) and per-event overheads, not by the integration, so fewer calls buy "
+                           "only that ratio")
     measured = f"CVODE auto {ms(ours)} ms (interpolated); " + "; ".join(parts) + "."
     names = [(method, runners.scipy(method).label) for method in runners.SCIPY_METHODS]
     names.append(("article", runners.ARTICLE.label))
@@ -130,10 +132,10 @@ def _per_call(point: Point) -> str:
 
 
 def target_versus_exact(points: list[Point]) -> Target:
-    """(b): CVODE auto within EXACT_RATIO of the exact solution's time on the 1 ms grid."""
+    """(b): CVODE auto within EXACT_RATIO of the exact solution's time on the dense grid."""
     groups = by_solver(points, "dense")
     exact = single(groups, runners.EXACT.label)
-    goal = f"CVODE within {EXACT_RATIO:g}x of the exact solution's time on the 1 ms grid"
+    goal = f"CVODE within {EXACT_RATIO:g}x of the exact solution's time on the {GRID} grid"
     parts, met = [], exact is not None
     for error in MATCHED_ERRORS:
         ours, _ = _times_at(groups, runners.CVODE_AUTO.label, error)
@@ -149,8 +151,8 @@ def target_versus_exact(points: list[Point]) -> Target:
     measured = "; ".join(parts) + "."
     if not met:
         measured += (" Reason: the exact solution evaluates closed forms on the grid in a few numpy calls, while "
-                     "CVODE pays a Python callback per right-hand-side call (~4-5 us in scikit-sundae) and a Python "
-                     "round trip per event; " + _work_note(groups, runners.CVODE_AUTO.label, MATCHED_ERRORS[-1]))
+                     "CVODE pays a Python callback per right-hand-side call in scikit-sundae and a Python round trip "
+                     "per event; " + _work_note(groups, runners.CVODE_AUTO.label, MATCHED_ERRORS[-1]))
     return Target("b", goal, met, measured)
 
 
@@ -160,7 +162,7 @@ def _work_note(groups: dict[str, list[Point]], label: str, error: float) -> str:
         return ""
     p = max(ok, key=lambda p: p.rtol or 0.0)
     return (f"at rtol {rtol_text(p.rtol)} it made {p.rhs_calls} right-hand-side calls and {p.steps} steps "
-            f"in {ms(p.median)} ms.")
+            f"in {ms(p.median)} ms ({_per_call(p)} us per call, the run's time over its calls).")
 
 
 def fmu_step_costs(points: list[Point]) -> list[tuple[Point, Point | None]]:
@@ -180,7 +182,7 @@ def per_step(point: Point | None) -> float:
 
 def target_fmu(points: list[Point]) -> Target:
     """(c): the FMU's doStep at 1 ms against the empty slave's, at the swept tolerance nearest the FMU's default."""
-    goal = f"the FMU through FMPy at a 1 ms step: time per doStep <= {FMU_FLOOR_RATIO:g}x the empty pythonfmu slave's"
+    goal = f"the FMU through FMPy at a {GRID} step: time per doStep <= {FMU_FLOOR_RATIO:g}x the empty pythonfmu slave's"
     candidates = [(fmu, empty) for fmu, empty in fmu_step_costs(points)
                   if fmu.solver.comm_step == DENSE and fmu.status == "ok" and fmu.solver.engine == "sksundae"]
     if not candidates:
@@ -256,7 +258,7 @@ def target_compiled(points: list[Point], error: float) -> Target:
     """(f): the compiled engine against the exact solution and every solve_ivp method at a matched height error."""
     groups = by_solver(points, "dense")
     label = runners.CVODE_COMPILED.label
-    goal = (f"at a matched height error of {error:.0e} m on the 1 ms grid, the compiled engine no slower than the "
+    goal = (f"at a matched height error of {error:.0e} m on the {GRID} grid, the compiled engine no slower than the "
             f"exact solution and >= {COMPILED_SPEEDUP:g}x faster than every solve_ivp method")
     ours, _ = _times_at(groups, label, error)
     exact = single(groups, runners.EXACT.label)
@@ -283,7 +285,7 @@ def target_compiled(points: list[Point], error: float) -> Target:
 def target_exact_evaluation(points: list[Point]) -> Target:
     """(g): the exact solution's whole time against the vectorised evaluation of its phases alone."""
     groups = by_solver(points, "dense")
-    goal = (f"the exact solution within {EVALUATION_RATIO:g}x of one vectorised evaluation of it on the 1 ms grid "
+    goal = (f"the exact solution within {EVALUATION_RATIO:g}x of one vectorised evaluation of it on the {GRID} grid "
             "(its phases built beforehand)")
     exact, evaluation = single(groups, runners.EXACT.label), single(groups, runners.EXACT_EVALUATION.label)
     if exact is None or evaluation is None:
@@ -293,10 +295,11 @@ def target_exact_evaluation(points: list[Point]) -> Target:
     measured = (f"exact solution {ms(exact.median)} ms, its evaluation alone {ms(evaluation.median)} ms: "
                 f"{ratio:.2f}x (from min times {exact.minimum / evaluation.minimum:.2f}x).")
     if not met:
-        measured += (f" Reason: the rest, {ms(exact.median - evaluation.median)} ms, is building the "
-                     f"{exact.steps} phases: each departure is a Newton search on the contact's flow in scalar "
-                     "Python (about 4 evaluations and 6 us each), which cannot be vectorised because each contact "
-                     "starts where the previous flight ends.")
+        rest = exact.median - evaluation.median
+        measured += (f" Reason: the rest, {ms(rest)} ms, is building the {exact.steps} phases "
+                     f"({rest / exact.steps * 1e6:.1f} us each): each departure is a Newton search on the contact's "
+                     "flow in scalar Python, which cannot be vectorised because each contact starts where the "
+                     "previous flight ends.")
     return Target("g", goal, met, measured)
 
 
@@ -327,7 +330,7 @@ def target_floor(study: FloorStudy) -> Target:
 
 def target_matched_dop853(matched: Matched) -> Target:
     """(i): the compiled engine against DOP853, each run at the rtol that reaches the error (found by bisection)."""
-    goal = (f"at a matched height error of {matched.target:.0e} m on the 1 ms grid, the compiled engine >= "
+    goal = (f"at a matched height error of {matched.target:.0e} m on the {GRID} grid, the compiled engine >= "
             f"{MATCHED_DOP853_SPEEDUP:g}x faster than solve_ivp DOP853, each run at the rtol reaching that error "
             "(found by running it, not interpolated), from the minimum of interleaved hot calls")
     ours, theirs = matched.cases.get(runners.CVODE_COMPILED.label), matched.cases.get(runners.scipy("DOP853").label)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import hashlib
 import os
 import platform
+import shlex
 import shutil
 import subprocess
 import sys
@@ -24,7 +25,7 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
-from ..output import atomic_write
+from ..output import atomic_write, check_output_path
 from .documentation import index_html
 from .host_check import check_source
 from .variables import MODEL_NAME, UNITS, VARIABLES
@@ -48,16 +49,20 @@ def build_fmu(output: str | Path = DEFAULT_OUTPUT) -> Path:
     output = Path(output)
     if output.suffix != ".fmu":
         raise ValueError(f"output = {str(output)!r} is not allowed: it must end in .fmu")
+    check_output_path("output", output, make_folders=True)
     _check_build_host()
+    compiler = _compiler()
     try:
+        import docutils  # noqa: F401  (it renders documentation/index.html)
         import fmpy  # noqa: F401  (its FMI 2.0 headers compile the loader)
         from pythonfmu import FmuBuilder
     except ImportError as error:
-        raise ImportError(f"build-fmu needs pythonfmu and FMPy ({error}): pip install 'bouncingball[fmu]'") from None
+        raise ImportError(f"build-fmu needs pythonfmu, FMPy and docutils ({error}): pip install "
+                          "'bouncingball[fmu]'") from None
 
     with tempfile.TemporaryDirectory(prefix="bouncingball_fmu_") as temp:
         temp = Path(temp)
-        loader = _compile_loader(temp / f"{MODEL_NAME}.so")
+        loader = _compile_loader(compiler, temp / f"{MODEL_NAME}.so")
         script, package = _stage(temp / "stage")
         # pythonfmu imports the script, and with it the package's copy, into this process to read
         # its variables, and leaves its folder on sys.path: undo both once it is done.
@@ -195,24 +200,36 @@ def _check_build_host() -> None:
                                 "reinstall it with pip install 'bouncingball[fmu]'")
 
 
-def _compiler() -> str:
-    compiler = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
-    if not compiler:
-        raise FmuBuildError("no C compiler (cc or gcc, or $CC) to compile the FMU's loader binary")
-    return compiler
+def _compiler() -> list[str]:
+    """The C compiler's command ($CC, split as a shell would, else cc or gcc), checked to run."""
+    told = os.environ.get("CC", "").strip()
+    command = shlex.split(told) if told else [shutil.which("cc") or shutil.which("gcc") or ""]
+    how = ("set CC to a C compiler that works (CC=gcc bouncingball build-fmu), or install one "
+           "(Debian/Ubuntu: apt install gcc)")
+    if not command[0]:
+        raise FmuBuildError(f"no C compiler (cc or gcc on PATH) to compile the FMU's loader binary: {how}")
+    tried = f"the C compiler {told!r} from $CC" if told else f"the C compiler {command[0]!r}"
+    try:
+        completed = subprocess.run([*command, "--version"], capture_output=True, text=True, check=False)
+    except OSError as error:
+        raise FmuBuildError(f"{tried} cannot be run ({error.strerror or error}): {how}") from None
+    if completed.returncode != 0:
+        raise FmuBuildError(f"{tried} failed on --version (exit code {completed.returncode}): {how}")
+    return command
 
 
 def _c_string(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
 
 
-def _compile_loader(target: Path) -> Path:
+def _compile_loader(compiler: list[str], target: Path) -> Path:
     """Compile bouncingball_fmu_loader.c for the Python running this build."""
-    command = [_compiler(), "-shared", "-fPIC", "-O2", *loader_flags(), "-o", str(target), str(LOADER_SOURCE),
+    command = [*compiler, "-shared", "-fPIC", "-O2", *loader_flags(), "-o", str(target), str(LOADER_SOURCE),
                "-ldl", "-lpthread"]
     completed = subprocess.run(command, capture_output=True, text=True, check=False)
     if completed.returncode != 0:
-        raise FmuBuildError(f"compiling {LOADER_SOURCE.name} failed:\n{completed.stderr.strip()}")
+        raise FmuBuildError(f"compiling {LOADER_SOURCE.name} with {shlex.join(compiler)} failed:\n"
+                            f"{completed.stderr.strip()}")
     return target
 
 

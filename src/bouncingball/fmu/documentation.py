@@ -1,16 +1,20 @@
 """The FMU's documentation/index.html, generated from the variable table and the physics' own docstrings.
 
 Nothing here lists a variable by hand: the table is variables.VARIABLES with the start values the
-completed modelDescription.xml declares, and the model's text is physics' docstrings.
+completed modelDescription.xml declares, and the model's text is physics' docstrings, rendered from
+their reStructuredText (numpydoc sections are section titles and definition lists to it) by docutils.
 """
 
 from __future__ import annotations
 
 import html
 import inspect
+import sys
 import xml.etree.ElementTree as ET
 
 from ..physics import Ball
+from ..validation import exact
+from .host_check import TESTED_PYTHON_HOSTS
 from .variables import MODEL_NAME, SMALLEST_POSITIVE, VARIABLES
 
 
@@ -42,14 +46,14 @@ def index_html(model_description: bytes) -> str:
     experiment = root.find("DefaultExperiment")
     e = html.escape
 
-    def doc(obj) -> str:
-        return f"<p>{e(' '.join(inspect.getdoc(obj).split()))}</p>"
+    doc = rendered_docstring
 
     rows = "\n".join(
         f"<tr><td>{e(v.name)}</td><td>{e(v.causality)}{'' if v.type == 'Real' else ', ' + v.type}</td>"
         f"<td>{e(v.unit)}</td><td>{e(starts.get(v.name, ''))}</td><td>{e(_range(v.min, v.max))}</td>"
         f"<td>{e(v.description)}</td></tr>" for v in VARIABLES)
     ball = Ball()
+    python_version = f"{sys.version_info.major}.{sys.version_info.minor}"  # the build's, as the loader's
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head><meta charset="utf-8"><title>{MODEL_NAME}: documentation</title>
@@ -76,7 +80,7 @@ padding: 0.2em 0.5em}} table {{border-collapse: collapse}} code {{background: #e
 {doc(Ball.initial_mode)}
 <p>A contact whose next maximum of h stays below R never ends: the ball comes to rest at</p>
 {doc(Ball.rest_height)}
-<p>({ball.rest_height():.6g} m with the defaults).</p>
+<p>({ball.rest_height():.15g} m with the defaults).</p>
 
 <h2>Variables</h2>
 <table>
@@ -97,10 +101,12 @@ sees events through the outputs <code>impacts</code> (counted since the start) a
 <code>contact</code>; F_ext is held constant over each communication step.</p>
 
 <h2>What the host needs</h2>
-<p>A Python of the version the FMU was built with, with numpy and scikit-sundae installed. A master
-that runs Python itself (FMPy, libcosimpy) uses its own; a master without Python (a C or C++ tool)
-starts the Python the FMU was built with or else the first matching <code>python3</code> on its PATH,
-which needs a shared libpython. Hence needsExecutionTool="true". Binaries: Linux x86_64 only.
+<p>A Python with numpy and scikit-sundae installed. A master that runs Python itself (FMPy,
+libcosimpy) uses its own: an FMU built with CPython 3.11 was run in FMPy under CPython
+{", ".join(TESTED_PYTHON_HOSTS)}. A master without Python (a C or C++ tool) starts a Python of the
+version this FMU was built with, {e(python_version)}: the one it was built with, or else the first
+matching <code>python3</code> on its PATH, which needs a shared libpython (tested with the build's own
+Python). Hence needsExecutionTool="true". Binaries: Linux x86_64 only.
 Invalid parameters give fmi2Error with a message; FMU state can be got, set and serialized.</p>
 
 <h2>How to check a result</h2>
@@ -118,13 +124,28 @@ bouncingball check result.csv --start-value g=1.62 --start-value h=1.0 --toleran
 """
 
 
+def rendered_docstring(obj) -> str:
+    """obj's docstring as HTML, rendered by docutils; a docstring docutils warns about fails the build."""
+    from docutils.core import publish_parts
+    from docutils.utils import SystemMessage
+    from docutils.writers.html5_polyglot import Writer
+
+    try:
+        parts = publish_parts(inspect.getdoc(obj), writer=Writer(), settings_overrides={
+            "initial_header_level": 3, "doctitle_xform": False, "halt_level": 2, "report_level": 5,
+            "warning_stream": False, "input_encoding": "unicode"})
+    except SystemMessage as error:
+        raise ValueError(f"the docstring of {obj.__qualname__} is not valid reStructuredText: {error}") from None
+    return parts["body"]
+
+
 def _range(low: float | None, high: float | None) -> str:
     if low == SMALLEST_POSITIVE:
         text = "> 0"
     elif low is not None:
-        text = f">= {low:g}"
+        text = f">= {exact(low)}"
     else:
         text = ""
     if high is not None:
-        text = f"{text}, <= {high:g}" if text else f"<= {high:g}"
+        text = f"{text}, <= {exact(high)}" if text else f"<= {exact(high)}"
     return text

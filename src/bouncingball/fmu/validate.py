@@ -6,7 +6,8 @@ import math
 import shutil
 import sys
 import time
-from collections.abc import Callable
+import zipfile
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -20,6 +21,7 @@ from ..solvers import ARTICLE_LABEL
 CVODE_LABEL = "CVODE (in-process)"
 NAME_WIDTH = 31
 SCIPY_CAP = 60.0  # s: the article's explicit method takes many minutes on the stiffest scenes
+STAGES = ("exact", "scipy", "cvode", "fmu")  # what `validate --skip` names
 
 
 @dataclass(frozen=True)
@@ -35,9 +37,9 @@ class Row:
 @dataclass(frozen=True)
 class Report:
     scene: Scene
-    fmu: Path
+    fmu: Path | None  # None: the FMU stage was skipped
     rows: list[Row]
-    impacts_match_at_every_point: bool
+    impacts_match_at_every_point: bool | None  # None: the FMU stage was skipped
 
 
 def run_fmu(fmu: str | Path, scene: Scene, **start_values):
@@ -69,57 +71,91 @@ def run_fmu(fmu: str | Path, scene: Scene, **start_values):
 
 
 def validate(scene_name: str = "article", fmu: str | Path | None = None,
-             progress: Callable[[str], None] = lambda stage: None) -> Report:
+             progress: Callable[[str], None] = lambda stage: None, skip: Sequence[str] = (),
+             time_cap: float = SCIPY_CAP) -> Report:
     """Run the scene four ways; the FMU is (re)built first if it is missing or older than its sources.
 
-    progress is told each stage as it starts (the SciPy run alone may take up to SCIPY_CAP seconds).
+    progress is told each stage as it starts (the SciPy run alone may take up to time_cap seconds).
+    skip names stages of STAGES not to run; the exact solution, which judges the others, is still
+    computed when "exact" is skipped (its own row is left out). Every input, the FMU file included,
+    is checked before any stage runs.
     """
-    import fmpy  # noqa: F401  (before any work: without the [fmu] extra, say so now)
-
+    from .. import validation
     from .build import DEFAULT_OUTPUT, build_fmu, is_stale
 
+    skip = {validation.choice("--skip", stage, STAGES) for stage in skip}
+    time_cap = validation.positive("--time-cap", time_cap, "s")
     scene = load_scene(scene_name)
     fmu = Path(fmu) if fmu is not None else DEFAULT_OUTPUT
-    if fmu == DEFAULT_OUTPUT and is_stale(fmu):
-        progress(f"building {fmu}")
-        build_fmu(fmu)
-    elif not fmu.is_file():
-        raise ValueError(f"fmu = {str(fmu)!r} is not allowed: no such file")
+    if "fmu" not in skip:
+        import fmpy  # noqa: F401  (before any work: without the [fmu] extra, say so now)
+
+        if fmu == DEFAULT_OUTPUT and is_stale(fmu):
+            progress(f"building {fmu}")
+            build_fmu(fmu)
+        else:
+            check_fmu_file(fmu)
 
     progress("the exact solution")
     exact = scene.simulate("exact")
-    # SciPy first, in a child process that is killed past the cap (before the FMU starts Python threads).
-    progress(f"the article's SciPy algorithm (stopped after {SCIPY_CAP:g} s if it has not finished)")
-    article = run_capped(scene.simulate, ("scipy",), SCIPY_CAP)
-    progress("CVODE in this process")
-    runs = {CVODE_LABEL: Capped(FINISHED, scene.simulate("cvode")), ARTICLE_LABEL: article}
-    progress("the FMU through FMPy")
+    runs = {}
+    if "scipy" not in skip:  # in a child process killed past the cap (before the FMU starts Python threads)
+        progress(f"the article's SciPy algorithm (stopped after {time_cap:g} s if it has not finished)")
+        runs[ARTICLE_LABEL] = run_capped(scene.simulate, ("scipy",), time_cap)
+    if "cvode" not in skip:
+        progress("CVODE in this process")
+        runs[CVODE_LABEL] = Capped(FINISHED, scene.simulate("cvode"))
+    rows, impacts_match = [], None
+    if "fmu" not in skip:
+        progress("the FMU through FMPy")
+        row, impacts_match = _fmu_row(fmu, scene, exact)
+        rows.append(row)
+    for label in (CVODE_LABEL, ARTICLE_LABEL):
+        capped = runs.get(label)
+        if capped is None:
+            continue
+        if capped.status != FINISHED:  # SciPy's explicit method fails or crawls on stiff scenes
+            rows.append(Row(label, None, math.nan, f"{capped.status}: {capped.note}"))
+            continue
+        run = capped.value
+        rows.append(Row(label, compare(run, exact_counterpart(run, scene.h0, scene.v0)), run.stats.wall_time))
+    if "exact" not in skip:
+        rows.append(Row("exact", compare(exact, exact), exact.stats.wall_time))
+    return Report(scene, None if "fmu" in skip else fmu, rows, impacts_match)
+
+
+def _fmu_row(fmu: Path, scene: Scene, exact) -> tuple[Row, bool]:
+    """The FMU's row, and whether its impact count equals the exact one at every communication point."""
     result, wall_time, load_time = run_fmu(fmu, scene)
     exact_at_points = exact_on_grid(result["time"], scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=0.0)
     impacts, contact = int(result["impacts"][-1]), result["contact"].astype(int)
     # The FMU counts impacts; its departures follow from them and the contact flag at both ends.
     fmu_accuracy = replace(accuracy_of(exact_at_points, result["h"], impacts=impacts), counted="events",
                            events_found=2 * impacts + contact[0] - contact[-1], events_exact=len(exact.events))
-    rows = [Row("FMU (FMPy)", fmu_accuracy, wall_time,
-                f"+ {load_time:.3f} s to load; events seen only at communication points")]
-    for label, capped in runs.items():
-        if capped.status != FINISHED:  # SciPy's explicit method fails or crawls on stiff scenes
-            rows.append(Row(label, None, math.nan, f"{capped.status}: {capped.note}"))
-            continue
-        run = capped.value
-        rows.append(Row(label, compare(run, exact_counterpart(run, scene.h0, scene.v0)), run.stats.wall_time))
-    rows.append(Row("exact", compare(exact, exact), exact.stats.wall_time))
+    row = Row("FMU (FMPy)", fmu_accuracy, wall_time, f"+ {load_time:.3f} s to load; events seen only at "
+              "communication points")
     t = exact_at_points.t
     tie = 1e-9 * np.maximum(1.0, np.abs(t))  # an impact on a communication point, to 1 ns, may count or not
     mismatches = impact_count_mismatches(exact_at_points.impact_times, t, result["impacts"], tie)
-    return Report(scene, fmu, rows, mismatches.size == 0)
+    return row, mismatches.size == 0
 
 
+def check_fmu_file(fmu: Path) -> None:
+    """ValueError naming fmu unless it is a zip archive with a modelDescription.xml, as every FMU is."""
+    if not fmu.is_file():
+        reason = "it is a folder" if fmu.is_dir() else "no such file"
+        raise ValueError(f"--fmu = {str(fmu)!r} is not allowed: {reason}")
+    if not zipfile.is_zipfile(fmu):
+        raise ValueError(f"--fmu = {str(fmu)!r} is not allowed: it is not an FMU (not a zip archive)")
+    with zipfile.ZipFile(fmu) as archive:
+        if "modelDescription.xml" not in archive.namelist():
+            raise ValueError(f"--fmu = {str(fmu)!r} is not allowed: it is not an FMU (no modelDescription.xml)")
 def format_report(report: Report) -> str:
     """The table `bouncingball validate` prints."""
     scene = report.scene
     lines = [f"scene {scene.name}: {scene.description}",
-             f"FMU {report.fmu}, communication step {scene.output_interval:g} s, 0 to {scene.t_end:g} s",
+             (f"FMU {report.fmu}, communication step" if report.fmu else "FMU skipped; output every")
+             + f" {scene.output_interval:g} s, 0 to {scene.t_end:g} s",
              f"{'run':{NAME_WIDTH}s}{'max |h - h_exact| [m]':>23s}{'event time error [s]':>22s}{'events':>8s}"
              f"{'exact':>7s}{'wall time [s]':>15s}  note"]
     for row in report.rows:
@@ -130,17 +166,19 @@ def format_report(report: Report) -> str:
         event_error = "n/a" if math.isnan(a.max_event_time_error) else f"{a.max_event_time_error:.3e}"
         lines.append(f"{row.name:{NAME_WIDTH}s}{a.max_height_error:23.3e}{event_error:>22s}{a.events_found:8d}"
                      f"{a.events_exact:7d}{row.wall_time:15.4f}  {row.note}")
-    match = "yes" if report.impacts_match_at_every_point else "NO"
-    lines.append(f"FMU impact count equals the exact count at every communication point: {match}")
+    if report.impacts_match_at_every_point is not None:
+        match = "yes" if report.impacts_match_at_every_point else "NO"
+        lines.append(f"FMU impact count equals the exact count at every communication point: {match}")
     return "\n".join(lines)
 
 
-def validate_command(scene: str = "article", fmu: str | None = None) -> int:
-    """`bouncingball validate [SCENE] [--fmu PATH]`."""
+def validate_command(scene: str = "article", fmu: str | None = None, skip: Sequence[str] = (),
+                     time_cap: float = SCIPY_CAP) -> int:
+    """`bouncingball validate [SCENE] [--fmu PATH] [--skip STAGE ...] [--time-cap S]`."""
     from .build import FmuBuildError
 
     try:
-        report = validate(scene, fmu, progress=lambda stage: print(f"validate: {stage} ...", file=sys.stderr))
+        report = validate(scene, fmu, lambda stage: print(f"validate: {stage} ...", file=sys.stderr), skip, time_cap)
     except FmuBuildError as error:
         print(f"bouncingball: cannot build the FMU: {error}", file=sys.stderr)
         return 1

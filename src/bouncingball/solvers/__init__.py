@@ -11,8 +11,11 @@ from .forcing import ForceTable
 from .result import DEFAULT_OUTPUT_INTERVAL, Event, SimulationResult, SolverStats
 
 SOLVERS = ("cvode", "exact", "scipy")
-# The "scipy" solver at its defaults is the reference article's algorithm: its name in every table.
-ARTICLE_LABEL = "article (RK45, max_step 0.01)"
+# The "scipy" solver at its defaults is the reference article's algorithm: solve_ivp's RK45 at SciPy's
+# default tolerances, with max_step 0.01 s. Its name in every table, and its settings as pages state them:
+ARTICLE_METHOD, ARTICLE_MAX_STEP, ARTICLE_RTOL, ARTICLE_ATOL = "RK45", 0.01, 1e-3, 1e-6
+ARTICLE_LABEL = f"article ({ARTICLE_METHOD}, max_step {ARTICLE_MAX_STEP:g})"
+ARTICLE_SETTINGS = f"{ARTICLE_METHOD}, max_step {ARTICLE_MAX_STEP:g}, rtol {ARTICLE_RTOL:g}, atol {ARTICLE_ATOL:g}"
 _COMMON_PARAMETERS = ("ball", "h0", "v0", "t_end", "output_interval", "t_start", "F_ext")
 
 
@@ -43,8 +46,9 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
         Every solver runs a table piece by piece: the state is continuous at a change, the mode held.
     **options
         For cvode: rtol, atol, method ("auto", "Adams", "BDF"), max_step [s] (0: unbounded),
-        engine ("auto", "compiled", "sksundae"). For scipy: method, rtol, atol, max_step,
-        max_events. exact takes none.
+        engine ("auto", "compiled", "sksundae"), progress (called with the time reached [s] as the
+        run goes on, for a progress display). For scipy: method, rtol, atol, max_step,
+        max_events, progress. exact takes none.
 
     Returns
     -------

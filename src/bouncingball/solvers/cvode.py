@@ -9,6 +9,7 @@ importable from here too.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -88,18 +89,20 @@ def _ready_compiled_engine(settings: CvodeSettings) -> None:
 def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
                    t_start: float = 0.0, F_ext: float | ForceTable = 0.0, rtol: float = DEFAULT_RTOL,
                    atol: float | None = DEFAULT_ATOL, method: str = "auto", max_step: float = 0.0,
-                   engine: str = "auto") -> SimulationResult:
+                   engine: str = "auto", progress: Callable[[float], None] | None = None) -> SimulationResult:
     """Integrate with CVODE from t_start to t_end and return the solution on the output grid.
 
     engine: see CvodeSettings; the engine that ran and why are in result.stats, and the time its
     first use in the process took (stats.first_use_time), which stats.wall_time leaves out. F_ext:
-    a constant [N] or a forcing.ForceTable, integrated piece by piece of constant force.
+    a constant [N] or a forcing.ForceTable, integrated piece by piece of constant force. progress:
+    called with the time reached [s] after each phase, for a progress display.
     """
     settings = CvodeSettings(rtol=rtol, atol=atol, method=method, max_step=max_step, engine=engine)
     grid = output_grid(t_start, t_end, output_interval)
     table = F_ext if isinstance(F_ext, ForceTable) else None
     integrator = BallIntegrator(ball, h0, v0, t_start, F_ext if table is None else float(table.at(t_start)),
                                 settings, _steps_for_auto(ball, h0, v0, grid, F_ext, settings))
+    integrator.progress = progress
     try:
         first_use_time = integrator.first_use_time
         if integrator.engine == "compiled" and not _compiled_engine_ready:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -85,6 +86,8 @@ class BallIntegrator:
 
     Change F_ext between advances; a state restored by set_state(get_state()) continues bit for bit.
     """
+
+    progress: Callable[[float], None] | None = None  # integrate_grid tells it the time reached, phase by phase
 
     def __init__(self, ball: Ball, h0: float, v0: float, t0: float = 0.0, F_ext: float = 0.0,
                  settings: CvodeSettings | None = None, expected_steps: float | None = None) -> None:
@@ -422,6 +425,8 @@ class BallIntegrator:
         self._reinit_needed()
         resting = False  # set when CVODE stops at the start of a rest
         while self._t < t_end and not self._close_enough(t_end):
+            if self.progress is not None:
+                self.progress(self._t)
             mode = self._mode
             if resting or self._at_rest():
                 self._rest_from = (self._t, self._x, self._v)

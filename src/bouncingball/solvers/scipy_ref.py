@@ -3,31 +3,32 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
 from .. import validation
 from ..physics import Ball, Mode
-from . import forcing
+from . import ARTICLE_ATOL, ARTICLE_MAX_STEP, ARTICLE_METHOD, ARTICLE_RTOL, forcing
 from .forcing import ForceTable
 from .result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
 
 METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 IMPLICIT = ("Radau", "BDF", "LSODA")
-ARTICLE_MAX_STEP = 0.01
 
 
 def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
-                   t_start: float = 0.0, F_ext: float | ForceTable = 0.0, method: str = "RK45",
-                   rtol: float = 1e-3, atol: float = 1e-6, max_step: float = ARTICLE_MAX_STEP,
-                   max_events: int = 100_000) -> SimulationResult:
+                   t_start: float = 0.0, F_ext: float | ForceTable = 0.0, method: str = ARTICLE_METHOD,
+                   rtol: float = ARTICLE_RTOL, atol: float = ARTICLE_ATOL, max_step: float = ARTICLE_MAX_STEP,
+                   max_events: int = 100_000, progress: Callable[[float], None] | None = None) -> SimulationResult:
     """Integrate as the article does; defaults are the article's (RK45, max_step 0.01, SciPy's tolerances).
 
     max_step = 0 means unbounded. F_ext: a constant [N] or a forcing.ForceTable, integrated piece by
     piece of constant force (solve_ivp restarts at each change, the state continuous, the mode held).
     A run that reports more than max_events events stops there
-    (explicit methods chatter through false events on stiff scenes).
+    (explicit methods chatter through false events on stiff scenes). progress: called with the time
+    reached [s] at each restart, for a progress display.
     """
     method = validation.choice("method", method, METHODS)
     rtol = validation.in_range("rtol", rtol, 0.0, 1.0)
@@ -47,6 +48,8 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     last_impact = t_start if mode == Mode.CONTACT else None
     constant_pieces = forcing.pieces(F_ext, t_start, t_end)
     while t < t_end and len(events) < max_events:
+        if progress is not None:
+            progress(t)
         # the piece of constant force t lies in: solve_ivp stops at its end, and restarts with the next value
         _, t_stop, force = next(p for p in reversed(constant_pieces) if p[0] <= t)
 

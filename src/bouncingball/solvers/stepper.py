@@ -25,7 +25,7 @@ import numpy as np
 
 from ..physics import Ball, Mode, gap_acceleration, load_value, rest_margin_value
 from . import sksundae_events
-from .sundials_log import SundialsLog
+from .sundials_log import ErrorsOffStdout, SundialsLog
 
 CV_RTFUNC_FAIL = -12
 _POOL_SIZE = 4  # solvers kept per kind: the sweep's worker threads each hold one integrator at a time
@@ -136,13 +136,15 @@ class SksundaePhaseSolver:
     def init_step(self, t0: float, y0) -> None:
         """(Re)start CVODE at t0 from y0."""
         self._restart()
-        self._cvode.init_step(t0, y0)
+        with ErrorsOffStdout():
+            self._cvode.init_step(t0, y0)
 
     def step(self, t_toward: float, method: str = "onestep"):
         """One internal step toward t_toward; its end, or the root it stopped at."""
         sksundae_events.clear(self._event)
         try:
-            return self._cvode.step(t_toward, method=method)
+            with ErrorsOffStdout():
+                return self._cvode.step(t_toward, method=method)
         except _TooManyEvaluations as stop:
             return self._exceeded(float(stop.args[0]))
 
@@ -150,7 +152,8 @@ class SksundaePhaseSolver:
         """From y0 at tspan[0] to tspan[-1] or the first terminal root: every step end."""
         self._restart()
         try:
-            return self._cvode.solve(tspan, y0)
+            with ErrorsOffStdout():
+                return self._cvode.solve(tspan, y0)
         except _TooManyEvaluations as stop:
             return self._exceeded(float(stop.args[0]))
 

@@ -1,4 +1,4 @@
-"""The one place that keeps SUNDIALS' warnings off the host's stderr and turns them into Python warnings.
+"""The one place that keeps SUNDIALS' own text off the terminal: warnings become Python warnings, errors go.
 
 SUNDIALS writes its warnings ("t + h = t on the next step", "root functions identically 0")
 with fprintf to stderr, hundreds of thousands of them on an extreme scene, where no caller can
@@ -15,13 +15,21 @@ SUNDIALS writes the file through a buffered C stream, which it flushes when the 
 itself cannot be reached through scikit-sundae, and flushing every stream of the process instead
 (fflush(NULL)) locks each one in turn: in a host that holds one locked while it waits (ecos keeps
 a proxyfmu pipe in fgets for the whole run) the FMU's doStep waited for ever.
+
+SUNDIALS' errors do not reach that file: scikit-sundae (checked on 1.2.0) replaces SUNDIALS' error
+handler with its own, which prints "[CVode, Error: -2] At t = 0, too much accuracy requested." with
+Python's print, to sys.stdout, beside the failed result whose message (CVMESSAGES) our SolverError
+already carries. ErrorsOffStdout takes sys.stdout for the length of a solver call and passes on all
+it received but that text.
 """
 
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import re
+import sys
 import tempfile
 import warnings
 import weakref
@@ -33,6 +41,28 @@ _MESSAGE = re.compile(r"^\[WARNING\]\[[^]]*\]\[[^]]*\]\[(?P<function>[^]]*)\] (?
 
 
 _NOTHING_TO_DO = contextlib.nullcontext()
+_ERROR_TEXT = re.compile(r"\n?\[\w+, Error: -?\d+\] [^\n]*\n\n?")  # as scikit-sundae's _sunerr_handler prints it
+
+
+class ErrorsOffStdout:
+    """Around a scikit-sundae solver call: what it prints to sys.stdout, less SUNDIALS' error text, is passed on.
+
+    Text another thread prints meanwhile is passed on too, after the call.
+    """
+
+    __slots__ = ("_buffer", "_previous")
+
+    def __enter__(self) -> None:
+        self._previous, self._buffer = sys.stdout, io.StringIO()
+        sys.stdout = self._buffer
+
+    def __exit__(self, *exception) -> None:
+        sys.stdout = self._previous
+        text = self._buffer.getvalue()
+        if text:
+            rest = _ERROR_TEXT.sub("", text)
+            if rest and self._previous is not None:
+                self._previous.write(rest)
 
 
 class SundialsWarning(RuntimeWarning):

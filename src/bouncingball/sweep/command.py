@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import sys
 import time
-from pathlib import Path
 
+from .. import validation
+from ..output import check_output_folder
 from . import grid as grids
 from .capped import DEFAULT_TIME_CAP
 
@@ -47,11 +48,10 @@ def sweep_command(args) -> int:
     grid = build_grid(args.k, args.zeta, args.m, args.h0, args.t_end, args.solvers, args.quick)
     time_cap = args.time_cap if args.time_cap is not None else QUICK_TIME_CAP if args.quick else DEFAULT_TIME_CAP
     check_settings(time_cap, args.workers, args.batch_size)
+    connect_timeout = validation.positive("--connect-timeout", args.connect_timeout, "s")
     if args.scheduler and args.workers:
         raise ValueError(f"--workers = {args.workers} is not allowed with --scheduler: the cluster has its own")
-    output_dir = Path(args.output_dir)
-    if output_dir.exists() and not output_dir.is_dir():
-        raise ValueError(f"--output-dir = {args.output_dir!r} is not allowed: it is a file, not a directory")
+    output_dir = check_output_folder("--output-dir", args.output_dir)
     for module in ("distributed", "pandas", "pyarrow", "matplotlib", "tqdm"):  # before the hours of work
         __import__(module)
     from distributed import Client
@@ -59,14 +59,20 @@ def sweep_command(args) -> int:
     from . import report
     from .run import run_sweep
 
-    output_dir.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     options = dict(output_dir=output_dir, resume=args.resume, time_cap=time_cap, batch_size=args.batch_size)
     if args.scheduler:
-        with Client(args.scheduler, timeout=30) as client:
+        try:
+            client = Client(args.scheduler, timeout=connect_timeout)
+        except OSError as error:  # distributed's "Timed out trying to connect to ... after 10 s"
+            raise ValueError(f"--scheduler = {args.scheduler!r} is not allowed: no Dask scheduler answered there "
+                             f"within --connect-timeout = {connect_timeout:g} s ({error})") from None
+        output_dir.mkdir(parents=True, exist_ok=True)
+        with client:
             frame = run_sweep(grid, client, **options)
         cluster = f"the scheduler at {args.scheduler}"
     else:
+        output_dir.mkdir(parents=True, exist_ok=True)
         frame = run_sweep(grid, workers=args.workers, **options)
         cluster = "LocalCluster (one single-threaded worker process each)"
     scaling = None

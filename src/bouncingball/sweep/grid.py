@@ -16,10 +16,10 @@ from ..physics import Ball
 from ..scenes import SCENE_DEFAULTS, Scene
 from ..solvers.settings import DEFAULT_ATOL, DEFAULT_RTOL, METHODS
 
-_ARTICLE = Ball()
+ARTICLE_BALL = Ball()  # every cell keeps its R and g, and its m by default
 DEFAULT_K = (1e2, 1e14, 13)  # N/m: (low, high, points), log-spaced
 DEFAULT_ZETA = (1e-4, 1e2, 7)  # damping ratio b / (2 sqrt(k m))
-DEFAULT_M = (_ARTICLE.m, _ARTICLE.m, 1)  # kg
+DEFAULT_M = (ARTICLE_BALL.m, ARTICLE_BALL.m, 1)  # kg
 DEFAULT_H0 = (SCENE_DEFAULTS["h0"], SCENE_DEFAULTS["h0"], 1)  # m
 DEFAULT_T_END = SCENE_DEFAULTS["t_end"]  # s
 DEFAULT_OUTPUT_INTERVAL = SCENE_DEFAULTS["output_interval"]  # s
@@ -126,7 +126,7 @@ class Cell:
 
     def scene(self, t_end: float, output_interval: float) -> Scene:
         """The cell as a Scene: the article's R and g, dropped at rest from h0."""
-        ball = Ball(m=self.m, k=self.k, b=self.b, R=_ARTICLE.R, g=_ARTICLE.g)
+        ball = Ball(m=self.m, k=self.k, b=self.b, R=ARTICLE_BALL.R, g=ARTICLE_BALL.g)
         return Scene(f"k={self.k:.3g},zeta={self.zeta:.3g},m={self.m:.3g},h0={self.h0:.3g}", "sweep cell",
                      ball, self.h0, 0.0, t_end, output_interval)
 

@@ -9,9 +9,11 @@ from pathlib import Path
 import numpy as np
 
 from ..output import atomic_write
-from ..solvers.settings import DEFAULT_RTOL
+from ..solvers import ARTICLE_LABEL
+from ..solvers.settings import DEFAULT_RTOL, HOP_RESOLUTION, MERGED_HOP_MARGIN
 from . import store
-from .grid import Grid
+from .child import HEIGHT_TOLERANCE
+from .grid import ARTICLE_BALL, Grid
 
 HEIGHT_LIMIT = 1e-5  # m: CVODE's height error above this at the defaults is listed as wrong
 TABLE_CSV = "stability_map.csv"
@@ -145,17 +147,20 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def write_tables(frame, output_dir: Path) -> list[Path]:
-    """The whole table as CSV (full precision; without the run keys) and Parquet (with them, as --resume reads)."""
+    """The whole table as CSV (without the run keys) and Parquet (with them, as --resume reads).
+
+    The CSV's numbers are pandas' default, the shortest text that reads back as the same double.
+    """
     columns = [column for column in frame.columns if column != "key"]
     csv_path = output_dir / TABLE_CSV
     with atomic_write(csv_path) as temporary:
-        frame[columns].to_csv(temporary, index=False, float_format="%.17g")
+        frame[columns].to_csv(temporary, index=False)
     return [csv_path, store.write_table(frame, output_dir)]
 
 
 def _summary(frame, grid: Grid) -> list[str]:
     lines = ["| solver | runs | finished | event counts match | events right | failed | timed out | "
-             "max error <= 1e-5 m | median max error [m] | median wall time [ms] | RHS calls (sum) |",
+             f"max error <= {HEIGHT_LIMIT:g} m | median max error [m] | median wall time [ms] | RHS calls (sum) |",
              "|" + " --- |" * 11]
     for solver in grid.solvers:
         rows = frame[frame["solver"] == solver]
@@ -187,11 +192,12 @@ def write_markdown(frame, grid: Grid, info: dict, output_dir: Path, images: list
              f"- k [N/m]: {', '.join(f'{x:.3g}' for x in grid.axis('k'))}",
              f"- damping ratio: {', '.join(f'{x:.3g}' for x in grid.axis('zeta'))}",
              f"- m [kg]: {', '.join(f'{x:.3g}' for x in grid.axis('m'))}; h0 [m]: "
-             f"{', '.join(f'{x:.3g}' for x in grid.axis('h0'))}; v0 = 0; R = 0.06 m, g = 9.81 m/s2",
+             f"{', '.join(f'{x:.3g}' for x in grid.axis('h0'))}; v0 = 0; R = {ARTICLE_BALL.R:g} m, "
+             f"g = {ARTICLE_BALL.g:g} m/s2",
              f"- t_end = {grid.t_end:g} s, output every {grid.output_interval:g} s; solvers: {', '.join(grid.solvers)} "
              "(cvode: method auto, engine auto; scipy:METHOD: solve_ivp with unbounded steps; both at CVODE's "
              f"default rtol {DEFAULT_RTOL:g}, the scipy methods with atol rtol times the scene's height; "
-             "article: RK45, max_step 0.01, SciPy's tolerances)", "",
+             f"article: {ARTICLE_LABEL} at SciPy's tolerances)", "",
              "## Execution", "",
              f"- cluster: {info['cluster']}, {attrs['workers']} workers, {attrs['threads']} threads",
              f"- wall time: {attrs['wall_time']:.1f} s for {attrs['runs_done']} runs (first task submitted to last "
@@ -225,11 +231,12 @@ def write_markdown(frame, grid: Grid, info: dict, output_dir: Path, images: list
     merged = cvode_merged_hops(frame)
     if len(merged):
         lines += ["", "In these cells CVODE's event count differs from the exact solution's only by the last, "
-                  "tiny hops before rest: each missing departure-impact pair bounds a hop lower than 100 times "
-                  "CVODE's absolute error of h near R (1e-10 m + 1e-9 R), which it merges into the contact (the "
+                  "tiny hops before rest: each missing departure-impact pair bounds a hop lower than "
+                  f"`cvode.merged_hop_limit`, {MERGED_HOP_MARGIN:g} x {HOP_RESOLUTION:g} rtol times the static "
+                  f"deflection m g / k above R (rtol {DEFAULT_RTOL:g}), which CVODE merges into the contact (the "
                   "ball is then at rest to within its tolerance); `accuracy.event_mismatches` finds every other "
-                  "event within the time the ball takes to move 1e-6 m. Not a defect: those hops are below what "
-                  "the tolerances resolve.", "",
+                  f"event within the time the ball takes to move {HEIGHT_TOLERANCE:g} m. Not a defect: those hops "
+                  "are below what the tolerances resolve.", "",
                   "| solver | k [N/m] | damping ratio | m [kg] | h0 [m] | events (exact) | max error [m] |",
                   "|" + " --- |" * 7]
         lines += [f"| {row['solver']} | {row['k']:.3g} | {row['zeta']:.3g} | {row['m']:.3g} | {row['h0']:.3g} "

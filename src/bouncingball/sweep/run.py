@@ -5,7 +5,9 @@ from __future__ import annotations
 import logging
 import math
 import os
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -25,8 +27,17 @@ def local_cluster(workers: int | None = None):
     """A LocalCluster with one single-threaded worker process per core (or workers of them)."""
     from distributed import LocalCluster
 
-    return LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                        dashboard_address=None, silence_logs=logging.ERROR)
+    # Ctrl-C reaches every process of the terminal's group: each worker printed its KeyboardInterrupt
+    # traceback. The worker processes start with SIGINT ignored (Python keeps an ignored SIGINT), and
+    # this process, which alone takes the interrupt, closes the cluster on its way out.
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
+    try:
+        return LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                            dashboard_address=None, silence_logs=logging.ERROR)
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGINT, previous)
 
 
 def measure_overhead(client, tasks: int = OVERHEAD_TASKS) -> float:
