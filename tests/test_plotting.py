@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import bouncingball as bb
-from bouncingball.accuracy import exact_counterpart
+from bouncingball.accuracy import accuracy_of_result
 from bouncingball.cli import main
 from bouncingball.solvers.exact import ExactSolution
 
@@ -22,7 +22,7 @@ def _close_figures():
 
 def _run(ball, t_end, output_interval=1e-3, **options):
     result = bb.simulate(ball, 2.0, 0.0, t_end, output_interval, **options)
-    return result, exact_counterpart(result, 2.0, 0.0)
+    return result, accuracy_of_result(result, 2.0, 0.0)[1].result()
 
 
 def _drawn_points(ax) -> int:

@@ -3,12 +3,12 @@
 import pytest
 
 import bouncingball
-from bouncingball.accuracy import compare, exact_counterpart
+from bouncingball.accuracy import accuracy_of_result
 from bouncingball.physics import Ball
 
 
 def _accuracy(result, h0, v0):
-    return compare(result, exact_counterpart(result, h0, v0)), None
+    return accuracy_of_result(result, h0, v0)[0], None
 
 
 @pytest.mark.parametrize("method", ["RK45", "DOP853", "LSODA", "Radau", "BDF"])

@@ -1,4 +1,9 @@
-"""Errors of a numerical result against the exact solution on the same grid."""
+"""Errors of a numerical result against the exact solution on the same grid.
+
+The one way every user (run, check, validate, the bench, the sweep, the tests) compares: the exact
+solution sampled on the result's own times (exact_on_grid), and the one record of the comparison
+(Accuracy, built by accuracy_of).
+"""
 
 from __future__ import annotations
 
@@ -9,6 +14,7 @@ import numpy as np
 
 from .physics import Ball, Mode
 from .solvers.exact import ExactSolution
+from .solvers.forcing import ForceTable
 from .solvers.result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats
 
 
@@ -27,8 +33,15 @@ class ExactOnGrid:
         """The exact impact times [s] up to the last sample time."""
         return np.array([event.time for event in self.solution.events if event.kind == IMPACT])
 
+    def result(self) -> SimulationResult:
+        """The same samples as a SimulationResult of the "exact" solver (to draw or print beside a run)."""
+        solution = self.solution
+        stats = SolverStats(steps=len(solution.phases), events=len(solution.events))
+        return SimulationResult("exact", solution.ball, self.t, self.h, self.v, list(solution.events),
+                                solution.rest_time, stats, solution.F_ext)
 
-def exact_on_grid(t, ball: Ball, h0: float, v0: float, F_ext: float = 0.0,
+
+def exact_on_grid(t, ball: Ball, h0: float, v0: float, F_ext: float | ForceTable = 0.0,
                   t_start: float | None = None) -> ExactOnGrid:
     """The exact solution from (h0 [m], v0 [m/s]) at t_start (default: t[0]) sampled at the times t [s].
 
@@ -40,8 +53,8 @@ def exact_on_grid(t, ball: Ball, h0: float, v0: float, F_ext: float = 0.0,
         The ball.
     h0, v0 : float
         Height [m] and velocity [m/s] at t_start.
-    F_ext : float, optional
-        Constant external force [N], positive upwards.
+    F_ext : float or ForceTable, optional
+        External force [N], positive upwards: a constant or piecewise constant.
     t_start : float, optional
         Time [s] of the start state; t[0] if not given.
 
@@ -81,8 +94,8 @@ class Accuracy:
 
 
 def accuracy_of(exact: ExactOnGrid, h, *, events: list[Event] | None = None, impacts: int | None = None,
-                v=None) -> Accuracy:
-    """Compare a result on exact's grid with it: by its events if given, else by its impact count.
+                events_found: int | None = None, v=None) -> Accuracy:
+    """Compare a result on exact's grid with it: by its events if given, else by its event or impact count.
 
     Parameters
     ----------
@@ -94,12 +107,18 @@ def accuracy_of(exact: ExactOnGrid, h, *, events: list[Event] | None = None, imp
         The result's events; compared in order with the exact ones.
     impacts : int, optional
         The result's impact count, when its events are not observable.
+    events_found : int, optional
+        The result's event count, when their times are not observable (an FMU's impacts and its
+        contact flag at both ends).
     v : array_like, optional
         The result's velocities [m/s], for the energy drift.
     """
     if events is not None:
         event_error = max_event_time_error(events, exact.solution.events)
         found, expected, counted = len(events), len(exact.solution.events), "events"
+    elif events_found is not None:
+        event_error = math.nan
+        found, expected, counted = events_found, len(exact.solution.events), "events"
     else:
         event_error = math.nan
         found, expected, counted = impacts, int(exact.impacts[-1]), "impacts"
@@ -110,19 +129,10 @@ def accuracy_of(exact: ExactOnGrid, h, *, events: list[Event] | None = None, imp
     return Accuracy(max_height_error(h, exact.h), event_error, found, expected, counted, drift)
 
 
-def exact_counterpart(result: SimulationResult, h0: float, v0: float) -> SimulationResult:
-    """The exact solution on the result's own grid, for the same ball, start state and F_ext."""
+def accuracy_of_result(result: SimulationResult, h0: float, v0: float) -> tuple[Accuracy, ExactOnGrid]:
+    """A result against the exact solution from (h0 [m], v0 [m/s]) on its own grid: the record, and that solution."""
     exact = exact_on_grid(result.t, result.ball, h0, v0, result.F_ext)
-    solution = exact.solution
-    return SimulationResult("exact", result.ball, exact.t, exact.h, exact.v, list(solution.events),
-                            solution.rest_time, SolverStats(steps=len(solution.phases), events=len(solution.events)),
-                            result.F_ext)
-
-
-def compare(result: SimulationResult, exact: SimulationResult) -> Accuracy:
-    """Accuracy of result against exact (both on the same grid)."""
-    return Accuracy(max_height_error(result.h, exact.h), max_event_time_error(result.events, exact.events),
-                    len(result.events), len(exact.events))
+    return accuracy_of(exact, result.h, events=result.events), exact
 
 
 def max_height_error(h: np.ndarray, h_exact: np.ndarray) -> float:

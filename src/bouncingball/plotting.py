@@ -93,7 +93,7 @@ def height_figure(result: SimulationResult, exact: SimulationResult | None = Non
     result : SimulationResult
         The run to draw.
     exact : SimulationResult, optional
-        The exact solution on the same grid (accuracy.exact_counterpart): drawn with the run, and
+        The exact solution on the same grid (accuracy.exact_on_grid(...).result()): drawn with the run, and
         the run's error against it in a panel of its own on a log axis.
     title : str, optional
         The figure's title (default: the solver's name and the number of events).

@@ -9,9 +9,8 @@ import json
 import os
 import sys
 
-from ..accuracy import event_mismatches
+from ..accuracy import accuracy_of, event_mismatches, exact_on_grid
 from ..bench import runners
-from ..solvers.exact import ExactSolution
 from ..solvers.settings import DEFAULT_RTOL, merged_hop_limit
 from .capped import MEASURES
 from .grid import Cell, solver_spec, tolerances
@@ -49,10 +48,10 @@ def measure(spec: dict) -> dict:
         scene = Cell(spec["k"], spec["zeta"], spec["m"], spec["h0"]).scene(spec["t_end"], spec["output_interval"])
         run = runners.run_solver(solver_spec(spec["solver"]), scene, scene.output_interval,
                                  *tolerances(spec["solver"]))
-        errors = runners.errors_against_exact(scene, run)
-        exact = ExactSolution(scene.ball, scene.h0, scene.v0, 0.0, float(run.t[-1]), scene.F_ext)
+        exact = exact_on_grid(run.t, scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=0.0)
+        errors = accuracy_of(exact, run.h, events=run.events, impacts=run.impacts, v=run.v)
         rtol, atol = tolerances(spec["solver"])
-        mismatches = event_mismatches(run.events, exact, HEIGHT_TOLERANCE,
+        mismatches = event_mismatches(run.events, exact.solution, HEIGHT_TOLERANCE,
                                       merged_hop_limit(scene.ball, rtol or DEFAULT_RTOL, atol, scene.F_ext))
     except Exception as error:  # a failed run is a row of the map, not a crash of the sweep
         reason = f"{type(error).__name__}: {error}".splitlines()[0][:300]
