@@ -33,6 +33,7 @@ DEFAULT_OUTPUT = Path("dist") / f"{MODEL_NAME}.fmu"
 HERE = Path(__file__).resolve().parent
 SLAVE_SCRIPT = HERE / "bouncingball_fmu_slave.py"
 LOADER_SOURCE = HERE / "bouncingball_fmu_loader.c"
+LOADER_HEADER = HERE / "bouncingball_fmu_python.h"  # what the FMI 2.0 and 3.0 loaders share
 PACKAGE_DIR = HERE.parent  # the bouncingball package, copied into the FMU
 PACKAGE_FILES = ("*.py", "data/*.toml")
 PLATFORM = "linux64"
@@ -169,7 +170,7 @@ def is_stale(fmu: str | Path) -> bool:
     fmu = Path(fmu)
     if not fmu.is_file():
         return True
-    sources = [SLAVE_SCRIPT, LOADER_SOURCE, *(PACKAGE_DIR / relative for relative in package_sources())]
+    sources = [SLAVE_SCRIPT, LOADER_SOURCE, LOADER_HEADER, *(PACKAGE_DIR / relative for relative in package_sources())]
     return max(path.stat().st_mtime for path in sources if path.exists()) > fmu.stat().st_mtime
 
 
@@ -189,7 +190,7 @@ def _check_build_host() -> None:
     if not (sys.platform.startswith("linux") and platform.machine() == "x86_64"):
         raise FmuBuildError(f"the FMU is built for Linux x86_64 only (pythonfmu's {PLATFORM} binary); "
                             f"this is {sys.platform} {platform.machine()}")
-    for path in (SLAVE_SCRIPT, LOADER_SOURCE):
+    for path in (SLAVE_SCRIPT, LOADER_SOURCE, LOADER_HEADER):
         if not path.is_file():
             raise FmuBuildError(f"{path} not found: this installation of bouncingball is incomplete; "
                                 "reinstall it with pip install 'bouncingball[fmu]'")
