@@ -40,10 +40,20 @@ class Report:
     impacts_match_at_every_point: bool
 
 
-def run_fmu(fmu: str | Path, scene: Scene, **start_values):
+# The FMI 3.0 FMU's runs beside co-simulation without early return: each is FMPy's simulate_fmu options.
+FMI3_RUNS = {
+    "FMU 3.0 CS, early return": {"early_return_allowed": True, "use_event_mode": True},
+    "FMU 3.0 ME, FMPy CVode 1e-8": {"fmi_type": "ModelExchange", "solver": "CVode", "relative_tolerance": 1e-8},
+}
+FMI3_NOTES = {"FMU 3.0 CS, early return": "doStep returns at each event; the master's event mode there",
+              "FMU 3.0 ME, FMPy CVode 1e-8": "the master integrates; the FMU's event indicator is h - R"}
+
+
+def run_fmu(fmu: str | Path, scene: Scene, options: dict | None = None, **start_values):
     """The scene through FMPy's simulate_fmu, one communication step per output interval.
 
-    Returns the result, the wall time of the simulation [s] and that of loading the FMU [s] before it.
+    options are more of simulate_fmu's (fmi_type, early_return_allowed, ...). Returns the result, the
+    wall time of the simulation [s] and that of loading the FMU [s] before it.
     """
     try:
         from fmpy import extract, instantiate_fmu, read_model_description, simulate_fmu
@@ -56,11 +66,15 @@ def run_fmu(fmu: str | Path, scene: Scene, **start_values):
     unzipped = extract(str(fmu))
     try:
         description = read_model_description(unzipped)
-        instance = instantiate_fmu(unzipped, description)
+        options = dict(options or {})
+        instance = instantiate_fmu(unzipped, description, fmi_type=options.get("fmi_type"),
+                                   early_return_allowed=options.get("early_return_allowed", False),
+                                   event_mode_used=options.get("use_event_mode", False))
         loaded = time.perf_counter()
         result = simulate_fmu(unzipped, model_description=description, fmu_instance=instance,
                               start_values=values, start_time=0.0, stop_time=scene.t_end,
-                              output_interval=scene.output_interval, output=["h", "v", "impacts", "contact"])
+                              output_interval=scene.output_interval, output=["h", "v", "impacts", "contact"],
+                              **options)
         finished = time.perf_counter()
         instance.freeInstance()
     finally:
@@ -69,20 +83,23 @@ def run_fmu(fmu: str | Path, scene: Scene, **start_values):
 
 
 def validate(scene_name: str = "article", fmu: str | Path | None = None,
-             progress: Callable[[str], None] = lambda stage: None) -> Report:
-    """Run the scene four ways; the FMU is (re)built first if it is missing or older than its sources.
+             progress: Callable[[str], None] = lambda stage: None, fmi_version: int = 2) -> Report:
+    """Run the scene four ways (six for FMI 3.0: FMI3_RUNS too); the FMU is (re)built first if it is stale.
 
     progress is told each stage as it starts (the SciPy run alone may take up to SCIPY_CAP seconds).
     """
     import fmpy  # noqa: F401  (before any work: without the [fmu] extra, say so now)
 
-    from .build import DEFAULT_OUTPUT, build_fmu, is_stale
+    from .build import DEFAULT_OUTPUTS, build_fmu, is_stale
 
+    if fmi_version not in DEFAULT_OUTPUTS:
+        raise ValueError(f"fmi_version = {fmi_version!r} is not allowed: it must be 2 or 3")
     scene = load_scene(scene_name)
-    fmu = Path(fmu) if fmu is not None else DEFAULT_OUTPUT
-    if fmu == DEFAULT_OUTPUT and is_stale(fmu):
+    default = DEFAULT_OUTPUTS[fmi_version]
+    fmu = Path(fmu) if fmu is not None else default
+    if fmu == default and is_stale(fmu):
         progress(f"building {fmu}")
-        build_fmu(fmu)
+        build_fmu(fmu, fmi_version)
     elif not fmu.is_file():
         raise ValueError(f"fmu = {str(fmu)!r} is not allowed: no such file")
 
@@ -96,12 +113,12 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
     progress("the FMU through FMPy")
     result, wall_time, load_time = run_fmu(fmu, scene)
     exact_at_points = exact_on_grid(result["time"], scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=0.0)
-    impacts, contact = int(result["impacts"][-1]), result["contact"].astype(int)
-    # The FMU counts impacts; its departures follow from them and the contact flag at both ends.
-    fmu_accuracy = replace(accuracy_of(exact_at_points, result["h"], impacts=impacts), counted="events",
-                           events_found=2 * impacts + contact[0] - contact[-1], events_exact=len(exact.events))
-    rows = [Row("FMU (FMPy)", fmu_accuracy, wall_time,
-                f"+ {load_time:.3f} s to load; events seen only at communication points")]
+    rows = [Row("FMU (FMPy)" if fmi_version == 2 else "FMU 3.0 CS (FMPy)", _fmu_accuracy(result, scene, exact),
+                wall_time, f"+ {load_time:.3f} s to load; events seen only at communication points")]
+    for label, options in FMI3_RUNS.items() if fmi_version == 3 else ():
+        progress(f"the FMU through FMPy: {label}")
+        other, other_time, _ = run_fmu(fmu, scene, options)
+        rows.append(Row(label, _fmu_accuracy(other, scene, exact), other_time, FMI3_NOTES[label]))
     for label, capped in runs.items():
         if capped.status != FINISHED:  # SciPy's explicit method fails or crawls on stiff scenes
             rows.append(Row(label, None, math.nan, f"{capped.status}: {capped.note}"))
@@ -113,6 +130,15 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
     tie = 1e-9 * np.maximum(1.0, np.abs(t))  # an impact on a communication point, to 1 ns, may count or not
     mismatches = impact_count_mismatches(exact_at_points.impact_times, t, result["impacts"], tie)
     return Report(scene, fmu, rows, mismatches.size == 0)
+
+
+def _fmu_accuracy(result, scene: Scene, exact) -> Accuracy:
+    """The FMU's result against the exact solution at its own times (early return adds the events' times)."""
+    at_points = exact_on_grid(result["time"], scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=0.0)
+    impacts, contact = int(result["impacts"][-1]), result["contact"].astype(int)
+    # The FMU counts impacts; its departures follow from them and the contact flag at both ends.
+    return replace(accuracy_of(at_points, result["h"], impacts=impacts), counted="events",
+                   events_found=2 * impacts + contact[0] - contact[-1], events_exact=len(exact.events))
 
 
 def format_report(report: Report) -> str:
@@ -135,12 +161,13 @@ def format_report(report: Report) -> str:
     return "\n".join(lines)
 
 
-def validate_command(scene: str = "article", fmu: str | None = None) -> int:
-    """`bouncingball validate [SCENE] [--fmu PATH]`."""
+def validate_command(scene: str = "article", fmu: str | None = None, fmi_version: int = 2) -> int:
+    """`bouncingball validate [SCENE] [--fmu PATH] [--fmi-version 2|3]`."""
     from .build import FmuBuildError
 
     try:
-        report = validate(scene, fmu, progress=lambda stage: print(f"validate: {stage} ...", file=sys.stderr))
+        report = validate(scene, fmu, progress=lambda stage: print(f"validate: {stage} ...", file=sys.stderr),
+                          fmi_version=fmi_version)
     except FmuBuildError as error:
         print(f"bouncingball: cannot build the FMU: {error}", file=sys.stderr)
         return 1
