@@ -1,0 +1,154 @@
+"""The FMI 3.0 FMU: its model description, co-simulation with and without early return, model exchange.
+
+Calls that could crash the interpreter run in a subprocess (run3).
+"""
+
+import json
+import subprocess
+import sys
+import textwrap
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+fmpy = pytest.importorskip("fmpy")
+
+from bouncingball.accuracy import impact_count_mismatches  # noqa: E402
+from bouncingball.fmu.variables import FMI3_VARIABLES, VARIABLES  # noqa: E402
+from bouncingball.physics import Ball  # noqa: E402
+from bouncingball.solvers.exact import ExactSolution  # noqa: E402
+from bouncingball.solvers.result import IMPACT  # noqa: E402
+from fmu_helpers import exact_at  # noqa: E402
+
+TESTS = Path(__file__).parent
+ARTICLE = ExactSolution(Ball(), 2.0, 0.0, 0.0, 8.0)
+
+
+def run3(unzipped3: Path, body: str) -> dict:
+    """body run in a fresh Python with `Instance3`, `refused` and `unzipped`; it leaves its findings in `out`."""
+    code = textwrap.dedent(f"""
+        import json, sys
+        sys.path.insert(0, {str(TESTS)!r})
+        import fmpy
+        from fmu3_helpers import Instance3
+        unzipped = sys.argv[1]
+        out = {{}}
+
+        def refused(ball, call, expected):
+            before = len(ball.errors())
+            try:
+                call()
+            except fmpy.fmi1.FMICallException as error:
+                assert error.status == 3, (expected, error.status)  # fmi3Error
+            else:
+                raise AssertionError(f"{{expected}} was accepted")
+            assert len(ball.errors()) > before and expected in ball.errors()[-1], (expected, ball.errors()[-1:])
+    """) + textwrap.dedent(body) + "\nprint(json.dumps(out))\n"
+    completed = subprocess.run([sys.executable, "-c", code, str(unzipped3)], capture_output=True, text=True,
+                               timeout=300, check=False)
+    assert completed.returncode == 0, completed.stdout[-2000:] + completed.stderr[-4000:]
+    return json.loads(completed.stdout.strip().splitlines()[-1])
+
+
+def assert_exact(result, tolerance: float = 1e-6, tie: float = 1e-9) -> None:
+    """h within tolerance of the article's exact solution at every output time, every impact counted on time.
+
+    An impact within tie [s] of an output time may count there or not.
+    """
+    t = result["time"]
+    h, _, _ = exact_at(t)
+    assert np.max(np.abs(result["h"] - h)) <= tolerance
+    impact_times = np.array([e.time for e in ARTICLE.events if e.kind == IMPACT])
+    tie = tie * np.maximum(1.0, np.abs(t))
+    assert impact_count_mismatches(impact_times, t, result["impacts"], tie).size == 0
+    assert result["impacts"][-1] == len(impact_times) == 21
+
+
+def test_fmpy_validate_and_the_model_description(fmu3):
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(str(fmu3)) == []
+    description = fmpy.read_model_description(str(fmu3))
+    assert description.fmiVersion == "3.0"
+    cs, me = description.coSimulation, description.modelExchange
+    assert (cs.hasEventMode, cs.mightReturnEarlyFromDoStep, cs.canHandleVariableCommunicationStepSize) == (
+        True, True, True)
+    assert (cs.canGetAndSetFMUstate, cs.canSerializeFMUstate, me.canGetAndSetFMUstate) == (True, True, True)
+    assert description.numberOfContinuousStates == 2 and description.numberOfEventIndicators == 1
+    variables = {v.name: v for v in description.modelVariables}
+    table = VARIABLES + FMI3_VARIABLES
+    assert [v.name for v in description.modelVariables] == [v.name for v in table]
+    for variable in table:  # the same units and ranges as the FMI 2.0 FMU, from the same table
+        assert (variables[variable.name].unit or "") == variable.unit, variable.name
+    assert variables["time"].causality == "independent"
+    assert variables["der(h)"].derivative is variables["h"] and variables["der(v)"].derivative is variables["v"]
+    with zipfile.ZipFile(fmu3) as archive:
+        names = archive.namelist()
+        assert "documentation/index.html" in names and "binaries/x86_64-linux/BouncingBall.so" in names
+        assert not any(name.startswith("sources/") for name in names)  # pythonfmu3's sources do not build ours
+    assert fmu3.with_name("BouncingBall3_ref.csv").is_file()
+
+
+@pytest.mark.parametrize("options", [{}, {"early_return_allowed": True},
+                                     {"early_return_allowed": True, "use_event_mode": True}],
+                         ids=["no early return", "early return", "early return and event mode"])
+def test_co_simulation_in_fmpy_is_exact(fmu3, options):
+    result = fmpy.simulate_fmu(str(fmu3), fmi_type="CoSimulation", stop_time=8.0, output_interval=0.01, **options)
+    assert_exact(result)
+    if options:  # every event's time is a row: 41 events more than the 801 communication points
+        assert len(np.unique(result["time"])) == 801 + len(ARTICLE.events)
+
+
+EARLY_RETURN = """
+    ball = Instance3(unzipped, early_return=EARLY, event_mode=EVENT_MODE)
+    f = ball.fmu
+    f.enterInitializationMode(startTime=0.0)
+    f.exitInitializationMode()
+    if EVENT_MODE:
+        f.updateDiscreteStates()
+        f.enterStepMode()
+    t, stops = 0.0, []
+    while t < 3.0:
+        needed, terminate, early, last = f.doStep(t, min(0.5, 3.0 - t))
+        assert not terminate
+        if early:
+            stops.append([last, bool(needed), ball.get("contact")[0], ball.get("h")[0]])
+            if EVENT_MODE:
+                f.enterEventMode()
+                f.updateDiscreteStates()
+                f.enterStepMode()
+            t = last
+        else:
+            assert not needed
+            t = t + min(0.5, 3.0 - t)
+    out["stops"], out["h"], out["impacts"] = stops, ball.get("h")[0], ball.get("impacts")[0]
+"""
+
+
+@pytest.mark.parametrize("event_mode", [True, False], ids=["event mode", "no event mode"])
+def test_early_return_at_every_impact_and_departure_of_the_first_3_s(unzipped3, event_mode):
+    out = run3(unzipped3, f"EARLY, EVENT_MODE = True, {event_mode}\n" + textwrap.dedent(EARLY_RETURN))
+    expected = [e for e in ARTICLE.events if e.time < 3.0]
+    assert len(out["stops"]) == len(expected) == 6
+    for (time, needed, contact, h), event in zip(out["stops"], expected, strict=True):
+        assert abs(time - event.time) <= 1e-9
+        assert needed == event_mode  # eventHandlingNeeded asks for event mode only where the master uses it
+        assert contact == (event.kind == IMPACT)
+        assert abs(h - Ball().R) <= 1e-9  # h = R at each event
+    h, _, impacts = exact_at([3.0])
+    assert abs(out["h"] - h[0]) <= 1e-6 and out["impacts"] == impacts[0] == 3
+
+
+def test_without_early_return_each_step_resolves_its_events(unzipped3):
+    out = run3(unzipped3, "EARLY, EVENT_MODE = False, False\n" + textwrap.dedent(EARLY_RETURN))
+    h, _, impacts = exact_at([3.0])
+    assert out["stops"] == [] and abs(out["h"] - h[0]) <= 1e-6 and out["impacts"] == impacts[0]
+
+
+def test_model_exchange_in_fmpy_cvode_finds_every_impact(fmu3):
+    result = fmpy.simulate_fmu(str(fmu3), fmi_type="ModelExchange", solver="CVode", relative_tolerance=1e-8,
+                               stop_time=8.0, output_interval=0.01)
+    # measured 3.2e-5 m, events to ~1e-5 s: the master's CVode's accuracy, not the FMU's (docs/fmu.md)
+    assert_exact(result, tolerance=1e-4, tie=1e-4)
