@@ -152,3 +152,131 @@ def test_model_exchange_in_fmpy_cvode_finds_every_impact(fmu3):
                                stop_time=8.0, output_interval=0.01)
     # measured 3.2e-5 m, events to ~1e-5 s: the master's CVode's accuracy, not the FMU's (docs/fmu.md)
     assert_exact(result, tolerance=1e-4, tie=1e-4)
+
+
+# --- the FMI 3.0 state machine ---------------------------------------------------------------------
+# Each call, as code run on an instance `f` (x: a 2-array, one: a 1-array), and the states it is allowed in.
+CO_SIMULATION_CALLS = {
+    "fmi3EnterInitializationMode": ("f.enterInitializationMode(startTime=0.0)", {"instantiated"}),
+    "fmi3ExitInitializationMode": ("f.exitInitializationMode()", {"initialization mode"}),
+    "fmi3EnterEventMode": ("f.enterEventMode()", {"step mode"}),
+    "fmi3EnterStepMode": ("f.enterStepMode()", {"event mode"}),
+    "fmi3UpdateDiscreteStates": ("f.updateDiscreteStates()", {"event mode"}),
+    "fmi3DoStep": ("f.doStep(0.0, 0.1)", {"step mode"}),
+    "fmi3Terminate": ("f.terminate()", {"event mode", "step mode"}),
+    "fmi3GetFloat64": ("f.getFloat64([0])", {"initialization mode", "event mode", "step mode", "terminated"}),
+    "fmi3SetFloat64": ("f.setFloat64([11], [0.0])", {"instantiated", "initialization mode", "event mode",
+                                                     "step mode"}),
+    "fmi3EnterContinuousTimeMode": ("f.fmi3EnterContinuousTimeMode(f.component)", set()),
+    "fmi3SetTime": ("f.fmi3SetTime(f.component, 0.0)", set()),
+    "fmi3GetContinuousStates": ("f.fmi3GetContinuousStates(f.component, x, 2)", set()),
+}
+MODEL_EXCHANGE_CALLS = {
+    "fmi3EnterInitializationMode": ("f.enterInitializationMode(startTime=0.0)", {"instantiated"}),
+    "fmi3ExitInitializationMode": ("f.exitInitializationMode()", {"initialization mode"}),
+    "fmi3EnterEventMode": ("f.enterEventMode()", {"continuous-time mode"}),
+    "fmi3EnterContinuousTimeMode": ("f.enterContinuousTimeMode()", {"event mode"}),
+    "fmi3UpdateDiscreteStates": ("f.updateDiscreteStates()", {"event mode"}),
+    "fmi3SetTime": ("f.setTime(0.0)", {"event mode", "continuous-time mode"}),
+    "fmi3SetContinuousStates": ("f.setContinuousStates(x, 2)", {"continuous-time mode"}),
+    "fmi3GetContinuousStates": ("f.getContinuousStates(x, 2)", {"event mode", "continuous-time mode", "terminated"}),
+    "fmi3GetEventIndicators": ("f.getEventIndicators(one, 1)", {"event mode", "continuous-time mode", "terminated"}),
+    "fmi3CompletedIntegratorStep": ("f.completedIntegratorStep()", {"continuous-time mode"}),
+    "fmi3Terminate": ("f.terminate()", {"event mode", "continuous-time mode"}),
+    "fmi3DoStep": ("f.fmi3DoStep(f.component, 0.0, 0.1, False, byref(flag), byref(flag), byref(flag), "
+                   "byref(number))", set()),
+    "fmi3EnterStepMode": ("f.fmi3EnterStepMode(f.component)", set()),
+}
+INITIALISED = "f.enterInitializationMode(startTime=0.0); f.exitInitializationMode()"
+REACH = {
+    "CoSimulation": {"instantiated": "", "initialization mode": "f.enterInitializationMode(startTime=0.0)",
+                     "event mode": INITIALISED, "step mode": INITIALISED + "; f.enterStepMode()",
+                     "terminated": INITIALISED + "; f.enterStepMode(); f.terminate()"},
+    "ModelExchange": {"instantiated": "", "initialization mode": "f.enterInitializationMode(startTime=0.0)",
+                      "event mode": INITIALISED, "continuous-time mode": INITIALISED + "; f.enterContinuousTimeMode()",
+                      "terminated": INITIALISED + "; f.terminate()"},
+}
+CASES = [(interface, state) for interface, states in REACH.items() for state in states]
+
+
+@pytest.mark.parametrize(("interface", "state"), CASES, ids=[f"{i}-{s}" for i, s in CASES])
+def test_every_call_not_allowed_in_a_state_is_refused_and_changes_nothing(unzipped3, interface, state):
+    calls = CO_SIMULATION_CALLS if interface == "CoSimulation" else MODEL_EXCHANGE_CALLS
+    refusals = "\n".join(f"refused(ball, lambda: {code}, {name + ' is not allowed in state ' + state!r})"
+                         for name, (code, allowed) in calls.items() if state not in allowed)
+    body = f"""
+        from ctypes import byref, c_bool, c_double
+        from fmpy.fmi3 import fmi3Float64
+        ball = Instance3(unzipped, {interface!r}, event_mode=True)
+        f = ball.fmu
+        x, one, flag, number = (fmi3Float64 * 2)(), (fmi3Float64 * 1)(), c_bool(), c_double()
+        {REACH[interface][state]}
+        h = ball.get("h")[0] if {state != "instantiated"} else None
+""" + "\n".join("        " + line for line in refusals.splitlines()) + f"""
+        assert h is None or ball.get("h")[0] == h
+        # still in its state: each call allowed there is accepted
+        for code in {[code for code, allowed in calls.values() if state in allowed and "Terminate" not in code
+                      and "terminate" not in code]!r}:
+            exec(code)
+            break
+        out["refused"] = len(ball.errors())
+    """
+    out = run3(unzipped3, body)
+    assert out["refused"] == sum(state not in allowed for _, allowed in calls.values())
+
+
+def test_what_the_fmu_does_not_have_is_refused_not_thrown(unzipped3):
+    """pythonfmu3's binary throws a C++ exception from fmi3GetFloat32, fmi3GetClock, ... (the process aborts):
+    our layer answers them with fmi3Error (test_pythonfmu3_alone_aborts_on_them shows the abort)."""
+    out = run3(unzipped3, """
+        from fmpy.fmi3 import fmi3Float64, fmi3Int32
+        ball = Instance3(unzipped)
+        f = ball.fmu
+        f.enterInitializationMode(startTime=0.0)
+        refused(ball, lambda: f.getFloat32([0]), "no variable of type Float32")
+        refused(ball, lambda: f.getInt64([0]), "no variable of type Int64")
+        refused(ball, lambda: f.getClock([0]), "no clocks")
+        refused(ball, lambda: f.enterConfigurationMode(), "no structural parameters")
+        refused(ball, lambda: f.getDirectionalDerivative([0], [11], [1.0]), "no directional derivatives")
+        refused(ball, lambda: f.getFloat64([8]), "value reference 8 is not a variable of type Float64")
+        refused(ball, lambda: f.getInt32([99]), "value reference 99 is not a variable of type Int32")
+        values = (fmi3Float64 * 3)()
+        vrs = (ctypes.c_uint32 * 2)(0, 1)
+        refused(ball, lambda: f.fmi3GetFloat64(f.component, vrs, 2, values, 3), "2 value references with 3 values")
+        refused(ball, lambda: f.setFloat64([16], [1.0]), "time cannot be set")
+        f.exitInitializationMode()
+        out["h"] = ball.get("h")[0]
+    """.replace("from fmpy.fmi3", "import ctypes\n        from fmpy.fmi3"))
+    assert out["h"] == 2.0
+
+
+def test_pythonfmu3_alone_aborts_on_what_it_does_not_implement(unzipped3):
+    """The reason the layer answers those calls itself: pythonfmu3's own binary, called directly, aborts."""
+    code = textwrap.dedent(f"""
+        import ctypes, sys
+        sys.path.insert(0, {str(TESTS)!r})
+        from fmu3_helpers import Instance3
+        ball = Instance3(sys.argv[1])  # starts Python's side and loads pythonfmu3's binary through ours
+        inner = ctypes.CDLL(sys.argv[1] + "/binaries/x86_64-linux/BouncingBall_pythonfmu.so")
+        values = (ctypes.c_float * 1)()
+        vrs = (ctypes.c_uint32 * 1)(0)
+        print("calling", flush=True)
+        inner.fmi3GetFloat32(None, vrs, 1, values, 1)
+        print("returned", flush=True)
+    """)
+    completed = subprocess.run([sys.executable, "-c", code, str(unzipped3)], capture_output=True, text=True,
+                               timeout=120, check=False)
+    assert completed.stdout.split() == ["calling"] and completed.returncode != 0, completed
+
+
+def test_update_discrete_states_names_are_those_pythonfmu3s_binary_reads(unzipped3):
+    """pythonfmu3's own result class misnames two fields its binary reads; slave3's names are the binary's."""
+    from bouncingball.fmu.slave3 import DiscreteStatesUpdate
+
+    binary = (unzipped3 / "binaries" / "x86_64-linux" / "BouncingBall_pythonfmu.so").read_bytes()
+    for field in DiscreteStatesUpdate._fields:
+        assert field.encode() + b"\0" in binary, field
+    from pythonfmu3.modelexchange import Fmi3UpdateDiscreteStatesResult
+
+    misnamed = [f for f in Fmi3UpdateDiscreteStatesResult.__dataclass_fields__ if f.encode() + b"\0" not in binary]
+    assert sorted(misnamed) == ["discreteStateNeedsUpdate", "nominalsOfContinuousStatesChanged"]

@@ -34,7 +34,7 @@ class DiscreteStatesUpdate(NamedTuple):
     """What update_discrete_states returns, with the attribute names pythonfmu3's binary reads.
 
     pythonfmu3 0.3.4's own Fmi3UpdateDiscreteStatesResult names two fields otherwise
-    (discreteStateNeedUpdate, nominalsOfContinuousStatesChanged) than its binary asks for
+    (discreteStateNeedsUpdate, nominalsOfContinuousStatesChanged) than its binary asks for
     (discreteStatesNeedUpdate, nominalContinuousStatesChanged), which then leaves the master's
     values as they were; tests/test_fmu3.py checks the names against the binary's strings.
     """
