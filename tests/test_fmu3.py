@@ -280,3 +280,100 @@ def test_update_discrete_states_names_are_those_pythonfmu3s_binary_reads(unzippe
 
     misnamed = [f for f in Fmi3UpdateDiscreteStatesResult.__dataclass_fields__ if f.encode() + b"\0" not in binary]
     assert sorted(misnamed) == ["discreteStateNeedsUpdate", "nominalsOfContinuousStatesChanged"]
+
+
+# --- FMU state and memory --------------------------------------------------------------------------
+def test_a_state_restores_bit_for_bit_and_carries_into_a_fresh_instance(unzipped3):
+    out = run3(unzipped3, """
+        def steps(f, start, n):
+            for i in range(n):
+                f.doStep(start + 0.1 * i, 0.1)
+
+        ball = Instance3(unzipped)
+        f = ball.fmu
+        f.enterInitializationMode(startTime=0.0)
+        f.exitInitializationMode()
+        steps(f, 0.0, 10)
+        state = f.getFMUState()
+        data = f.serializeFMUState(state)
+        steps(f, 1.0, 10)
+        out["original"] = ball.get("h", "v", "impacts")
+        restored = f.deserializeFMUState(data)
+        out["runs"] = []
+        for _ in range(2):
+            f.setFMUState(restored)
+            steps(f, 1.0, 10)
+            out["runs"].append(ball.get("h", "v", "impacts"))
+        fresh = Instance3(unzipped, name="fresh")  # instantiated: the state brings it to step mode at t = 1 s
+        fresh.fmu.setFMUState(fresh.fmu.deserializeFMUState(data))
+        steps(fresh.fmu, 1.0, 10)
+        out["runs"].append(fresh.get("h", "v", "impacts"))
+        refused(ball, lambda: f.deserializeFMUState(bytes([9]) + data[1:]), "not a state of this FMU")
+        corrupt = f.deserializeFMUState(data[:1] + b"{not json")
+        refused(ball, lambda: f.setFMUState(corrupt), "fmi3SetFMUState failed, nothing was changed")
+        out["after"] = ball.get("h", "v", "impacts")
+        f.freeFMUState(state)
+    """)
+    first = out["runs"][0]
+    assert all(run == first for run in out["runs"])  # bit for bit, in this and a fresh instance
+    assert abs(first[0] - out["original"][0]) <= 1e-9 and first[2] == out["original"][2]
+    assert out["after"] == first
+
+
+def test_model_exchange_state_round_trip(unzipped3):
+    out = run3(unzipped3, """
+        from fmpy.fmi3 import fmi3Float64
+        ball = Instance3(unzipped, "ModelExchange")
+        f = ball.fmu
+        f.enterInitializationMode(startTime=0.0)
+        f.exitInitializationMode()
+        f.updateDiscreteStates()
+        f.enterContinuousTimeMode()
+        state = f.getFMUState()
+        f.setTime(0.5)
+        f.setContinuousStates((fmi3Float64 * 2)(0.05, -3.0), 2)
+        f.enterEventMode()
+        f.updateDiscreteStates()  # h < R: contact, one impact
+        out["changed"] = ball.get("h", "v", "contact", "impacts")
+        f.setFMUState(state)
+        out["restored"] = ball.get("h", "v", "contact", "impacts")
+        derivatives = (fmi3Float64 * 2)()
+        f.getContinuousStateDerivatives(derivatives, 2)
+        out["derivatives"] = list(derivatives)
+    """)
+    assert out["changed"] == [0.05, -3.0, True, 1]
+    assert out["restored"] == [2.0, 0.0, False, 0]
+    assert out["derivatives"] == [0.0, -Ball().g]
+
+
+def test_memory_stays_flat_over_1000_instantiate_free_pairs(unzipped3):
+    out = run3(unzipped3, """
+        import gc, os
+
+        def resident_kB():
+            with open("/proc/self/statm") as statm:
+                return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 1024
+
+        def instantiate_and_free(n, prefix, interface="CoSimulation"):
+            for i in range(n):
+                other = Instance3(unzipped, interface, name=f"{prefix}{i}")
+                other.fmu.enterInitializationMode(startTime=0.0)
+                other.fmu.exitInitializationMode()
+                if interface == "CoSimulation":
+                    other.fmu.doStep(0.0, 0.7)
+                other.fmu.freeInstance()
+
+        instantiate_and_free(50, "warm")
+        instantiate_and_free(50, "warm-me", "ModelExchange")
+        before = list(sys.path)
+        gc.collect()
+        resident = resident_kB()
+        instantiate_and_free(500, "run")
+        instantiate_and_free(500, "run-me", "ModelExchange")
+        gc.collect()
+        out["per_instance_kB"] = (resident_kB() - resident) / 1000
+        out["sys_path_grew"] = len(sys.path) - len(before)
+    """)
+    assert out["sys_path_grew"] == 0
+    print(f"resident memory per instantiate/free pair: {out['per_instance_kB']:.2f} kB")
+    assert out["per_instance_kB"] < 8.0, out
