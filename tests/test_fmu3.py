@@ -377,3 +377,43 @@ def test_memory_stays_flat_over_1000_instantiate_free_pairs(unzipped3):
     assert out["sys_path_grew"] == 0
     print(f"resident memory per instantiate/free pair: {out['per_instance_kB']:.2f} kB")
     assert out["per_instance_kB"] < 8.0, out
+
+
+# --- the command line ------------------------------------------------------------------------------
+def test_validate_command_runs_the_fmi3_fmu_three_ways(fmu3, capsys):
+    from bouncingball.cli import main
+
+    assert main(["validate", "article", "--fmi-version", "3", "--fmu", str(fmu3)]) == 0
+    out = capsys.readouterr().out
+    rows = {line[:31].strip(): line[31:].split() for line in out.splitlines()[3:9]}
+    assert list(rows)[:3] == ["FMU 3.0 CS (FMPy)", "FMU 3.0 CS, early return", "FMU 3.0 ME, FMPy CVode 1e-8"]
+    for name in ("FMU 3.0 CS (FMPy)", "FMU 3.0 CS, early return"):
+        assert float(rows[name][0]) < 1e-7 and rows[name][2:4] == ["41", "41"]
+    assert float(rows["FMU 3.0 ME, FMPy CVode 1e-8"][0]) < 1e-4 and rows["FMU 3.0 ME, FMPy CVode 1e-8"][2] == "41"
+    assert "FMU impact count equals the exact count at every communication point: yes" in out
+
+
+def test_check_passes_an_early_return_result_with_its_event_rows(fmu3, tmp_path, capsys):
+    from fmpy.util import write_csv
+
+    from bouncingball.cli import main
+
+    result = fmpy.simulate_fmu(str(fmu3), stop_time=8.0, output_interval=0.01, early_return_allowed=True,
+                               use_event_mode=True)
+    write_csv(str(tmp_path / "early.csv"), result)
+    assert main(["check", str(tmp_path / "early.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "points compared    883" in out and "PASS" in out  # 801 points, each of the 41 events twice
+
+
+def test_build_fmu_writes_the_fmi3_fmu_to_its_default_path(tmp_path, monkeypatch, capsys):
+    from bouncingball.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["build-fmu", "--fmi-version", "3"]) == 0
+    dist = tmp_path / "dist"
+    assert (dist / "BouncingBall3.fmu").is_file() and (dist / "BouncingBall3_ref.csv").is_file()
+    with pytest.raises(SystemExit) as refused:  # argparse: not one of the choices
+        main(["build-fmu", "--fmi-version", "4"])
+    assert refused.value.code == 2
+    assert "invalid choice: 4" in capsys.readouterr().err
