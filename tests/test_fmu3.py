@@ -417,3 +417,47 @@ def test_build_fmu_writes_the_fmi3_fmu_to_its_default_path(tmp_path, monkeypatch
         main(["build-fmu", "--fmi-version", "4"])
     assert refused.value.code == 2
     assert "invalid choice: 4" in capsys.readouterr().err
+
+
+HOST_WITHOUT_SKSUNDAE = r"""
+import json, sys
+from fmpy import extract, read_model_description
+from fmpy.fmi3 import FMU3Slave
+
+fmu = sys.argv[1]
+description = read_model_description(fmu)
+log = []
+slave = FMU3Slave(guid=description.guid, unzipDirectory=extract(fmu),
+                  modelIdentifier=description.coSimulation.modelIdentifier, instanceName="ball")
+try:
+    slave.instantiate(logMessage=lambda env, status, category, message: log.append(
+        [status, (category or b"").decode(), (message or b"").decode()]))
+    outcome = "instantiated"
+except Exception as error:
+    outcome = str(error)
+print(json.dumps({"outcome": outcome, "log": log, "executable": sys.executable,
+                  "pythonfmu3 ran": any(name.startswith("pythonfmu3") for name in sys.modules)}))
+"""
+
+
+def test_a_python_host_without_scikit_sundae_gets_one_line_and_no_instance(fmu3, tmp_path):
+    """The host check of the FMI 2.0 FMU, in the FMI 3.0 one: fmi3InstantiateCoSimulation returns NULL with one
+    error line naming the interpreter, what it lacks and the fix; pythonfmu3 never runs."""
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", venv], check=True, timeout=300)
+    python = venv / "bin" / "python"
+    installed = subprocess.run([python, "-m", "pip", "install", "--quiet", "fmpy", "numpy"], capture_output=True,
+                               text=True, check=False, timeout=600)
+    if installed.returncode != 0:
+        pytest.skip(f"cannot install fmpy and numpy into a fresh venv: {installed.stderr[-500:]}")
+    completed = subprocess.run([python, "-c", HOST_WITHOUT_SKSUNDAE, str(fmu3)], capture_output=True, text=True,
+                               check=False, timeout=300)
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    report = json.loads(completed.stdout.splitlines()[-1])
+    assert report["outcome"] == "Failed to instantiate FMU"
+    [(status, category, line)] = report["log"]
+    assert (status, category) == (3, "logStatusError")
+    assert f"{report['executable']} (Python {'.'.join(map(str, sys.version_info[:3]))})" in line
+    assert "has no scikit-sundae (ModuleNotFoundError: No module named 'sksundae')" in line
+    assert line.endswith(f"{report['executable']} -m pip install 'scikit-sundae>=1.2,<2'"), line
+    assert not report["pythonfmu3 ran"]
