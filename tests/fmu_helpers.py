@@ -33,6 +33,22 @@ def compile_c_master(target: Path, *flags: str, source: Path = C_MASTER) -> Path
     return target
 
 
+def python_without_sksundae(tmp_path: Path, *packages: str) -> Path:
+    """The python of a fresh venv with packages (and not scikit-sundae); the test is skipped if pip cannot."""
+    import sys
+
+    import pytest
+
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", venv], check=True, timeout=300)
+    python = venv / "bin" / "python"
+    installed = subprocess.run([python, "-m", "pip", "install", "--quiet", *packages], capture_output=True, text=True,
+                               check=False, timeout=600)
+    if installed.returncode != 0:
+        pytest.skip(f"cannot install {', '.join(packages)} into a fresh venv: {installed.stderr[-500:]}")
+    return python
+
+
 def ecos_executables() -> dict[str, Path]:
     """ecospy's `ecos` (its command line) and `proxyfmu` (an FMU in a process of its own), made executable.
 

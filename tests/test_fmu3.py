@@ -20,7 +20,7 @@ from bouncingball.fmu.variables import FMI3_VARIABLES, VARIABLES  # noqa: E402
 from bouncingball.physics import Ball  # noqa: E402
 from bouncingball.solvers.exact import ExactSolution  # noqa: E402
 from bouncingball.solvers.result import IMPACT  # noqa: E402
-from fmu_helpers import exact_at  # noqa: E402
+from fmu_helpers import exact_at, python_without_sksundae  # noqa: E402
 
 TESTS = Path(__file__).parent
 ARTICLE = ExactSolution(Ball(), 2.0, 0.0, 0.0, 8.0)
@@ -443,13 +443,7 @@ print(json.dumps({"outcome": outcome, "log": log, "executable": sys.executable,
 def test_a_python_host_without_scikit_sundae_gets_one_line_and_no_instance(fmu3, tmp_path):
     """The host check of the FMI 2.0 FMU, in the FMI 3.0 one: fmi3InstantiateCoSimulation returns NULL with one
     error line naming the interpreter, what it lacks and the fix; pythonfmu3 never runs."""
-    venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", venv], check=True, timeout=300)
-    python = venv / "bin" / "python"
-    installed = subprocess.run([python, "-m", "pip", "install", "--quiet", "fmpy", "numpy"], capture_output=True,
-                               text=True, check=False, timeout=600)
-    if installed.returncode != 0:
-        pytest.skip(f"cannot install fmpy and numpy into a fresh venv: {installed.stderr[-500:]}")
+    python = python_without_sksundae(tmp_path, "fmpy", "numpy")
     completed = subprocess.run([python, "-c", HOST_WITHOUT_SKSUNDAE, str(fmu3)], capture_output=True, text=True,
                                check=False, timeout=300)
     assert completed.returncode == 0, completed.stdout + completed.stderr

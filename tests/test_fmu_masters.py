@@ -18,7 +18,15 @@ from bouncingball.cli import main
 from bouncingball.fmu.build import shared_libpython
 from bouncingball.physics import Ball
 from bouncingball.solvers.exact import ExactSolution
-from fmu_helpers import C_MASTER3, TIGHT, compile_c_master, ecos_csv_to_check, ecos_executables, exact_at
+from fmu_helpers import (
+    C_MASTER3,
+    TIGHT,
+    compile_c_master,
+    ecos_csv_to_check,
+    ecos_executables,
+    exact_at,
+    python_without_sksundae,
+)
 
 fmpy = pytest.importorskip("fmpy", reason="the FMU tests need the [fmu] extra")
 pytest.importorskip("pythonfmu", reason="the FMU tests need the [fmu] extra")
@@ -342,13 +350,7 @@ print(json.dumps(report))
 def test_a_python_host_without_scikit_sundae_gets_one_line_and_no_instance(fmu, tmp_path):
     """A venv with FMPy, numpy and libcosimpy but no scikit-sundae: fmi2Instantiate returns NULL with one error
     line naming the interpreter, what it lacks and the pip install that fixes it; pythonfmu never runs."""
-    venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", venv], check=True, timeout=300)
-    python = venv / "bin" / "python"
-    installed = subprocess.run([python, "-m", "pip", "install", "--quiet", "fmpy", "numpy", "libcosimpy"],
-                               capture_output=True, text=True, check=False, timeout=600)
-    if installed.returncode != 0:
-        pytest.skip(f"cannot install fmpy, numpy and libcosimpy into a fresh venv: {installed.stderr[-500:]}")
+    python = python_without_sksundae(tmp_path, "fmpy", "numpy", "libcosimpy")
     completed = subprocess.run([python, "-c", HOST_WITHOUT_SKSUNDAE, str(fmu)], capture_output=True, text=True,
                                check=False, timeout=300)
     assert completed.returncode == 0, completed.stdout + completed.stderr

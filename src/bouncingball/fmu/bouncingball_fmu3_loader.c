@@ -125,10 +125,6 @@ typedef struct Instance {
     struct Instance *next; /* the list of live instances */
 } Instance;
 
-/* The live instances, so that a second fmi3FreeInstance of one is refused instead of freeing it twice. */
-static Instance *live;
-static pthread_mutex_t live_lock = PTHREAD_MUTEX_INITIALIZER;
-
 #include "bouncingball_fmu_python.h"
 
 static pthread_once_t load_once = PTHREAD_ONCE_INIT;
@@ -320,10 +316,7 @@ static fmi3Instance keep(Instance *c)
         free(c);
         return NULL;
     }
-    pthread_mutex_lock(&live_lock);
-    c->next = live;
-    live = c;
-    pthread_mutex_unlock(&live_lock);
+    link_live(c);
     return c;
 }
 
@@ -386,21 +379,6 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3Stri
                    "this FMU offers co-simulation and model exchange, not scheduled execution");
     }
     return NULL;
-}
-
-/* Remove instance from the list of live instances; 0 if it was not there (freed already). */
-static int unlink_live(Instance *instance)
-{
-    Instance **link;
-    pthread_mutex_lock(&live_lock);
-    for (link = &live; *link != NULL && *link != instance; link = &(*link)->next) {
-    }
-    int found = *link != NULL;
-    if (found) {
-        *link = instance->next;
-    }
-    pthread_mutex_unlock(&live_lock);
-    return found;
 }
 
 void fmi3FreeInstance(fmi3Instance instance)

@@ -133,10 +133,6 @@ typedef struct Instance {
     struct Instance *next;        /* the list of live instances */
 } Instance;
 
-/* The live instances, so that a second fmi2FreeInstance of one is refused instead of freeing it twice. */
-static Instance *live;
-static pthread_mutex_t live_lock = PTHREAD_MUTEX_INITIALIZER;
-
 #include "bouncingball_fmu_python.h"
 
 static pthread_once_t load_once = PTHREAD_ONCE_INIT;
@@ -313,26 +309,8 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         free(c);
         return NULL;
     }
-    pthread_mutex_lock(&live_lock);
-    c->next = live;
-    live = c;
-    pthread_mutex_unlock(&live_lock);
+    link_live(c);
     return c;
-}
-
-/* Remove instance from the list of live instances; 0 if it was not there (freed already). */
-static int unlink_live(Instance *instance)
-{
-    Instance **link;
-    pthread_mutex_lock(&live_lock);
-    for (link = &live; *link != NULL && *link != instance; link = &(*link)->next) {
-    }
-    int found = *link != NULL;
-    if (found) {
-        *link = instance->next;
-    }
-    pthread_mutex_unlock(&live_lock);
-    return found;
 }
 
 void fmi2FreeInstance(fmi2Component c)

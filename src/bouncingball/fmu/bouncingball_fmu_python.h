@@ -2,13 +2,40 @@
  * that runs pythonfmu (or pythonfmu3), the loading of their binary, and the check of the host's
  * Python. Included by bouncingball_fmu_loader.c (FMI 2.0) and bouncingball_fmu3_loader.c (FMI 3.0),
  * which define the macros they describe (BB_LIBPYTHON, BB_PYTHON, BB_INNER, BB_PYTHON_VERSION,
- * BB_HOST_CHECK) and include <dlfcn.h>, <libgen.h>, <stdio.h>, <stdlib.h>, <string.h>, <unistd.h> and
- * <wchar.h> first.
+ * BB_HOST_CHECK), include <dlfcn.h>, <libgen.h>, <pthread.h>, <stdio.h>, <stdlib.h>, <string.h>,
+ * <unistd.h> and <wchar.h>, and define their Instance (with a `struct Instance *next`) first.
  */
 #ifndef BOUNCINGBALL_FMU_PYTHON_H
 #define BOUNCINGBALL_FMU_PYTHON_H
 
 static void (*release_python_state)(void); /* pythonfmu's finalizePythonInterpreter */
+
+/* The live instances, so that a second free of one is refused instead of freeing it twice. */
+static Instance *live;
+static pthread_mutex_t live_lock = PTHREAD_MUTEX_INITIALIZER;
+
+static void link_live(Instance *instance)
+{
+    pthread_mutex_lock(&live_lock);
+    instance->next = live;
+    live = instance;
+    pthread_mutex_unlock(&live_lock);
+}
+
+/* Remove instance from the list of live instances; 0 if it was not there (freed already). */
+static int unlink_live(Instance *instance)
+{
+    Instance **link;
+    pthread_mutex_lock(&live_lock);
+    for (link = &live; *link != NULL && *link != instance; link = &(*link)->next) {
+    }
+    int found = *link != NULL;
+    if (found) {
+        *link = instance->next;
+    }
+    pthread_mutex_unlock(&live_lock);
+    return found;
+}
 static char load_error[4096];
 
 static void *symbol(void *library, const char *name)
@@ -142,7 +169,7 @@ static void *open_inner(void)
         snprintf(load_error, sizeof load_error, "cannot load %.2048s: %.1024s", path, dlerror());
         return NULL;
     }
-    /* pythonfmu 0.7.0 releases its PyState twice when the process exits with its binary loaded
+    /* pythonfmu 0.7.0 (and pythonfmu3 0.3, the same code) releases its PyState twice when the process exits with its binary loaded
      * (its static shared_ptr's destructor, then its own destructor function), which corrupts the
      * heap: about one exit in four crashed after a few FMPy runs. Release it once, first: exit
      * handlers run in reverse order, and this one is registered after pythonfmu's. */
