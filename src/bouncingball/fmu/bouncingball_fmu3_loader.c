@@ -738,12 +738,7 @@ fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference 
     return not_provided(instance, "fmi3ActivateModelPartition", "no scheduled execution");
 }
 
-/* --- FMU state: pythonfmu3's and the state-machine state it was taken in (serialized: one byte first) --- */
-typedef struct {
-    fmi3FMUState inner;
-    State state;
-} FmuState;
-
+/* --- FMU state (FmuState, bouncingball_fmu_python.h) ------------------------------------------------ */
 static fmi3Status get_state_inner(fmi3Instance instance, fmi3FMUState *FMUState) { FORWARD(GetFMUState, FMUState); }
 
 static fmi3Status size_inner(fmi3Instance instance, fmi3FMUState FMUState, size_t *size)
@@ -761,26 +756,13 @@ static fmi3Status deserialize_inner(fmi3Instance instance, const fmi3Byte bytes[
     FORWARD(DeserializeFMUState, bytes, size, FMUState);
 }
 
-static fmi3Status into_state(fmi3Status status, FmuState *saved, fmi3FMUState *FMUState, State state)
-{
-    if (status > fmi3Warning) {
-        if (*FMUState == NULL) {
-            free(saved);
-        }
-        return status;
-    }
-    saved->state = state;
-    *FMUState = saved;
-    return status;
-}
-
 fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
 {
     FmuState *saved;
     if (instance == NULL || FMUState == NULL) {
         return fmi3Error;
     }
-    saved = *FMUState != NULL ? (FmuState *)*FMUState : calloc(1, sizeof *saved);
+    saved = state_to_fill(FMUState);
     if (saved == NULL) {
         return fmi3Error;
     }
@@ -856,7 +838,7 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
             INTERFACE_NAMES[c->interface]);
         return fmi3Error;
     }
-    saved = *FMUState != NULL ? (FmuState *)*FMUState : calloc(1, sizeof *saved);
+    saved = state_to_fill(FMUState);
     if (saved == NULL) {
         return fmi3Error;
     }

@@ -394,14 +394,8 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
     FORWARD_VALUES(SetString, 'S', vr, nvr, value);
 }
 
-/* An FMU state is pythonfmu's state and the state-machine state it was taken in: restoring it
- * restores both (a fresh instance given the state of an initialised one is initialised). Serialized,
- * the state-machine state is one byte in front of pythonfmu's bytes. */
-typedef struct {
-    fmi2FMUstate inner;
-    State state;
-} FmuState;
-
+/* An FMU state (FmuState, bouncingball_fmu_python.h): a fresh instance given the state of an initialised one
+ * is initialised. */
 static fmi2Status get_state_inner(fmi2Component c, fmi2FMUstate *FMUstate) { FORWARD(GetFMUstate, FMUstate); }
 
 static fmi2Status size_inner(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
@@ -419,27 +413,13 @@ static fmi2Status deserialize_inner(fmi2Component c, const fmi2Byte bytes[], siz
     FORWARD(DeSerializeFMUstate, bytes, size, FMUstate);
 }
 
-/* Hand saved back in *FMUstate once pythonfmu's part is in it; a new one is freed if that failed. */
-static fmi2Status into_state(fmi2Status status, FmuState *saved, fmi2FMUstate *FMUstate, State state)
-{
-    if (status > fmi2Warning) {
-        if (*FMUstate == NULL) {
-            free(saved);
-        }
-        return status;
-    }
-    saved->state = state;
-    *FMUstate = saved;
-    return status;
-}
-
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
 {
     FmuState *saved;
     if (c == NULL || FMUstate == NULL) {
         return fmi2Error;
     }
-    saved = *FMUstate != NULL ? (FmuState *)*FMUstate : calloc(1, sizeof *saved);
+    saved = state_to_fill(FMUstate);
     if (saved == NULL) {
         return fmi2Error;
     }
@@ -516,7 +496,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
         }
         return fmi2Error;
     }
-    saved = *FMUstate != NULL ? (FmuState *)*FMUstate : calloc(1, sizeof *saved);
+    saved = state_to_fill(FMUstate);
     if (saved == NULL) {
         return fmi2Error;
     }

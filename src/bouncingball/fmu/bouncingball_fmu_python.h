@@ -10,6 +10,34 @@
 
 static void (*release_python_state)(void); /* pythonfmu's finalizePythonInterpreter */
 
+/* An FMU state: pythonfmu's, and the state-machine state it was taken in (serialized: one byte in front of
+ * pythonfmu's bytes; restoring it restores both). */
+typedef struct {
+    void *inner;
+    int state;
+} FmuState;
+
+/* The FmuState to fill: the one the master passes back to be reused, else a new one (NULL: no memory). */
+static FmuState *state_to_fill(void *const *FMUstate)
+{
+    return *FMUstate != NULL ? (FmuState *)*FMUstate : calloc(1, sizeof(FmuState));
+}
+
+/* Hand saved back in *FMUstate once pythonfmu's part is in it, or free it if it was new and that failed.
+ * status is an fmi2Status or fmi3Status (numbered alike: above 1, Warning, it failed). */
+static int into_state(int status, FmuState *saved, void **FMUstate, int state)
+{
+    if (status > 1) {
+        if (*FMUstate == NULL) {
+            free(saved);
+        }
+        return status;
+    }
+    saved->state = state;
+    *FMUstate = saved;
+    return status;
+}
+
 /* The live instances, so that a second free of one is refused instead of freeing it twice. */
 static Instance *live;
 static pthread_mutex_t live_lock = PTHREAD_MUTEX_INITIALIZER;
