@@ -9,6 +9,7 @@ import os
 import shutil
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -225,11 +226,34 @@ print("ok")
 """
 
 
+@pytest.mark.parametrize("fixture", ["fmu", "fmu3"])
 @pytest.mark.parametrize("order", ["fmu-first", "package-first"])
-def test_the_fmu_and_the_package_in_one_python_process(fmu, order):
+def test_the_fmu_and_the_package_in_one_python_process(request, fixture, order):
+    fmu = request.getfixturevalue(fixture)
     completed = subprocess.run([sys.executable, "-c", HOST_USES_THE_PACKAGE, str(fmu), order], capture_output=True,
                                text=True, check=False, timeout=300)
     assert (completed.returncode, completed.stdout.strip()) == (0, "ok"), completed.stderr
+
+
+def test_the_fmi2_and_the_fmi3_fmu_in_one_python_process(fmu, fmu3):
+    """Built from the same sources, each has its own copy of the package (FMPy deletes each unzipped FMU: a
+    shared copy was looked for in the other's deleted folder, and pythonfmu3 crashed)."""
+    code = textwrap.dedent("""
+        import json, sys
+        from fmpy import simulate_fmu
+        h = [simulate_fmu(path, stop_time=2.0, output_interval=0.01)["h"] for path in sys.argv[1:] * 2]
+        copies = sorted(n for n in sys.modules if n.startswith("bouncingball_fmu_") and "." not in n)
+        print(json.dumps({"again": [bool((h[i] == h[i + 2]).all()) for i in (0, 1)],
+                          "difference": float(abs(h[0] - h[1]).max()), "copies": copies}))
+    """)
+    completed = subprocess.run([sys.executable, "-c", code, str(fmu), str(fmu3)], capture_output=True, text=True,
+                               check=False, timeout=300)
+    assert completed.returncode == 0, completed.stderr
+    report = json.loads(completed.stdout.splitlines()[-1])
+    assert report["again"] == [True, True]
+    assert report["difference"] < 1e-9  # the same integrator behind both FMI versions
+    packages = [name for name in report["copies"] if not name.endswith("_slave")]
+    assert len(packages) == 2 and report["copies"] == sorted([*packages, *(f"{p}_slave" for p in packages)]), report
 
 
 def test_two_different_builds_in_one_process(fmu, tmp_path, monkeypatch):

@@ -160,6 +160,10 @@ def _stage(folder: Path, fmi_version: int = 2) -> tuple[Path, Path]:
     for relative in package_sources():
         digest.update(str(relative).encode() + b"\0" + (PACKAGE_DIR / relative).read_bytes() + b"\0")
     digest.update(SLAVE_SCRIPT.read_bytes())
+    if fmi_version != 2:
+        # Its own copy: FMPy deletes each unzipped FMU, and a copy shared with the FMI 2.0 FMU (imported first)
+        # would look for the FMI 3.0 slave module in the deleted folder (and pythonfmu3 then crashes).
+        digest.update(f"FMI {fmi_version}".encode())
     name = f"bouncingball_fmu_{digest.hexdigest()[:16]}"
     package = folder / name
     for relative in package_sources():
@@ -175,8 +179,8 @@ def _stage(folder: Path, fmi_version: int = 2) -> tuple[Path, Path]:
         if source.count(marker) != 1:
             raise FmuBuildError(f"{SLAVE_SCRIPT.name} must contain {marker.strip()!r} exactly once")
         source = source.replace(marker, replacement)
-    # pythonfmu names the slave's module after the script: two builds (or FMI versions) must not share it.
-    script = folder / f"{name}_slave{'' if fmi_version == 2 else fmi_version}.py"
+    # pythonfmu names the slave's module after the script: two builds must not share it either.
+    script = folder / f"{name}_slave.py"
     script.write_text(source, encoding="utf-8")
     return script, package
 
