@@ -27,3 +27,21 @@ def unzipped(fmu, tmp_path_factory) -> Path:
     from fmpy import extract
 
     return Path(extract(str(fmu), str(tmp_path_factory.mktemp("unzipped"))))
+
+
+@pytest.fixture(scope="session")
+def fmu3(tmp_path_factory) -> Path:
+    """The FMI 3.0 FMU, built once per session through `bouncingball build-fmu --fmi-version 3 -o`."""
+    from bouncingball.cli import main
+
+    path = tmp_path_factory.mktemp("fmu3") / "BouncingBall3.fmu"
+    assert main(["build-fmu", "--fmi-version", "3", "-o", str(path)]) == 0
+    return path
+
+
+@pytest.fixture(scope="session")
+def unzipped3(fmu3, tmp_path_factory) -> Path:
+    """The FMI 3.0 FMU extracted once per session, for FMU3Slave, FMU3Model and the C master."""
+    from fmpy import extract
+
+    return Path(extract(str(fmu3), str(tmp_path_factory.mktemp("unzipped3"))))

@@ -16,20 +16,37 @@ TIGHT = {"rtol": 1e-11, "atol": 1e-14}  # the tolerances the issue's accuracy nu
 
 
 C_MASTER = Path(__file__).parent / "c_master" / "fmi2_master.c"
+C_MASTER3 = Path(__file__).parent / "c_master" / "fmi3_master.c"
 
 
-def compile_c_master(target: Path, *flags: str) -> Path | None:
-    """The plain C master of tests/c_master, compiled to target; None without a C compiler."""
+def compile_c_master(target: Path, *flags: str, source: Path = C_MASTER) -> Path | None:
+    """A plain C master of tests/c_master (FMI 2.0, or source), compiled to target; None without a C compiler."""
     import fmpy
 
     compiler = shutil.which("cc") or shutil.which("gcc")
     if compiler is None:
         return None
     headers = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run([compiler, "-O1", "-Wall", "-Werror", *flags, f"-I{headers}", "-o", str(target), str(C_MASTER),
+    subprocess.run([compiler, "-O1", "-Wall", "-Werror", *flags, f"-I{headers}", "-o", str(target), str(source),
                     *(["-Wl,--no-as-needed", "-lsundials_cvode", "-lsundials_nvecserial"]
                       if "-DHOST_SUNDIALS" in flags else []), "-ldl"], check=True)
     return target
+
+
+def python_without_sksundae(tmp_path: Path, *packages: str) -> Path:
+    """The python of a fresh venv with packages (and not scikit-sundae); the test is skipped if pip cannot."""
+    import sys
+
+    import pytest
+
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", venv], check=True, timeout=300)
+    python = venv / "bin" / "python"
+    installed = subprocess.run([python, "-m", "pip", "install", "--quiet", *packages], capture_output=True, text=True,
+                               check=False, timeout=600)
+    if installed.returncode != 0:
+        pytest.skip(f"cannot install {', '.join(packages)} into a fresh venv: {installed.stderr[-500:]}")
+    return python
 
 
 def ecos_executables() -> dict[str, Path]:

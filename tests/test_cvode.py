@@ -98,6 +98,27 @@ def test_integrator_advances_piece_by_piece():
     np.testing.assert_allclose([e.time for e in events], [e.time for e in exact.events], atol=1e-8)
 
 
+@pytest.mark.parametrize("engine", ["sksundae", "compiled"])
+def test_advance_stops_at_each_event_when_asked(engine):
+    """stop_at_event (the FMI 3.0 early return): one event per advance, at the exact event's time."""
+    ball = Ball()
+    integrator = BallIntegrator(ball, 2.0, 0.0, settings=CvodeSettings(engine=engine))
+    exact = ExactSolution(ball, 2.0, 0.0, 0.0, 3.0)
+    target, stops = 3.0, []
+    while integrator.t < target:
+        events = integrator.advance(target, stop_at_event=True)
+        assert len(events) <= 1
+        if events:
+            assert events[0].time == integrator.t < target
+            stops.append((integrator.t, str(events[0].kind)))
+    assert integrator.t == target
+    expected = [(e.time, str(e.kind)) for e in exact.events if e.time < target]
+    assert len(expected) == 6 and [kind for _, kind in stops] == [kind for _, kind in expected]
+    np.testing.assert_allclose([t for t, _ in stops], [t for t, _ in expected], rtol=0, atol=1e-9)
+    h_exact, v_exact = exact.state(np.array([target]))
+    assert abs(integrator.h - h_exact[0]) <= 1e-6
+
+
 def test_result_does_not_depend_on_how_the_interval_is_cut():
     settings = CvodeSettings(rtol=1e-11, atol=1e-14)
     final = []

@@ -153,6 +153,25 @@ def test_cosim_levitation(tmp_path):
         "BouncingBall.fmu", "BouncingBall_ref.csv", "PDController.fmu", "cosim_levitation.csv"]
 
 
+def test_cosim_levitation3(tmp_path):
+    """The FMI 3.0 variant: early return at each event; both cases converge at first order against the fine step."""
+    pytest.importorskip("fmpy")
+    pytest.importorskip("pythonfmu3")
+    out = run_example([sys.executable, EXAMPLES / "cosim_levitation3.py", "cosim3"], tmp_path)
+    rows = re.findall(rf"^(levitation|catch) +({NUMBER}) +({NUMBER}) +({NUMBER}) +(\d+)$", out, re.M)
+    steps = [0.125, 0.0625, 0.03125, 0.015625, 0.0078125]
+    for case in ("levitation", "catch"):
+        table = [[float(x) for x in row[1:]] for row in rows if row[0] == case]
+        assert [row[0] for row in table] == steps, out
+        for column in (1, 2):  # FMI 2.0, FMI 3.0 with early return: first order in the step
+            errors = [row[column] for row in table]
+            assert all(1.5 < a / b < 2.3 for a, b in zip(errors, errors[1:], strict=False)), (case, errors)
+        if case == "levitation":  # its 14 events all happen while the controller is off (F = 0): nothing to update
+            assert all(row[1] == row[2] and row[3] == 14 for row in table), table
+        else:  # 4 impacts and 4 departures under the controller's force, each updating F_ext at the event
+            assert all(row[3] == 8 and row[2] <= row[1] for row in table), table
+
+
 def test_libcosim_system(tmp_path):
     pytest.importorskip("pythonfmu")
     pytest.importorskip("libcosimpy", reason="libcosimpy is not installed (the [test] extra installs it)")

@@ -86,14 +86,16 @@ def test_fmu_carries_the_package_and_a_linux_binary_only(fmu):
         "binaries/linux64/BouncingBall.so", "binaries/linux64/BouncingBall_pythonfmu.so"]
 
 
-def test_the_loader_compiles_without_a_warning(tmp_path):
+@pytest.mark.parametrize("fmi_version", [2, 3])
+def test_the_loader_compiles_without_a_warning(tmp_path, fmi_version):
     import shutil
 
-    from bouncingball.fmu.build import LOADER_SOURCE, loader_flags
+    from bouncingball.fmu.build import LOADER3_SOURCE, LOADER_SOURCE, loader_flags
 
     compiler = shutil.which("cc") or shutil.which("gcc")
-    completed = subprocess.run([compiler, "-shared", "-fPIC", "-O2", *loader_flags(), "-Werror", "-o",
-                                tmp_path / "loader.so", LOADER_SOURCE, "-ldl", "-lpthread"], capture_output=True,
+    source = LOADER_SOURCE if fmi_version == 2 else LOADER3_SOURCE
+    completed = subprocess.run([compiler, "-shared", "-fPIC", "-O2", *loader_flags(fmi_version), "-Werror", "-o",
+                                tmp_path / "loader.so", source, "-ldl", "-lpthread", "-lm"], capture_output=True,
                                text=True, check=False)
     assert completed.returncode == 0 and completed.stderr == "", completed.stderr
 

@@ -9,6 +9,7 @@ import os
 import shutil
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,16 @@ import pytest
 from bouncingball.cli import main
 from bouncingball.fmu.build import shared_libpython
 from bouncingball.physics import Ball
-from fmu_helpers import TIGHT, compile_c_master, ecos_csv_to_check, ecos_executables, exact_at
+from bouncingball.solvers.exact import ExactSolution
+from fmu_helpers import (
+    C_MASTER3,
+    TIGHT,
+    compile_c_master,
+    ecos_csv_to_check,
+    ecos_executables,
+    exact_at,
+    python_without_sksundae,
+)
 
 fmpy = pytest.importorskip("fmpy", reason="the FMU tests need the [fmu] extra")
 pytest.importorskip("pythonfmu", reason="the FMU tests need the [fmu] extra")
@@ -77,6 +87,17 @@ def c_master(tmp_path_factory) -> Path:
     if shared_libpython() is None:
         pytest.skip("this Python has no shared libpython: its FMU can run only in a master that runs Python")
     binary = compile_c_master(tmp_path_factory.mktemp("c_master") / "fmi2_master")
+    if binary is None:
+        pytest.skip("no C compiler (cc or gcc) to build the C master")
+    return binary
+
+
+@pytest.fixture(scope="module")
+def c_master3(tmp_path_factory) -> Path:
+    """The plain C master of the FMI 3.0 FMU (tests/c_master/fmi3_master.c)."""
+    if shared_libpython() is None:
+        pytest.skip("this Python has no shared libpython: its FMU can run only in a master that runs Python")
+    binary = compile_c_master(tmp_path_factory.mktemp("c_master") / "fmi3_master", source=C_MASTER3)
     if binary is None:
         pytest.skip("no C compiler (cc or gcc) to build the C master")
     return binary
@@ -205,11 +226,34 @@ print("ok")
 """
 
 
+@pytest.mark.parametrize("fixture", ["fmu", "fmu3"])
 @pytest.mark.parametrize("order", ["fmu-first", "package-first"])
-def test_the_fmu_and_the_package_in_one_python_process(fmu, order):
+def test_the_fmu_and_the_package_in_one_python_process(request, fixture, order):
+    fmu = request.getfixturevalue(fixture)
     completed = subprocess.run([sys.executable, "-c", HOST_USES_THE_PACKAGE, str(fmu), order], capture_output=True,
                                text=True, check=False, timeout=300)
     assert (completed.returncode, completed.stdout.strip()) == (0, "ok"), completed.stderr
+
+
+def test_the_fmi2_and_the_fmi3_fmu_in_one_python_process(fmu, fmu3):
+    """Built from the same sources, each has its own copy of the package (FMPy deletes each unzipped FMU: a
+    shared copy was looked for in the other's deleted folder, and pythonfmu3 crashed)."""
+    code = textwrap.dedent("""
+        import json, sys
+        from fmpy import simulate_fmu
+        h = [simulate_fmu(path, stop_time=2.0, output_interval=0.01)["h"] for path in sys.argv[1:] * 2]
+        copies = sorted(n for n in sys.modules if n.startswith("bouncingball_fmu_") and "." not in n)
+        print(json.dumps({"again": [bool((h[i] == h[i + 2]).all()) for i in (0, 1)],
+                          "difference": float(abs(h[0] - h[1]).max()), "copies": copies}))
+    """)
+    completed = subprocess.run([sys.executable, "-c", code, str(fmu), str(fmu3)], capture_output=True, text=True,
+                               check=False, timeout=300)
+    assert completed.returncode == 0, completed.stderr
+    report = json.loads(completed.stdout.splitlines()[-1])
+    assert report["again"] == [True, True]
+    assert report["difference"] < 1e-9  # the same integrator behind both FMI versions
+    packages = [name for name in report["copies"] if not name.endswith("_slave")]
+    assert len(packages) == 2 and report["copies"] == sorted([*packages, *(f"{p}_slave" for p in packages)]), report
 
 
 def test_two_different_builds_in_one_process(fmu, tmp_path, monkeypatch):
@@ -236,8 +280,10 @@ def test_two_different_builds_in_one_process(fmu, tmp_path, monkeypatch):
     assert abs(float(h_moon) - (2.0 - 0.5 * 1.62 * 1.0**2)) < 1e-9  # free fall on the Moon, no impact yet
 
 
-def test_the_c_master_under_valgrind_makes_no_invalid_access(c_master, unzipped, references):
-    """The whole FMU (loader, pythonfmu, Python, CVODE) under memcheck, over a short run with an impact.
+@pytest.mark.parametrize("fmi_version", [2, 3])
+def test_the_c_master_under_valgrind_makes_no_invalid_access(request, fmi_version):
+    """The whole FMU (loader, pythonfmu or pythonfmu3, Python, CVODE) under memcheck, over a short run with an
+    impact; the FMI 3.0 master with early return and event mode, and an FMU state round trip.
 
     glibc's dynamic loader reads a few bytes past its own strings while it maps libraries (is_dst in
     dl-load.c): a known false alarm, which is left out; anything else fails the test.
@@ -245,10 +291,13 @@ def test_the_c_master_under_valgrind_makes_no_invalid_access(c_master, unzipped,
     valgrind = shutil.which("valgrind")
     if valgrind is None:
         pytest.skip("no valgrind (.ci/run installs it)")
-    guid = fmpy.read_model_description(str(unzipped)).guid
+    suffix = "" if fmi_version == 2 else "3"
+    c_master, unzipped = (request.getfixturevalue(name + suffix) for name in ("c_master", "unzipped"))
+    description = fmpy.read_model_description(str(unzipped))
+    references = {v.name: v.valueReference for v in description.modelVariables}
     completed = subprocess.run(
-        [valgrind, "--leak-check=no", "-q", c_master, unzipped, "BouncingBall", guid, "0.7", "0.05",
-         f"o{references['h']}", f"i{references['impacts']}"],
+        [valgrind, "--leak-check=no", "-q", c_master, unzipped, "BouncingBall", description.guid, "0.7", "0.05",
+         *(["e"] if fmi_version == 3 else []), f"o{references['h']}", f"i{references['impacts']}"],
         env={"PATH": "/usr/bin:/bin", "PYTHONMALLOC": "malloc"}, capture_output=True, text=True, timeout=600,
         check=False)
     assert completed.returncode == 0, completed.stderr[-3000:]
@@ -261,6 +310,22 @@ def test_the_c_master_under_valgrind_makes_no_invalid_access(c_master, unzipped,
     table = np.loadtxt(completed.stdout.splitlines())
     h, _, impacts = exact_at(table[:, 0])
     assert np.max(np.abs(table[:, 1] - h)) < 1e-7 and table[-1, 2] == impacts[-1] == 1
+
+
+def test_fmi3_c_master_returns_early_at_each_event_without_environment_variables(c_master3, unzipped3):
+    """The FMI 3.0 FMU in a plain C master: early return and event mode, every event's time on a line."""
+    description = fmpy.read_model_description(str(unzipped3))
+    r = {v.name: v.valueReference for v in description.modelVariables}
+    completed = subprocess.run([c_master3, unzipped3, "BouncingBall", description.guid, "8", "0.1", "e",
+                                f"o{r['h']}", f"i{r['impacts']}"], env={"PATH": "/usr/bin:/bin"},
+                               capture_output=True, text=True, check=False, timeout=120)
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    table = np.loadtxt(completed.stdout.splitlines())
+    h, _, impacts = exact_at(table[:, 0])
+    assert np.max(np.abs(table[:, 1] - h)) < 1e-6 and table[-1, 2] == impacts[-1] == 21
+    events = [t for t in table[:, 0] if abs(t / 0.1 - round(t / 0.1)) > 1e-9]
+    exact_events = [e.time for e in ExactSolution(Ball(), 2.0, 0.0, 0.0, 8.0).events]
+    np.testing.assert_allclose(events, exact_events, rtol=0, atol=1e-9)
 
 
 # --- a Python host that lacks what the FMU needs ----------------------------------------------------
@@ -309,13 +374,7 @@ print(json.dumps(report))
 def test_a_python_host_without_scikit_sundae_gets_one_line_and_no_instance(fmu, tmp_path):
     """A venv with FMPy, numpy and libcosimpy but no scikit-sundae: fmi2Instantiate returns NULL with one error
     line naming the interpreter, what it lacks and the pip install that fixes it; pythonfmu never runs."""
-    venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", venv], check=True, timeout=300)
-    python = venv / "bin" / "python"
-    installed = subprocess.run([python, "-m", "pip", "install", "--quiet", "fmpy", "numpy", "libcosimpy"],
-                               capture_output=True, text=True, check=False, timeout=600)
-    if installed.returncode != 0:
-        pytest.skip(f"cannot install fmpy, numpy and libcosimpy into a fresh venv: {installed.stderr[-500:]}")
+    python = python_without_sksundae(tmp_path, "fmpy", "numpy", "libcosimpy")
     completed = subprocess.run([python, "-c", HOST_WITHOUT_SKSUNDAE, str(fmu)], capture_output=True, text=True,
                                check=False, timeout=300)
     assert completed.returncode == 0, completed.stdout + completed.stderr

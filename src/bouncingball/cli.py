@@ -52,14 +52,18 @@ def _build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("scenes", help="list the built-in scenes")
 
-    build = sub.add_parser("build-fmu", help="build the FMI 2.0 co-simulation FMU")
-    build.add_argument("-o", "--output", default="dist/BouncingBall.fmu",
-                       help="where to write it (default: dist/BouncingBall.fmu)")
+    build = sub.add_parser("build-fmu", help="build the FMU: FMI 2.0 co-simulation, or FMI 3.0 co-simulation and "
+                                             "model exchange")
+    build.add_argument("-o", "--output", help="where to write it (default: dist/BouncingBall.fmu, "
+                                              "dist/BouncingBall3.fmu for --fmi-version 3)")
+    build.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version (default: 2)")
     check = sub.add_parser("validate", help="run the FMU through FMPy and compare it with CVODE, SciPy and the "
                                             "exact solution")
     check.add_argument("scene", nargs="?", default="article", help="built-in scene name or a .toml file "
                                                                    "(default: article)")
-    check.add_argument("--fmu", help="the FMU to run (default: dist/BouncingBall.fmu, built if missing or stale)")
+    check.add_argument("--fmu", help="the FMU to run (default: dist/BouncingBall.fmu, or dist/BouncingBall3.fmu for "
+                                     "--fmi-version 3, built if missing or stale)")
+    check.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version (default: 2)")
     check.add_argument("--skip", action="append", default=[], metavar="STAGE",
                        help=f"a stage not to run: {', '.join(STAGES)} (repeatable; without exact, its row is left "
                             "out, the others are still judged by the exact solution)")
@@ -311,11 +315,11 @@ def _command(args: argparse.Namespace) -> int:
     if args.command == "build-fmu":
         from .fmu.build import build_command
 
-        return build_command(args.output)
+        return build_command(args.output, args.fmi_version)
     if args.command == "validate":
         from .fmu.validate import validate_command
 
-        return validate_command(args.scene, args.fmu, args.skip, args.time_cap)
+        return validate_command(args.scene, args.fmu, args.skip, args.time_cap, args.fmi_version)
     if args.command == "check":
         return _check(args)
     if args.command == "bench":

@@ -9,6 +9,10 @@ first use), then `repeats` times round-robin over the cases. The first use (from
 binary to the end of the first doStep) is timed apart, each in its own fresh process: "cold" on a
 folder just unzipped (as FMPy's simulate_fmu unzips every run: numba's disk cache, keyed by the source
 file's path, is then empty), "warm" on the same folder a second time.
+
+The FMI 3.0 FMU is stepped the same way through FMU3Slave, against an empty pythonfmu3 slave: without
+early return, and with early return allowed and event mode used (its doSteps then include one per
+event; the cost is given per communication step).
 """
 
 from __future__ import annotations
@@ -26,6 +30,8 @@ from .runners import FmuPaths
 
 ENGINES = ("sksundae", "compiled")
 EMPTY = "empty pythonfmu slave"
+EMPTY3 = "empty pythonfmu3 slave"
+FMI3 = "FMI 3.0"  # the FMI 3.0 FMU's cases: (FMI3, False) without early return, (FMI3, True) with it and event mode
 CHILD_TIMEOUT = 600.0  # s
 RESULT_MARKER = "BOUNCINGBALL_BENCH_RESULT "
 
@@ -37,6 +43,7 @@ from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
                        fmi2CallbackLoggerTYPE)
+from fmpy.fmi3 import FMU3Slave
 from fmpy import calloc, free
 from fmpy.logging import addLoggerProxy
 
@@ -57,11 +64,31 @@ addLoggerProxy(byref(callbacks))
 descriptions = {}
 
 
-def start(folder, engine, name):
+def logger3(environment, status, category, message):
+    logger(environment, b"", status, category, message)
+
+
+def start3(description, folder, early_return, name):
+    """An FMI 3.0 FMU instance after initialisation, in step mode (early_return: with event mode too)."""
+    fmu = FMU3Slave(guid=description.guid, unzipDirectory=folder,
+                    modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
+    fmu.instantiate(eventModeUsed=early_return, earlyReturnAllowed=early_return, logMessage=logger3)
+    fmu.enterInitializationMode(startTime=0.0)
+    fmu.exitInitializationMode()
+    if early_return:
+        fmu.updateDiscreteStates()
+        fmu.enterStepMode()
+    fmu.fmi3 = True
+    return fmu
+
+
+def start(folder, engine, name, early_return=False):
     """An FMU instance after initialisation (engine: None for the empty slave)."""
     if folder not in descriptions:
         descriptions[folder] = read_model_description(folder)
     description = descriptions[folder]
+    if description.fmiVersion.startswith("3"):
+        return start3(description, folder, early_return, name)
     fmu = FMU2Slave(guid=description.guid, unzipDirectory=folder,
                     modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
     fmu.instantiate(callbacks=callbacks)
@@ -79,6 +106,19 @@ def steps(fmu, step, n, take_state):
     state = None
     t = 0.0
     started = time.perf_counter()
+    if getattr(fmu, "fmi3", False):  # FMI 3.0: an early return is followed by event mode, then the step's rest
+        i = 1
+        while i <= n:
+            needed, _, early, reached = fmu.doStep(t, i * step - t)
+            if early:
+                t = reached
+                if needed:
+                    fmu.enterEventMode()
+                    fmu.updateDiscreteStates()
+                    fmu.enterStepMode()
+            else:
+                t, i = i * step, i + 1
+        return time.perf_counter() - started
     for i in range(1, n + 1):
         if take_state:
             if state is not None:
@@ -105,7 +145,7 @@ try:
         times = {case["key"]: [] for case in cases}
         for repeat in range(1 + job["repeats"]):  # repeat 0: each engine's first use, untimed
             for case in cases:
-                fmu = start(case["folder"], case["engine"], case["key"])
+                fmu = start(case["folder"], case["engine"], case["key"], case.get("early_return", False))
                 elapsed = steps(fmu, job["step"], n, case["take_state"])
                 fmu.terminate()
                 fmu.freeInstance()
@@ -120,12 +160,14 @@ print(sys.argv[2] + json.dumps(result))  # RESULT_MARKER
 
 @dataclass(frozen=True)
 class StepCost:
-    """One case: slave (EMPTY or the engine's name), whether a state is taken at every step, seconds per doStep."""
+    """One case: slave (EMPTY, EMPTY3, FMI3 or the engine's name), whether a state is taken at every step, seconds
+    per doStep (per communication step with early return: the FMI 3.0 FMU, early return allowed and event mode)."""
 
     slave: str
     take_state: bool
     times: tuple[float, ...] = ()  # per doStep [s], one per timed repeat
     note: str = ""
+    early_return: bool = False
 
     @property
     def median(self) -> float:
@@ -210,10 +252,14 @@ def measure(fmus: FmuPaths, step: float, t_end: float, repeats: int) -> FmuStepC
     cases = [{"key": f"{slave}|{take_state}", "slave": slave, "take_state": take_state,
               "folder": str(fmus.empty if slave == EMPTY else fmus.ball), "engine": None if slave == EMPTY else slave}
              for slave in (EMPTY, *ENGINES) for take_state in (False, True)]
+    if fmus.ball3 is not None and fmus.empty3 is not None:
+        cases.append({"key": EMPTY3, "slave": EMPTY3, "take_state": False, "folder": str(fmus.empty3), "engine": None})
+        cases += [{"key": f"{FMI3}|{early}", "slave": FMI3, "take_state": False, "early_return": early,
+                   "folder": str(fmus.ball3), "engine": None} for early in (False, True)]
     runnable = [case for case in cases if not unavailable.get(case["slave"])]
     found = _run_child({"mode": "steps", "cases": runnable, "n": n, "step": step, "repeats": repeats})
     for case in cases:
         note = unavailable.get(case["slave"]) or found.get("error", "")
         times = () if note else tuple(found["times"][case["key"]])
-        result.costs.append(StepCost(case["slave"], case["take_state"], times, note))
+        result.costs.append(StepCost(case["slave"], case["take_state"], times, note, case.get("early_return", False)))
     return result

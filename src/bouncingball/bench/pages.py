@@ -12,7 +12,7 @@ from ..solvers import ARTICLE_SETTINGS
 from . import engine_choice
 from .environment import environment_lines
 from .floor import FloorStudy
-from .fmu_steps import EMPTY, ENGINES, FmuStepCosts
+from .fmu_steps import EMPTY, EMPTY3, ENGINES, FMI3, FmuStepCosts
 from .stability import COST_CHUNKS, EXTRA_SCENES, STIFF_REPEATS, CostPerEvent, Outcome, stability_solvers
 from .targets import MATCHED_ERRORS, all_targets, fmu_step_costs, per_step
 from .text import events_text, ms, num, rtol_text, table
@@ -207,7 +207,9 @@ def _fmu_steps_section(costs: FmuStepCosts) -> list[str]:
         f"{costs.steps} doSteps of {costs.step * 1e3:g} ms: only the doStep calls are timed (median and min of "
         f"{costs.repeats} runs after an untimed one, round-robin over the cases), neither the instantiation nor "
         "any output reading. With a state: `fmi2GetFMUstate` before every doStep (the previous state freed), as a "
-        "master that may reject steps does.",
+        "master that may reject steps does. The FMI 3.0 FMU through `FMU3Slave` against an empty pythonfmu3 slave, "
+        "with early return allowed (and event mode at each early return) or not; with early return, per "
+        "communication step, its doSteps at the events included.",
         "",
     ]
     if costs.note:
@@ -216,10 +218,14 @@ def _fmu_steps_section(costs: FmuStepCosts) -> list[str]:
     rows = []
     for cost in costs.costs:
         median = cost.median
-        rows.append([cost.slave if cost.slave == EMPTY else f"FMU, engine {cost.slave}", "yes" if cost.take_state
-                     else "no", _us(median), _us(min(cost.times)) if cost.times else "",
-                     "" if math.isnan(median) else f"{median / floor[cost.take_state]:.2f}", cost.note])
-    header = ["slave", "state at every step", "per doStep [us]", "min [us]", "x empty slave (same state)", "note"]
+        # the FMI 3.0 FMU against the empty pythonfmu3 slave, the rest against the empty pythonfmu slave
+        empty = costs.per_step(EMPTY3) if cost.slave in (EMPTY3, FMI3) else floor[cost.take_state]
+        name = {EMPTY: EMPTY, EMPTY3: EMPTY3, FMI3: "FMI 3.0 FMU, engine sksundae" + (
+            ", early return" if cost.early_return else "")}.get(cost.slave, f"FMU, engine {cost.slave}")
+        rows.append([name, "yes" if cost.take_state else "no", _us(median), _us(min(cost.times)) if cost.times else "",
+                     "" if math.isnan(median) else f"{median / empty:.2f}", cost.note])
+    header = ["slave", "state at every step", "per doStep [us]", "min [us]", "x empty slave (same state, FMI version)",
+              "note"]
     lines += table(header, rows)
     lines += [
         "",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import textwrap
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -93,6 +93,8 @@ class FmuPaths:
     empty: Path | None
     error: str = ""
     ball_fmu: Path | None = None
+    ball3: Path | None = None  # the FMI 3.0 FMU and the empty pythonfmu3 slave, extracted (None: not built)
+    empty3: Path | None = None
 
 
 def run_solver(solver: Solver, scene: Scene, output_interval: float, rtol: float | None = None,
@@ -200,6 +202,26 @@ class BenchEmptySlave(Fmi2Slave):
 '''
 # Two pythonfmu FMUs whose scripts share a module name cannot live in one process: keep this name distinctive.
 EMPTY_SLAVE_MODULE = "bouncingball_bench_empty_slave"
+EMPTY3_SLAVE_SCRIPT = '''\
+"""An FMI 3.0 FMU that does nothing: the per-doStep cost any pythonfmu3 slave pays, stepped by the same master."""
+
+from pythonfmu3 import Fmi3Slave, Float64
+from pythonfmu3.enums import Fmi3Causality, Fmi3Initial, Fmi3Variability
+
+
+class BenchEmptySlave3(Fmi3Slave):
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.time, self.x = 0.0, 0.0
+        self.register_variable(Float64("time", causality=Fmi3Causality.independent,
+                                       variability=Fmi3Variability.continuous))
+        self.register_variable(Float64("x", causality=Fmi3Causality.output, variability=Fmi3Variability.continuous,
+                                       initial=Fmi3Initial.exact))
+
+    def do_step(self, current_time, step_size):
+        return True
+'''
+EMPTY3_SLAVE_MODULE = "bouncingball_bench_empty3_slave"
 
 
 def build_fmus(directory: Path) -> FmuPaths:
@@ -216,5 +238,16 @@ def build_fmus(directory: Path) -> FmuPaths:
         empty = FmuBuilder.build_FMU(script, dest=directory)
     except Exception as error:  # no compiler, unsupported platform...: the FMU rows say why
         return FmuPaths(None, None, f"{type(error).__name__}: {error}")
-    return FmuPaths(Path(extract(str(ball), str(directory / "ball"))),
-                    Path(extract(str(empty), str(directory / "empty"))), ball_fmu=Path(ball))
+    paths = FmuPaths(Path(extract(str(ball), str(directory / "ball"))),
+                     Path(extract(str(empty), str(directory / "empty"))), ball_fmu=Path(ball))
+    try:
+        from pythonfmu3 import FmuBuilder as Fmu3Builder
+
+        ball3 = build_fmu(directory / "BouncingBall3.fmu", fmi_version=3)
+        script = directory / f"{EMPTY3_SLAVE_MODULE}.py"
+        script.write_text(textwrap.dedent(EMPTY3_SLAVE_SCRIPT), encoding="utf-8")
+        empty3 = Fmu3Builder.build_FMU(script, dest=directory)
+    except Exception:  # without pythonfmu3: the FMI 3.0 rows are left out
+        return paths
+    return replace(paths, ball3=Path(extract(str(ball3), str(directory / "ball3"))),
+                               empty3=Path(extract(str(empty3), str(directory / "empty3"))))

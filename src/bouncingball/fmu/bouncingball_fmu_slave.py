@@ -8,6 +8,9 @@ process. tests/test_fmu_state_machine.py measures what an instance still costs.
 The FMU carries its own copy of bouncingball under a name of its own (PACKAGE, set by the build to
 bouncingball_fmu_<digest of its sources>), so that it neither replaces nor uses a bouncingball the
 host process imports, and two different builds in one process do not meet.
+
+The FMI 3.0 FMU is built from this script too: its build makes the import below pythonfmu3's
+Fmi3Slave, the class line's base Fmi3Slave, and SLAVE_MODULE slave3 (bouncingball.fmu.build).
 """
 
 import importlib
@@ -17,6 +20,7 @@ import sys
 from pythonfmu import Fmi2Slave
 
 PACKAGE = "bouncingball"
+SLAVE_MODULE = "slave"
 
 
 def _import_sundials_for_this_fmu():
@@ -45,7 +49,7 @@ class BouncingBall(Fmi2Slave):  # pythonfmu finds the slave's name on this line;
     pass
 
 
-_slave = importlib.import_module(f"{PACKAGE}.fmu.slave")
+_slave = importlib.import_module(f"{PACKAGE}.fmu.{SLAVE_MODULE}")
 BouncingBall = _slave.BouncingBall  # noqa: F811
 # pythonfmu 0.7 uses this script's namespace after the script has run but keeps no reference to it:
 # once Python collects it, the next fmi2Instantiate crashes (the 3rd or 4th in a row). Keep it.

@@ -1,4 +1,4 @@
-"""Build the BouncingBall FMI 2.0 co-simulation FMU with pythonfmu, and complete what it leaves out.
+"""Build the BouncingBall FMU with pythonfmu (FMI 2.0) or pythonfmu3 (FMI 3.0), and complete what it leaves out.
 
 pythonfmu packs the slave script (bouncingball_fmu_slave.py, beside this module) and a copy of
 this package into the FMU's resources. The copy gets a name of its own, bouncingball_fmu_<digest
@@ -8,11 +8,15 @@ min/max, InitialUnknowns or DefaultExperiment; build_fmu() adds them from variab
 Linux binary cannot run in a master without Python and cannot return fmi2Error; build_fmu()
 compiles bouncingball_fmu_loader.c, which fixes both, and puts it in front of pythonfmu's binary
 (docs/fmu.md explains why and what it costs). Everything it needs ships in the wheel.
+
+The FMI 3.0 FMU (fmi_version=3) is built the same way from the same script, package and variable
+table, with pythonfmu3 and bouncingball_fmu3_loader.c; build3 holds what differs.
 """
 
 from __future__ import annotations
 
 import hashlib
+import importlib
 import os
 import platform
 import shlex
@@ -31,9 +35,12 @@ from .host_check import check_source
 from .variables import MODEL_NAME, UNITS, VARIABLES
 
 DEFAULT_OUTPUT = Path("dist") / f"{MODEL_NAME}.fmu"
+DEFAULT_OUTPUTS = {2: DEFAULT_OUTPUT, 3: Path("dist") / f"{MODEL_NAME}3.fmu"}
 HERE = Path(__file__).resolve().parent
 SLAVE_SCRIPT = HERE / "bouncingball_fmu_slave.py"
 LOADER_SOURCE = HERE / "bouncingball_fmu_loader.c"
+LOADER3_SOURCE = HERE / "bouncingball_fmu3_loader.c"
+LOADER_HEADER = HERE / "bouncingball_fmu_python.h"  # what the FMI 2.0 and 3.0 loaders share
 PACKAGE_DIR = HERE.parent  # the bouncingball package, copied into the FMU
 PACKAGE_FILES = ("*.py", "data/*.toml")
 PLATFORM = "linux64"
@@ -44,34 +51,38 @@ class FmuBuildError(RuntimeError):
     """The FMU cannot be built here; the message says what is missing."""
 
 
-def build_fmu(output: str | Path = DEFAULT_OUTPUT) -> Path:
-    """Build the FMU into output [.fmu] and return its path."""
-    output = Path(output)
+def build_fmu(output: str | Path | None = None, fmi_version: int = 2) -> Path:
+    """Build the FMU of FMI version fmi_version (2 or 3) into output [.fmu] (default DEFAULT_OUTPUTS) and return it."""
+    if fmi_version not in DEFAULT_OUTPUTS:
+        raise ValueError(f"fmi_version = {fmi_version!r} is not allowed: it must be 2 or 3")
+    output = Path(output if output is not None else DEFAULT_OUTPUTS[fmi_version])
     if output.suffix != ".fmu":
         raise ValueError(f"output = {str(output)!r} is not allowed: it must end in .fmu")
     check_output_path("output", output, make_folders=True)
     _check_build_host()
     compiler = _compiler()
+    library = "pythonfmu" if fmi_version == 2 else "pythonfmu3"
     try:
         import docutils  # noqa: F401  (it renders documentation/index.html)
-        import fmpy  # noqa: F401  (its FMI 2.0 headers compile the loader)
-        from pythonfmu import FmuBuilder
+        import fmpy  # noqa: F401  (its FMI headers compile the loader)
+        FmuBuilder = importlib.import_module(library).FmuBuilder
     except ImportError as error:
-        raise ImportError(f"build-fmu needs pythonfmu, FMPy and docutils ({error}): pip install "
+        raise ImportError(f"build-fmu needs {library}, FMPy and docutils ({error}): pip install "
                           "'bouncingball[fmu]'") from None
 
     with tempfile.TemporaryDirectory(prefix="bouncingball_fmu_") as temp:
         temp = Path(temp)
-        loader = _compile_loader(compiler, temp / f"{MODEL_NAME}.so")
-        script, package = _stage(temp / "stage")
+        loader = _compile_loader(compiler, temp / f"{MODEL_NAME}.so", fmi_version)
+        script, package = _stage(temp / "stage", fmi_version)
         # pythonfmu imports the script, and with it the package's copy, into this process to read
         # its variables, and leaves its folder on sys.path: undo both once it is done.
         path, modules = list(sys.path), set(sys.modules)
+        state = "FMUstate" if fmi_version == 2 else "FMUState"  # pythonfmu3 spells FMI 3.0's names
         try:
             # needsExecutionTool: the FMU runs on a Python installation with numpy and scikit-sundae.
             built = FmuBuilder.build_FMU(script, dest=temp / "pythonfmu", project_files=[package],
-                                         needsExecutionTool=True, canGetAndSetFMUstate=True,
-                                         canSerializeFMUstate=True)
+                                         needsExecutionTool=True, **{f"canGetAndSet{state}": True,
+                                                                     f"canSerialize{state}": True})
         finally:
             sys.path[:] = path
             for name in set(sys.modules) - modules:
@@ -79,7 +90,7 @@ def build_fmu(output: str | Path = DEFAULT_OUTPUT) -> Path:
                     del sys.modules[name]
         output.parent.mkdir(parents=True, exist_ok=True)
         with atomic_write(output) as partial:
-            _repack(Path(built), loader, partial)
+            _repack(Path(built), loader, partial, fmi_version)
     write_reference_csv(reference_path(output))
     return output
 
@@ -148,24 +159,34 @@ def package_sources() -> list[Path]:
                    if "__pycache__" not in path.parts})
 
 
-def _stage(folder: Path) -> tuple[Path, Path]:
+def _stage(folder: Path, fmi_version: int = 2) -> tuple[Path, Path]:
     """The slave script and the package's copy, both named after the digest of what they contain."""
     digest = hashlib.sha256()
     for relative in package_sources():
         digest.update(str(relative).encode() + b"\0" + (PACKAGE_DIR / relative).read_bytes() + b"\0")
     digest.update(SLAVE_SCRIPT.read_bytes())
+    if fmi_version != 2:
+        # Its own copy: FMPy deletes each unzipped FMU, and a copy shared with the FMI 2.0 FMU (imported first)
+        # would look for the FMI 3.0 slave module in the deleted folder (and pythonfmu3 then crashes).
+        digest.update(f"FMI {fmi_version}".encode())
     name = f"bouncingball_fmu_{digest.hexdigest()[:16]}"
     package = folder / name
     for relative in package_sources():
         (package / relative).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(PACKAGE_DIR / relative, package / relative)
     source = SLAVE_SCRIPT.read_text(encoding="utf-8")
-    marker = 'PACKAGE = "bouncingball"\n'
-    if source.count(marker) != 1:
-        raise FmuBuildError(f"{SLAVE_SCRIPT.name} must set {marker.strip()} exactly once")
+    changes = {'PACKAGE = "bouncingball"\n': f'PACKAGE = "{name}"\n'}
+    if fmi_version == 3:
+        from .build3 import SCRIPT_CHANGES
+
+        changes.update(SCRIPT_CHANGES)
+    for marker, replacement in changes.items():
+        if source.count(marker) != 1:
+            raise FmuBuildError(f"{SLAVE_SCRIPT.name} must contain {marker.strip()!r} exactly once")
+        source = source.replace(marker, replacement)
     # pythonfmu names the slave's module after the script: two builds must not share it either.
     script = folder / f"{name}_slave.py"
-    script.write_text(source.replace(marker, f'PACKAGE = "{name}"\n'), encoding="utf-8")
+    script.write_text(source, encoding="utf-8")
     return script, package
 
 
@@ -174,14 +195,15 @@ def is_stale(fmu: str | Path) -> bool:
     fmu = Path(fmu)
     if not fmu.is_file():
         return True
-    sources = [SLAVE_SCRIPT, LOADER_SOURCE, *(PACKAGE_DIR / relative for relative in package_sources())]
+    sources = [SLAVE_SCRIPT, LOADER_SOURCE, LOADER3_SOURCE, LOADER_HEADER,
+               *(PACKAGE_DIR / relative for relative in package_sources())]
     return max(path.stat().st_mtime for path in sources if path.exists()) > fmu.stat().st_mtime
 
 
-def build_command(output: str | Path = DEFAULT_OUTPUT) -> int:
+def build_command(output: str | Path | None = None, fmi_version: int = 2) -> int:
     """`bouncingball build-fmu`: build and say where; a host that cannot build gets one line on stderr."""
     try:
-        path = build_fmu(output)
+        path = build_fmu(output, fmi_version)
     except FmuBuildError as error:
         print(f"bouncingball: cannot build the FMU: {error}", file=sys.stderr)
         return 1
@@ -194,7 +216,7 @@ def _check_build_host() -> None:
     if not (sys.platform.startswith("linux") and platform.machine() == "x86_64"):
         raise FmuBuildError(f"the FMU is built for Linux x86_64 only (pythonfmu's {PLATFORM} binary); "
                             f"this is {sys.platform} {platform.machine()}")
-    for path in (SLAVE_SCRIPT, LOADER_SOURCE):
+    for path in (SLAVE_SCRIPT, LOADER_SOURCE, LOADER3_SOURCE, LOADER_HEADER):
         if not path.is_file():
             raise FmuBuildError(f"{path} not found: this installation of bouncingball is incomplete; "
                                 "reinstall it with pip install 'bouncingball[fmu]'")
@@ -222,30 +244,45 @@ def _c_string(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
 
 
-def _compile_loader(compiler: list[str], target: Path) -> Path:
-    """Compile bouncingball_fmu_loader.c for the Python running this build."""
-    command = [*compiler, "-shared", "-fPIC", "-O2", *loader_flags(), "-o", str(target), str(LOADER_SOURCE),
-               "-ldl", "-lpthread"]
+def _compile_loader(compiler: list[str], target: Path, fmi_version: int = 2) -> Path:
+    """Compile the loader of FMI version fmi_version for the Python running this build."""
+    source = LOADER_SOURCE if fmi_version == 2 else LOADER3_SOURCE
+    command = [*compiler, "-shared", "-fPIC", "-O2", *loader_flags(fmi_version), "-o", str(target), str(source),
+               "-ldl", "-lpthread", "-lm"]
     completed = subprocess.run(command, capture_output=True, text=True, check=False)
     if completed.returncode != 0:
-        raise FmuBuildError(f"compiling {LOADER_SOURCE.name} with {shlex.join(compiler)} failed:\n"
+        raise FmuBuildError(f"compiling {source.name} with {shlex.join(compiler)} failed:\n"
                             f"{completed.stderr.strip()}")
     return target
 
 
-def loader_flags() -> list[str]:
-    """Compiler flags for the loader: warnings on, FMPy's FMI 2.0 headers, the Python the FMU is built for."""
+def loader_flags(fmi_version: int = 2) -> list[str]:
+    """Compiler flags for the loader: warnings on, FMPy's FMI headers, the Python the FMU is built for."""
     from importlib.resources import files
 
-    headers = Path(str(files("fmpy") / "c-code"))  # FMPy ships the FMI 2.0 headers
+    headers = Path(str(files("fmpy") / "c-code"))  # FMPy ships the FMI 2.0 and 3.0 headers
     libpython = shared_libpython()
     if not sys.executable:
         raise FmuBuildError("sys.executable is empty: run the build from a python executable")
     return ["-Wall", "-Wextra", f"-I{headers}", f"-DBB_LIBPYTHON={_c_string(str(libpython or ''))}",
             f"-DBB_PYTHON={_c_string(sys.executable)}", f"-DBB_INNER={_c_string(PYTHONFMU_BINARY)}",
             f"-DBB_PYTHON_VERSION={_c_string(f'{sys.version_info.major}.{sys.version_info.minor}')}",
-            f"-DBB_VARIABLE_TYPES={_c_string(''.join(variable.type[0] for variable in VARIABLES))}",
-            f"-DBB_HOST_CHECK={_c_string(check_source())}"]
+            f"-DBB_HOST_CHECK={_c_string(check_source())}",
+            *(_variable_flags() if fmi_version == 2 else _fmi3_flags())]
+
+
+def _variable_flags(variables=VARIABLES) -> list[str]:
+    return [f"-DBB_VARIABLE_TYPES={_c_string(''.join(variable.type[0] for variable in variables))}"]
+
+
+def _fmi3_flags() -> list[str]:
+    from .variables import EVENT_INDICATOR, FMI3_VARIABLES
+
+    variables = VARIABLES + FMI3_VARIABLES
+    names = [variable.name for variable in variables]
+    return [*_variable_flags(variables), f"-DBB_TIME_REFERENCE={names.index('time')}",
+            f"-DBB_STATES={sum(bool(variable.derivative) for variable in variables)}",
+            f"-DBB_EVENT_INDICATORS={names.count(EVENT_INDICATOR)}"]
 
 
 def shared_libpython() -> Path | None:
@@ -257,17 +294,23 @@ def shared_libpython() -> Path | None:
     return path if path.is_file() else None
 
 
-def _repack(built: Path, loader: Path, target: Path) -> None:
+def _repack(built: Path, loader: Path, target: Path, fmi_version: int = 2) -> None:
     """Copy pythonfmu's FMU with the completed XML, our binary in front of pythonfmu's, Linux only."""
-    binaries = f"binaries/{PLATFORM}/"
+    binaries = f"binaries/{PLATFORM if fmi_version == 2 else 'x86_64-linux'}/"
+    if fmi_version == 3:
+        from .build3 import complete_model_description as complete
+    else:
+        complete = complete_model_description
     with zipfile.ZipFile(built) as source, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as fmu:
         for info in source.infolist():
             if info.filename == "modelDescription.xml":
-                description = complete_model_description(source.read(info))
+                description = complete(source.read(info))
                 fmu.writestr(info.filename, description)
                 fmu.writestr("documentation/index.html", index_html(description))
             elif info.filename == f"{binaries}{MODEL_NAME}.so":
                 fmu.writestr(binaries + PYTHONFMU_BINARY, source.read(info))
+            elif info.filename.startswith("sources/"):  # pythonfmu3's sources build its binary alone, not ours
+                continue
             elif not info.filename.startswith("binaries/"):  # other platforms' binaries lack the fix
                 fmu.writestr(info, source.read(info))
         fmu.write(loader, f"{binaries}{MODEL_NAME}.so")
@@ -275,28 +318,11 @@ def _repack(built: Path, loader: Path, target: Path) -> None:
 
 def complete_model_description(xml: bytes) -> bytes:
     """Add units, min/max, DefaultExperiment and InitialUnknowns to pythonfmu's modelDescription.xml."""
-    from importlib.metadata import version as installed_version
-
-    from .. import __version__
-    from ..scenes import load_scene
-    from ..solvers.settings import CvodeSettings
-
     root = ET.fromstring(xml)
-    root.set("version", __version__)
-    root.set("generationTool", f"bouncingball {__version__} (pythonfmu {installed_version('pythonfmu')})")
+    stamp(root, "pythonfmu")
     children = list(root)
-    co_simulation = root.find("CoSimulation")
-    units = ET.Element("UnitDefinitions")
-    for name, exponents in UNITS.items():
-        unit = ET.SubElement(units, "Unit", name=name)
-        ET.SubElement(unit, "BaseUnit", {base: str(power) for base, power in exponents.items()})
-    root.insert(children.index(co_simulation) + 1, units)
-
-    article = load_scene("article")
-    # The FMU's own rtol as the tolerance: a master that takes it from here passes it back (see slave.py's rule).
-    experiment = ET.Element("DefaultExperiment", startTime="0", stopTime=repr(article.t_end),
-                            stepSize=repr(article.output_interval), tolerance=repr(CvodeSettings().rtol))
-    root.insert(list(root).index(root.find("ModelVariables")), experiment)
+    root.insert(children.index(root.find("CoSimulation")) + 1, unit_definitions())
+    root.insert(list(root).index(root.find("ModelVariables")), default_experiment())
 
     scalars = root.find("ModelVariables").findall("ScalarVariable")
     index = {scalar.get("name"): i + 1 for i, scalar in enumerate(scalars)}
@@ -305,13 +331,7 @@ def complete_model_description(xml: bytes) -> bytes:
                                                                            enumerate(VARIABLES)]:
         raise FmuBuildError("pythonfmu numbered the variables other than in VARIABLES' order")
     for variable in VARIABLES:
-        typed = scalars[index[variable.name] - 1].find(variable.type)
-        if variable.unit:
-            typed.set("unit", variable.unit)
-        if variable.min is not None:
-            typed.set("min", repr(variable.min) if variable.type == "Real" else str(int(variable.min)))
-        if variable.max is not None:
-            typed.set("max", repr(variable.max))
+        add_unit_and_range(scalars[index[variable.name] - 1].find(variable.type), variable)
 
     structure = root.find("ModelStructure")
     initial_unknowns = ET.SubElement(structure, "InitialUnknowns")
@@ -320,3 +340,44 @@ def complete_model_description(xml: bytes) -> bytes:
             ET.SubElement(initial_unknowns, "Unknown", index=str(index[variable.name]))
     ET.indent(root)
     return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+
+
+# --- what both FMI versions' model descriptions get ------------------------------------------------
+def stamp(root: ET.Element, library: str) -> None:
+    """The model's version and the generation tool (bouncingball, and the pythonfmu library it used)."""
+    from importlib.metadata import version as installed_version
+
+    from .. import __version__
+
+    root.set("version", __version__)
+    root.set("generationTool", f"bouncingball {__version__} ({library} {installed_version(library)})")
+
+
+def unit_definitions() -> ET.Element:
+    """UnitDefinitions: every unit of the variable table, in SI base units."""
+    units = ET.Element("UnitDefinitions")
+    for name, exponents in UNITS.items():
+        unit = ET.SubElement(units, "Unit", name=name)
+        ET.SubElement(unit, "BaseUnit", {base: str(power) for base, power in exponents.items()})
+    return units
+
+
+def default_experiment() -> ET.Element:
+    """The article scene, 0 to 8 s every 1 ms, at the FMU's own rtol."""
+    from ..scenes import load_scene
+    from ..solvers.cvode import CvodeSettings
+
+    article = load_scene("article")
+    # The FMU's own rtol as the tolerance: a master that takes it from here passes it back (see slave_base's rule).
+    return ET.Element("DefaultExperiment", startTime="0", stopTime=repr(article.t_end),
+                      stepSize=repr(article.output_interval), tolerance=repr(CvodeSettings().rtol))
+
+
+def add_unit_and_range(typed: ET.Element, variable) -> None:
+    """The unit, min and max of variable (a variables.FmuVariable) on its typed XML element."""
+    if variable.unit:
+        typed.set("unit", variable.unit)
+    if variable.min is not None:
+        typed.set("min", repr(variable.min) if variable.type == "Real" else str(int(variable.min)))
+    if variable.max is not None:
+        typed.set("max", repr(variable.max))

@@ -42,10 +42,20 @@ class Report:
     impacts_match_at_every_point: bool | None  # None: the FMU stage was skipped
 
 
-def run_fmu(fmu: str | Path, scene: Scene, **start_values):
+# The FMI 3.0 FMU's runs beside co-simulation without early return: each is FMPy's simulate_fmu options.
+FMI3_RUNS = {
+    "FMU 3.0 CS, early return": {"early_return_allowed": True, "use_event_mode": True},
+    "FMU 3.0 ME, FMPy CVode 1e-8": {"fmi_type": "ModelExchange", "solver": "CVode", "relative_tolerance": 1e-8},
+}
+FMI3_NOTES = {"FMU 3.0 CS, early return": "doStep returns at each event; the master's event mode there",
+              "FMU 3.0 ME, FMPy CVode 1e-8": "the master integrates; the FMU's event indicator is h - R"}
+
+
+def run_fmu(fmu: str | Path, scene: Scene, options: dict | None = None, **start_values):
     """The scene through FMPy's simulate_fmu, one communication step per output interval.
 
-    Returns the result, the wall time of the simulation [s] and that of loading the FMU [s] before it.
+    options are more of simulate_fmu's (fmi_type, early_return_allowed, ...). Returns the result, the
+    wall time of the simulation [s] and that of loading the FMU [s] before it.
     """
     try:
         from fmpy import extract, instantiate_fmu, read_model_description, simulate_fmu
@@ -58,11 +68,15 @@ def run_fmu(fmu: str | Path, scene: Scene, **start_values):
     unzipped = extract(str(fmu))
     try:
         description = read_model_description(unzipped)
-        instance = instantiate_fmu(unzipped, description)
+        options = dict(options or {})
+        instance = instantiate_fmu(unzipped, description, fmi_type=options.get("fmi_type"),
+                                   early_return_allowed=options.get("early_return_allowed", False),
+                                   event_mode_used=options.get("use_event_mode", False))
         loaded = time.perf_counter()
         result = simulate_fmu(unzipped, model_description=description, fmu_instance=instance,
                               start_values=values, start_time=0.0, stop_time=scene.t_end,
-                              output_interval=scene.output_interval, output=["h", "v", "impacts", "contact"])
+                              output_interval=scene.output_interval, output=["h", "v", "impacts", "contact"],
+                              **options)
         finished = time.perf_counter()
         instance.freeInstance()
     finally:
@@ -72,8 +86,8 @@ def run_fmu(fmu: str | Path, scene: Scene, **start_values):
 
 def validate(scene_name: str = "article", fmu: str | Path | None = None,
              progress: Callable[[str], None] = lambda stage: None, skip: Sequence[str] = (),
-             time_cap: float = SCIPY_CAP) -> Report:
-    """Run the scene four ways; the FMU is (re)built first if it is missing or older than its sources.
+             time_cap: float = SCIPY_CAP, fmi_version: int = 2) -> Report:
+    """Run the scene four ways (six for FMI 3.0: FMI3_RUNS too); the FMU is (re)built first if it is stale.
 
     progress is told each stage as it starts (the SciPy run alone may take up to time_cap seconds).
     skip names stages of STAGES not to run; the exact solution, which judges the others, is still
@@ -81,18 +95,21 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
     is checked before any stage runs.
     """
     from .. import validation
-    from .build import DEFAULT_OUTPUT, build_fmu, is_stale
+    from .build import DEFAULT_OUTPUTS, build_fmu, is_stale
 
+    if fmi_version not in DEFAULT_OUTPUTS:
+        raise ValueError(f"fmi_version = {fmi_version!r} is not allowed: it must be 2 or 3")
     skip = {validation.choice("--skip", stage, STAGES) for stage in skip}
     time_cap = validation.positive("--time-cap", time_cap, "s")
     scene = load_scene(scene_name)
-    fmu = Path(fmu) if fmu is not None else DEFAULT_OUTPUT
+    default = DEFAULT_OUTPUTS[fmi_version]
+    fmu = Path(fmu) if fmu is not None else default
     if "fmu" not in skip:
         import fmpy  # noqa: F401  (before any work: without the [fmu] extra, say so now)
 
-        if fmu == DEFAULT_OUTPUT and is_stale(fmu):
+        if fmu == default and is_stale(fmu):
             progress(f"building {fmu}")
-            build_fmu(fmu)
+            build_fmu(fmu, fmi_version)
         else:
             check_fmu_file(fmu)
 
@@ -108,8 +125,14 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
     rows, impacts_match = [], None
     if "fmu" not in skip:
         progress("the FMU through FMPy")
-        row, impacts_match = _fmu_row(fmu, scene, exact)
-        rows.append(row)
+        result, wall_time, load_time = run_fmu(fmu, scene)
+        rows.append(Row("FMU (FMPy)" if fmi_version == 2 else "FMU 3.0 CS (FMPy)", _fmu_accuracy(result, scene),
+                        wall_time, f"+ {load_time:.3f} s to load; events seen only at communication points"))
+        impacts_match = _impacts_match(result, scene)
+        for label, options in FMI3_RUNS.items() if fmi_version == 3 else ():
+            progress(f"the FMU through FMPy: {label}")
+            other, other_time, _ = run_fmu(fmu, scene, options)
+            rows.append(Row(label, _fmu_accuracy(other, scene), other_time, FMI3_NOTES[label]))
     for label in (CVODE_LABEL, ARTICLE_LABEL):
         capped = runs.get(label)
         if capped is None:
@@ -124,19 +147,20 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
     return Report(scene, None if "fmu" in skip else fmu, rows, impacts_match)
 
 
-def _fmu_row(fmu: Path, scene: Scene, exact) -> tuple[Row, bool]:
-    """The FMU's row, and whether its impact count equals the exact one at every communication point."""
-    result, wall_time, load_time = run_fmu(fmu, scene)
-    exact_at_points = exact_on_grid(result["time"], scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=0.0)
+def _fmu_accuracy(result, scene: Scene) -> Accuracy:
+    """The FMU's result against the exact solution at its own times (early return adds the events' times)."""
+    at_points = exact_on_grid(result["time"], scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=0.0)
     impacts, contact = int(result["impacts"][-1]), result["contact"].astype(int)
     # The FMU counts impacts; its departures follow from them and the contact flag at both ends.
-    fmu_accuracy = accuracy_of(exact_at_points, result["h"], events_found=2 * impacts + contact[0] - contact[-1])
-    row = Row("FMU (FMPy)", fmu_accuracy, wall_time, f"+ {load_time:.3f} s to load; events seen only at "
-              "communication points")
-    t = exact_at_points.t
+    return accuracy_of(at_points, result["h"], events_found=2 * impacts + contact[0] - contact[-1])
+
+
+def _impacts_match(result, scene: Scene) -> bool:
+    """Whether the FMU's impact count equals the exact one at every communication point."""
+    at_points = exact_on_grid(result["time"], scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=0.0)
+    t = at_points.t
     tie = 1e-9 * np.maximum(1.0, np.abs(t))  # an impact on a communication point, to 1 ns, may count or not
-    mismatches = impact_count_mismatches(exact_at_points.impact_times, t, result["impacts"], tie)
-    return row, mismatches.size == 0
+    return impact_count_mismatches(at_points.impact_times, t, result["impacts"], tie).size == 0
 
 
 def check_fmu_file(fmu: Path) -> None:
@@ -149,6 +173,8 @@ def check_fmu_file(fmu: Path) -> None:
     with zipfile.ZipFile(fmu) as archive:
         if "modelDescription.xml" not in archive.namelist():
             raise ValueError(f"--fmu = {str(fmu)!r} is not allowed: it is not an FMU (no modelDescription.xml)")
+
+
 def format_report(report: Report) -> str:
     """The table `bouncingball validate` prints."""
     scene = report.scene
@@ -172,12 +198,13 @@ def format_report(report: Report) -> str:
 
 
 def validate_command(scene: str = "article", fmu: str | None = None, skip: Sequence[str] = (),
-                     time_cap: float = SCIPY_CAP) -> int:
-    """`bouncingball validate [SCENE] [--fmu PATH] [--skip STAGE ...] [--time-cap S]`."""
+                     time_cap: float = SCIPY_CAP, fmi_version: int = 2) -> int:
+    """`bouncingball validate [SCENE] [--fmu PATH] [--skip STAGE ...] [--time-cap S] [--fmi-version 2|3]`."""
     from .build import FmuBuildError
 
     try:
-        report = validate(scene, fmu, lambda stage: print(f"validate: {stage} ...", file=sys.stderr), skip, time_cap)
+        report = validate(scene, fmu, lambda stage: print(f"validate: {stage} ...", file=sys.stderr), skip, time_cap,
+                          fmi_version)
     except FmuBuildError as error:
         print(f"bouncingball: cannot build the FMU: {error}", file=sys.stderr)
         return 1

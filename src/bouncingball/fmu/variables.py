@@ -13,6 +13,7 @@ SMALLEST_POSITIVE = math.ulp(0.0)  # FMI's min is inclusive: "> 0" is ">= 5e-324
 
 # SI units as exponents of the base units
 UNITS = {
+    "s": {"s": 1},
     "m": {"m": 1},
     "m/s": {"m": 1, "s": -1},
     "m/s2": {"m": 1, "s": -2},
@@ -29,13 +30,14 @@ class FmuVariable:
 
     name: str
     type: str  # Real, Integer, Boolean or String
-    causality: str  # parameter, input or output
+    causality: str  # parameter, input, output (FMI 3.0 also local and independent)
     variability: str  # fixed, continuous or discrete
     description: str
     unit: str = ""
     min: float | None = None
     max: float | None = None
     initial: str = ""  # "exact" for outputs whose start value is the initial state
+    derivative: str = ""  # FMI 3.0 model exchange: the name of the continuous state this is the derivative of
 
 
 VARIABLES = (
@@ -72,3 +74,17 @@ VARIABLES = (
 
 
 OUTPUTS = tuple(variable.name for variable in VARIABLES if variable.causality == "output")
+
+# FMI 3.0 only, after the shared table, so that every variable above keeps its value reference: the
+# independent variable, the derivatives of the continuous states h and v (model exchange), and the
+# event indicator.
+FMI3_VARIABLES = (
+    FmuVariable("time", "Real", "independent", "continuous", "simulation time", "s"),
+    FmuVariable("der(h)", "Real", "local", "continuous", "dh/dt, the derivative of the continuous state h "
+                "(model exchange)", "m/s", derivative="h"),
+    FmuVariable("der(v)", "Real", "local", "continuous", "dv/dt, the derivative of the continuous state v "
+                "(model exchange)", "m/s2", derivative="v"),
+    FmuVariable("gap", "Real", "local", "continuous", "h - R, the event indicator: an impact where it crosses 0 "
+                "downwards, a departure where it crosses 0 upwards", "m"),
+)
+EVENT_INDICATOR = "gap"

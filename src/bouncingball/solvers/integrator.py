@@ -323,19 +323,21 @@ class BallIntegrator:
         return solver
 
     # --- integration -------------------------------------------------------------------------
-    def advance(self, t_target: float) -> list[Event]:
+    def advance(self, t_target: float, stop_at_event: bool = False) -> list[Event]:
         """Integrate to t_target [s], resolving every impact and departure on the way.
 
         CVODE takes one internal step at a time, and its steps do not depend on the sequence of
         targets; a target inside the last step is read off the step's dense output, so a short
-        advance usually costs no CVODE call at all.
+        advance usually costs no CVODE call at all. With stop_at_event, it returns at the first
+        impact or departure before t_target instead, with t the event's time and the mode switched
+        (an FMI 3.0 early return); an event at t_target itself is left to the next advance.
         """
         try:
-            return self._advance(float(t_target))
+            return self._advance(float(t_target), stop_at_event)
         finally:
             self._report_sundials_warnings()
 
-    def _advance(self, t_target: float) -> list[Event]:
+    def _advance(self, t_target: float, stop_at_event: bool = False) -> list[Event]:
         if not t_target >= self._t:
             raise ValueError(f"t_target = {t_target!r} s is not allowed: it must be >= the current time {self._t!r} s")
         if t_target > self.resolvable_until:
@@ -352,6 +354,8 @@ class BallIntegrator:
                 if self._event_pending is not None:
                     self._t, self._x, self._v = self._event_pending
                     events.append(self._switch_mode())
+                    if stop_at_event:
+                        break
                     continue
             if self._rest_from is None and self._needs_init and self._at_rest():
                 self._rest_from = (self._t, self._x, self._v)

@@ -1,0 +1,277 @@
+/* The part of the BouncingBall FMU's binaries that does not depend on the FMI version: the Python
+ * that runs pythonfmu (or pythonfmu3), the loading of their binary, and the check of the host's
+ * Python. Included by bouncingball_fmu_loader.c (FMI 2.0) and bouncingball_fmu3_loader.c (FMI 3.0),
+ * which define the macros they describe (BB_LIBPYTHON, BB_PYTHON, BB_INNER, BB_PYTHON_VERSION,
+ * BB_HOST_CHECK), include <dlfcn.h>, <libgen.h>, <pthread.h>, <stdio.h>, <stdlib.h>, <string.h>,
+ * <unistd.h> and <wchar.h>, and define their Instance (with a `struct Instance *next`) first.
+ */
+#ifndef BOUNCINGBALL_FMU_PYTHON_H
+#define BOUNCINGBALL_FMU_PYTHON_H
+
+static void (*release_python_state)(void); /* pythonfmu's finalizePythonInterpreter */
+
+/* An FMU state: pythonfmu's, and the state-machine state it was taken in (serialized: one byte in front of
+ * pythonfmu's bytes; restoring it restores both). */
+typedef struct {
+    void *inner;
+    int state;
+} FmuState;
+
+/* The FmuState to fill: the one the master passes back to be reused, else a new one (NULL: no memory). */
+static FmuState *state_to_fill(void *const *FMUstate)
+{
+    return *FMUstate != NULL ? (FmuState *)*FMUstate : calloc(1, sizeof(FmuState));
+}
+
+/* Hand saved back in *FMUstate once pythonfmu's part is in it, or free it if it was new and that failed.
+ * status is an fmi2Status or fmi3Status (numbered alike: above 1, Warning, it failed). */
+static int into_state(int status, FmuState *saved, void **FMUstate, int state)
+{
+    if (status > 1) {
+        if (*FMUstate == NULL) {
+            free(saved);
+        }
+        return status;
+    }
+    saved->state = state;
+    *FMUstate = saved;
+    return status;
+}
+
+/* The live instances, so that a second free of one is refused instead of freeing it twice. */
+static Instance *live;
+static pthread_mutex_t live_lock = PTHREAD_MUTEX_INITIALIZER;
+
+static void link_live(Instance *instance)
+{
+    pthread_mutex_lock(&live_lock);
+    instance->next = live;
+    live = instance;
+    pthread_mutex_unlock(&live_lock);
+}
+
+/* Remove instance from the list of live instances; 0 if it was not there (freed already). */
+static int unlink_live(Instance *instance)
+{
+    Instance **link;
+    pthread_mutex_lock(&live_lock);
+    for (link = &live; *link != NULL && *link != instance; link = &(*link)->next) {
+    }
+    int found = *link != NULL;
+    if (found) {
+        *link = instance->next;
+    }
+    pthread_mutex_unlock(&live_lock);
+    return found;
+}
+static char load_error[4096];
+
+static void *symbol(void *library, const char *name)
+{
+    void *address = dlsym(library, name);
+    if (address == NULL && load_error[0] == '\0') {
+        snprintf(load_error, sizeof load_error, "%s not found in " BB_INNER ": %s", name, dlerror());
+    }
+    return address;
+}
+
+/* Copy the output of `command` (at most size - 1 bytes) into out; 1 if it exited with status 0. */
+static int run_command(const char *command, char *out, size_t size)
+{
+    FILE *pipe = popen(command, "r");
+    size_t n;
+    if (pipe == NULL) {
+        return 0;
+    }
+    n = fread(out, 1, size - 1, pipe);
+    out[n] = '\0';
+    return pclose(pipe) == 0;
+}
+
+/* Which Python runs the FMU in a master that has none, in this order:
+ *   1. the one it was built with (BB_PYTHON, with BB_LIBPYTHON), if it is still there;
+ *   2. else the first python3.X (the minor version pythonfmu's binary was built for), then python3,
+ *      on PATH whose version is 3.X, that has a shared libpython and imports numpy and scikit-sundae.
+ * Fills python and libpython and returns 1, or writes load_error and returns 0. */
+static int find_python(char *python, size_t python_size, char *libpython, size_t libpython_size)
+{
+    static const char *const names[] = {"python" BB_PYTHON_VERSION, "python3"};
+    const char *query = "import os, sys, sysconfig, numpy, sksundae.cvode; "
+                        "print('%d.%d' % sys.version_info[:2]); "
+                        "print(os.path.join(sysconfig.get_config_var('LIBDIR') or '', "
+                        "sysconfig.get_config_var('INSTSONAME') or ''))";
+    const char *path = getenv("PATH");
+    char directories[4096], command[8192], answer[8192];
+
+    if (BB_LIBPYTHON[0] != '\0' && access(BB_PYTHON, X_OK) == 0 && access(BB_LIBPYTHON, R_OK) == 0) {
+        snprintf(python, python_size, "%s", BB_PYTHON);
+        snprintf(libpython, libpython_size, "%s", BB_LIBPYTHON);
+        return 1;
+    }
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
+        snprintf(directories, sizeof directories, "%s", path != NULL ? path : "/usr/bin:/bin");
+        for (char *save = NULL, *directory = strtok_r(directories, ":", &save); directory != NULL;
+             directory = strtok_r(NULL, ":", &save)) {
+            char *newline;
+            snprintf(python, python_size, "%s/%s", directory, names[i]);
+            if (access(python, X_OK) != 0 || strchr(python, '\'') != NULL) {
+                continue;
+            }
+            snprintf(command, sizeof command, "'%s' -c \"%s\" 2>/dev/null", python, query);
+            if (!run_command(command, answer, sizeof answer) || strncmp(answer, BB_PYTHON_VERSION "\n",
+                                                                       strlen(BB_PYTHON_VERSION "\n")) != 0) {
+                continue;
+            }
+            snprintf(libpython, libpython_size, "%.4000s", answer + strlen(BB_PYTHON_VERSION "\n"));
+            if ((newline = strchr(libpython, '\n')) != NULL) {
+                *newline = '\0';
+            }
+            if (strstr(libpython, ".so") != NULL && access(libpython, R_OK) == 0) {
+                return 1;
+            }
+        }
+    }
+    snprintf(load_error, sizeof load_error,
+             "this FMU needs Python " BB_PYTHON_VERSION " with a shared libpython, numpy and scikit-sundae: it was "
+             "built with " BB_PYTHON ", which is not there (or has no shared libpython), and no python"
+             BB_PYTHON_VERSION " or python3 on PATH (%.2048s) has them",
+             path != NULL ? path : "unset");
+    return 0;
+}
+
+/* Start a Python (see find_python) in a process that has none. */
+static int start_python(void)
+{
+    void *library;
+    wchar_t *(*decode_locale)(const char *, size_t *);
+    void (*set_program_name)(const wchar_t *);
+    void (*initialize)(int);
+    void *(*save_thread)(void);
+    wchar_t *program;
+    static char python[4096], libpython[4096];
+
+    if (!find_python(python, sizeof python, libpython, sizeof libpython)) {
+        return 0;
+    }
+    library = dlopen(libpython, RTLD_NOW | RTLD_GLOBAL);
+    if (library == NULL) {
+        snprintf(load_error, sizeof load_error, "this FMU runs %.1024s, and cannot load its libpython: %.2048s",
+                 python, dlerror());
+        return 0;
+    }
+    *(void **)&decode_locale = dlsym(library, "Py_DecodeLocale");
+    *(void **)&set_program_name = dlsym(library, "Py_SetProgramName");
+    *(void **)&initialize = dlsym(library, "Py_InitializeEx");
+    *(void **)&save_thread = dlsym(library, "PyEval_SaveThread");
+    if (decode_locale == NULL || set_program_name == NULL || initialize == NULL || save_thread == NULL) {
+        snprintf(load_error, sizeof load_error, "%.2048s lacks Py_SetProgramName or Py_InitializeEx", libpython);
+        return 0;
+    }
+    program = decode_locale(python, NULL); /* Python keeps using it: never freed */
+    set_program_name(program);
+    initialize(0); /* 0: leave the master's signal handlers alone */
+    save_thread(); /* release the GIL; pythonfmu takes it for each call */
+    return 1;
+}
+
+/* Start a Python if the process has none, then load pythonfmu's binary (BB_INNER, beside this one):
+ * its handle, or NULL with load_error written. */
+static void *open_inner(void)
+{
+    Dl_info self;
+    char directory[4096];
+    char path[4096 + 64];
+    void *library;
+
+    if (dlsym(RTLD_DEFAULT, "Py_IsInitialized") == NULL && !start_python()) {
+        return NULL;
+    }
+    if (dladdr((void *)&open_inner, &self) == 0 || self.dli_fname == NULL) {
+        snprintf(load_error, sizeof load_error, "cannot find the directory of the FMU's binary");
+        return NULL;
+    }
+    snprintf(directory, sizeof directory, "%s", self.dli_fname);
+    snprintf(path, sizeof path, "%s/" BB_INNER, dirname(directory));
+    library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (library == NULL) {
+        snprintf(load_error, sizeof load_error, "cannot load %.2048s: %.1024s", path, dlerror());
+        return NULL;
+    }
+    /* pythonfmu 0.7.0 (and pythonfmu3 0.3, the same code) releases its PyState twice when the process exits with its binary loaded
+     * (its static shared_ptr's destructor, then its own destructor function), which corrupts the
+     * heap: about one exit in four crashed after a few FMPy runs. Release it once, first: exit
+     * handlers run in reverse order, and this one is registered after pythonfmu's. */
+    *(void **)&release_python_state = dlsym(library, "finalizePythonInterpreter");
+    if (release_python_state != NULL) {
+        atexit(release_python_state);
+    }
+    return library;
+}
+
+/* Whether the Python pythonfmu is about to use has what the FMU needs: runs BB_HOST_CHECK in it, in a
+ * namespace of its own, with the GIL. 1 if it has; else 0 with one line in problem. Once passed, it is
+ * not run again: what it imported stays imported. */
+static int host_ready(char *problem, size_t size)
+{
+    typedef void PyObject;
+    static int passed; /* read and written with the GIL held */
+    int (*ensure)(void);
+    void (*release)(int);
+    PyObject *(*new_dict)(void);
+    PyObject *(*builtins)(void);
+    int (*set_item)(PyObject *, const char *, PyObject *);
+    PyObject *(*get_item)(PyObject *, const char *);
+    PyObject *(*run)(const char *, int, PyObject *, PyObject *, void *);
+    const char *(*as_utf8)(PyObject *);
+    void (*clear_error)(void);
+    void (*decref)(PyObject *);
+    PyObject *globals = NULL, *result = NULL, *answer;
+    const char *text;
+    int gil, ready = 0;
+
+    *(void **)&ensure = dlsym(RTLD_DEFAULT, "PyGILState_Ensure");
+    *(void **)&release = dlsym(RTLD_DEFAULT, "PyGILState_Release");
+    *(void **)&new_dict = dlsym(RTLD_DEFAULT, "PyDict_New");
+    *(void **)&builtins = dlsym(RTLD_DEFAULT, "PyEval_GetBuiltins");
+    *(void **)&set_item = dlsym(RTLD_DEFAULT, "PyDict_SetItemString");
+    *(void **)&get_item = dlsym(RTLD_DEFAULT, "PyDict_GetItemString");
+    *(void **)&run = dlsym(RTLD_DEFAULT, "PyRun_StringFlags");
+    *(void **)&as_utf8 = dlsym(RTLD_DEFAULT, "PyUnicode_AsUTF8");
+    *(void **)&clear_error = dlsym(RTLD_DEFAULT, "PyErr_Clear");
+    *(void **)&decref = dlsym(RTLD_DEFAULT, "Py_DecRef");
+    if (ensure == NULL || release == NULL || new_dict == NULL || builtins == NULL || set_item == NULL ||
+        get_item == NULL || run == NULL || as_utf8 == NULL || clear_error == NULL || decref == NULL) {
+        snprintf(problem, size, "BouncingBall cannot check the Python of this process: its C API is not in the "
+                 "process's global scope (PyRun_StringFlags and others not found)");
+        return 0;
+    }
+    gil = ensure();
+    if (passed) {
+        release(gil);
+        return 1;
+    }
+    globals = new_dict();
+    if (globals != NULL && set_item(globals, "__builtins__", builtins()) == 0) {
+        result = run(BB_HOST_CHECK, 257 /* Py_file_input */, globals, globals, NULL);
+    }
+    answer = result != NULL ? get_item(globals, "problem") : NULL; /* borrowed */
+    text = answer != NULL ? as_utf8(answer) : NULL;
+    if (text == NULL) {
+        clear_error();
+        snprintf(problem, size, "BouncingBall could not run its check of the Python of this process");
+    } else if (text[0] != '\0') {
+        snprintf(problem, size, "%s", text);
+    } else {
+        ready = passed = 1;
+    }
+    if (result != NULL) {
+        decref(result);
+    }
+    if (globals != NULL) {
+        decref(globals);
+    }
+    release(gil);
+    return ready;
+}
+
+#endif

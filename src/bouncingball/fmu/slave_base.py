@@ -1,0 +1,280 @@
+"""The BouncingBall FMU's slave, for either FMI version: everything but pythonfmu's own classes.
+
+Every number comes from bouncingball's CVODE integrator (BallIntegrator); the interface is
+variables.VARIABLES. Nothing here raises: pythonfmu (and pythonfmu3) would turn an exception into a
+fatal status and release the instance. Errors are logged with status error instead, and the FMU's
+binary (bouncingball_fmu_loader.c, bouncingball_fmu3_loader.c) returns an error for a call that
+logged one.
+
+BallSlave imports neither pythonfmu nor pythonfmu3: slave.BouncingBall (FMI 2.0) and
+slave3.BouncingBall (FMI 3.0) put it in front of their library's slave class, and give it the
+library's status enumeration (STATUS), the names of the FMI calls its messages cite (CALLS) and
+the registration of one variable (_register).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import warnings
+from dataclasses import asdict, replace
+
+from .. import limits, validation
+from ..physics import Ball, Mode
+from ..scenes import BALL_KEYS, SCENE_DEFAULTS
+from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, SolverError, check_resolvable
+from ..solvers.sundials_log import SundialsWarning
+from .variables import VARIABLES
+
+STATE_FORMAT = "bouncingball-fmu-state-5"  # 5: with the restart point (4: the master's tolerance only tightens rtol)
+# Not "auto" as in process: the FMU's copy of the package is unzipped afresh by most masters, so numba's cache
+# (keyed by the source's path) is cold in each new process, and the compiled engine's first use costs seconds.
+DEFAULT_ENGINE = "sksundae"
+SETTABLE_AFTER_INITIALISATION = ("F_ext",)
+# Outputs the slave computes: a master may set the start values of h and v (initial="exact"), not these.
+COMPUTED_OUTPUTS = tuple(v.name for v in VARIABLES if v.causality == "output" and v.initial != "exact")
+
+
+class BallSlave:
+    """A ball with compliant contact, integrated by CVODE with every contact found by root-finding."""
+
+    STATUS = None  # the library's status enumeration (ok, warning, error members)
+    CALLS = {"setup": "fmi2SetupExperiment", "step": "fmi2DoStep", "set_state": "fmi2SetFMUstate"}
+    STOP_AT_EVENT = False  # True: do_step returns at the first impact or departure inside the step
+
+    author = "bouncingball"
+    description = ("A ball with compliant contact (spring k, damper b) over rigid ground, integrated by "
+                   "SUNDIALS CVODE; every impact and departure inside a step is found by root-finding")
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        # pythonfmu 0.7 appends the FMU's resources folder to sys.path for each instance: keep one.
+        resources = kwargs.get("resources")
+        while resources is not None and sys.path.count(resources) > 1:
+            sys.path.remove(resources)
+        if resources is not None:
+            _search_package_in(resources)
+        # The values set by the master: parameters, start values of h and v, and the input F_ext. The
+        # defaults are the article's; they are not read from the package's data files, because a master
+        # (FMPy) may delete the unzipped FMU whose modules this process keeps using.
+        ball, settings = Ball(), CvodeSettings()
+        self._values = {**{key: getattr(ball, key) for key in BALL_KEYS}, "h": SCENE_DEFAULTS["h0"],
+                        "v": SCENE_DEFAULTS["v0"], "F_ext": SCENE_DEFAULTS["F_ext"], "rtol": settings.rtol,
+                        "atol": settings.atol or 0.0, "method": settings.method, "engine": DEFAULT_ENGINE}
+        self._start_time = 0.0
+        self._stop_time: float | None = None
+        self._tolerance: float | None = None
+        self._tolerance_told = False  # the master's tolerance and the rtol used are logged once per instance
+        self._integrator: BallIntegrator | None = None
+        for variable in VARIABLES:
+            if variable.causality == "output":  # each output is read by the method of its name
+                getter = getattr(self, f"_{variable.name}")
+            else:
+                getter = lambda name=variable.name: self._values[name]  # noqa: E731
+            self._register(variable, getter, lambda value, name=variable.name: self._set(name, value))
+
+    def _register(self, variable, getter, setter) -> None:
+        """Register variable (a variables.FmuVariable) with the library, read by getter, written by setter."""
+        raise NotImplementedError
+
+    # --- FMI calls ------------------------------------------------------------------------------
+    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        self._start_time = start_time
+        self._stop_time = stop_time
+        self._tolerance = tolerance
+
+    def exit_initialization_mode(self):
+        try:
+            integrator = self._make_integrator()
+            if self._stop_time is not None:  # refuse now what could not be integrated up to the stop time
+                stop_time = validation.finite("stopTime", self._stop_time, "s")
+                check_resolvable(integrator.ball, stop_time)
+                limits.check_scene(integrator.ball, integrator.h, integrator.v, integrator.F_ext, integrator.t,
+                                   max(stop_time, integrator.t))
+            self._integrator = integrator
+            self._tell_tolerance(integrator.settings.rtol)
+        except (ValueError, ImportError) as error:  # ImportError: the compiled engine cannot run here, and why
+            self._error(error)
+
+    def do_step(self, current_time, step_size):
+        """Advance from current_time by step_size [s], resolving every contact on the way (see STOP_AT_EVENT)."""
+        integrator = self._integrator
+        if integrator is None:
+            self._error(f"{self.CALLS['step']} before initialisation (or after a failed one)")
+            return False
+        try:
+            # A master's own rounding of the communication points is tolerated, a jump is not.
+            if not abs(current_time - integrator.t) <= 1e-9 * max(1.0, abs(integrator.t)):
+                raise ValueError(f"currentCommunicationPoint = {current_time!r} s is not allowed: "
+                                 f"the FMU is at t = {integrator.t!r} s")
+            if not (step_size >= 0.0 and math.isfinite(current_time + step_size)):
+                raise ValueError(f"communicationStepSize = {step_size!r} s is not allowed: it must be >= 0 and "
+                                 "end the step at a finite time")
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", SundialsWarning)
+                target = max(current_time + step_size, integrator.t)
+                if self.STOP_AT_EVENT:
+                    integrator.advance(target, stop_at_event=True)
+                else:
+                    integrator.advance(target)
+            for warning in caught:  # to the master's log, not the host's stderr; SundialsLog keeps one per cause
+                self.log(str(warning.message), self.STATUS.warning)
+        except (ValueError, SolverError) as error:
+            self._error(error)
+            return False
+        return True
+
+    # --- FMU state: everything needed to continue exactly, in this or a fresh instance ------------
+    def _get_fmu_state(self):
+        integrator = None
+        if self._integrator is not None:
+            state = self._integrator.get_state()
+            integrator = {**asdict(state), "mode": int(state.mode)}
+        return {"format": STATE_FORMAT, "values": dict(self._values), "start_time": self._start_time,
+                "stop_time": self._stop_time, "tolerance": self._tolerance, "integrator": integrator}
+
+    def _set_fmu_state(self, state):
+        """All or nothing: the whole state is checked (parameters, start values, integrator) first."""
+        try:
+            if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
+                reason = state.get("invalid", "") if isinstance(state, dict) else ""
+                raise ValueError(f"it is not a {self.modelName} state ({STATE_FORMAT}) {reason}")
+            values = dict(state["values"])
+            if set(values) != set(self._values):
+                raise ValueError(f"its variables {sorted(values)} are not this FMU's")
+            start_time = validation.finite("start_time", state["start_time"], "s")
+            stop_time, tolerance = state["stop_time"], state["tolerance"]
+            ball, settings = self._ball_and_settings(values, tolerance)
+            for name in ("h", "v", "F_ext"):
+                validation.finite(name, values[name])
+            saved, integrator = state["integrator"], None
+            if saved is not None:
+                integrator = self._integrator
+                if integrator is None or (integrator.ball, integrator.settings) != (ball, settings):
+                    integrator = BallIntegrator(ball, values["h"], values["v"], start_time, values["F_ext"], settings)
+                t, h, v, F_ext = (validation.finite(f"state {name}", saved[name], unit)
+                                  for name, unit in (("t", "s"), ("h", "m"), ("v", "m/s"), ("F_ext", "N")))
+                limits.check_scene(ball, h, v, F_ext, t)
+                integrator.set_state(IntegratorState(**saved))  # checks every field before it changes any
+        except (KeyError, TypeError, ValueError, ImportError) as error:
+            self._error(f"{self.CALLS['set_state']} failed, nothing was changed: {error}")
+            return
+        self._values, self._start_time, self._stop_time, self._tolerance = values, start_time, stop_time, tolerance
+        self._integrator = integrator
+
+    @staticmethod
+    def _fmu_state_from_bytes(state: bytes):
+        try:
+            return json.loads(state.decode("utf-8"))
+        except ValueError as error:  # includes UnicodeDecodeError and JSONDecodeError
+            return {"invalid": f"the serialized state cannot be read: {error}"}
+
+    # --- variables ------------------------------------------------------------------------------
+    def _set(self, name, value):
+        if name in COMPUTED_OUTPUTS:
+            self._error(f"{name} is an output: it cannot be set")
+        elif self._integrator is not None and name not in SETTABLE_AFTER_INITIALISATION:
+            self._error(f"{name} = {value!r} is not allowed: {name} cannot change after initialisation")
+        elif name == "F_ext" and self._integrator is not None:
+            integrator = self._integrator
+            try:
+                # A force outside the range double precision resolves from the current state is refused too.
+                limits.check_scene(integrator.ball, integrator.h, integrator.v,
+                                   validation.finite("F_ext", value, "N"), integrator.t)
+                integrator.F_ext = value  # checks it first: a rejected value changes nothing
+            except ValueError as error:
+                self._error(error)
+                return
+            self._values[name] = value
+        else:
+            self._values[name] = value  # a parameter or start value: checked, as a whole, at initialisation
+
+    def _h(self):
+        return self._values["h"] if self._integrator is None else self._integrator.h
+
+    def _v(self):
+        return self._values["v"] if self._integrator is None else self._integrator.v
+
+    def _a(self):
+        integrator = self._integrator or self._preview()
+        return math.nan if integrator is None else integrator.acceleration
+
+    def _contact(self):
+        integrator = self._integrator or self._preview()
+        return integrator is not None and integrator.mode == Mode.CONTACT
+
+    def _contact_force(self):
+        integrator = self._integrator or self._preview()
+        return math.nan if integrator is None else integrator.contact_force
+
+    def _impacts(self):
+        return 0 if self._integrator is None else self._integrator.impacts
+
+    # --- helpers ----------------------------------------------------------------------------------
+    def _ball_and_settings(self, values=None, tolerance=None) -> tuple[Ball, CvodeSettings]:
+        """The ball and CVODE settings from values (default: the current ones); ValueError names a bad value."""
+        if values is None:
+            values, tolerance = self._values, self._tolerance
+        ball = Ball(**{key: values[key] for key in BALL_KEYS})
+        rtol = validation.in_range("rtol", values["rtol"], 0.0, 1.0)
+        if tolerance is not None:  # the master's tolerance may tighten rtol, never loosen it
+            rtol = min(rtol, validation.in_range(f"tolerance ({self.CALLS['setup']})", tolerance, 0.0, 1.0))
+        atol = validation.non_negative("atol", values["atol"], "m") or None  # 0: no absolute bound
+        return ball, CvodeSettings(rtol=rtol, atol=atol, method=values["method"], engine=values["engine"])
+
+    def _tell_tolerance(self, used: float) -> None:
+        """Once per instance: a warning if the master asked for a looser tolerance than rtol, a note if tighter."""
+        asked, rtol = self._tolerance, self._values["rtol"]
+        if self._tolerance_told or asked is None or asked == rtol:
+            return
+        self._tolerance_told = True
+        if asked > rtol:
+            self.log(f"tolerance = {asked!r} ({self.CALLS['setup']}) is looser than the FMU's rtol = {rtol!r}, so "
+                     f"rtol = {used!r} is used: a master's tolerance may tighten rtol but never loosen it, because "
+                     "each bounce's error carries into every later bounce (at 1e-3 the article's ball misses an "
+                     "impact); to loosen it, set the parameter rtol", self.STATUS.warning)
+        else:
+            self.log(f"rtol = {used!r} is used: the tolerance of {self.CALLS['setup']}, tighter than the "
+                     f"parameter rtol = {rtol!r}", self.STATUS.ok)
+
+    def _make_integrator(self, engine: str | None = None) -> BallIntegrator:
+        """An integrator at the start state (on engine if given); ValueError names a bad value.
+
+        ImportError: the engine asked for is "compiled" and cannot run here (the message says why).
+        """
+        ball, settings = self._ball_and_settings()
+        if engine is not None:
+            settings = replace(settings, engine=engine)
+        values = self._values
+        h, v = validation.finite("h", values["h"], "m"), validation.finite("v", values["v"], "m/s")
+        return BallIntegrator(ball, h, v, self._start_time, values["F_ext"], settings)
+
+    def _preview(self) -> BallIntegrator | None:
+        """Before initialisation, outputs are those of the start state (None if a value is invalid)."""
+        try:
+            # The start state's outputs do not depend on the engine: no numba for a preview.
+            return self._make_integrator(engine="sksundae")
+        except ValueError:
+            return None
+
+    def _error(self, error) -> None:
+        self.log(str(error), self.STATUS.error)
+
+
+def _search_package_in(resources: str) -> None:
+    """Import the package's modules not imported yet (the compiled engine) from this instance's copy too.
+
+    The process keeps the package's modules of the first instance, whose unzipped folder a master
+    (FMPy) may since have deleted; this instance's copy has the same sources (the package's name is
+    their digest). Folders that are gone are dropped, so the search path stays short.
+    """
+    root = __name__.split(".")[0]
+    for name, module in list(sys.modules.items()):
+        path = getattr(module, "__path__", None)
+        if path is None or not (name == root or name.startswith(root + ".")):
+            continue
+        folder = os.path.join(resources, *name.split("."))
+        if os.path.isdir(folder):
+            path[:] = [entry for entry in path if entry != folder and os.path.isdir(entry)] + [folder]
