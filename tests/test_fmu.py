@@ -482,3 +482,20 @@ def test_an_unknown_or_mistyped_value_reference_is_an_error_and_the_instance_car
     healthy.initialize()
     assert healthy.step_to(1.0, 0.5)[-1][5] == 1
     healthy.free()
+
+
+def test_the_scene_to_start_value_mapping_covers_the_fmus_start_values():
+    """fmu/variables.py's one mapping: every name a variable of the table, the ball's parameters all there,
+    and a scene's start values give back that scene (testing.scene_with_start_values, what check uses)."""
+    from bouncingball.fmu.variables import SCENE_FIELD_OF_START_VALUE, VARIABLES, start_values_of
+    from bouncingball.scenes import BALL_KEYS, load_scene
+    from bouncingball.testing import scene_with_start_values
+
+    names = {variable.name for variable in VARIABLES}
+    assert set(SCENE_FIELD_OF_START_VALUE) <= names
+    assert set(BALL_KEYS) <= set(SCENE_FIELD_OF_START_VALUE.values())
+    scene = load_scene("zero-gravity")
+    values = start_values_of(scene)
+    assert values["h"] == scene.h0 == 2.0 and values["v"] == scene.v0 == -1.0 and values["g"] == 0.0
+    moved = scene_with_start_values("article", values)
+    assert (moved.ball, moved.h0, moved.v0, moved.F_ext) == (scene.ball, scene.h0, scene.v0, scene.F_ext)

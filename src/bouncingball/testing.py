@@ -30,7 +30,7 @@ import numpy as np
 
 from . import validation
 from .accuracy import event_hops, impact_counts
-from .fmu.variables import VARIABLES
+from .fmu.variables import SCENE_FIELD_OF_START_VALUE, VARIABLES, start_values_of
 from .physics import Ball, Mode
 from .result_files import (
     BadResultError,
@@ -55,7 +55,6 @@ IMPACT_TIE = 1e-6  # s: a point this close to an impact may count it or not
 START_SLACK = 1e-9  # relative: how far the first row's v and a may be from the start state's before it is said
 # The FMU's start values that set up the run, by the scene field each one sets; the others (rtol,
 # atol, method, engine) are solver settings, which the exact solution has no use for.
-SCENE_FIELD_OF_START_VALUE = {**{key: key for key in BALL_KEYS}, "h": "h0", "v": "v0", "F_ext": "F_ext"}
 SOLVER_SETTINGS = tuple(v.name for v in VARIABLES if v.causality == "parameter" and v.name not in BALL_KEYS)
 
 
@@ -312,8 +311,7 @@ def scene_with_start_values(scene: Scene | str | Path = "article",
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
-    values = {key: getattr(scene.ball, key) for key in BALL_KEYS}
-    values.update(h0=scene.h0, v0=scene.v0, F_ext=scene.F_ext)
+    values = {SCENE_FIELD_OF_START_VALUE[name]: value for name, value in start_values_of(scene).items()}
     for name, value in (start_values or {}).items():
         if name in SOLVER_SETTINGS:
             continue

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from ..accuracy import Accuracy, accuracy_of, exact_on_grid
-from ..scenes import BALL_KEYS, Scene
+from ..fmu.variables import start_values_of
+from ..scenes import Scene
 from ..solvers import ARTICLE_LABEL
 from ..solvers.exact import ExactSolution
 from ..solvers.result import IMPACT, Event, output_grid
@@ -158,8 +159,7 @@ def _run_fmu(solver: Solver, scene: Scene, tolerances: dict, fmus: FmuPaths | No
         path, output, start_values = fmus.empty, ["x"], {}
     else:
         path, output = fmus.ball, ["h", "v", "impacts"] if record else ["h"]
-        start_values = {**{key: getattr(scene.ball, key) for key in BALL_KEYS}, "h": scene.h0, "v": scene.v0,
-                        "F_ext": scene.F_ext, **tolerances}
+        start_values = {**start_values_of(scene), **tolerances}
         if solver.engine:
             start_values["engine"] = solver.engine
         if solver.engine == "compiled":  # where it cannot run here, it cannot in the FMU: say why

@@ -26,7 +26,7 @@ from ..physics import Ball, Mode
 from ..scenes import BALL_KEYS, SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, SolverError, check_resolvable
 from ..solvers.sundials_log import SundialsWarning
-from .variables import VARIABLES
+from .variables import SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES
 
 STATE_FORMAT = "bouncingball-fmu-state-5"  # 5: with the restart point (4: the master's tolerance only tightens rtol)
 # Not "auto" as in process: the FMU's copy of the package is unzipped afresh by most masters, so numba's cache
@@ -60,9 +60,10 @@ class BallSlave:
         # defaults are the article's; they are not read from the package's data files, because a master
         # (FMPy) may delete the unzipped FMU whose modules this process keeps using.
         ball, settings = Ball(), CvodeSettings()
-        self._values = {**{key: getattr(ball, key) for key in BALL_KEYS}, "h": SCENE_DEFAULTS["h0"],
-                        "v": SCENE_DEFAULTS["v0"], "F_ext": SCENE_DEFAULTS["F_ext"], "rtol": settings.rtol,
-                        "atol": settings.atol or 0.0, "method": settings.method, "engine": DEFAULT_ENGINE}
+        self._values = {**{name: SCENE_DEFAULTS[field] if field in SCENE_OWN_FIELDS else getattr(ball, field)
+                           for name, field in SCENE_FIELD_OF_START_VALUE.items()},
+                        "rtol": settings.rtol, "atol": settings.atol or 0.0, "method": settings.method,
+                        "engine": DEFAULT_ENGINE}
         self._start_time = 0.0
         self._stop_time: float | None = None
         self._tolerance: float | None = None

@@ -15,8 +15,9 @@ import numpy as np
 
 from ..accuracy import Accuracy, accuracy_of, accuracy_of_result, exact_on_grid, impact_count_mismatches
 from ..capped import FINISHED, Capped, run_capped
-from ..scenes import BALL_KEYS, Scene, load_scene
+from ..scenes import Scene, load_scene
 from ..solvers import ARTICLE_LABEL
+from .variables import start_values_of
 
 CVODE_LABEL = "CVODE (in-process)"
 NAME_WIDTH = 31
@@ -62,8 +63,7 @@ def run_fmu(fmu: str | Path, scene: Scene, options: dict | None = None, **start_
     except ImportError as error:
         raise ImportError(f"validate needs FMPy ({error}): pip install 'bouncingball[fmu]'") from None
 
-    values = {key: getattr(scene.ball, key) for key in BALL_KEYS}
-    values.update(h=scene.h0, v=scene.v0, F_ext=scene.F_ext, **start_values)
+    values = {**start_values_of(scene), **start_values}
     started = time.perf_counter()
     unzipped = extract(str(fmu))
     try:

@@ -75,6 +75,18 @@ VARIABLES = (
 
 OUTPUTS = tuple(variable.name for variable in VARIABLES if variable.causality == "output")
 
+# A scene and the FMU's start values, name by name: the ball's parameters under their own names, the
+# scene's start state and force as h, v and F_ext. The one mapping of the slave's defaults, validate,
+# the bench and `check` (testing.scene_with_start_values).
+SCENE_FIELD_OF_START_VALUE = {"m": "m", "k": "k", "b": "b", "R": "R", "g": "g", "h": "h0", "v": "v0", "F_ext": "F_ext"}
+SCENE_OWN_FIELDS = ("h0", "v0", "F_ext")  # the others are the ball's
+
+
+def start_values_of(scene) -> dict[str, float]:
+    """The FMU's start values that run scene (a scenes.Scene), by SCENE_FIELD_OF_START_VALUE."""
+    return {name: getattr(scene if field in SCENE_OWN_FIELDS else scene.ball, field)
+            for name, field in SCENE_FIELD_OF_START_VALUE.items()}
+
 # FMI 3.0 only, after the shared table, so that every variable above keeps its value reference: the
 # independent variable, the derivatives of the continuous states h and v (model exchange), and the
 # event indicator.
