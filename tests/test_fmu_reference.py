@@ -83,3 +83,20 @@ def test_the_reference_result_passes_bouncingball_check(fmu, capsys):
     assert main(["check", str(reference_path(fmu))]) == 0
     out = capsys.readouterr().out
     assert "points compared    8001" in out and "max |h - h_exact|  0.000e+00 m" in out
+
+
+def test_the_fmi3_fmu_documentation_has_its_start_values_and_its_own_calls(fmu3):
+    """The FMI 3.0 page: start values read from <Float64 start=...> (FMI 3.0 has no ScalarVariable), the
+    FMI 3.0 variables, and fmi3 calls, not fmi2 ones."""
+    from bouncingball.fmu.variables import FMI3_VARIABLES
+
+    with zipfile.ZipFile(fmu3) as archive:
+        page = archive.read("documentation/index.html").decode("utf-8")
+    assert "<td>m</td><td>parameter</td><td>kg</td><td>1</td><td>&gt; 0</td>" in page
+    ball = Ball()
+    assert f"<td>R</td><td>parameter</td><td>m</td><td>{ball.R!r}</td>" in page
+    for variable in FMI3_VARIABLES:
+        assert f"<tr><td>{html.escape(variable.name)}</td>" in page, variable.name
+    variables = page[page.index("<h2>Variables</h2>"):]
+    prose = page.replace(variables[:variables.index("</table>")], "")  # the shared table says what is FMI 2.0's
+    assert "fmi3DoStep" in prose and "early return" in prose and "fmi2" not in prose

@@ -15,7 +15,7 @@ import xml.etree.ElementTree as ET
 from ..physics import Ball
 from ..validation import exact
 from .host_check import TESTED_PYTHON_HOSTS
-from .variables import MODEL_NAME, SMALLEST_POSITIVE, VARIABLES
+from .variables import FMI3_VARIABLES, MODEL_NAME, SMALLEST_POSITIVE, VARIABLES
 
 
 def index_html(model_description: bytes) -> str:
@@ -39,19 +39,25 @@ def index_html(model_description: bytes) -> str:
     True
     """
     root = ET.fromstring(model_description)
-    starts = {}
-    for scalar in root.find("ModelVariables").findall("ScalarVariable"):
-        typed = next(iter(scalar))
-        starts[scalar.get("name")] = typed.get("start", "")
+    fmi3 = root.get("fmiVersion", "").startswith("3")
+    starts = _start_values(root)
     experiment = root.find("DefaultExperiment")
     e = html.escape
+    api = "fmi3" if fmi3 else "fmi2"
+    interfaces = "co-simulation (early return, event mode) and model exchange" if fmi3 else "co-simulation"
+    if fmi3:  # pythonfmu3 passes no tolerance to the slave: rtol is the FMU's own parameter
+        tolerance = ("The master's tolerance (fmi3EnterInitializationMode) is not passed on; the parameter rtol "
+                     "sets CVODE's.")
+    else:
+        tolerance = ("A tolerance a master passes in fmi2SetupExperiment is used as rtol only where it is tighter "
+                     "than rtol; a looser one is not used, and the FMU says so once in its log.")
 
     doc = rendered_docstring
 
     rows = "\n".join(
         f"<tr><td>{e(v.name)}</td><td>{e(v.causality)}{'' if v.type == 'Real' else ', ' + v.type}</td>"
         f"<td>{e(v.unit)}</td><td>{e(starts.get(v.name, ''))}</td><td>{e(_range(v.min, v.max))}</td>"
-        f"<td>{e(v.description)}</td></tr>" for v in VARIABLES)
+        f"<td>{e(v.description)}</td></tr>" for v in (*VARIABLES, *(FMI3_VARIABLES if fmi3 else ())))
     ball = Ball()
     python_version = f"{sys.version_info.major}.{sys.version_info.minor}"  # the build's, as the loader's
     return f"""<!DOCTYPE html>
@@ -61,7 +67,7 @@ def index_html(model_description: bytes) -> str:
 padding: 0.2em 0.5em}} table {{border-collapse: collapse}} code {{background: #eee}}</style></head>
 <body>
 <h1>{MODEL_NAME}</h1>
-<p>{e(root.get("description", ""))}. FMI {e(root.get("fmiVersion", ""))} co-simulation,
+<p>{e(root.get("description", ""))}. FMI {e(root.get("fmiVersion", ""))} {interfaces},
 {e(root.get("generationTool", ""))}.</p>
 {doc(Ball)}
 
@@ -89,16 +95,15 @@ padding: 0.2em 0.5em}} table {{border-collapse: collapse}} code {{background: #e
 </table>
 <p>A range "&gt; 0" is written min="{SMALLEST_POSITIVE!r}" in modelDescription.xml (FMI's min is inclusive).
 Default experiment: {e(experiment.get("startTime", ""))} to {e(experiment.get("stopTime", ""))} s,
-step {e(experiment.get("stepSize", ""))} s, tolerance {e(experiment.get("tolerance", ""))} (the default rtol). A
-tolerance a master passes in fmi2SetupExperiment is used as rtol only where it is tighter than rtol; a looser
-one is not used, and the FMU says so once in its log.</p>
+step {e(experiment.get("stepSize", ""))} s, tolerance {e(experiment.get("tolerance", ""))} (the default rtol).
+{tolerance}</p>
 
 <h2>Events</h2>
 {doc(Ball.event_function)}
-<p>Every fmi2DoStep advances one persistent CVODE integrator and finds every impact and departure
+<p>Every {api}DoStep advances one persistent CVODE integrator and finds every impact and departure
 inside the step by root-finding, so the result does not depend on the communication step. The host
 sees events through the outputs <code>impacts</code> (counted since the start) and
-<code>contact</code>; F_ext is held constant over each communication step.</p>
+<code>contact</code>; F_ext is held constant over each communication step.{_FMI3_EVENTS if fmi3 else ""}</p>
 
 <h2>What the host needs</h2>
 <p>A Python with numpy and scikit-sundae installed. A master that runs Python itself (FMPy,
@@ -107,7 +112,7 @@ libcosimpy) uses its own: an FMU built with CPython 3.11 was run in FMPy under C
 version this FMU was built with, {e(python_version)}: the one it was built with, or else the first
 matching <code>python3</code> on its PATH, which needs a shared libpython (tested with the build's own
 Python). Hence needsExecutionTool="true". Binaries: Linux x86_64 only.
-Invalid parameters give fmi2Error with a message; FMU state can be got, set and serialized.</p>
+Invalid parameters give {api}Error with a message; FMU state can be got, set and serialized.</p>
 
 <h2>How to check a result</h2>
 <p>The reference result of the default experiment (the exact solution, the FMU's outputs on its
@@ -122,6 +127,24 @@ bouncingball check result.csv --start-value g=1.62 --start-value h=1.0 --toleran
 </body>
 </html>
 """
+
+
+_FMI3_EVENTS = """ A master that allows early return gets fmi3DoStep back at each impact and
+departure, at its time, with eventHandlingNeeded when it uses event mode: it can change F_ext exactly
+there. In model exchange the master integrates h and v; the event indicator <code>gap</code> = h - R
+crosses 0 at each event, and fmi3UpdateDiscreteStates switches the mode."""
+
+
+def _start_values(root) -> dict[str, str]:
+    """Each variable's start value as the model description declares it (FMI 2.0 or 3.0)."""
+    starts = {}
+    for variable in root.find("ModelVariables"):
+        if variable.tag == "ScalarVariable":  # FMI 2.0: the start on the typed child
+            starts[variable.get("name")] = next(iter(variable)).get("start", "")
+        else:  # FMI 3.0: on the variable itself, a String's as a <Start value=...> child
+            start = variable.find("Start")
+            starts[variable.get("name")] = variable.get("start", "" if start is None else start.get("value", ""))
+    return starts
 
 
 def rendered_docstring(obj) -> str:

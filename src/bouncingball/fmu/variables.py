@@ -59,8 +59,8 @@ VARIABLES = (
     FmuVariable("F_ext", "Real", "input", "continuous", "external vertical force on the ball, upwards "
                 "positive, held constant over each communication step", "N"),
     FmuVariable("rtol", "Real", "parameter", "fixed", "CVODE relative tolerance, in (0, 1], relative to each "
-                "phase's own scale; a tighter tolerance given in fmi2SetupExperiment replaces it, a looser one "
-                "does not", min=SMALLEST_POSITIVE, max=1.0),
+                "phase's own scale; a tighter tolerance the master gives (FMI 2.0: fmi2SetupExperiment) replaces "
+                "it, a looser one does not", min=SMALLEST_POSITIVE, max=1.0),
     FmuVariable("atol", "Real", "parameter", "fixed", "upper bound on CVODE's absolute error of h (>= 0); 0, "
                 "the default, for none: the error is controlled relative to each phase's own scale", "m", 0.0),
     FmuVariable("method", "String", "parameter", "fixed", "CVODE method: auto (Adams in flight, BDF for a "
