@@ -367,3 +367,18 @@ def test_pooled_cvode_objects_integrate_as_new_ones(engine):
     exact = ExactSolution(Ball(m=0.1, k=1e6, b=3.0, R=0.01, g=1.62), 1.0, 0.0, 0.0, 3.0)
     assert [e.kind for e in other[2]] == [e.kind for e in exact.events]
     assert np.max(np.abs(other[0] - exact.state(output_grid(0.0, 3.0, 1e-3))[0])) <= 1e-8
+
+
+def test_a_state_its_restart_point_does_not_lead_to_continues_from_the_state():
+    """A state put together by hand (another run's restart point) is not followed to where that restart
+    leads: CVODE restarts at the state itself, and the run continues as one started there."""
+    integrator = BallIntegrator(Ball(), 2.0, 0.0)
+    integrator.advance(0.3)  # in the first fall, restarted at t = 0
+    taken = integrator.get_state()
+    moved = dataclasses.replace(taken, h=1.5, gap=1.5 - Ball().R, v=0.0)  # not on the fall from 2 m
+    integrator.set_state(moved)
+    assert (integrator.t, integrator.h, integrator.v) == (0.3, 1.5, 0.0)
+    integrator.advance(2.0)
+    exact = ExactSolution(Ball(), 1.5, 0.0, 0.3, 2.0)
+    assert abs(integrator.h - exact.state([2.0])[0][0]) <= 1e-8
+    assert integrator.impacts == sum(e.kind == "impact" for e in exact.events)

@@ -271,9 +271,13 @@ class BallIntegrator:
             raise
         finally:
             self._report_sundials_warnings()
-        # The state as taken (the same numbers, unless it was a Taylor step within ulps of an earlier
-        # target), and the counters as they were: CVODE's step history is the original's.
-        self._t, self._x, self._v = t, x, v
+        if (self._x, self._v) != (x, v):
+            # Not where this restart point leads (a state made by hand, or one a Taylor step within ulps
+            # of an earlier target reached): CVODE would continue another trajectory, so it restarts at
+            # the state itself, which continues within the tolerance.
+            self._restart_at((t, x, v, mode), F_ext, counts, t_start)
+            return
+        # The counters as they were: CVODE's step history is the original's.
         self._impacts, self._departures, self._last_impact_time, rhs_calls, self._steps = counts
         self._rhs_calls = rhs_calls - self._nfev_since_init
 

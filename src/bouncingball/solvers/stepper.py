@@ -63,7 +63,6 @@ class SksundaePhaseSolver:
                  own_side: float, directions, max_evaluations: int) -> None:
         self.log = SundialsLog()
         self.exceeded = False
-        self._load = 0.0
         self._frame = [1.0, 1.0, 0.0]  # length [m], speed [m/s], hop tolerance [m]
         self._evaluations = 0
         self.bind(ball)
@@ -105,10 +104,12 @@ class SksundaePhaseSolver:
                             num_events=3, jacfn=jac, max_num_steps=max_num_steps)
 
     def bind(self, ball: Ball) -> None:
-        """Integrate ball's equations from now on."""
+        """Integrate ball's equations from now on (F_ext 0 and a unit frame until set), as compiled.PhaseSolver."""
         self._m, self._k, self._b = ball.m, ball.k, ball.b
         self._w2, self._damping = ball.k / ball.m, ball.b / ball.m
         self._g = ball.g
+        self.F_ext = 0.0
+        self.set_frame(1.0, 1.0, 0.0)
 
     @property
     def F_ext(self) -> float:
