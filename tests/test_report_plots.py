@@ -33,7 +33,8 @@ def test_the_stored_work_precision_points_read_back_as_written(tmp_path):
         with open(path, newline="", encoding="utf-8") as file:
             return [row[:-1] for row in csv.reader(file)]
 
-    assert rows(copy) == rows(DOCS / "work_precision.csv") and len(points) == 227
+    stored = rows(DOCS / "work_precision.csv")
+    assert rows(copy) == stored and len(points) == len(stored) - 1 > 200  # every point, the header aside
 
 
 def test_work_precision_groups_the_fmu_series_and_names_the_reference_lines():
