@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..accuracy import Accuracy, accuracy_of, exact_on_grid
+from ..accuracy import Accuracy, ExactOnGrid, accuracy_of, exact_on_grid
 from ..fmu.variables import start_values_of
 from ..scenes import Scene
 from ..solvers import ARTICLE_LABEL
@@ -179,8 +179,13 @@ def _run_fmu(solver: Solver, scene: Scene, tolerances: dict, fmus: FmuPaths | No
 
 def errors_against_exact(scene: Scene, run: Run) -> Accuracy:
     """Compare run with the exact solution on the run's own grid: by its events, or its impacts (FMU)."""
+    return exact_and_errors(scene, run)[1]
+
+
+def exact_and_errors(scene: Scene, run: Run) -> tuple[ExactOnGrid, Accuracy]:
+    """The exact solution on the run's own grid, and errors_against_exact's record from it."""
     exact = exact_on_grid(run.t, scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=0.0)
-    return accuracy_of(exact, run.h, events=run.events, impacts=run.impacts, v=run.v)
+    return exact, accuracy_of(exact, run.h, events=run.events, impacts=run.impacts, v=run.v)
 
 
 EMPTY_SLAVE_SCRIPT = '''\

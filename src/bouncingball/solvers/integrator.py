@@ -109,7 +109,7 @@ class BallIntegrator:
         loaded, started = engines.loaded(), time.perf_counter()
         self.engine, self.engine_reason = choose_engine(self.settings.engine, expected_steps)
         # The phase's frame: CVODE's time is t - origin, its state (x / length, v / speed); see _start_frame.
-        self._frames = {mode: [0.0, 1.0, 1.0, 0.0] for mode in Mode}  # origin, length, speed, hop tolerance
+        self._frames = {mode: [0.0, 1.0, 1.0] for mode in Mode}  # origin, length, speed
         s = self.settings
         self._solvers = {mode: stepper.acquire(self.engine, ball, mode, self.methods[mode], s.rtol, s.max_step,
                                                _MAX_STEPS_PER_CALL, self._own_side(mode),
@@ -155,9 +155,8 @@ class BallIntegrator:
         if s.atol is not None and s.rtol * length > s.atol:
             speed *= s.atol / (s.rtol * length)
             length = s.atol / s.rtol
-        hop = self.hop_tolerance
-        self._frames[mode][:] = self._t, length, speed, hop
-        self._solvers[mode].set_frame(length, speed, hop)
+        self._frames[mode][:] = self._t, length, speed
+        self._solvers[mode].set_frame(length, speed, self.hop_tolerance)
         return self._t, length, speed
 
     # --- read-only view --------------------------------------------------------------------
@@ -376,7 +375,7 @@ class BallIntegrator:
             solver = self._init_phase() if self._needs_init else self._solvers[self._mode]
             # The far target only orients CVODE and bounds its first step: the same for every
             # way of cutting the interval.
-            origin, length, speed, _ = self._frames[self._mode]
+            origin, length, speed = self._frames[self._mode]
             tau_before = self._step_start[0] - origin
             result = solver.step(tau_before + _STEP_HORIZON, method="onestep")
             self._cvode_called = True

@@ -9,7 +9,7 @@ import json
 import os
 import sys
 
-from ..accuracy import accuracy_of, event_mismatches, exact_on_grid
+from ..accuracy import event_mismatches
 from ..bench import runners
 from ..solvers.settings import DEFAULT_RTOL, merged_hop_limit
 from .capped import MEASURES
@@ -48,8 +48,7 @@ def measure(spec: dict) -> dict:
         scene = Cell(spec["k"], spec["zeta"], spec["m"], spec["h0"]).scene(spec["t_end"], spec["output_interval"])
         run = runners.run_solver(solver_spec(spec["solver"]), scene, scene.output_interval,
                                  *tolerances(spec["solver"]))
-        exact = exact_on_grid(run.t, scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=0.0)
-        errors = accuracy_of(exact, run.h, events=run.events, impacts=run.impacts, v=run.v)
+        exact, errors = runners.exact_and_errors(scene, run)
         rtol, atol = tolerances(spec["solver"])
         mismatches = event_mismatches(run.events, exact.solution, HEIGHT_TOLERANCE,
                                       merged_hop_limit(scene.ball, rtol or DEFAULT_RTOL, atol, scene.F_ext))
