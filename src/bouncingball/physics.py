@@ -76,6 +76,11 @@ class Ball:
 
     # --- derived quantities -------------------------------------------------------------
     @property
+    def parameters(self) -> tuple[float, float, float, float, float]:
+        """(m, k, b, R, g): the ball as plain floats, as the phase machine (solvers/phases.py) takes it."""
+        return self.m, self.k, self.b, self.R, self.g
+
+    @property
     def natural_frequency(self) -> float:
         """w = sqrt(k/m) [rad/s] of the contact oscillator."""
         return math.sqrt(self.k / self.m)
@@ -127,10 +132,7 @@ class Ball:
         The gap carries digits that h = R + x rounds away (a deflection of a few ulps of R); the
         integrator and the event searches work in it.
         """
-        if mode == Mode.FLIGHT:
-            g_eff = self.effective_gravity(F_ext)
-            return x0 + tau * (v0 - 0.5 * g_eff * tau), v0 - g_eff * tau
-        return contact_gap_flow(self.b / (2.0 * self.m), self.k / self.m, self.effective_gravity(F_ext), x0, v0, tau)
+        return gap_flow_value(mode, x0, v0, tau, load_value(F_ext, self.m, self.g), self.m, self.k, self.b)
 
     def contact_force(self, h: float, v: float, mode: Mode) -> float:
         """Force of the ground on the ball [N], positive upwards; zero in flight.
@@ -220,14 +222,52 @@ def load_value(F_ext, m, g):
     above R and leaves after 42 s was declared at rest (found by the near-critical property).
     """
     product = m * g
-    split_m, split_g = 134217729.0 * m, 134217729.0 * g  # 2^27 + 1: each factor in two 26-bit halves
-    if not (abs(split_m) < 1e300 and abs(split_g) < 1e300 and abs(product) < 1e300):
+    if not (abs(134217729.0 * m) < 1e300 and abs(134217729.0 * g) < 1e300 and abs(product) < 1e300):
         return product - F_ext
-    m_high = split_m - (split_m - m)
-    g_high = split_g - (split_g - g)
-    m_low, g_low = m - m_high, g - g_high
-    error = ((m_high * g_high - product) + m_high * g_low + m_low * g_high) + m_low * g_low  # product + error = m g
-    return (product - F_ext) + error
+    return (product - F_ext) + _product_error(m, g, product)
+
+
+def _product_error(a, b, product):
+    """a b - product, exactly, for product = a b rounded (Dekker's two-product; factors within 7e291)."""
+    split_a, split_b = 134217729.0 * a, 134217729.0 * b  # 2^27 + 1: each factor in two 26-bit halves
+    a_high = split_a - (split_a - a)
+    b_high = split_b - (split_b - b)
+    a_low, b_low = a - a_high, b - b_high
+    return ((a_high * b_high - product) + a_high * b_low + a_low * b_high) + a_low * b_low
+
+
+def hypot_value(x, y):
+    """sqrt(x^2 + y^2) [the unit of x and y], rounded as Python's math.hypot rounds it; plain floats.
+
+    CPython's algorithm for two values (the sum of squares carried in two doubles, then one
+    correction of the square root), so that the compiled engine's phase scales are the interpreted
+    ones to the bit wherever the result is a normal number: a C library's hypot, which compiled code
+    would call, is at times an ulp off, and a scale an ulp off changes CVODE's steps.
+    """
+    x, y = abs(x), abs(y)
+    largest = max(x, y)
+    if math.isinf(x) or math.isinf(y):
+        return math.inf
+    if math.isnan(x) or math.isnan(y):
+        return math.nan
+    if largest == 0.0:
+        return largest
+    exponent = math.frexp(largest)[1]
+    if exponent < -1023:  # 2^-exponent would overflow: scaled to normal numbers first, as CPython does
+        tiny = 2.2250738585072014e-308
+        return tiny * hypot_value(x / tiny, y / tiny)
+    scale = math.ldexp(1.0, -exponent)
+    total, low_products, low_sums = 1.0, 0.0, 0.0
+    for value in (x * scale, y * scale):
+        square = value * value
+        low_products += _product_error(value, value, square)
+        total, low_sums = total + square, low_sums + ((total - (total + square)) + square)
+    h = math.sqrt(total - 1.0 + (low_products + low_sums))
+    square = -h * h
+    low_products += _product_error(-h, h, square)
+    total, low_sums = total + square, low_sums + ((total - (total + square)) + square)
+    h += (total - 1.0 + (low_products + low_sums)) / (2.0 * h)
+    return h / scale
 
 
 def rest_margin_value(x, v, d, hop_tolerance, w2):
@@ -238,6 +278,17 @@ def rest_margin_value(x, v, d, hop_tolerance, w2):
     contact) and d's where it is far smaller than R (no R - d). See Ball.rest_margin.
     """
     return w2 * (2.0 * d * hop_tolerance - x * (x + 2.0 * d)) - v * v
+
+
+def gap_flow_value(mode, x0, v0, tau, load, m, k, b):
+    """The exact (x [m], v [m/s]) a time tau [s] after (x0, v0) in mode; load = load_value(F_ext, m, g) [N].
+
+    See Ball.gap_flow. Floats or arrays; compiled by the compiled engine.
+    """
+    g_eff = load / m
+    if mode == 0:
+        return x0 + tau * (v0 - 0.5 * g_eff * tau), v0 - g_eff * tau
+    return contact_gap_flow(b / (2.0 * m), k / m, g_eff, x0, v0, tau)
 
 
 def contact_gap_flow(sigma: float, w2: float, g_eff: float, x0, v0, tau):
@@ -266,21 +317,25 @@ def unit_response(sigma: float, w2: float, tau):
     so there its Taylor series is summed; the over-damped closed form is written with expm1 of each
     rate, which cancels only where the series is used. Floats or arrays.
     """
-    rate = sigma + math.sqrt(w2)
     if isinstance(tau, float):
-        if rate * abs(tau) <= _SERIES_REACH:
-            return _series_response(sigma, w2, tau)
         try:
-            return _closed_response(math, sigma, w2, tau)
+            return unit_response_value(sigma, w2, tau)
         except OverflowError:  # numpy's inf, as for an array
             pass
     tau = np.asarray(tau, dtype=float)
-    near = rate * np.abs(tau) <= _SERIES_REACH
+    near = (sigma + math.sqrt(w2)) * np.abs(tau) <= _SERIES_REACH
     out = np.empty_like(tau)
     out[near] = _series_response(sigma, w2, tau[near])
     with np.errstate(over="ignore", invalid="ignore"):
         out[~near] = _closed_response(np, sigma, w2, tau[~near])
     return out
+
+
+def unit_response_value(sigma: float, w2: float, tau: float) -> float:
+    """unit_response of a float tau with the math module (which raises OverflowError where numpy gives inf)."""
+    if (sigma + math.sqrt(w2)) * abs(tau) <= _SERIES_REACH:
+        return _series_response(sigma, w2, tau)
+    return _closed_response(math, sigma, w2, tau)
 
 
 def _series_response(sigma: float, w2: float, tau):
@@ -316,10 +371,16 @@ def oscillator_basis(sigma: float, w2: float, tau):
     """
     if isinstance(tau, float):
         try:
-            return _oscillator_basis(math, sigma, w2, tau)
+            return oscillator_basis_value(sigma, w2, tau)
         except OverflowError:  # numpy's inf, as for an array
             pass
-    return _oscillator_basis(np, sigma, w2, tau)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _oscillator_basis(np, sigma, w2, tau)
+
+
+def oscillator_basis_value(sigma: float, w2: float, tau: float) -> tuple[float, float]:
+    """oscillator_basis of a float tau with the math module (which raises OverflowError where numpy gives inf)."""
+    return _oscillator_basis(math, sigma, w2, tau)
 
 
 def _oscillator_basis(xp, sigma: float, w2: float, tau):
@@ -334,11 +395,9 @@ def _oscillator_basis(xp, sigma: float, w2: float, tau):
     mu = math.sqrt(disc)
     slow = xp.exp(-w2 / (sigma + mu) * tau)  # the small root computed without cancellation
     fast = xp.exp(-(sigma + mu) * tau)
-    if xp is math:
+    if isinstance(tau, float):  # not `xp is math`, which numba's compiled code takes as False
         if 2.0 * mu * tau < 1.0:
             return 0.5 * (slow + fast), fast * math.expm1(2.0 * mu * tau) / (2.0 * mu)
         return 0.5 * (slow + fast), (slow - fast) / (2.0 * mu)
-    with np.errstate(over="ignore", invalid="ignore"):
-        near = fast * np.expm1(2.0 * mu * tau) / (2.0 * mu)
-        s = np.where(2.0 * mu * tau < 1.0, near, (slow - fast) / (2.0 * mu))
-    return 0.5 * (slow + fast), s
+    near = fast * np.expm1(2.0 * mu * tau) / (2.0 * mu)
+    return 0.5 * (slow + fast), np.where(2.0 * mu * tau < 1.0, near, (slow - fast) / (2.0 * mu))

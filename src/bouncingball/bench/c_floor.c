@@ -230,7 +230,8 @@ static void phase_scales(const struct run *r, int mode, double x, double v, doub
     if (mode == FLIGHT) {
         if (r->g_eff > 0.0) {
             double up = v > 0.0 ? v : 0.0;
-            *length = (x > 0.0 ? x : 0.0) + 0.5 * pow(up / sqrt(r->g_eff), 2.0);
+            double rise = up / sqrt(r->g_eff);
+            *length = (x > 0.0 ? x : 0.0) + 0.5 * (rise * rise);
             *speed = sqrt(2.0 * r->g_eff * *length);
             return;
         }

@@ -32,6 +32,7 @@ import importlib.util
 import os
 import weakref
 from dataclasses import dataclass
+from types import FunctionType
 
 import numpy as np
 from llvmlite import ir
@@ -39,6 +40,7 @@ from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
 from .. import physics
+from . import dense_output, exact, machine, phases
 from .stepper import PhaseResult
 from .sundials_log import SundialsLog
 
@@ -287,8 +289,40 @@ def _cache_here() -> bool:
 
 _CACHE = _cache_here()
 
-_acceleration = njit(physics.gap_acceleration, cache=_CACHE)
-_rest_margin = njit(physics.rest_margin_value, cache=_CACHE)
+
+def _compiled_together(functions, bound):
+    """numba-compiled copies of plain functions, each one's calls to the others bound to their compiled copies.
+
+    functions: plain Python functions of floats and arrays (physics, phases, machine, dense_output);
+    bound: {plain function: its stand-in}, for what only runs interpreted as written (an engine's
+    calls, a float-or-array dispatch); a stand-in among functions is taken compiled. Each copy reads
+    a copy of its module's globals in which every one of those functions is replaced, so the source
+    stays the one that runs interpreted. Returns {plain function: compiled copy}.
+    """
+    compiled, namespaces = {}, []
+    for function in functions:
+        namespace = dict(function.__globals__)
+        copy = FunctionType(function.__code__, namespace, function.__name__, function.__defaults__,
+                            function.__closure__)
+        copy.__qualname__ = function.__qualname__
+        compiled[function] = njit(copy, cache=_CACHE)
+        namespaces.append(namespace)
+    replacements = {id(plain): compiled.get(stand_in, stand_in) for plain, stand_in in bound.items()}
+    replacements.update({id(plain): copy for plain, copy in compiled.items()})
+    for namespace in namespaces:
+        for name, value in namespace.items():
+            if id(value) in replacements:
+                namespace[name] = replacements[id(value)]
+    return compiled
+
+
+_PHYSICS = (physics.gap_acceleration, physics.rest_margin_value, physics.gap_flow_value, physics.contact_gap_flow,
+            physics.oscillator_basis_value, physics.unit_response_value, physics._oscillator_basis,
+            physics._closed_response, physics._series_response, physics.hypot_value, physics._product_error)
+_physics = _compiled_together(_PHYSICS, {physics.oscillator_basis: physics.oscillator_basis_value,
+                                         physics.unit_response: physics.unit_response_value})
+_acceleration = _physics[physics.gap_acceleration]
+_rest_margin = _physics[physics.rest_margin_value]
 
 _callback_data = types.CPointer(types.intp)
 
@@ -340,7 +374,7 @@ def _jacobian(t, y, fy, matrix, user_data, tmp1, tmp2, tmp3):
 _LOOP_FUNCTIONS = ("CVode", "CVodeGetRootInfo", "CVodeReInit", "CVodeSetStopTime", "CVodeClearStopTime",
                    "CVodeGetNumRhsEvals")
 _CVODE, _ROOT_INFO, _REINIT, _SET_STOP, _CLEAR_STOP, _NUM_RHS = range(len(_LOOP_FUNCTIONS))
-_BUFFER_FULL = 99
+_BUFFER_FULL = machine.BUFFER_FULL
 
 
 @njit(cache=_CACHE)
@@ -404,6 +438,59 @@ def _finish_phase(f, memory, counter):
     if flag < 0:
         return flag
     return _call_i2(f[_NUM_RHS], memory, counter.ctypes.data)
+
+
+# --- the phase machine's engine (solvers/machine.py's engine_* calls), over one PhaseSolver.handle() per mode ---
+@njit(cache=_CACHE)
+def _engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load):
+    calls, memory, vector, state, parameters, user_data, work, counter = engine[mode]
+    parameters[_P_LENGTH], parameters[_P_SPEED], parameters[_P_HOP], parameters[_P_LOAD] = length, speed, hop, load
+    # the Jacobian in the scaled variables (x / length, v / speed), as PhaseSolver.set_frame
+    contact = mode == 1
+    parameters[_P_J00], parameters[_P_J01] = 0.0, 1.0 * speed / length
+    parameters[_P_J10] = (-parameters[_P_K] / parameters[_P_M] if contact else 0.0) * length / speed
+    parameters[_P_J11] = -parameters[_P_B] / parameters[_P_M] if contact else 0.0
+    user_data[_U_EVALUATIONS] = 0
+    state[0], state[1] = y0, y1
+    flag = _call_i3(calls[_REINIT], memory, 0.0, vector)
+    if flag < 0:
+        return flag
+    return _call_i2(calls[_SET_STOP], memory, t_stop)
+
+
+@njit(cache=_CACHE)
+def _engine_steps(engine, mode, scratch, t_stop):
+    calls, memory, vector, state, parameters, user_data, work, counter = engine[mode]
+    flag, count = _steps(calls, memory, vector, state, t_stop, scratch, 0, False, work)
+    if flag == CV_ROOT_RETURN:
+        scratch[count - 1, 3], scratch[count - 1, 4] = work[1], work[3]
+    return flag, count, scratch
+
+
+@njit(cache=_CACHE)
+def _engine_finish(engine, mode):
+    calls, memory, vector, state, parameters, user_data, work, counter = engine[mode]
+    flag = _finish_phase(calls, memory, counter)
+    return flag, counter[0]
+
+
+@njit(cache=_CACHE)
+def _engine_exceeded(engine, mode):
+    user_data = engine[mode][5]
+    return user_data[_U_EVALUATIONS] > user_data[_U_MAX_EVALUATIONS]
+
+
+_machine = _compiled_together(
+    _PHYSICS + (machine.run_phases, machine._cvode_phase, machine._switch_mode, machine._record, machine._grown,
+                machine._ulp, phases.phase_scales, phases.frame, phases.contact_unresolved, phases.rest_decision,
+                phases.closed_form, phases.flight_impact, phases.polish_event, phases.side_margin,
+                phases.on_wrong_side, phases.taylor_step, exact.time_to_impact, dense_output.step_state,
+                dense_output.fill_grid),
+    {physics.oscillator_basis: physics.oscillator_basis_value, physics.unit_response: physics.unit_response_value,
+     machine.engine_start: _engine_start, machine.engine_steps: _engine_steps, machine.engine_finish: _engine_finish,
+     machine.engine_exceeded: _engine_exceeded})
+run_phases = _machine[machine.run_phases]
+fill_grid = _machine[dense_output.fill_grid]
 
 
 # CVODE's return flags (cvode.h) and what the failures mean (CVODE's documentation of CVode). Our own
@@ -570,6 +657,18 @@ class PhaseSolver:
             return
         self._state[:] = y0
         self._check("CVodeReInit", self._lib.functions["CVodeReInit"](self._memory, t0, self._handles["vector"]))
+
+    def handle(self) -> tuple:
+        """What the compiled phase machine calls this solver's CVODE through (its CVODE made on first use)."""
+        if not self._handles:
+            with self.log.capturing():
+                self._setup(0.0, (0.0, 0.0))
+        return (self._calls, self._memory, self._handles["vector"], self._state, self.parameters, self._user_data,
+                self._work, self._counter)
+
+    def message(self, flag: int) -> str:
+        """CVODE's flag in words."""
+        return self._message(flag)
 
     def step(self, t_toward: float, method: str = "onestep") -> PhaseResult:
         """One internal step toward t_toward; its end, or the root it stopped at."""

@@ -13,47 +13,62 @@ grow for b >= 0), plus the mismatch, which is CVODE's local error over the step.
 A Hermite interpolant built from the derivatives at the step ends does not have that bound: in
 contact the derivatives are k/m times a state error, so over a step of many contact periods (the
 long steps CVODE takes while the ball rests) it multiplies a tiny state error by (w dt)^2.
+
+step_state and fill_grid take plain floats and arrays: the compiled engine compiles them (a grid
+filled in one compiled pass), the scikit-sundae engine fills its grid with interpolate, in numpy.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..physics import Ball, Mode
+from ..physics import gap_flow_value
 
 
-def step_state(ball: Ball, F_ext: float, mode: Mode, start, end, t):
-    """The gap x = h - R [m] and v [m/s] at t on the step from start = (t0, x0, v0) to end = (t1, x1, v1) in mode.
+def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
+    """The gap x = h - R [m] and v [m/s] at t on the step from (t0, x0, v0) to (t1, x1, v1) in mode.
 
-    In the gap, which carries the digits of a deflection that h = R + x rounds away. Scalars or
-    arrays (one step per element); t0 <= t <= t1. A step of zero length gives its start.
+    parameters: the ball's (m, k, b, R, g); load: m g - F_ext [N]. In the gap, which carries the
+    digits of a deflection that h = R + x rounds away. Floats, or arrays with one step per element;
+    t0 <= t <= t1. A step of zero length gives its start.
     """
-    (t0, x0, v0), (t1, x1, v1) = start, end
+    m, k, b = parameters[0], parameters[1], parameters[2]
     dt = t1 - t0
-    x_end, v_end = ball.gap_flow(mode, x0, v0, dt, F_ext)
+    x_end, v_end = gap_flow_value(mode, x0, v0, dt, load, m, k, b)
     tau = t - t0
     if isinstance(dt, float):
         s = tau / dt if dt > 0.0 else 0.0
     else:
         s = tau / np.where(dt > 0.0, dt, np.inf)
-    x, v = ball.gap_flow(mode, x0, v0, tau, F_ext)
+    x, v = gap_flow_value(mode, x0, v0, tau, load, m, k, b)
     return x + s * (x1 - x_end), v + s * (v1 - v_end)
 
 
-def interpolate(ball: Ball, F_ext: float, ts: np.ndarray, xs: np.ndarray, vs: np.ndarray, modes: np.ndarray,
-                t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Gap x = h - R and v at the increasing times t from CVODE's step ends (ts, xs, vs) and the mode of each.
+def interpolate(parameters, load: float, points: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Gap x = h - R and v at the increasing times t from CVODE's step ends, points rows (t, x, v, mode).
 
     Consecutive points of different modes share their time (an event): that segment has zero
     length and is never used inside a step.
     """
+    ts, xs, vs, modes = points[:, 0], points[:, 1], points[:, 2], points[:, 3]
     i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
     j = i + 1
     x = np.empty_like(t)
     v = np.empty_like(t)
-    for mode in Mode:
+    for mode in (0, 1):
         sel = modes[i] == mode
         if np.any(sel):
             a, b = i[sel], j[sel]
-            x[sel], v[sel] = step_state(ball, F_ext, mode, (ts[a], xs[a], vs[a]), (ts[b], xs[b], vs[b]), t[sel])
+            x[sel], v[sel] = step_state(parameters, load, mode, ts[a], xs[a], vs[a], ts[b], xs[b], vs[b], t[sel])
     return x, v
+
+
+def fill_grid(parameters, load, points, n_points, t, x, v):
+    """interpolate, one grid time after the other (x and v filled in place): the compiled engine's grid fill."""
+    i = 0
+    for n in range(t.shape[0]):
+        while i < n_points - 2 and points[i + 1, 0] <= t[n]:
+            i += 1
+        x[n], v[n] = step_state(parameters, load, int(points[i, 3]), points[i, 0], points[i, 1], points[i, 2],
+                                points[i + 1, 0], points[i + 1, 1], points[i + 1, 2], t[n])
+

@@ -18,10 +18,11 @@ import numpy as np
 from .. import limits, validation
 from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode, gap_acceleration, load_value
-from . import engines, phases, stepper
+from . import engines, machine, phases, stepper
 from . import state as state_checks
 from .dense_output import interpolate, step_state
 from .engines import choose_engine
+from .exact import time_to_departure, velocity_at_departure
 from .result import DEPARTURE, IMPACT, Event
 from .settings import CvodeSettings, choose_method, hop_tolerance
 from .state import IntegratorState, RestartPoint
@@ -32,6 +33,8 @@ _CV_ROOT_RETURN = 2
 _OWN_SIDE = 1e-300
 _STEP_HORIZON = 1.0  # s; see advance()
 _MAX_STEPS_PER_CALL = 1_000_000
+_STEP_BUDGET = 20_000  # CVODE steps per call of the phase machine: then Python runs (progress, Ctrl-C)
+_SCRATCH_ROWS = 512  # step ends the compiled engine hands over at a time
 # A phase that needs more steps than this is a method fighting stiffness (Adams creeping through
 # an over-damped contact on a k = 1e12 spring): fail with a reason instead of running for hours.
 MAX_STEPS_PER_PHASE = 500_000
@@ -148,13 +151,11 @@ class BallIntegrator:
     def _start_frame(self) -> tuple[float, float, float]:
         """Fix the current phase's frame at the current state; (origin [s], length [m], speed [m/s]).
 
-        Scales from phase_scales, capped so that rtol length <= atol where atol is given.
+        Scales from phases.frame.
         """
         s, mode = self.settings, self._mode
-        length, speed = phases.phase_scales(self.ball, mode, self._x, self._v, self._F_ext)
-        if s.atol is not None and s.rtol * length > s.atol:
-            speed *= s.atol / (s.rtol * length)
-            length = s.atol / s.rtol
+        length, speed = phases.frame(self.ball.parameters, mode, self._x, self._v, self._load, s.rtol,
+                                     0.0 if s.atol is None else s.atol)
         self._frames[mode][:] = self._t, length, speed
         self._solvers[mode].set_frame(length, speed, self.hop_tolerance)
         return self._t, length, speed
@@ -351,7 +352,7 @@ class BallIntegrator:
             if segment is not None:
                 mode, start, end = segment
                 if t_target <= end[0]:
-                    x, v = step_state(self.ball, self._F_ext, mode, start, end, t_target)
+                    x, v = step_state(self.ball.parameters, self._load, mode, *start, *end, t_target)
                     self._t, self._x, self._v = t_target, float(x), float(v)
                     break
                 if self._event_pending is not None:
@@ -363,8 +364,9 @@ class BallIntegrator:
             if self._rest_from is None and self._needs_init and self._at_rest():
                 self._rest_from = (self._t, self._x, self._v)
             if self._rest_from is not None:
-                x, v = phases.rest_state(self.ball, self._rest_from, t_target, self._F_ext)
-                self._t, self._x, self._v = t_target, x, v
+                t0, x0, v0 = self._rest_from
+                x, v = self.ball.gap_flow(Mode.CONTACT, x0, v0, t_target - t0, self._F_ext)
+                self._t, self._x, self._v = t_target, float(x), float(v)
                 break
             if self._close_enough(t_target):
                 break
@@ -386,7 +388,8 @@ class BallIntegrator:
             if result.status == _CV_ROOT_RETURN:
                 roots = solver.roots_found()
                 if roots[0]:
-                    tau, v = self._polish_event(tau_before, (tau, x, v))
+                    tau, v = phases.polish_event(self.ball.parameters, self._mode, self._load, length, tau_before,
+                                                 tau, x, v)
                     end = self._event_pending = (origin + tau, 0.0, v)
                 elif roots[2]:
                     self._rest_from = end
@@ -411,87 +414,107 @@ class BallIntegrator:
             self._report_sundials_warnings()
 
     def _integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
-        t_end = grid[-1]
+        t_end = float(grid[-1])
         check_resolvable(self.ball, t_end)
-        times, gaps, velocities, modes = [], [], [], []
-        events: list[Event] = []
-
-        def record(ts, xs, vs, mode: Mode) -> None:
-            """Keep a piece of trajectory in one mode (gaps x = h - R), and move to its last point."""
-            times.append(ts)
-            gaps.append(xs)
-            velocities.append(vs)
-            modes.append(np.full(len(ts), int(mode)))
-            self._t, self._x, self._v = float(ts[-1]), float(xs[-1]), float(vs[-1])
-
-        def record_to(end: tuple[float, float, float], mode: Mode) -> None:
-            """A piece from here to end = (t, x, v) on the mode's exact flow."""
-            record(np.array([self._t, end[0]]), np.array([self._x, end[1]]), np.array([self._v, end[2]]), mode)
-
-        record(np.array([self._t]), np.array([self._x]), np.array([self._v]), self._mode)
         self._reinit_needed()
-        resting = False  # set when CVODE stops at the start of a rest
-        while self._t < t_end and not self._close_enough(t_end):
+        run_phases, fill_grid = stepper.phase_machine(self.engine)
+        last_impact = math.nan if self._last_impact_time is None else self._last_impact_time
+        state = machine.new_state(self._t, self._x, self._v, int(self._mode), self._load, self.hop_tolerance,
+                                  self._impacts, self._departures, last_impact, self._steps, self._rhs_calls)
+        points, events, scratch = np.empty((256, 4)), np.empty((16, 3)), np.empty((_SCRATCH_ROWS, 5))
+        points[0] = self._t, self._x, self._v, int(self._mode)
+        n_points, n_events = 1, 0
+        engine = tuple(self._solvers[mode].handle() for mode in Mode)
+        s = self.settings
+        atol = 0.0 if s.atol is None else s.atol
+        while True:
             if self.progress is not None:
-                self.progress(self._t)
-            mode = self._mode
-            if resting or self._at_rest():
-                self._rest_from = (self._t, self._x, self._v)
-                record_to((t_end, *phases.rest_state(self.ball, self._rest_from, t_end, self._F_ext)), mode)
-                break
-            event = self._event_in_closed_form()
-            if event is not None:
-                reached = event[0] <= t_end
-                if not reached:
-                    x_end, v_end = self.ball.gap_flow(mode, self._x, self._v, t_end - self._t, self._F_ext)
-                    event = (t_end, float(x_end), float(v_end))
-                record_to(event, mode)
-                if reached:
-                    events.append(self._switch_mode())
-                continue
-            solver = self._solvers[mode]
-            origin, length, speed = self._start_frame()
-            with solver.log.capturing():
-                result = solver.solve(np.array([0.0, t_end - origin]), np.array([self._x / length, self._v / speed]))
+                self.progress(float(state[machine.T]))
+            status, points, n_points, events, n_events = run_phases(
+                engine, self.ball.parameters, s.rtol, atol, state, t_end, points, n_points, events, n_events, scratch,
+                _STEP_BUDGET)
             self._cvode_called = True
-            self._check(result)
-            taus, xs, vs = result.t.copy(), length * result.y[:, 0], speed * result.y[:, 1]
-            xs[0], vs[0] = self._x, self._v  # the phase's start as it was, not scaled and back
-            roots = solver.roots_found() if result.status == _CV_ROOT_RETURN else [0, 0, 0]
-            root, resting = bool(roots[0]), bool(roots[2])
-            if root:
-                tau_before = float(taus[-2])
-                taus[-1], vs[-1] = self._polish_event(tau_before, (float(taus[-1]), float(xs[-1]), float(vs[-1])))
-                xs[-1] = 0.0
-                self._check_step_ends(origin + tau_before, xs[:-1])
+            if status == machine.DONE:
+                break
+            if status == machine.HANDOFF:
+                points, n_points, events, n_events = self._phase_on_exact_flow(state, t_end, points, n_points,
+                                                                               events, n_events)
+            elif status != machine.RETURNED:
+                raise self._machine_failure(status, state)
+        self._t, self._x, self._v = float(state[machine.T]), float(state[machine.X]), float(state[machine.V])
+        self._mode = Mode(int(state[machine.MODE]))
+        self._impacts, self._departures = int(state[machine.IMPACTS]), int(state[machine.DEPARTURES])
+        last_impact = float(state[machine.LAST_IMPACT])
+        self._last_impact_time = None if math.isnan(last_impact) else last_impact
+        self._steps, self._rhs_calls = int(state[machine.STEPS]), int(state[machine.RHS_CALLS])
+        self._reinit_needed()
+        if not math.isnan(state[machine.REST_T]):
+            self._rest_from = (float(state[machine.REST_T]), float(state[machine.REST_X]),
+                               float(state[machine.REST_V]))
+        points = points[:n_points]
+        if fill_grid is None:
+            x_out, v_out = interpolate(self.ball.parameters, self._load, points, grid)
+        else:
+            x_out, v_out = np.empty_like(grid), np.empty_like(grid)
+            fill_grid(self.ball.parameters, self._load, points, n_points, grid, x_out, v_out)
+        kinds = (IMPACT, DEPARTURE)
+        return self.ball.R + x_out, v_out, [Event(float(t), kinds[int(kind)], float(v))
+                                            for t, kind, v in events[:n_events]]
+
+    def _phase_on_exact_flow(self, state, t_end, points, n_points, events, n_events):
+        """The phase the machine handed back (phases.UNDECIDED): a contact decided by the search for its departure.
+
+        A rest if it never departs (the machine takes it on); its departure in closed form if CVODE
+        cannot resolve it or F_ext lifts the ball; else CVODE integrates it after all.
+        """
+        t, x, v, load, hop = (float(state[i]) for i in (machine.T, machine.X, machine.V, machine.LOAD, machine.HOP))
+        parameters, rtol = self.ball.parameters, self.settings.rtol
+        departs = not math.isinf(tau := time_to_departure(self.ball, x, v, self._F_ext))
+        if not departs and phases.rest_decision(parameters, Mode.CONTACT, x, v, load, hop, rtol) == phases.UNDECIDED:
+            state[machine.RESTING] = 1.0
+        elif departs and phases.closed_form(parameters, Mode.CONTACT, x, v, load, hop, rtol) == phases.UNDECIDED:
+            points, n_points = machine._record(points, n_points, t, x, v, Mode.CONTACT)
+            if t + tau <= t_end:
+                v_departure = velocity_at_departure(self.ball, x, v, tau, self._F_ext)
+                points, n_points = machine._record(points, n_points, t + tau, 0.0, v_departure, Mode.CONTACT)
+                state[machine.T], state[machine.X], state[machine.V] = t + tau, 0.0, v_departure
+                events, n_events = machine._switch_mode(state, events, n_events)
             else:
-                self._check_step_ends(origin + float(taus[-1]), xs)
-            ts = origin + taus
-            if not (root or resting):  # CVODE stopped at t_end - origin, which may round off t_end
-                ts[-1] = t_end
-            # A phase's first point is the previous phase's last: one copy per mode, so that no
-            # dense-output segment straddles the switch.
-            record(ts, xs, vs, mode)
-            self._steps += len(ts) - 1
-            self._rhs_calls += int(result.nfev)
-            if root:
-                events.append(self._switch_mode())
-        if self._t > times[-1][-1]:  # finished by a Taylor step within a few ulps of t_end
-            record(np.array([self._t]), np.array([self._x]), np.array([self._v]), self._mode)
-        x_out, v_out = interpolate(self.ball, self._F_ext, np.concatenate(times), np.concatenate(gaps),
-                                   np.concatenate(velocities), np.concatenate(modes), grid)
-        return self.ball.R + x_out, v_out, events
+                x_end, v_end = self.ball.gap_flow(Mode.CONTACT, x, v, t_end - t, self._F_ext)
+                points, n_points = machine._record(points, n_points, t_end, float(x_end), float(v_end), Mode.CONTACT)
+                state[machine.T], state[machine.X], state[machine.V] = t_end, x_end, v_end
+        else:
+            state[machine.DECIDED] = 1.0  # CVODE integrates it
+        return points, n_points, events, n_events
+
+    def _machine_failure(self, status: int, state) -> SolverError:
+        mode, t = Mode(int(state[machine.MODE])), float(state[machine.FAIL_T])
+        if status == machine.TOO_MANY_STEPS:
+            return self._too_many_steps(mode, t)
+        if status == machine.STEPPED_OVER:
+            return self._stepped_over(mode, t, float(state[machine.FAIL_X]))
+        h, v = self.ball.R + float(state[machine.X]), float(state[machine.V])
+        message = self._solvers[mode].message(int(state[machine.FAIL_FLAG]))
+        return SolverError(f"CVODE failed at t = {t!r} s ({mode.name.lower()}, h = {h!r} m, v = {v!r} m/s): {message}")
 
     def _at_rest(self) -> bool:
-        return phases.at_rest(self.ball, self._mode, self._x, self._v, self._F_ext, self.hop_tolerance,
-                              self.settings.rtol)
+        decision = phases.rest_decision(self.ball.parameters, self._mode, self._x, self._v, self._load,
+                                        self.hop_tolerance, self.settings.rtol)
+        return decision == 1 or (decision == phases.UNDECIDED
+                                 and math.isinf(time_to_departure(self.ball, self._x, self._v, self._F_ext)))
 
     def _event_in_closed_form(self) -> tuple[float, float, float] | None:
-        return phases.event_in_closed_form(self.ball, self._mode, self._t, self._x, self._v, self._F_ext,
-                                           self.hop_tolerance, self.settings.rtol)
-
-    def _polish_event(self, tau_before: float, root: tuple[float, float, float]) -> tuple[float, float]:
-        return phases.polish_event(self.ball, self._mode, self._F_ext, self._frames[self._mode][1], tau_before, root)
+        """The event ending the phase from the current state if CVODE is not to integrate it (phases.closed_form)."""
+        parameters, x, v = self.ball.parameters, self._x, self._v
+        closed = phases.closed_form(parameters, self._mode, x, v, self._load, self.hop_tolerance, self.settings.rtol)
+        if closed == 1:
+            tau, v_impact = phases.flight_impact(parameters, x, v, self._load)
+            return self._t + tau, 0.0, v_impact
+        if closed == phases.UNDECIDED:
+            tau = time_to_departure(self.ball, x, v, self._F_ext)
+            if not math.isinf(tau):
+                return self._t + tau, 0.0, velocity_at_departure(self.ball, x, v, tau, self._F_ext)
+        return None
 
     def _report_sundials_warnings(self) -> None:
         if self._cvode_called:
@@ -501,25 +524,23 @@ class BallIntegrator:
 
     def _check_side(self, t: float, x: float) -> None:
         """A step end (gap x [m] at t) must lie on the mode's side of R: else CVODE stepped over an event unseen."""
-        flight = self._mode == Mode.FLIGHT
         margin = phases.side_margin(self.hop_tolerance, self.settings.rtol, self._frames[self._mode][1])
-        if (x < -margin) if flight else (x > margin):
-            R = self.ball.R
-            raise SolverError(f"CVODE stepped over an {'impact' if flight else 'departure'} unseen near "
-                              f"t = {t!r} s (h = {R + x!r} m, R = {R!r} m); "
-                              "the result would be wrong: tighten rtol/atol or set max_step")
+        if phases.on_wrong_side(self._mode, x, margin):
+            raise self._stepped_over(self._mode, t, x)
 
-    def _check_step_ends(self, t: float, gaps: np.ndarray) -> None:
-        """_check_side for a phase's step ends up to t: only the extreme on the side an unseen event would leave."""
-        self._check_side(t, float(gaps.min() if self._mode == Mode.FLIGHT else gaps.max()))
+    def _stepped_over(self, mode: Mode, t: float, x: float) -> SolverError:
+        R = self.ball.R
+        return SolverError(f"CVODE stepped over an {'impact' if mode == Mode.FLIGHT else 'departure'} unseen near "
+                           f"t = {t!r} s (h = {R + x!r} m, R = {R!r} m); "
+                           "the result would be wrong: tighten rtol/atol or set max_step")
 
     def _close_enough(self, t_target: float) -> bool:
         """Within a few ulps of t_target CVODE refuses to step (CV_TOO_CLOSE): finish by Taylor."""
         dt = t_target - self._t
         if dt > 32.0 * math.ulp(max(abs(t_target), abs(self._t), 1e-300)):
             return False
-        a = self.acceleration
-        self._t, self._x, self._v = t_target, self._x + dt * (self._v + 0.5 * dt * a), self._v + dt * a
+        x, v = phases.taylor_step(self.ball.parameters, self._mode, self._x, self._v, self._load, dt)
+        self._t, self._x, self._v = t_target, x, v
         return True
 
     def _check(self, result) -> None:

@@ -24,10 +24,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..physics import Ball, Mode, gap_acceleration, load_value, rest_margin_value
-from . import sksundae_events
+from . import machine, sksundae_events
 from .sundials_log import ErrorsOffStdout, SundialsLog
 
 CV_RTFUNC_FAIL = -12
+CV_TSTOP_RETURN, CV_ROOT_RETURN = 1, 2
 _POOL_SIZE = 4  # solvers kept per kind: the sweep's worker threads each hold one integrator at a time
 
 
@@ -158,9 +159,58 @@ class SksundaePhaseSolver:
         except _TooManyEvaluations as stop:
             return self._exceeded(float(stop.args[0]))
 
+    # --- the phase machine's engine calls (solvers/machine.py: engine_start, engine_steps, engine_finish) ---
+    def start(self, t_stop: float, y0: float, y1: float, length: float, speed: float, hop: float,
+              load: float) -> int:
+        """Take the phase's frame and start: solve from (y0, y1) at 0 to t_stop happens in steps()."""
+        self.set_frame(length, speed, hop)
+        self._load, self._start = load, (t_stop, y0, y1)
+        return 0
+
+    def steps(self, scratch: np.ndarray, t_stop: float):
+        """The phase's step ends after its start, rows (tau, y0, y1, gap root, rest root); (flag, count, scratch)."""
+        with self.log.capturing():
+            result = self.solve(np.array([0.0, t_stop]), np.array(self._start[1:]))
+        self.result = result
+        if result.status < 0:
+            return result.status, 0, scratch
+        count = len(result.t) - 1
+        if count > scratch.shape[0]:
+            scratch = np.empty((count, scratch.shape[1]))
+        scratch[:count, 0], scratch[:count, 1:3] = result.t[1:], result.y[1:]
+        flag = CV_ROOT_RETURN if result.status == CV_ROOT_RETURN else CV_TSTOP_RETURN
+        if flag == CV_ROOT_RETURN:
+            roots = self.roots_found()
+            scratch[count - 1, 3], scratch[count - 1, 4] = roots[0], roots[2]
+        return flag, count, scratch
+
+    def finish(self) -> tuple[int, int]:
+        """The phase's end: (0, its right-hand-side evaluations)."""
+        return 0, int(self.result.nfev)
+
+    def handle(self) -> SksundaePhaseSolver:
+        """What the interpreted phase machine calls: the solver itself."""
+        return self
+
+    def message(self, flag: int) -> str:
+        """The last failure's message, as scikit-sundae gave it."""
+        return self.result.message
+
     def _exceeded(self, t: float) -> PhaseResult:
         self.exceeded = True
         return PhaseResult(np.array([t]), np.full((1, 2), np.nan), CV_RTFUNC_FAIL, "too many steps", 0)
+
+
+def phase_machine(engine: str):
+    """(run_phases, fill_grid) of engine: machine.run_phases compiled with its grid fill, or interpreted and None.
+
+    None: the grid is filled by dense_output.interpolate, in numpy.
+    """
+    if engine == "compiled":
+        from . import compiled
+
+        return compiled.run_phases, compiled.fill_grid
+    return machine.run_phases, None
 
 
 _pool: dict[tuple, list] = {}
