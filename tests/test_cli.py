@@ -320,12 +320,24 @@ def test_a_long_run_shows_its_progress_on_a_terminal_only():
     assert "simulated time" not in _cli(*args[3:]).stderr  # not a terminal: no bar
 
 
-@pytest.mark.parametrize("solver", ["cvode", "scipy"])
-def test_progress_is_told_the_time_reached_phase_by_phase(solver):
+def test_scipy_progress_is_told_the_time_reached_phase_by_phase():
     import bouncingball
 
     reached = []
-    result = bouncingball.simulate(Ball(), 2.0, 0.0, 8.0, solver=solver, progress=reached.append)
+    result = bouncingball.simulate(Ball(), 2.0, 0.0, 8.0, solver="scipy", progress=reached.append)
     impacts = [event.time for event in result.events if event.kind == "impact"]
     assert reached[0] == 0.0 and all(a < b for a, b in zip(reached, reached[1:], strict=False))
     assert len(reached) >= len(result.events) and reached[-1] >= impacts[-1]  # told at each phase's start
+
+
+@pytest.mark.parametrize("engine", ["sksundae", "compiled"])
+def test_cvode_progress_is_told_the_time_reached_every_so_many_steps(engine):
+    """The phase machine returns to Python every PROGRESS_STEPS steps (progress, Ctrl-C), at a phase's start."""
+    import bouncingball
+    from bouncingball.solvers.integrator import PROGRESS_STEPS
+
+    reached = []
+    result = bouncingball.simulate(Ball(b=0.0), 2.0, 0.0, 600.0, engine=engine, progress=reached.append)
+    starts = {0.0} | {event.time for event in result.events}
+    assert reached[0] == 0.0 and all(a < b for a, b in zip(reached, reached[1:], strict=False))
+    assert len(reached) >= result.stats.steps // PROGRESS_STEPS >= 2 and set(reached) <= starts

@@ -20,6 +20,7 @@ import pytest
 
 import bouncingball as bb
 from bouncingball.scenes import BUILTIN_SCENES, load_scene
+from bouncingball.solvers import sundials
 from bouncingball.solvers.cvode import BallIntegrator, CvodeSettings, choose_engine
 
 compiled = pytest.importorskip("bouncingball.solvers.compiled", reason="the compiled engine needs numba ([fast])")
@@ -302,7 +303,7 @@ def test_every_bound_function_matches_the_declaration_scikit_sundae_ships():
     declarations, typedefs = _pxd_declarations()
     assert typedefs.get("sunrealtype") == "double"
     unchecked = []
-    for functions in compiled.FUNCTIONS.values():
+    for functions in sundials.FUNCTIONS.values():
         for name, (restype, argtypes) in functions.items():
             if name not in declarations:
                 unchecked.append(name)
@@ -330,7 +331,7 @@ def test_the_index_type_scikit_sundae_was_built_with_is_the_one_we_pass():
     """sunindextype is set when SUNDIALS is built: 32 bits in this wheel; the engine passes a C int."""
     _, typedefs = _pxd_declarations()
     assert typedefs["sunindextype"] == "int"
-    assert compiled._CTYPES["sunindextype"] is __import__("ctypes").c_int
+    assert sundials._CTYPES["sunindextype"] is __import__("ctypes").c_int
 
 
 def test_phases_longer_than_the_step_buffer_are_complete(monkeypatch):
@@ -386,8 +387,10 @@ def test_solvers_free_their_sundials_memory():
 
         def cycle(i):
             solver = PhaseSolver(bb.Ball(), Mode.FLIGHT, "Adams", 1e-11, 0.0, 1000, 1e-300, [-1, 0, 1], 10**6)
-            result = solver.solve(np.array([0.0, 1.0]), np.array([2.0 - 0.06, 0.0]))  # the gap; frame 1 m, 1 m/s
-            assert result.status == 2 and abs(result.t[-1] - (2.0 - 0.06) ** 0.5 * (2 / 9.81) ** 0.5) < 1e-9
+            solver.init_step(0.0, np.array([2.0 - 0.06, 0.0]))  # the gap; frame 1 m, 1 m/s
+            while (result := solver.step(1.0)).status == 0:
+                pass
+            assert result.status == 2 and abs(result.t - (2.0 - 0.06) ** 0.5 * (2 / 9.81) ** 0.5) < 1e-9
             if i % 2:
                 solver.close()
 
@@ -428,6 +431,33 @@ def test_a_change_to_physics_reaches_the_compiled_engine_through_numbas_disk_cac
     physics.write_text(source.replace("        return -load / m\n", "        return -2.0 * load / m\n"))  # flight: 2 g
     compiled_after, _ = first_impacts()  # the exact solution keeps its own closed forms: only CVODE sees 2 g
     assert compiled_after == pytest.approx(math.sqrt(2.0 * (2.0 - 0.06) / (2.0 * 9.81)), rel=1e-6)  # not 0.629 s
+
+
+def test_a_change_to_the_phase_machine_reaches_the_compiled_engine_through_numbas_disk_cache(tmp_path):
+    """The compiled run_phases inlines phases.py's and machine.py's functions: a change to machine.py's event
+    record alone must reach it."""
+    import shutil
+
+    package = tmp_path / "bouncingball"
+    shutil.copytree(Path(bb.__file__).parent, package, ignore=shutil.ignore_patterns("__pycache__"))
+    code = ("import bouncingball as bb; "
+            "print(*(bb.simulate(bb.Ball(), 2.0, 0.0, 1.0, 1e-3, engine=e).events[0].velocity "
+            "for e in ('compiled', 'sksundae')))")
+
+    def impact_velocities() -> list[float]:
+        completed = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
+                                   timeout=300, check=True, env={**os.environ, "PYTHONPATH": str(tmp_path)})
+        return [float(word) for word in completed.stdout.split()]
+
+    compiled, interpreted = impact_velocities()  # compiles and caches
+    assert compiled == interpreted == pytest.approx(-math.sqrt(2.0 * 9.81 * (2.0 - 0.06)), rel=1e-9)
+    machine = package / "solvers" / "machine.py"
+    source = machine.read_text()
+    record = "events[n_events, 2] = state[T], kind, state[V]\n"
+    assert source.count(record) == 1
+    machine.write_text(source.replace(record, "events[n_events, 2] = state[T], kind, 2.0 * state[V]\n"))
+    compiled_after, interpreted_after = impact_velocities()
+    assert compiled_after == interpreted_after == 2.0 * compiled
 
 
 def test_many_short_runs_load_the_compiled_engine_once_they_would_have_paid_for_it():

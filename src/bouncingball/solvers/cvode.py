@@ -95,7 +95,8 @@ def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     engine: see CvodeSettings; the engine that ran and why are in result.stats, and the time its
     first use in the process took (stats.first_use_time), which stats.wall_time leaves out. F_ext:
     a constant [N] or a forcing.ForceTable, integrated piece by piece of constant force. progress:
-    called with the time reached [s] after each phase, for a progress display.
+    called with the time reached [s] at the start and then at a phase start every PROGRESS_STEPS (20,000)
+    CVODE steps or so, for a progress display.
     """
     settings = CvodeSettings(rtol=rtol, atol=atol, method=method, max_step=max_step, engine=engine)
     grid = output_grid(t_start, t_end, output_interval)

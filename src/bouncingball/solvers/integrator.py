@@ -33,7 +33,7 @@ _CV_ROOT_RETURN = 2
 _OWN_SIDE = 1e-300
 _STEP_HORIZON = 1.0  # s; see advance()
 _MAX_STEPS_PER_CALL = 1_000_000
-_STEP_BUDGET = 20_000  # CVODE steps per call of the phase machine: then Python runs (progress, Ctrl-C)
+PROGRESS_STEPS = 20_000  # CVODE steps per call of the phase machine: then Python runs (progress, Ctrl-C)
 _SCRATCH_ROWS = 512  # step ends the compiled engine hands over at a time
 # A phase that needs more steps than this is a method fighting stiffness (Adams creeping through
 # an over-damped contact on a k = 1e12 spring): fail with a reason instead of running for hours.
@@ -90,7 +90,8 @@ class BallIntegrator:
     Change F_ext between advances; a state restored by set_state(get_state()) continues bit for bit.
     """
 
-    progress: Callable[[float], None] | None = None  # integrate_grid tells it the time reached, phase by phase
+    # integrate_grid tells it the time reached at its start and then every PROGRESS_STEPS steps or so
+    progress: Callable[[float], None] | None = None
 
     def __init__(self, ball: Ball, h0: float, v0: float, t0: float = 0.0, F_ext: float = 0.0,
                  settings: CvodeSettings | None = None, expected_steps: float | None = None) -> None:
@@ -432,7 +433,7 @@ class BallIntegrator:
                 self.progress(float(state[machine.T]))
             status, points, n_points, events, n_events = run_phases(
                 engine, self.ball.parameters, s.rtol, atol, state, t_end, points, n_points, events, n_events, scratch,
-                _STEP_BUDGET)
+                PROGRESS_STEPS)
             self._cvode_called = True
             if status == machine.DONE:
                 break

@@ -125,22 +125,34 @@ def _cvode_phase(engine, parameters, rtol, atol, state, t_end, points, n_points,
     tau_before, root, rest = 0.0, 0, 0
     while flag >= 0:
         flag, count, scratch = engine_steps(engine, mode, scratch, t_stop)
-        for i in range(count):
-            tau, x, v = scratch[i, 0], length * scratch[i, 1], speed * scratch[i, 2]
-            if i == count - 1 and flag == CV_ROOT_RETURN:
-                root, rest = int(scratch[i, 3]), int(scratch[i, 4])
+        if count == 0:
+            break
+        # the chunk's step ends, in whole arrays: one pass each, compiled or in numpy
+        points = _room(points, n_points + count)
+        rows = points[n_points:n_points + count]
+        rows[:, 0] = origin + scratch[:count, 0]
+        rows[:, 1] = length * scratch[:count, 1]
+        rows[:, 2] = speed * scratch[:count, 2]
+        rows[:, 3] = mode
+        checked = count
+        if flag == CV_ROOT_RETURN:
+            root, rest = int(scratch[count - 1, 3]), int(scratch[count - 1, 4])
             if root != 0:
-                tau, v = polish_event(parameters, mode, load, length, tau_before, tau, x, v)
-                x = 0.0
-            elif on_wrong_side(mode, x, margin):
-                state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = origin + tau, x, 0.0
+                before = scratch[count - 2, 0] if count > 1 else tau_before
+                tau, v = polish_event(parameters, mode, load, length, before, scratch[count - 1, 0], rows[count - 1, 1],
+                                      rows[count - 1, 2])
+                rows[count - 1, 0], rows[count - 1, 1], rows[count - 1, 2] = origin + tau, 0.0, v
+                checked = count - 1
+        elif flag != BUFFER_FULL:
+            rows[count - 1, 0] = t_end  # CVODE stopped at t_end - origin, which may round off t_end
+        if checked > 0:
+            extreme = rows[:checked, 1].min() if mode == FLIGHT else rows[:checked, 1].max()
+            if on_wrong_side(mode, extreme, margin):
+                state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = rows[checked - 1, 0], extreme, 0.0
                 return STEPPED_OVER, points, n_points, events, n_events
-            t = origin + tau
-            if i == count - 1 and flag != CV_ROOT_RETURN and flag != BUFFER_FULL:
-                t = t_end  # CVODE stopped at t_end - origin, which may round off t_end
-            points, n_points = _record(points, n_points, t, x, v, mode)
-            state[STEPS] += 1.0
-            tau_before = tau
+        n_points += count
+        state[STEPS] += count
+        tau_before = scratch[count - 1, 0]
         if flag != BUFFER_FULL:
             break
     if flag < 0:
@@ -177,6 +189,13 @@ def _record(points, n_points, t, x, v, mode):
         points = _grown(points)
     points[n_points, 0], points[n_points, 1], points[n_points, 2], points[n_points, 3] = t, x, v, mode
     return points, n_points + 1
+
+
+def _room(rows, n_rows):
+    """rows, or a copy grown to hold at least n_rows."""
+    while rows.shape[0] < n_rows:
+        rows = _grown(rows)
+    return rows
 
 
 def _grown(rows):

@@ -1,0 +1,142 @@
+"""numba for the compiled engine: plain functions compiled together, numba's disk cache, C calls by address.
+
+``compiled_together`` compiles plain-Python functions of floats and arrays (physics, the phase
+machine) as they are, so one source runs interpreted in one engine and compiled in the other;
+``cache_allowed`` keeps numba's disk cache true to every source the compiled code inlines; the
+``call_*`` intrinsics call a C function whose address is a run-time integer (``doubles`` and
+``addresses`` read pointers from integers), so that no process-specific constant is baked into
+the code and it can be cached on disk.
+
+Import this module only to compile: it imports numba.
+"""
+
+from __future__ import annotations
+
+import glob
+import hashlib
+import os
+from types import FunctionType
+
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
+
+
+def cache_allowed(modules) -> bool:
+    """Whether numba may cache the code compiled from modules on disk, after dropping code a changed source outdated.
+
+    numba keys each cached function by its own source file alone, but compiled code inlines the
+    functions it calls from other files: after a change to physics.py alone it loaded this module's
+    old code (the compiled engine ran the previous right-hand side, found by the engines
+    disagreeing). So one digest of every source compiled here (this module, physics.py and the
+    phase machine's modules) is kept beside the cache, and all their cached code is removed when
+    it differs. Where a source is gone (an FMU's copy of the package, whose unzipped folder the
+    master deleted after the process imported it), or the cache cannot be found through numba's
+    locators, nothing is cached: it compiles afresh.
+    """
+    files = [module.__file__ for module in modules]
+    if not all(os.path.isfile(file) for file in files):
+        return False
+    try:
+        from numba.core.caching import CacheImpl  # numba's own search for the cache folder
+
+        def folder_of(file):
+            locators = (cls.from_function(cache_allowed, file) for cls in CacheImpl._locator_classes)
+            return next(locator for locator in locators if locator is not None).get_cache_path()
+
+        digest = hashlib.sha256()
+        for file in files:
+            with open(file, "rb") as source:
+                digest.update(source.read())
+        stamp = os.path.join(folder_of(files[-1]), f"{os.path.splitext(os.path.basename(files[-1]))[0]}.sources-sha256")
+        if not os.path.isfile(stamp) or open(stamp).read() != digest.hexdigest():
+            for file in files:
+                stem = os.path.splitext(os.path.basename(file))[0]
+                for stale in glob.glob(os.path.join(folder_of(file), f"{stem}.*.nb[ic]")):
+                    os.remove(stale)
+            os.makedirs(os.path.dirname(stamp), exist_ok=True)
+            with open(stamp, "w") as file:
+                file.write(digest.hexdigest())
+    except Exception:  # a numba without these internals, or a cache folder we cannot write
+        return False
+    return True
+
+
+def functions_of(*modules) -> tuple:
+    """Every function the modules define (not those they import), for compiled_together."""
+    return tuple(value for module in modules for value in vars(module).values()
+                 if isinstance(value, FunctionType) and value.__module__ == module.__name__)
+
+
+def compiled_together(functions, bound, cache: bool):
+    """numba-compiled copies of plain functions, each one's calls to the others bound to their compiled copies.
+
+    functions: plain Python functions of floats and arrays (physics, phases, machine, dense_output);
+    bound: {plain function: its stand-in}, for what only runs interpreted as written (an engine's
+    calls, a float-or-array dispatch); a stand-in among functions is taken compiled. Each copy reads
+    a copy of its module's globals in which every one of those functions is replaced, so the source
+    stays the one that runs interpreted. Returns {plain function: compiled copy}.
+    """
+    compiled, namespaces = {}, []
+    for function in functions:
+        namespace = dict(function.__globals__)
+        copy = FunctionType(function.__code__, namespace, function.__name__, function.__defaults__,
+                            function.__closure__)
+        copy.__qualname__ = function.__qualname__
+        compiled[function] = njit(copy, cache=cache)
+        namespaces.append(namespace)
+    replacements = {id(plain): copy for plain, copy in compiled.items()}
+    replacements.update({id(plain): compiled.get(stand_in, stand_in) for plain, stand_in in bound.items()})
+    for namespace in namespaces:
+        for name, value in namespace.items():
+            if id(value) in replacements:
+                namespace[name] = replacements[id(value)]
+    return compiled
+
+
+# --- calls to C functions whose address is a run-time argument ---------------------------------------
+# numba caches compiled code on disk only if it holds no process-specific constant, so the
+# addresses of SUNDIALS' functions travel as plain integers and are called through these.
+def _codegen(context, builder, signature, args):
+    return_type = context.get_value_type(signature.return_type)
+    function_type = ir.FunctionType(return_type, [context.get_value_type(a) for a in signature.args[1:]])
+    return builder.call(builder.inttoptr(args[0], function_type.as_pointer()), args[1:])
+
+
+@intrinsic
+def call_i1(typingctx, address, a):
+    return types.int32(types.intp, a), _codegen
+
+
+@intrinsic
+def call_p1(typingctx, address, a):
+    return types.intp(types.intp, a), _codegen
+
+
+@intrinsic
+def call_i2(typingctx, address, a, b):
+    return types.int32(types.intp, a, b), _codegen
+
+
+@intrinsic
+def call_i3(typingctx, address, a, b, c):
+    return types.int32(types.intp, a, b, c), _codegen
+
+
+@intrinsic
+def call_i5(typingctx, address, a, b, c, d, e):
+    return types.int32(types.intp, a, b, c, d, e), _codegen
+
+
+@intrinsic
+def doubles(typingctx, address):
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(signature.return_type))
+    return types.CPointer(types.float64)(types.intp), codegen
+
+
+@intrinsic
+def addresses(typingctx, address):
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(signature.return_type))
+    return types.CPointer(types.intp)(types.intp), codegen
