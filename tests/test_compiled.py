@@ -141,9 +141,9 @@ def test_an_unknown_engine_is_refused_by_name():
 
 
 def test_another_sundials_version_falls_back_with_the_reason(monkeypatch):
-    monkeypatch.setattr(compiled, "SUPPORTED_MAJOR", 99)
-    monkeypatch.setattr(compiled, "_LIBRARY", None)
-    monkeypatch.setattr(compiled, "_UNAVAILABLE", None)
+    monkeypatch.setattr(sundials, "SUPPORTED_MAJOR", 99)
+    monkeypatch.setattr(sundials, "_LIBRARY", None)
+    monkeypatch.setattr(sundials, "_UNAVAILABLE", None)
     engine, reason = choose_engine("auto")
     assert engine == "sksundae" and re.search(r"ships SUNDIALS 7\.\d+\.\d+.*supports SUNDIALS 99\.x", reason)
     with pytest.raises(ImportError, match="engine 'compiled' is not available: .*SUNDIALS 99"):
@@ -335,7 +335,9 @@ def test_the_index_type_scikit_sundae_was_built_with_is_the_one_we_pass():
 
 
 def test_phases_longer_than_the_step_buffer_are_complete(monkeypatch):
-    monkeypatch.setattr(compiled, "_BUFFER", 7)  # the article's phases take up to ~100 steps
+    from bouncingball.solvers import integrator
+
+    monkeypatch.setattr(integrator, "_SCRATCH_ROWS", 7)  # the article's phases take up to ~100 steps
     assert_engines_agree(*run_both(ARTICLE, 2.0, 0.0, 8.0, 1e-3))
 
 

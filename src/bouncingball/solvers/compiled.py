@@ -55,7 +55,6 @@ _MAX_NONLIN_ITERS = 3
 _MAX_CONV_FAILS = 10
 _MAX_ORDER = {CV_ADAMS: 12, CV_BDF: 5}
 _NUM_ROOTS = 3
-_BUFFER = 4096  # step ends stored per call of the compiled loop before it returns for more room
 
 # The block user_data points to (int64): what the callbacks need besides the state.
 _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_SIZE = range(6)
@@ -256,7 +255,7 @@ class PhaseSolver:
         self._calls = np.array([addresses[name] for name in _LOOP_FUNCTIONS], dtype=np.intp)
         self._work = np.zeros(1 + _NUM_ROOTS)
         self._counter = np.zeros(1, dtype=np.int64)  # a C long
-        self._out = np.empty((_BUFFER, 3))
+        self._out = np.empty((1, 3))  # step() takes one step
         self._roots = [0, 0, 0]
         self._handles = {}
         self._state = None
