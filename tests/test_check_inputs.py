@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from bouncingball.cli import main
-from bouncingball.result_files import BadResultError, fmpy_input_value, read_input_file
+from bouncingball.input_files import fmpy_input_value, read_input_file
+from bouncingball.result_files import BadResultError
 from bouncingball.testing import check_result
 
 fmpy = pytest.importorskip("fmpy")

@@ -12,7 +12,8 @@ ROOT = Path(__file__).resolve().parents[1]
 # The public API: numpydoc docstrings (ruff checks them, pyproject.toml), and their examples run here.
 PUBLIC_MODULES = ("bouncingball.physics", "bouncingball.limits", "bouncingball.solvers", "bouncingball.solvers.result",
                   "bouncingball.solvers.cvode", "bouncingball.solvers.exact", "bouncingball.accuracy",
-                  "bouncingball.capped", "bouncingball.scenes", "bouncingball.testing", "bouncingball.result_files",
+                  "bouncingball.capped", "bouncingball.scenes", "bouncingball.testing", "bouncingball.check_outcome",
+                  "bouncingball.result_files", "bouncingball.printed_numbers", "bouncingball.input_files",
                   "bouncingball.sweep.run", "bouncingball.sweep.grid", "bouncingball.run_report",
                   "bouncingball.plotting")
 PRIVATE = re.compile(r"NOTES\.md|\bthe issue\b|\bissue's\b", re.IGNORECASE)

@@ -22,7 +22,7 @@ from bouncingball.cli import EXIT_BAD_INPUT
 from bouncingball.solvers.cvode import DEFAULT_ATOL, DEFAULT_RTOL
 from bouncingball.solvers.exact import ExactSolution
 from bouncingball.sweep import Grid, parse_range
-from bouncingball.sweep.capped import CappedRunner
+from bouncingball.sweep.child import run_batch
 
 SWEEP = ["--k", "1e2:1e8:4", "--zeta", "1e-3:1:3", "--solvers", "cvode,article", "--t-end", "1",
          "--batch-size", "2", "--time-cap", "30"]
@@ -87,15 +87,11 @@ def test_import_and_a_cvode_run_load_no_sweep_dependency():
 # --- one run under its cap --------------------------------------------------------------------------------
 def test_a_timed_out_or_failed_run_is_a_row_and_the_runner_goes_on():
     base = {"key": "", "m": 1.0, "h0": 2.0, "t_end": 8.0, "output_interval": 1e-3, "b": 0.0}
-    runner = CappedRunner(time_cap=0.5)
-    try:
-        # Explicit RK45 at rest on an over-damped k = 1e8 N/m spring: millions of steps.
-        stiff = runner.run({**base, "k": 1e8, "zeta": 100.0, "solver": "article"})
-        # A contact of 1e-11 s cannot be resolved in double precision up to 8 s: CVODE refuses it.
-        unresolvable = runner.run({**base, "k": 1e14, "m": 1e-9, "zeta": 0.1, "solver": "cvode"})
-        after = runner.run({**base, "k": 1e4, "zeta": 0.05, "t_end": 2.0, "solver": "cvode"})
-    finally:
-        runner.close()
+    # Explicit RK45 at rest on an over-damped k = 1e8 N/m spring: millions of steps. A contact of 1e-11 s
+    # cannot be resolved in double precision up to 8 s: CVODE refuses it.
+    stiff, unresolvable, after = run_batch([{**base, "k": 1e8, "zeta": 100.0, "solver": "article"},
+                                            {**base, "k": 1e14, "m": 1e-9, "zeta": 0.1, "solver": "cvode"},
+                                            {**base, "k": 1e4, "zeta": 0.05, "t_end": 2.0, "solver": "cvode"}], 0.5)
     assert (stiff["status"], stiff["reason"]) == ("timed out", "killed after 0.5 s")
     assert math.isnan(stiff["max_height_error"]) and stiff["events_found"] == -1
     assert unresolvable["status"] == "failed"

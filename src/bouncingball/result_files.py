@@ -14,13 +14,12 @@ Column names are matched without regard to case; a prefix naming the instance (`
 ``model.root.ball.``, ``ball.``) and a bracketed suffix (``[REAL]``, ``[5 real output]``) are
 understood; columns that are not the FMU's variables (``StepCount``, ``iterations``, another
 FMU's) are ignored. A file whose cells show it was printed with fewer digits than a double has
-(see infer_printing) carries its printed resolution, which the check allows for.
+(see printed_numbers.infer_printing) carries its printed resolution, which the check allows for.
 """
 
 from __future__ import annotations
 
 import csv
-import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,168 +27,18 @@ from pathlib import Path
 import numpy as np
 
 from .fmu.variables import VARIABLES
+from .printed_numbers import Printed, Printing, infer_printing, parse_number
 
 # The FMU's variables by their lower-case name; the parameters check takes from a file, with F_ext
 # (an input: the file's column is taken when it is constant).
 VARIABLE_OF = {variable.name.lower(): variable.name for variable in VARIABLES}
 PARAMETERS = ("m", "k", "b", "R", "g", "F_ext", "rtol", "atol")
-FULL_PRECISION_DIGITS = 15  # a column printed to this many significant digits or more is read as exact
-_NUMBER = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?")
 _SUFFIX = re.compile(r"\s*\[[^\[\]]*\]\s*$")  # [REAL], [INT], [5 real output]
 _NUMERIC = ("time", "h", "v", "a", "impacts", *PARAMETERS)
 
 
 class BadResultError(ValueError):
     """A result that cannot be checked: the message names the file, the row or column, and what is wrong."""
-
-
-@dataclass(frozen=True)
-class Printed:
-    """A number as a master printed it: its value, and its digits.
-
-    Attributes
-    ----------
-    text : str
-        The cell as written.
-    value : float
-        Its value.
-    digits : int
-        Significant digits written (0 for a zero).
-    last : int
-        Decimal exponent of the last digit written (-6 for 1.000000).
-    exponent : bool
-        Written with an exponent (1e-05).
-    """
-
-    text: str
-    value: float
-    digits: int
-    last: int
-    exponent: bool
-
-    @property
-    def decimals(self) -> int:
-        """Digits after the decimal point, as written."""
-        return -self.last
-
-
-def parse_number(text: str) -> Printed | None:
-    """A cell read as a decimal number, or None if it is not one.
-
-    Stricter than float(): ``1_0``, ``inf``, ``nan``, ``0x10`` and an empty cell are not numbers.
-
-    Parameters
-    ----------
-    text : str
-        The cell, surrounding spaces removed.
-
-    Returns
-    -------
-    Printed or None
-        The value and how many digits it was written with; None for anything else.
-
-    Examples
-    --------
-    >>> parse_number("1.99995").digits, parse_number("1.99995").last
-    (6, -5)
-    >>> parse_number("1_0") is None
-    True
-    """
-    match = _NUMBER.fullmatch(text)
-    if match is None:
-        return None
-    _, whole, fraction, exponent = match.groups()
-    if not whole and not fraction:
-        return None
-    fraction = fraction or ""
-    digits = (whole + fraction).lstrip("0")
-    last = int(exponent or 0) - len(fraction)
-    value = float(text)
-    return Printed(text, value, len(digits), last, exponent is not None) if math.isfinite(value) else None
-
-
-@dataclass(frozen=True)
-class Printing:
-    """How a file prints its real numbers: to a number of significant digits, to a number of decimals, or in full.
-
-    Attributes
-    ----------
-    kind : str
-        "full" (every digit a double needs, or near it), "significant" or "decimals".
-    digits : int
-        The significant digits or the decimals.
-    """
-
-    kind: str
-    digits: int = 0
-
-    @property
-    def full(self) -> bool:
-        """True when the file prints numbers to a double's precision: nothing is lost."""
-        return self.kind == "full"
-
-    def resolution(self, number: Printed) -> float:
-        """Half a unit in the last place the format prints for this number [its unit]; 0 in full precision."""
-        if self.full:
-            return 0.0
-        if self.kind == "decimals":
-            return 0.5 * 10.0 ** -self.digits
-        if number.digits == 0:  # a zero printed to significant digits is a zero
-            return 0.0
-        first = number.last + number.digits - 1  # exponent of the first significant digit
-        return 0.5 * 10.0 ** (first - self.digits + 1)
-
-    def __str__(self) -> str:
-        if self.full:
-            return "full precision"
-        return f"{self.digits} significant digits" if self.kind == "significant" else f"{self.digits} decimals"
-
-
-def infer_printing(time: list[Printed], h: list[Printed]) -> Printing:
-    """The format a file's real numbers were printed with, from its time and h cells.
-
-    A file is read as full precision unless its cells show otherwise, since a short cell may be
-    a rounded one or an exact short decimal (2 - 4.905 t^2 at t = 0.1 s is 1.95095):
-
-    - every cell with the same number of decimals D, no exponent, and some cell with a trailing
-      zero that only a fixed format writes (2.000000): D decimals (ecos's 6);
-    - at most S < 15 significant digits in every cell, and S of them in at least half of ten or
-      more nonzero heights: S significant digits, %g-like, which drops trailing zeros
-      (libcosim's 6, OMSimulator's 12);
-    - anything else (FMPy's shortest round-trip digits, a short file): full precision.
-
-    Parameters
-    ----------
-    time, h : list of Printed
-        The cells of the time and h columns.
-
-    Returns
-    -------
-    Printing
-        The format.
-
-    Examples
-    --------
-    >>> cells = [parse_number(x) for x in ("0.001000", "1.999995", "2.000000")]
-    >>> str(infer_printing(cells[:1], cells[1:]))
-    '6 decimals'
-    >>> h = [parse_number(f"{2 - 0.01 * i**0.5:g}") for i in range(1, 21)]
-    >>> str(infer_printing([parse_number("0.001")], h)), str(infer_printing([], h[:2]))
-    ('6 significant digits', 'full precision')
-    """
-    cells = time + h
-    if not cells:
-        return Printing("full")
-    most = max(c.digits for c in cells)
-    decimals = {c.decimals for c in cells}
-    padded = any(c.decimals >= 2 and c.text.rstrip().endswith("0") for c in cells)
-    if len(decimals) == 1 and padded and not any(c.exponent for c in cells) and most < FULL_PRECISION_DIGITS:
-        return Printing("decimals", decimals.pop())
-    heights = [c for c in h if c.digits]
-    if most < FULL_PRECISION_DIGITS and len(heights) >= 10 and \
-            2 * sum(c.digits == most for c in heights) >= len(heights):
-        return Printing("significant", most)
-    return Printing("full")
 
 
 @dataclass(frozen=True)
@@ -399,79 +248,41 @@ def read_result_file(path: str | Path, instance: str | None = None) -> ResultFil
                       values("F_ext"))
 
 
-def read_input_file(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """The time and F_ext columns of an FMPy input file (``time,F_ext``; a step is two rows at the same time).
+def read_result_csv(path: str | Path, instance: str | None = None) -> dict[str, np.ndarray]:
+    """The time, h and (if present) impacts columns of a master's CSV, read as the master wrote it.
+
+    See read_result_file for the dialects read (FMPy, OMSimulator,
+    libcosim, ecos) and what is bad input.
 
     Parameters
     ----------
     path : str or pathlib.Path
-        The CSV file: a header whose first column is the time, with an F_ext column.
+        The CSV file.
+    instance : str, optional
+        The instance of the ball to read when the file holds several.
 
     Returns
     -------
-    times, values : numpy.ndarray
-        The rows' times [s] (non-decreasing) and F_ext [N].
+    dict of str to numpy.ndarray
+        "time" [s] and "h" [m] as floats, and "impacts" as integers when the file has that column.
 
     Raises
     ------
     BadResultError
-        The file cannot be read, has no time first or no F_ext column, no data row, a cell that is
-        not a finite number, or a time going back; the message names the file, the row, the column
-        and the value.
+        The file cannot be read or is not a result; the message names the file, the row (its
+        line number), the column and the value.
+
+    Examples
+    --------
+    >>> columns = read_result_csv("out.csv")  # doctest: +SKIP
+    >>> columns["time"][:2], columns["h"][:2]  # doctest: +SKIP
+    (array([0.   , 0.001]), array([2.       , 1.9999951]))
     """
-    name = str(path)
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as file:
-            lines = [(number, row) for number, row in enumerate(csv.reader(file, skipinitialspace=True), 1)
-                     if any(cell.strip() for cell in row)]
-    except (OSError, UnicodeDecodeError, csv.Error) as error:
-        raise BadResultError(f"{name}: cannot be read: {error}") from None
-    if not lines:
-        raise BadResultError(f"{name}: the input file is empty: it needs a header time,F_ext")
-    header = [cell.strip() for cell in lines[0][1]]
-    if header[0].lower() != "time":
-        raise BadResultError(f"{name}: row {lines[0][0]}: the first column is {header[0]!r}: FMPy's input file "
-                             "starts with the time")
-    force = next((i for i, cell in enumerate(header) if cell.lower() == "f_ext"), None)
-    if force is None:
-        raise BadResultError(f"{name}: no 'F_ext' column in the header (it has: {', '.join(header)})")
-    if len(lines) < 2:
-        raise BadResultError(f"{name}: no data rows after the header")
-    times, values = [], []
-    for number, row in lines[1:]:
-        for index, into in ((0, times), (force, values)):
-            cell = row[index].strip() if index < len(row) else ""
-            printed = parse_number(cell)
-            if printed is None:
-                raise BadResultError(f"{name}: row {number}, column {header[index]!r}: {cell!r} is not a finite "
-                                     "number")
-            into.append(printed.value)
-        if len(times) > 1 and times[-1] < times[-2]:
-            raise BadResultError(f"{name}: row {number}, column {header[0]!r}: {times[-1]!r} goes back in time "
-                                 f"(the row before has {times[-2]!r})")
-    return np.array(times), np.array(values)
-
-
-def fmpy_input_value(times: np.ndarray, values: np.ndarray, t: float) -> float:
-    """The F_ext FMPy applies at the communication point t before the step from it (its Input.apply, after_event).
-
-    Before the first row the first value, after the last the last; at a time that several rows
-    share (math.isclose), the value of the last of them; else the linear interpolation of the rows
-    either side.
-    """
-    if times.size < 2:
-        return float(values[0])
-    i = int(np.searchsorted(times, t))
-    if i == 0:
-        return float(values[0])
-    if i == times.size:
-        return float(values[-1])
-    if math.isclose(t, times[i]) and i < times.size - 1 and math.isclose(times[i], times[i + 1]):
-        while i < times.size - 1 and math.isclose(times[i], times[i + 1]):
-            i += 1
-        return float(values[i])
-    w0 = (times[i] - t) / (times[i] - times[i - 1])
-    return float(w0 * values[i - 1] + (1.0 - w0) * values[i])
+    result = read_result_file(path, instance)
+    columns = {"time": result.time, "h": result.h}
+    if result.impacts is not None:
+        columns["impacts"] = result.impacts
+    return columns
 
 
 def _header_columns(name: str, line: int, header: list[str]) -> list[_Column]:

@@ -23,24 +23,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from . import validation
 from .accuracy import event_hops, impact_counts
+from .check_outcome import CheckResult, MergedHops
 from .fmu.variables import SCENE_FIELD_OF_START_VALUE, VARIABLES, start_values_of
+from .input_files import applied_force
 from .physics import Ball, Mode
-from .result_files import (
-    BadResultError,
-    FileParameter,
-    Printing,
-    ResultFile,
-    fmpy_input_value,
-    read_input_file,
-    read_result_file,
-)
+from .printed_numbers import Printing
+from .result_files import BadResultError, FileParameter, ResultFile, read_result_csv, read_result_file
 from .scenes import BALL_KEYS, Scene, load_scene
 from .solvers.exact import ExactSolution
 from .solvers.forcing import ForceTable
@@ -56,226 +51,6 @@ START_SLACK = 1e-9  # relative: how far the first row's v and a may be from the 
 # The FMU's start values that set up the run, by the scene field each one sets; the others (rtol,
 # atol, method, engine) are solver settings, which the exact solution has no use for.
 SOLVER_SETTINGS = tuple(v.name for v in VARIABLES if v.causality == "parameter" and v.name not in BALL_KEYS)
-
-
-@dataclass(frozen=True)
-class MergedHops:
-    """The hops a result merged into the contact around them, each class counted.
-
-    Attributes
-    ----------
-    by_solver : int
-        Hops no higher than the FMU's hop resolution (cvode.merged_hop_limit for its rtol and atol).
-    solver_limit : float
-        That limit [m].
-    by_tolerance : int
-        Hops higher than that but no higher than the check's tolerance, which the file cannot show.
-    tolerance : float
-        The check's tolerance [m].
-    """
-
-    by_solver: int
-    solver_limit: float
-    by_tolerance: int
-    tolerance: float
-
-    @property
-    def total(self) -> int:
-        """All the hops merged."""
-        return self.by_solver + self.by_tolerance
-
-    def __str__(self) -> str:
-        return (f"{self.total} hops merged into the contact: {self.by_solver} no higher than the FMU's hop "
-                f"resolution {self.solver_limit:.3g} m, {self.by_tolerance} no higher than the tolerance "
-                f"{self.tolerance:g} m")
-
-
-@dataclass(frozen=True)
-class CheckResult:
-    """The outcome of a check: the worst height error, the impact count, and the verdict.
-
-    Attributes
-    ----------
-    source : str
-        The file checked (or "<columns>" for arrays passed directly).
-    scene : Scene
-        The scene with the start values (and the file's parameters) applied: the ball and the initial state.
-    tolerance : float
-        The allowed max |h - h_exact| [m] (beyond the file's printed resolution, if it has one).
-    start_time : float
-        When the run started from the scene's initial state [s].
-    points : int
-        Number of points compared.
-    t_start, t_end : float
-        First and last time in the result [s].
-    max_height_error : float
-        max |h - h_exact| [m].
-    worst_time, worst_h, worst_h_exact : float
-        Where that error is: the time [s], the result's height and the exact height [m].
-    impacts_exact : int
-        The exact number of impacts from start_time to t_end.
-    impacts_found : int or None
-        The last value of the result's impacts column; None when it has none.
-    impact_mismatches : tuple of (time, found, exact)
-        The points whose impact count is wrong (the exact count up to that time; empty if none).
-    points_over : int
-        Points whose |h - h_exact| exceeds the tolerance plus their printed resolution.
-    over_time, over_error, over_allowance : float
-        The point that exceeds its allowance most (or comes nearest to it): its time [s], its
-        |h - h_exact| [m] and what it was allowed [m].
-    printing : str
-        How the file prints its numbers ("full precision", "6 significant digits", "6 decimals").
-    max_resolution : float
-        The most any point was allowed beyond the tolerance for the file's printing [m].
-    instance : str
-        The instance checked, as the file's columns name it ("" when they name none).
-    parameters_from_file : str
-        The parameter columns the file has, and which of them differ from the scene and were
-        taken from it ("" when it has none).
-    merged_hops : MergedHops or None
-        The hops the impacts column merged into the contact (None without an impacts column).
-    first_row : tuple of str
-        How the first row (when it is the start) disagrees with the scene, each with the start value
-        that would match the file.
-    forcing : str
-        Where a changing F_ext came from ("" when it was constant: the scene's F_ext).
-    """
-
-    source: str
-    scene: Scene
-    tolerance: float
-    start_time: float
-    points: int
-    t_start: float
-    t_end: float
-    max_height_error: float
-    worst_time: float
-    worst_h: float
-    worst_h_exact: float
-    impacts_exact: int
-    impacts_found: int | None
-    impact_mismatches: tuple[tuple[float, int, int], ...]
-    points_over: int = 0
-    over_time: float = math.nan
-    over_error: float = math.nan
-    over_allowance: float = math.nan
-    printing: str = "full precision"
-    max_resolution: float = 0.0
-    instance: str = ""
-    parameters_from_file: str = ""
-    merged_hops: MergedHops | None = None
-    first_row: tuple[str, ...] = ()
-    forcing: str = ""
-
-    @property
-    def heights_pass(self) -> bool:
-        """True when every |h - h_exact| is within the tolerance (plus the point's printed resolution)."""
-        return self.points_over == 0
-
-    @property
-    def passed(self) -> bool:
-        """True when the heights are within the tolerance and the impacts column (if any) counts right."""
-        return self.heights_pass and not self.impact_mismatches
-
-    @property
-    def _within(self) -> str:
-        if not self.max_resolution:
-            return f"the tolerance {self.tolerance:g} m"
-        return f"the tolerance {self.tolerance:g} m plus the file's printed resolution ({self.printing})"
-
-    @property
-    def verdict(self) -> str:
-        """PASS or FAIL, with the reason."""
-        merged = f"; {self.merged_hops}" if self.merged_hops and self.merged_hops.total else ""
-        if self.passed:
-            return f"PASS: max |h - h_exact| = {self.max_height_error:.3e} m is within {self._within}" + \
-                   ("" if self.impacts_found is None else f", impacts counted right{merged}")
-        reasons = []
-        if self.first_row:
-            reasons.append("the first row is not the scene's start: " + "; ".join(self.first_row))
-        if not self.heights_pass:
-            if self.max_resolution:
-                reasons.append(f"|h - h_exact| exceeds {self._within} at {self.points_over} of {self.points} "
-                               f"points, most at t = {self.over_time!r} s ({self.over_error:.3e} m, allowed "
-                               f"{self.over_allowance:.3e} m)")
-            else:
-                reasons.append(f"max |h - h_exact| = {self.max_height_error:.3e} m at t = {self.worst_time!r} s "
-                               f"exceeds the tolerance {self.tolerance:g} m (at {self.points_over} of {self.points} "
-                               "points)")
-        if self.impact_mismatches:
-            t, found, exact = self.impact_mismatches[0]
-            reasons.append(f"the impacts column is wrong at {len(self.impact_mismatches)} points, first at "
-                           f"t = {t!r} s ({found}, exact {exact}){merged}")
-        return "FAIL: " + "; ".join(reasons)
-
-    def report(self) -> str:
-        """The lines `bouncingball check` prints."""
-        scene, ball = self.scene, self.scene.ball
-        lines = [f"check {self.source} against the exact solution of scene {scene.name}"]
-        if self.instance:
-            lines.append(f"  instance           {self.instance}")
-        lines += [f"  ball               m = {ball.m:g} kg, k = {ball.k:g} N/m, b = {ball.b:g} N s/m, "
-                  f"R = {ball.R:g} m, g = {ball.g:g} m/s2, " +
-                  (f"F_ext {self.forcing}" if self.forcing else f"F_ext = {scene.F_ext:g} N"),
-                  f"  start              h = {scene.h0:.15g} m, v = {scene.v0:.15g} m/s at t = {self.start_time!r} s"]
-        if self.parameters_from_file:
-            lines.append(f"  file's parameters  {self.parameters_from_file}")
-        lines.append(f"  points compared    {self.points} (t = {self.t_start!r} to {self.t_end!r} s)")
-        if self.max_resolution:
-            lines.append(f"  printed            {self.printing}: each point is allowed its printed resolution "
-                         f"beyond the tolerance (that of h, plus |v| times that of time), at most "
-                         f"{self.max_resolution:.3e} m")
-        lines.append(f"  max |h - h_exact|  {self.max_height_error:.3e} m at t = {self.worst_time!r} s "
-                     f"(h = {self.worst_h!r} m, exact {self.worst_h_exact!r} m)")
-        merged = f"; {self.merged_hops}" if self.merged_hops and self.merged_hops.total else ""
-        if self.impacts_found is None:
-            lines.append(f"  impacts            no impacts column (exact: {self.impacts_exact})")
-        elif not self.impact_mismatches:
-            lines.append(f"  impacts            {self.impacts_found} at the end, exact {self.impacts_exact}; "
-                         f"the count is right at every point{merged}")
-        else:
-            lines.append(f"  impacts            {self.impacts_found} at the end, exact {self.impacts_exact}; "
-                         f"the count is wrong at {len(self.impact_mismatches)} points{merged}:")
-            lines += [f"    t = {t!r} s: {found}, exact {exact}" for t, found, exact in self.impact_mismatches[:5]]
-        lines.append(f"  verdict            {self.verdict}")
-        return "\n".join(lines)
-
-
-def read_result_csv(path: str | Path, instance: str | None = None) -> dict[str, np.ndarray]:
-    """The time, h and (if present) impacts columns of a master's CSV, read as the master wrote it.
-
-    See bouncingball.result_files.read_result_file for the dialects read (FMPy, OMSimulator,
-    libcosim, ecos) and what is bad input.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        The CSV file.
-    instance : str, optional
-        The instance of the ball to read when the file holds several.
-
-    Returns
-    -------
-    dict of str to numpy.ndarray
-        "time" [s] and "h" [m] as floats, and "impacts" as integers when the file has that column.
-
-    Raises
-    ------
-    BadResultError
-        The file cannot be read or is not a result; the message names the file, the row (its
-        line number), the column and the value.
-
-    Examples
-    --------
-    >>> columns = read_result_csv("out.csv")  # doctest: +SKIP
-    >>> columns["time"][:2], columns["h"][:2]  # doctest: +SKIP
-    (array([0.   , 0.001]), array([2.       , 1.9999951]))
-    """
-    result = read_result_file(path, instance)
-    columns = {"time": result.time, "h": result.h}
-    if result.impacts is not None:
-        columns["impacts"] = result.impacts
-    return columns
 
 
 def scene_with_start_values(scene: Scene | str | Path = "article",
@@ -355,7 +130,7 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
         The FMPy input file (``time,F_ext``) the master drove the FMU's F_ext with. F_ext is then held
         over each communication step [t_i, t_i+1) at the value FMPy applies at t_i (its linear
         interpolation of the rows; after a step, two rows at one time, the later value): see
-        result_files.fmpy_input_value.
+        input_files.fmpy_input_value.
     step_size : float, optional
         The master's communication step [s] with input_file: the communication points are
         start_time + k step_size and the input's step times (FMPy adds those for this FMU, which
@@ -431,7 +206,7 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
         raise BadResultError(f"{source}: its first time, {float(t[0])!r} s, is before the start time {start_time!r} s "
                              "(give the start time the master used)")
     t_last = max(float(np.max(t + t_res)), start_time)
-    force, forcing = _forcing(file, scene.F_ext, start_time, float(t[-1]), input_file, step_size)
+    force, forcing = applied_force(file, scene.F_ext, start_time, float(t[-1]), input_file, step_size)
     solution = ExactSolution(ball, scene.h0, scene.v0, start_time, t_last, force)
     h_exact, v_exact = solution.state(t)
     allowance = tolerance + h_res
@@ -463,38 +238,6 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
                        file.instance, file_parameters, merged,
                        _first_row(file, replace(scene, F_ext=float(ForceTable.of(force).at(start_time))
                                                 if forcing else scene.F_ext), tolerance, start_time), forcing)
-
-
-def _forcing(file: ResultFile, constant: float, start_time: float, t_end: float, input_file: str | Path | None,
-             step_size: float | None) -> tuple[float | ForceTable, str]:
-    """F_ext over the run and whence: the scene's constant with "", or a ForceTable with where it came from."""
-    if file.F_ext is not None and "F_ext" not in file.parameters:  # the column changes: what was applied
-        times, first = np.unique(file.time, return_index=True)
-        forces = file.F_ext[first]
-        if times[0] > start_time:
-            times, forces = np.concatenate(([start_time], times)), np.concatenate(([forces[0]], forces))
-        table = ForceTable.of((times[:-1], forces[1:]) if times.size > 1 else ([start_time], forces))
-        return table, f"from the file's {file.columns['F_ext']!r} column ({len(table.values)} steps; the row at " \
-                      "t_i+1 holds the value applied over [t_i, t_i+1))"
-    if input_file is None:
-        if step_size is not None:
-            raise ValueError("step_size names the communication points of an input file: give input_file too")
-        return constant, ""
-    input_times, input_values = read_input_file(input_file)
-    if step_size is None:
-        points = np.unique(np.concatenate(([start_time], file.time)))
-        points = points[points >= start_time]
-        whence = "the result's times"
-    else:
-        step_size = validation.positive("step_size", step_size, "s")
-        count = math.floor((t_end - start_time) / step_size * (1.0 + 1e-9))
-        regular = start_time + step_size * np.arange(count + 1)
-        events = input_times[:-1][np.diff(input_times) == 0.0]
-        points = np.unique(np.concatenate((regular, events[(events > start_time) & (events < t_end)])))
-        whence = f"every {step_size!r} s and at the input's steps"
-    values = [fmpy_input_value(input_times, input_values, float(p)) for p in points]
-    return ForceTable.of((points, values)), f"from {input_file} as FMPy applies it at each communication " \
-                                            f"point ({whence}), held over the step"
 
 
 def _setting(scene: Scene, name: str) -> float:

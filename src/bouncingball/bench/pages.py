@@ -293,7 +293,8 @@ def write_stability_md(scenes: list[Scene], outcomes: list[Outcome], cap: float,
         "",
         *environment_lines(environment),
         "",
-        f"Every scene with every solver, each run in its own child process, killed after {cap:g} s. The numerical "
+        f"Every scene with every solver, each run in a child process (one, both CVODE engines loaded, reused until "
+        f"a run is killed or crashes it), killed after {cap:g} s. The numerical "
         f"solvers run at CVODE's default rtol {DEFAULT_RTOL:g} (solve_ivp with atol rtol times the scene's height), "
         "solve_ivp "
         f"without max_step and with the article's event restart; the article's algorithm runs as published "

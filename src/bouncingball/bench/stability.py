@@ -1,4 +1,4 @@
-"""Stability: every scene with every solver, each run in a child process that is killed past a time cap."""
+"""Stability: every scene with every solver, each run in a capped child process (killed past a time cap)."""
 
 from __future__ import annotations
 
@@ -117,8 +117,8 @@ def _timed_runs(case: Case, fmus: FmuPaths | None) -> tuple[float, Run]:
 
 
 def run_case(case: Case, cap: float, fmus: FmuPaths | None = None) -> Outcome:
-    """Run case in a child process killed if its runs have not finished within cap [s] each."""
-    capped = run_capped(_timed_runs, (case, fmus), cap * case.repeats)
+    """Run case in the capped child process (both engines loaded), killed if its runs take more than cap [s] each."""
+    capped = run_capped(_timed_runs, (case, fmus), cap * case.repeats, warm_up=runners.warm_up)
     if capped.status != FINISHED:
         return Outcome(case, capped.status, capped.note)
     wall_time, run = capped.value
@@ -127,7 +127,7 @@ def run_case(case: Case, cap: float, fmus: FmuPaths | None = None) -> Outcome:
 
 
 def run_cases(cases: list[Case], cap: float, fmus: FmuPaths | None = None, desc: str = "stability") -> list[Outcome]:
-    """Each case in its own child process, one after another, with a progress bar."""
+    """Each case in the capped child process, one after another, with a progress bar."""
     from tqdm import tqdm
 
     outcomes = []

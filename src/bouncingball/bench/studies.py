@@ -55,7 +55,6 @@ def run_stability_study(output_dir: Path, quick: bool = False) -> list[Path]:
     """`bouncingball bench --stability`: the matrix over all scenes and solvers; writes stability.md and .csv."""
     cap = stability.QUICK_CAP if quick else stability.FULL_CAP
     machine = environment()
-    load_scene("article").simulate("cvode", t_end=1.0)  # children inherit a warm scikit-sundae
     scenes = stability.all_scenes()
     with tempfile.TemporaryDirectory(prefix="bouncingball_bench_") as temp:
         fmus = runners.build_fmus(Path(temp))

@@ -1,20 +1,26 @@
-"""The child process of a CappedRunner: one run per JSON line on stdin, one result line on stdout.
+"""One run of the sweep, measured in a capped child process: the Dask task that runs a batch of them.
 
-Run as `python -m bouncingball.sweep.child`. It exits when its stdin closes (its worker is gone).
+Each worker thread runs its batches' runs one after another through capped.run_capped (one
+long-lived child per thread, killed past the cap), so a run that hangs or crashes becomes a row.
 """
 
 from __future__ import annotations
 
-import json
+import math
 import os
-import sys
+import socket
 
 from ..accuracy import event_mismatches
 from ..bench import runners
+from ..capped import FINISHED, run_capped
 from ..solvers.settings import DEFAULT_RTOL, merged_hop_limit
-from .capped import MEASURES
 from .grid import Cell, solver_spec, tolerances
 
+DEFAULT_TIME_CAP = 2.0  # s per run
+WORKER_NAME = f"{socket.gethostname()}:{os.getpid()}"
+MEASURES = {"events_found": -1, "events_exact": -1, "event_mismatches": -1, "first_mismatch": "",
+            "max_height_error": math.nan, "max_event_time_error": math.nan, "wall_time": math.nan, "rhs_calls": -1,
+            "steps": -1}
 HEIGHT_TOLERANCE = 1e-6  # m: an event must be within the time the ball takes to move this far
 
 
@@ -62,36 +68,21 @@ def measure(spec: dict) -> dict:
             "rhs_calls": -1 if run.rhs_calls is None else int(run.rhs_calls), "steps": int(run.steps)}
 
 
-def _die_with_parent() -> None:
-    """On Linux, be killed when the worker that started us dies (else a long run would outlive it)."""
-    parent = int(os.environ.get("BOUNCINGBALL_SWEEP_PARENT", "0"))
-    if sys.platform.startswith("linux"):
-        import ctypes
-        import signal
+def run_batch(specs: list[dict], time_cap: float) -> list[dict]:
+    """Each spec's row, measured in this thread's capped child under time_cap [s] (a Dask task; never raises).
 
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    if parent and os.getppid() != parent:  # the parent died before prctl
-        sys.exit(0)
-
-
-def main() -> None:
-    _die_with_parent()
-    # Our answers go to the original stdout; anything else printed to fd 1 (a C library's warning)
-    # goes to stderr instead, so that it cannot corrupt the protocol.
-    answers = os.fdopen(os.dup(1), "w", buffering=1)
-    os.dup2(2, 1)
-    import bouncingball
-    from bouncingball.solvers.engines import choose_engine
-
-    # Load the CVODE engines before the first cap starts: this process runs many (engine "auto" then
-    # takes the compiled one, where it runs, for every run).
-    choose_engine("auto")
-    bouncingball.simulate(bouncingball.Ball(), 2.0, 0.0, 0.5)
-    print("ready", file=answers)
-    for line in sys.stdin:
-        if line.strip():
-            print(json.dumps(measure(json.loads(line))), file=answers)
+    The child loads both engines before its first run (runners.warm_up), untimed; what a run prints
+    is discarded.
+    """
+    rows = []
+    for spec in specs:
+        capped = run_capped(measure, (spec,), time_cap, warm_up=runners.warm_up, quiet=True)
+        measured = capped.value if capped.status == FINISHED else \
+            {"status": capped.status, "reason": capped.note, **MEASURES}
+        rows.append({**spec, **measured, "worker": WORKER_NAME})
+    return rows
 
 
-if __name__ == "__main__":
-    main()
+def noop(x):
+    """A task that does nothing: its round trip is the overhead Dask adds to a task."""
+    return x

@@ -8,7 +8,7 @@ import time
 from .. import validation
 from ..output import check_output_folder
 from . import grid as grids
-from .capped import DEFAULT_TIME_CAP
+from .child import DEFAULT_TIME_CAP
 
 QUICK_TIME_CAP = 1.0  # s
 

@@ -12,7 +12,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from . import capped, store
+from ..capped import close_all
+from . import child, store
 from .grid import Grid
 
 # Measured on the default grid (2 cores): the median run, the exact solution's comparison included,
@@ -42,9 +43,9 @@ def local_cluster(workers: int | None = None):
 
 def measure_overhead(client, tasks: int = OVERHEAD_TASKS) -> float:
     """Seconds per task that Dask adds: the wall time of `tasks` no-op tasks over all workers, per task."""
-    client.gather(client.map(capped.noop, range(20), pure=False))  # warm the connections
+    client.gather(client.map(child.noop, range(20), pure=False))  # warm the connections
     started = time.perf_counter()
-    client.gather(client.map(capped.noop, range(tasks), pure=False))
+    client.gather(client.map(child.noop, range(tasks), pure=False))
     return (time.perf_counter() - started) / tasks
 
 
@@ -81,7 +82,7 @@ def choose_batch_size(overhead: float, runs: int, slots: int) -> int:
 
 
 def run_sweep(grid: Grid, client=None, *, output_dir: str | Path | None = None, resume: bool = False,
-              workers: int | None = None, time_cap: float = capped.DEFAULT_TIME_CAP, batch_size: int | None = None,
+              workers: int | None = None, time_cap: float = child.DEFAULT_TIME_CAP, batch_size: int | None = None,
               progress: bool = True, on_batch: Callable[[list[dict]], None] | None = None):
     """Run every cell of grid with every solver on a Dask cluster and compare each run with the exact solution.
 
@@ -156,7 +157,7 @@ def run_sweep(grid: Grid, client=None, *, output_dir: str | Path | None = None, 
         wall_time = time.perf_counter() - started
         workers_seen = len(client.scheduler_info()["workers"])
         try:  # free the children of a cluster that stays up
-            client.run(capped.close_all)
+            client.run(close_all)
         except Exception:
             pass
     finally:
@@ -193,7 +194,7 @@ def _run_batches(client, todo: list[dict], size: int, time_cap: float, output_di
 
     batches = [[{**run, "batch": i} for run in todo[start:start + size]]
                for i, start in enumerate(range(0, len(todo), size))]
-    futures = client.map(capped.run_batch, batches, time_cap=time_cap, pure=False)
+    futures = client.map(child.run_batch, batches, time_cap=time_cap, pure=False)
     rows: list[dict] = []
     with tqdm(total=len(todo), desc="sweep", unit="run", file=sys.stderr, disable=not progress) as bar:
         for future in as_completed(futures):
