@@ -20,12 +20,12 @@ import math
 import os
 import sys
 import warnings
-from dataclasses import asdict, replace
+from dataclasses import fields, replace
 
 from .. import limits, validation
 from ..physics import Ball, Mode
 from ..scenes import BALL_KEYS, SCENE_DEFAULTS
-from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, SolverError, check_resolvable
+from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
 from ..solvers.sundials_log import SundialsWarning
 from .variables import SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES
 
@@ -132,8 +132,7 @@ class BallSlave:
     def _get_fmu_state(self):
         integrator = None
         if self._integrator is not None:
-            state = self._integrator.get_state()
-            integrator = {**asdict(state), "mode": int(state.mode)}
+            integrator = _state_fields(self._integrator.get_state())
         return {"format": STATE_FORMAT, "values": dict(self._values), "start_time": self._start_time,
                 "stop_time": self._stop_time, "tolerance": self._tolerance, "integrator": integrator}
 
@@ -263,6 +262,21 @@ class BallSlave:
 
     def _error(self, error) -> None:
         self.log(str(error), self.STATUS.error)
+
+
+# dataclasses.asdict's deep copy costs ~22 us per fmi2GetFMUstate, three quarters of it; every field is a number, a
+# mode or None, so the fields themselves make the same dict.
+_STATE_FIELDS = tuple(field.name for field in fields(IntegratorState))
+_RESTART_FIELDS = tuple(field.name for field in fields(RestartPoint))
+
+
+def _state_fields(state: IntegratorState) -> dict:
+    """dataclasses.asdict(state), mode as an int: the FMU state's integrator part."""
+    saved = {name: getattr(state, name) for name in _STATE_FIELDS}
+    saved["mode"] = int(state.mode)
+    if state.restart is not None:
+        saved["restart"] = {name: getattr(state.restart, name) for name in _RESTART_FIELDS}
+    return saved
 
 
 class _RecordedWarnings:
