@@ -239,6 +239,47 @@ def test_sundials_warnings_reach_the_master_log_and_a_late_start_raises_none(unz
     assert "warning made by the test" not in completed.stderr
 
 
+def test_the_slaves_warnings_capture_records_what_catch_warnings_records_and_restores_the_host_state():
+    """do_step's capture (cheaper than catch_warnings) against catch_warnings(record=True) with SundialsWarning
+    always: the same warnings recorded (a SundialsWarning twice from one line, though the host ignores warnings;
+    a "default" warning again in the next call; an "ignore"d one never), and the host's warnings state as it was."""
+    import contextlib
+    import warnings
+
+    from bouncingball.fmu import slave_base
+    from bouncingball.solvers.sundials_log import SundialsWarning
+
+    def reference():
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", SundialsWarning)
+            yield caught
+
+    def calls(capture) -> list[list[tuple[str, type]]]:
+        recorded = []
+        for _ in range(2):
+            with capture() as caught:
+                for _ in range(2):
+                    warnings.warn("from SUNDIALS", SundialsWarning, stacklevel=1)
+                    warnings.warn("shown once per call", RuntimeWarning, stacklevel=1)
+                    warnings.warn("ignored", DeprecationWarning, stacklevel=1)
+            recorded.append([(str(w.message), w.category) for w in caught])
+        return recorded
+
+    with warnings.catch_warnings():  # the host's state, which neither capture may change
+        warnings.resetwarnings()
+        warnings.simplefilter("ignore", DeprecationWarning)
+        warnings.simplefilter("ignore", SundialsWarning)
+        warnings.simplefilter("default", RuntimeWarning)
+        filters, show = warnings.filters, warnings.showwarning
+        expected = calls(contextlib.contextmanager(reference))
+        assert expected == [[("from SUNDIALS", SundialsWarning), ("shown once per call", RuntimeWarning),
+                             ("from SUNDIALS", SundialsWarning)]] * 2
+        assert calls(slave_base._caught_warnings) == expected
+        assert calls(slave_base._RecordedWarnings) == expected  # the fast one itself, wherever it is not the one used
+        assert warnings.filters is filters and warnings.showwarning is show
+        assert [f[0] for f in filters] == ["default", "ignore", "ignore"]
+
+
 def test_a_stop_time_beyond_what_double_precision_resolves_is_refused_at_initialisation(unzipped):
     assert_ok(run_case(unzipped, """
         ball.set(k=1e15, m=1e-9)
