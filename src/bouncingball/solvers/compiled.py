@@ -21,6 +21,7 @@ engine cannot run here (numba missing, a library not found or of another version
 from __future__ import annotations
 
 import ctypes
+import math
 import sys
 import weakref
 
@@ -111,10 +112,24 @@ def _finish_phase(f, memory, counter):
     return call_i2(f[_NUM_RHS], memory, counter.ctypes.data)
 
 
-# --- the phase machine's engine (solvers/machine.py's engine_* calls), over one PhaseSolver.handle() per mode ---
+# --- the phase machine's engine (solvers/machine.py's engine_* calls) ---------------------------------
+# engine: one row per mode (PhaseSolver.handle()): the addresses of its call table and arrays, its CVODE
+# memory and vector. Integers only, so that a call into the compiled machine unpacks no Python objects.
+_H_CALLS, _H_MEMORY, _H_VECTOR, _H_STATE, _H_PARAMETERS, _H_USER_DATA, _H_WORK, _H_COUNTER, _H_SIZE = range(9)
+
+
+@njit(cache=_CACHE)
+def _unpacked(engine, mode):
+    row = engine[mode]
+    return (carray(addresses(row[_H_CALLS]), len(_LOOP_FUNCTIONS)), row[_H_MEMORY], row[_H_VECTOR],
+            carray(doubles(row[_H_STATE]), 2), carray(doubles(row[_H_PARAMETERS]), _P_SIZE),
+            carray(addresses(row[_H_USER_DATA]), _U_SIZE), carray(doubles(row[_H_WORK]), 1 + _NUM_ROOTS),
+            carray(addresses(row[_H_COUNTER]), 1))
+
+
 @njit(cache=_CACHE)
 def _engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load):
-    calls, memory, vector, state, parameters, user_data, work, counter = engine[mode]
+    calls, memory, vector, state, parameters, user_data, work, counter = _unpacked(engine, mode)
     parameters[_P_LENGTH], parameters[_P_SPEED], parameters[_P_HOP], parameters[_P_LOAD] = length, speed, hop, load
     # the Jacobian in the scaled variables (x / length, v / speed), as PhaseSolver.set_frame
     contact = mode == 1
@@ -126,12 +141,14 @@ def _engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load):
     flag = call_i3(calls[_REINIT], memory, 0.0, vector)
     if flag < 0:
         return flag
+    if t_stop == math.inf:
+        return call_i1(calls[_CLEAR_STOP], memory)
     return call_i2(calls[_SET_STOP], memory, t_stop)
 
 
 @njit(cache=_CACHE)
 def _engine_steps(engine, mode, scratch, t_stop):
-    calls, memory, vector, state, parameters, user_data, work, counter = engine[mode]
+    calls, memory, vector, state, parameters, user_data, work, counter = _unpacked(engine, mode)
     flag, count = _steps(calls, memory, vector, state, t_stop, scratch, 0, False, work)
     if flag == CV_ROOT_RETURN:
         scratch[count - 1, 3], scratch[count - 1, 4] = work[1], work[3]
@@ -139,15 +156,28 @@ def _engine_steps(engine, mode, scratch, t_stop):
 
 
 @njit(cache=_CACHE)
+def _engine_step(engine, mode, scratch, t_toward):
+    calls, memory, vector, state, parameters, user_data, work, counter = _unpacked(engine, mode)
+    flag, count = _steps(calls, memory, vector, state, t_toward, scratch, 0, True, work)
+    if count == 0:  # CVode failed before storing the step: its time is in work[0]
+        scratch[0, 0] = work[0]
+    scratch[0, 3], scratch[0, 4] = (work[1], work[3]) if flag == CV_ROOT_RETURN else (0.0, 0.0)
+    if flag < 0:
+        return flag, 0
+    nfev = call_i2(calls[_NUM_RHS], memory, counter.ctypes.data)
+    return (nfev, 0) if nfev < 0 else (flag, counter[0])
+
+
+@njit(cache=_CACHE)
 def _engine_finish(engine, mode):
-    calls, memory, vector, state, parameters, user_data, work, counter = engine[mode]
+    calls, memory, vector, state, parameters, user_data, work, counter = _unpacked(engine, mode)
     flag = _finish_phase(calls, memory, counter)
     return flag, counter[0]
 
 
 @njit(cache=_CACHE)
 def _engine_exceeded(engine, mode):
-    user_data = engine[mode][5]
+    user_data = _unpacked(engine, mode)[5]
     return user_data[_U_EVALUATIONS] > user_data[_U_MAX_EVALUATIONS]
 
 
@@ -156,10 +186,12 @@ def _engine_exceeded(engine, mode):
 _compiled = compiled_together(
     functions_of(physics, exact, phases, machine, dense_output),
     {physics.oscillator_basis: physics.oscillator_basis_value, physics.unit_response: physics.unit_response_value,
-     machine.engine_start: _engine_start, machine.engine_steps: _engine_steps, machine.engine_finish: _engine_finish,
-     machine.engine_exceeded: _engine_exceeded}, _CACHE)
+     machine.engine_start: _engine_start, machine.engine_steps: _engine_steps, machine.engine_step: _engine_step,
+     machine.engine_finish: _engine_finish, machine.engine_exceeded: _engine_exceeded}, _CACHE)
 run_phases = _compiled[machine.run_phases]
 fill_grid = _compiled[dense_output.fill_grid]
+advance = _compiled[machine.advance]
+advance_in_step = _compiled[machine.advance_in_step]
 _acceleration = _compiled[physics.gap_acceleration]
 _rest_margin = _compiled[physics.rest_margin_value]
 
@@ -355,13 +387,17 @@ class PhaseSolver:
         self._state[:] = y0
         self._check("CVodeReInit", self._lib.functions["CVodeReInit"](self._memory, t0, self._handles["vector"]))
 
-    def handle(self) -> tuple:
-        """What the compiled phase machine calls this solver's CVODE through (its CVODE made on first use)."""
+    def handle(self) -> np.ndarray:
+        """This solver's row of the compiled machine's engine (see _H_*; its CVODE made on first use)."""
         if not self._handles:
             with self.log.capturing():
                 self._setup(0.0, (0.0, 0.0))
-        return (self._calls, self._memory, self._handles["vector"], self._state, self.parameters, self._user_data,
-                self._work, self._counter)
+        row = np.zeros(_H_SIZE, dtype=np.intp)
+        row[[_H_CALLS, _H_MEMORY, _H_VECTOR, _H_STATE, _H_PARAMETERS, _H_USER_DATA, _H_WORK, _H_COUNTER]] = (
+            self._calls.ctypes.data, self._memory, self._handles["vector"], self._state.ctypes.data,
+            self.parameters.ctypes.data, self._user_data.ctypes.data, self._work.ctypes.data,
+            self._counter.ctypes.data)
+        return row
 
     def message(self, flag: int) -> str:
         """CVODE's flag in words."""

@@ -1,19 +1,22 @@
-"""The phase machine of a grid run: CVODE phase by phase to t_end, written once for both engines.
+"""The phase machine: CVODE phase by phase, written once for both engines, with both drivers.
 
-``run_phases`` takes the ball from its state to t_end: at each phase start it decides (phases.py)
-whether the contact is a rest (then the rest on the contact's exact flow ends the run), whether the
-phase is taken in closed form, or else restarts CVODE in the phase's frame and takes its steps to
-the terminal root (an impact or a departure, polished on the exact flow) or to t_end, checking that
-no step end lies beyond R on the other side. It records every step end (t, x = h - R, v, mode) and
-every event, for the grid values to be read off the dense output afterwards (dense_output.py).
+At each phase start it decides (phases.py) whether the contact is a rest (then the rest is taken on
+the contact's exact flow), whether the phase is taken in closed form (its event from the exact flow),
+or else restarts CVODE in the phase's frame and takes its steps to the terminal root (an impact or a
+departure, polished on the exact flow), checking that no step end lies beyond R on the other side.
+Two drivers take it: ``run_phases`` to the end of a grid run, recording every step end (t, x = h - R,
+v, mode) and every event, for the grid values to be read off the dense output afterwards
+(dense_output.py); ``advance`` one CVODE step at a time to a target time, keeping the last step for
+the dense output of a target inside it (the FMU's doStep), optionally stopping at the first event.
 
-It is written in plain Python over floats and numpy arrays, and calls its engine through four
-functions (engine_start, engine_steps, engine_finish, engine_exceeded): as written here they drive
-the scikit-sundae engine's solvers (stepper.SksundaePhaseSolver), and it runs interpreted; the
-compiled engine compiles this very source with numba (compiled.py), the four bound to its own
-calls into SUNDIALS, so that no Python runs between phases. Whatever needs a search on the exact
-flow (phases.UNDECIDED) is handed back (HANDOFF) to BallIntegrator, which takes that one phase and
-calls again; so is every step_budget steps (RETURNED), for progress and Ctrl-C.
+The whole integrator state is one array (new_state's; BallIntegrator keeps it). The source is plain
+Python over floats and numpy arrays, and calls its engine through the engine_* functions: as written
+here they drive the scikit-sundae engine's solvers (stepper.SksundaePhaseSolver), and it runs
+interpreted; the compiled engine compiles this very source with numba (compiled.py), the engine_*
+bound to its own calls into SUNDIALS, so that no Python runs between phases. Whatever needs a search
+on the exact flow (phases.UNDECIDED) is handed back (HANDOFF) to BallIntegrator, which decides that
+one phase (decide_phase's outcomes) and calls again; so is run_phases every step_budget steps
+(RETURNED), for progress and Ctrl-C.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ import math
 import numpy as np
 
 from ..physics import gap_flow_value
+from .dense_output import step_state
 from .phases import (
     CONTACT,
     FLIGHT,
@@ -37,81 +41,214 @@ from .phases import (
     taylor_step,
 )
 
-# run_phases's state array: the state, the phase's constants and the counters.
-# RESTING: the contact is a rest (CVODE stopped at its rest root); DECIDED: CVODE integrates the phase (BallIntegrator
-# decided it after a HANDOFF).
-(T, X, V, MODE, LOAD, HOP, IMPACTS, DEPARTURES, LAST_IMPACT, STEPS, RHS_CALLS, RESTING, DECIDED, REST_T, REST_X,
- REST_V, FAIL_T, FAIL_X, FAIL_FLAG, STATE_SIZE) = range(20)
+# The integrator's state array: the state, the phase's constants, the counters, the current CVODE phase,
+# the restart point, and where a failure happened.
+# REST_T, REST_X, REST_V: where the rest began (REST_T NaN: not at rest). DECIDED: CVODE integrates the
+# phase about to start (BallIntegrator decided it after a HANDOFF). NEEDS_INIT: CVODE restarts at the
+# state before its next step. SEGMENT: the last step (SEG_*, from start to end, in mode SEG_MODE) is kept
+# for the dense output; PENDING: its end is an event (PEND_T, PEND_V) still to take. STEP_*: the last
+# step's end. ORIGIN, LENGTH, SPEED: the phase's frame. NFEV: CVODE's right-hand-side calls since its
+# restart. RS_*: the restart point (solvers/state.py's RestartPoint).
+(T, X, V, MODE, LOAD, HOP, IMPACTS, DEPARTURES, LAST_IMPACT, STEPS, RHS_CALLS, DECIDED, REST_T, REST_X, REST_V,
+ NEEDS_INIT, SEGMENT, SEG_MODE, SEG_T0, SEG_X0, SEG_V0, SEG_T1, SEG_X1, SEG_V1, PENDING, PEND_T, PEND_V,
+ STEP_T, STEP_X, STEP_V, ORIGIN, LENGTH, SPEED, NFEV, RS_T, RS_X, RS_V, RS_MODE, RS_IMPACTS, RS_DEPARTURES,
+ RS_LAST_IMPACT, RS_RHS_CALLS, RS_STEPS, FAIL_T, FAIL_X, FAIL_FLAG, STATE_SIZE) = range(47)
 # What run_phases returns.
 DONE, HANDOFF, RETURNED, CVODE_FAILED, TOO_MANY_STEPS, STEPPED_OVER = range(6)
 IMPACT, DEPARTURE = 0, 1  # an event row's kind: (t, kind, v)
 CV_ROOT_RETURN = 2
+STEP_HORIZON = 1.0  # s: how far ahead advance's CVODE steps aim (see advance)
 BUFFER_FULL = 99  # engine_steps: its buffer is full, call it again for the phase's further steps
 
 
-def new_state(t, x, v, mode, load, hop, impacts, departures, last_impact_time, steps, rhs_calls):
-    """The state array of run_phases; last_impact_time NaN for none."""
+def new_state():
+    """An integrator's state array, all zero but NaN for no last impact and no rest; see restart_needed."""
     state = np.zeros(STATE_SIZE)
-    state[T], state[X], state[V], state[MODE], state[LOAD], state[HOP] = t, x, v, mode, load, hop
-    state[IMPACTS], state[DEPARTURES], state[LAST_IMPACT] = impacts, departures, last_impact_time
-    state[STEPS], state[RHS_CALLS], state[REST_T] = steps, rhs_calls, math.nan
+    state[LAST_IMPACT], state[REST_T] = math.nan, math.nan
     return state
+
+
+def restart_needed(state):
+    """CVODE restarts at the current state, which becomes the restart point (the last step and any rest forgotten)."""
+    state[RHS_CALLS] += state[NFEV]
+    state[NFEV], state[NEEDS_INIT], state[SEGMENT], state[PENDING], state[DECIDED] = 0.0, 1.0, 0.0, 0.0, 0.0
+    state[REST_T] = math.nan
+    state[RS_T], state[RS_X], state[RS_V], state[RS_MODE] = state[T], state[X], state[V], state[MODE]
+    state[RS_IMPACTS], state[RS_DEPARTURES] = state[IMPACTS], state[DEPARTURES]
+    state[RS_LAST_IMPACT] = state[LAST_IMPACT]
+    state[RS_RHS_CALLS], state[RS_STEPS] = state[RHS_CALLS], state[STEPS]
+
+
+def closed_form_phase(state, t_event, v_event):
+    """The phase from the state ends at an event (t_event, v_event) from the exact flow: kept as the last step."""
+    state[SEGMENT], state[SEG_MODE] = 1.0, state[MODE]
+    state[SEG_T0], state[SEG_X0], state[SEG_V0] = state[T], state[X], state[V]
+    state[SEG_T1], state[SEG_X1], state[SEG_V1] = t_event, 0.0, v_event
+    state[PENDING], state[PEND_T], state[PEND_V] = 1.0, t_event, v_event
+
+
+def _decisions(parameters, rtol, state):
+    """(rest, closed) at a phase start, phases.rest_decision's and phases.closed_form's, or (0, 0) once DECIDED."""
+    if state[DECIDED] != 0.0:
+        state[DECIDED] = 0.0
+        return 0, 0
+    mode, x, v, load, hop = int(state[MODE]), state[X], state[V], state[LOAD], state[HOP]
+    rest = rest_decision(parameters, mode, x, v, load, hop, rtol)
+    if rest == 1:
+        state[REST_T], state[REST_X], state[REST_V] = state[T], x, v
+    closed = 0 if rest != 0 else closed_form(parameters, mode, x, v, load, hop, rtol)
+    if closed == 1:
+        tau, v_impact = flight_impact(parameters, x, v, load)
+        closed_form_phase(state, state[T] + tau, v_impact)
+    return rest, closed
+
+
+def _finish_by_taylor(parameters, state, t_target):
+    """Within a few ulps of t_target CVODE refuses to step (CV_TOO_CLOSE): finish by a Taylor step; whether it did."""
+    dt = t_target - state[T]
+    if dt > 32.0 * _ulp(max(abs(t_target), abs(state[T]), 1e-300)):
+        return False
+    state[X], state[V] = taylor_step(parameters, int(state[MODE]), state[X], state[V], state[LOAD], dt)
+    state[T] = t_target
+    return True
+
+
+def _rest_state(parameters, state, t):
+    """The state at t on the rest that began at REST_*, on the contact's exact flow."""
+    state[X], state[V] = gap_flow_value(CONTACT, state[REST_X], state[REST_V], t - state[REST_T], state[LOAD],
+                                        parameters[0], parameters[1], parameters[2])
+    state[T] = t
 
 
 def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, events, n_events, scratch,
                step_budget):
-    """Integrate from state to t_end phase by phase; (status, points, n_points, events, n_events).
+    """Integrate from the state to t_end phase by phase; (status, points, n_points, events, n_events).
 
-    parameters: (m, k, b, R, g); atol 0 for none; state: new_state's array, updated in place;
-    points (n, 4: t, x, v, mode) and events (n, 3: t, kind, v) hold n_points and n_events rows so far
-    and are returned grown where they filled up; scratch (n, 3) is the engine's buffer of step ends.
-    status: DONE at t_end, HANDOFF for a phase BallIntegrator takes, RETURNED after step_budget steps,
-    or a failure (state[FAIL_T], state[FAIL_X] and state[FAIL_FLAG] say where and CVODE's flag).
+    parameters: (m, k, b, R, g); atol 0 for none; state: new_state's array after restart_needed,
+    updated in place; points (n, 4: t, x, v, mode) and events (n, 3: t, kind, v) hold n_points and
+    n_events rows so far and are returned grown where they filled up; scratch (n, 5) is the engine's
+    buffer of step ends. status: DONE at t_end, HANDOFF for a phase BallIntegrator decides, RETURNED
+    after step_budget steps, or a failure (state[FAIL_T], state[FAIL_X] and state[FAIL_FLAG] say
+    where and CVODE's flag).
     """
+    m, k, b = parameters[0], parameters[1], parameters[2]
     steps_at_entry = state[STEPS]
     while True:
-        t, x, v, mode, load, hop = state[T], state[X], state[V], int(state[MODE]), state[LOAD], state[HOP]
+        t, mode = state[T], int(state[MODE])
         if not t < t_end:
             return DONE, points, n_points, events, n_events
-        dt = t_end - t
-        if dt <= 32.0 * _ulp(max(abs(t_end), abs(t), 1e-300)):  # CVODE refuses to step (CV_TOO_CLOSE)
-            state[X], state[V] = taylor_step(parameters, mode, x, v, load, dt)
-            state[T] = t_end
+        if _finish_by_taylor(parameters, state, t_end):
+            points, n_points = _record(points, n_points, t_end, state[X], state[V], mode)
+            return DONE, points, n_points, events, n_events
+        if state[PENDING] != 0.0:  # a phase in closed form: to its event, or on its flow to t_end
+            points, n_points = _record(points, n_points, t, state[X], state[V], mode)
+            if state[PEND_T] <= t_end:
+                state[T], state[X], state[V] = state[PEND_T], 0.0, state[PEND_V]
+                events, n_events = _switch_mode(state, events, n_events)
+            else:
+                state[X], state[V] = gap_flow_value(mode, state[X], state[V], t_end - t, state[LOAD], m, k, b)
+                state[T] = t_end
+            points, n_points = _record(points, n_points, state[T], state[X], state[V], mode)
+            continue
+        if not math.isnan(state[REST_T]):
+            points, n_points = _record(points, n_points, t, state[X], state[V], mode)
+            _rest_state(parameters, state, t_end)
             points, n_points = _record(points, n_points, t_end, state[X], state[V], mode)
             return DONE, points, n_points, events, n_events
         if state[STEPS] - steps_at_entry >= step_budget:
             return RETURNED, points, n_points, events, n_events
-        if state[DECIDED] != 0.0:
-            rest, closed = 0, 0
-            state[DECIDED] = 0.0
-        else:
-            rest = 1 if state[RESTING] != 0.0 else rest_decision(parameters, mode, x, v, load, hop, rtol)
-            closed = 0 if rest != 0 else closed_form(parameters, mode, x, v, load, hop, rtol)
+        rest, closed = _decisions(parameters, rtol, state)
         if rest == UNDECIDED or closed == UNDECIDED:
             return HANDOFF, points, n_points, events, n_events
-        if rest == 1:
-            state[REST_T], state[REST_X], state[REST_V] = t, x, v
-            x_end, v_end = gap_flow_value(CONTACT, x, v, dt, load, parameters[0], parameters[1], parameters[2])
-            points, n_points = _record(points, n_points, t, x, v, mode)
-            points, n_points = _record(points, n_points, t_end, x_end, v_end, mode)
-            state[T], state[X], state[V] = t_end, x_end, v_end
-            return DONE, points, n_points, events, n_events
-        if closed == 1:
-            tau, v_impact = flight_impact(parameters, x, v, load)
-            points, n_points = _record(points, n_points, t, x, v, mode)
-            if t + tau <= t_end:
-                points, n_points = _record(points, n_points, t + tau, 0.0, v_impact, mode)
-                state[T], state[X], state[V] = t + tau, 0.0, v_impact
-                events, n_events = _switch_mode(state, events, n_events)
-            else:
-                x_end, v_end = gap_flow_value(FLIGHT, x, v, dt, load, parameters[0], parameters[1], parameters[2])
-                points, n_points = _record(points, n_points, t_end, x_end, v_end, mode)
-                state[T], state[X], state[V] = t_end, x_end, v_end
+        if rest == 0 and closed == 0:
+            status, points, n_points, events, n_events = _cvode_phase(engine, parameters, rtol, atol, state, t_end,
+                                                                      points, n_points, events, n_events, scratch)
+            if status != DONE:
+                return status, points, n_points, events, n_events
+
+
+def advance_in_step(parameters, state, t_target):
+    """Whether t_target lies in the kept last step, after t: then the state there, off its dense output."""
+    if not (state[SEGMENT] != 0.0 and state[T] < t_target <= state[SEG_T1]):
+        return False
+    state[X], state[V] = step_state(parameters, state[LOAD], int(state[SEG_MODE]), state[SEG_T0], state[SEG_X0],
+                                    state[SEG_V0], state[SEG_T1], state[SEG_X1], state[SEG_V1], t_target)
+    state[T] = t_target
+    return True
+
+
+def advance(engine, parameters, rtol, atol, state, t_target, stop_at_event, events, n_events, scratch):
+    """Integrate from the state to t_target one CVODE step at a time; (status, events, n_events).
+
+    CVODE's steps do not depend on the targets: each aims STEP_HORIZON past the last step's start,
+    and a target inside a step is read off its dense output. With stop_at_event it returns at the
+    first event before t_target (the state there, the mode switched). Arguments and statuses as
+    run_phases (scratch: at least one row); state[T] <= t_target.
+    """
+    while state[T] < t_target:
+        if advance_in_step(parameters, state, t_target):
+            break
+        if state[PENDING] != 0.0:  # the kept step ends at an event before t_target
+            state[T], state[X], state[V] = state[PEND_T], 0.0, state[PEND_V]
+            events, n_events = _switch_mode(state, events, n_events)
+            if stop_at_event:
+                break
             continue
-        status, points, n_points, events, n_events = _cvode_phase(engine, parameters, rtol, atol, state, t_end,
-                                                                  points, n_points, events, n_events, scratch)
+        if state[NEEDS_INIT] != 0.0 and math.isnan(state[REST_T]):
+            rest, closed = _decisions(parameters, rtol, state)
+            if rest == UNDECIDED or closed == UNDECIDED:
+                return HANDOFF, events, n_events
+            if closed == 1:
+                continue
+        if not math.isnan(state[REST_T]):
+            _rest_state(parameters, state, t_target)
+            break
+        if _finish_by_taylor(parameters, state, t_target):
+            break
+        status = _one_step(engine, parameters, rtol, atol, state, scratch)
         if status != DONE:
-            return status, points, n_points, events, n_events
+            return status, events, n_events
+    return DONE, events, n_events
+
+
+def _one_step(engine, parameters, rtol, atol, state, scratch):
+    """One CVODE step from the last one's end (CVODE restarted first if needed), kept as the last step."""
+    mode, load, hop = int(state[MODE]), state[LOAD], state[HOP]
+    if state[NEEDS_INIT] != 0.0:
+        length, speed = frame(parameters, mode, state[X], state[V], load, rtol, atol)
+        state[ORIGIN], state[LENGTH], state[SPEED] = state[T], length, speed
+        flag = engine_start(engine, mode, math.inf, state[X] / length, state[V] / speed, length, speed, hop, load)
+        if flag < 0:
+            state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = state[T], state[X], flag
+            return CVODE_FAILED
+        state[NEEDS_INIT] = 0.0
+        state[STEP_T], state[STEP_X], state[STEP_V] = state[T], state[X], state[V]
+    origin, length, speed = state[ORIGIN], state[LENGTH], state[SPEED]
+    tau_before = state[STEP_T] - origin
+    flag, nfev = engine_step(engine, mode, scratch, tau_before + STEP_HORIZON)
+    tau = scratch[0, 0]
+    if flag < 0:
+        state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = origin + tau, state[X], flag
+        return TOO_MANY_STEPS if engine_exceeded(engine, mode) else CVODE_FAILED
+    state[NFEV] = nfev
+    x, v = length * scratch[0, 1], speed * scratch[0, 2]
+    if flag == CV_ROOT_RETURN:
+        if scratch[0, 3] != 0.0:
+            tau, v = polish_event(parameters, mode, load, length, tau_before, tau, x, v)
+            x = 0.0
+            state[PENDING], state[PEND_T], state[PEND_V] = 1.0, origin + tau, v
+        elif scratch[0, 4] != 0.0:
+            state[REST_T], state[REST_X], state[REST_V] = origin + tau, x, v
+    else:
+        state[STEPS] += 1.0
+    if state[PENDING] == 0.0 and on_wrong_side(mode, x, side_margin(hop, rtol, length)):
+        state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = origin + tau, x, 0.0
+        return STEPPED_OVER
+    state[SEGMENT], state[SEG_MODE] = 1.0, mode
+    state[SEG_T0], state[SEG_X0], state[SEG_V0] = state[STEP_T], state[STEP_X], state[STEP_V]
+    state[SEG_T1], state[SEG_X1], state[SEG_V1] = origin + tau, x, v
+    state[STEP_T], state[STEP_X], state[STEP_V] = origin + tau, x, v
+    return DONE
 
 
 def _cvode_phase(engine, parameters, rtol, atol, state, t_end, points, n_points, events, n_events, scratch):
@@ -164,9 +301,10 @@ def _cvode_phase(engine, parameters, rtol, atol, state, t_end, points, n_points,
         return CVODE_FAILED, points, n_points, events, n_events
     state[RHS_CALLS] += rhs_calls
     state[T], state[X], state[V] = points[n_points - 1, 0], points[n_points - 1, 1], points[n_points - 1, 2]
-    state[RESTING] = 1.0 if rest != 0 and root == 0 else 0.0
     if root != 0:
         events, n_events = _switch_mode(state, events, n_events)
+    elif rest != 0:
+        state[REST_T], state[REST_X], state[REST_V] = state[T], state[X], state[V]
     return DONE, points, n_points, events, n_events
 
 
@@ -180,7 +318,7 @@ def _switch_mode(state, events, n_events):
         state[MODE], state[IMPACTS], state[LAST_IMPACT] = CONTACT, state[IMPACTS] + 1.0, state[T]
     else:
         state[MODE], state[DEPARTURES] = FLIGHT, state[DEPARTURES] + 1.0
-    state[RESTING] = 0.0
+    restart_needed(state)
     return events, n_events + 1
 
 
@@ -210,8 +348,19 @@ def _ulp(a):
 
 # --- the engine, as run interpreted: the scikit-sundae engine's two solvers (stepper.SksundaePhaseSolver) ---
 def engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load):
-    """Restart the mode's CVODE at 0 from (y0, y1) in the frame (length, speed), hop and load set, to stop at t_stop."""
+    """Restart the mode's CVODE at 0 from (y0, y1) in the frame (length, speed), hop and load set; a flag.
+
+    t_stop: where engine_steps is to stop (a stop time), or inf for engine_step's steps.
+    """
     return engine[mode].start(t_stop, y0, y1, length, speed, hop, load)
+
+
+def engine_step(engine, mode, scratch, t_toward):
+    """One CVODE step toward t_toward into scratch's first row (tau, y0, y1, gap root, rest root); (flag, nfev).
+
+    tau is set on a failure too; nfev: CVODE's right-hand-side evaluations since its restart.
+    """
+    return engine[mode].step_once(scratch, t_toward)
 
 
 def engine_steps(engine, mode, scratch, t_stop):

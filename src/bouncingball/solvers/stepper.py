@@ -18,7 +18,9 @@ CVODE is re-initialised at every phase, so a pooled solver integrates as a new o
 
 from __future__ import annotations
 
+import math
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -162,10 +164,24 @@ class SksundaePhaseSolver:
     # --- the phase machine's engine calls (solvers/machine.py: engine_start, engine_steps, engine_finish) ---
     def start(self, t_stop: float, y0: float, y1: float, length: float, speed: float, hop: float,
               load: float) -> int:
-        """Take the phase's frame and start: solve from (y0, y1) at 0 to t_stop happens in steps()."""
+        """Take the phase's frame; restart CVODE at 0 from (y0, y1) for step_once, or in steps() to solve to t_stop."""
         self.set_frame(length, speed, hop)
         self._load, self._start = load, (t_stop, y0, y1)
+        if t_stop == math.inf:
+            with self.log.capturing():
+                self.init_step(0.0, np.array([y0, y1]))
         return 0
+
+    def step_once(self, scratch: np.ndarray, t_toward: float) -> tuple[int, int]:
+        """One step into scratch's first row (tau, y0, y1, gap root, rest root); (flag, nfev)."""
+        result = self.result = self.step(t_toward)
+        scratch[0, 0] = float(np.atleast_1d(result.t)[-1])
+        if result.status < 0:
+            return result.status, 0
+        scratch[0, 1], scratch[0, 2] = result.y[0], result.y[1]
+        roots = self.roots_found() if result.status == CV_ROOT_RETURN else (0, 0, 0)
+        scratch[0, 3], scratch[0, 4] = roots[0], roots[2]
+        return result.status, int(result.nfev)
 
     def steps(self, scratch: np.ndarray, t_stop: float):
         """The phase's step ends after its start, rows (tau, y0, y1, gap root, rest root); (flag, count, scratch)."""
@@ -201,16 +217,29 @@ class SksundaePhaseSolver:
         return PhaseResult(np.array([t]), np.full((1, 2), np.nan), CV_RTFUNC_FAIL, "too many steps", 0)
 
 
-def phase_machine(engine: str):
-    """(run_phases, fill_grid) of engine: machine.run_phases compiled with its grid fill, or interpreted and None.
+@dataclass(frozen=True)
+class PhaseMachine:
+    """An engine's phase machine (solvers/machine.py): its drivers, its grid fill, and its engine argument.
 
-    None: the grid is filled by dense_output.interpolate, in numpy.
+    fill_grid None: the grid is filled by dense_output.interpolate, in numpy. engine(solvers): what the
+    machine's engine_* calls take, from the two modes' solvers.
     """
+
+    run_phases: Callable
+    advance: Callable
+    advance_in_step: Callable
+    fill_grid: Callable | None
+    engine: Callable
+
+
+def phase_machine(engine: str) -> PhaseMachine:
+    """The phase machine of engine: compiled for "compiled", else machine.py's as written."""
     if engine == "compiled":
         from . import compiled
 
-        return compiled.run_phases, compiled.fill_grid
-    return machine.run_phases, None
+        return PhaseMachine(compiled.run_phases, compiled.advance, compiled.advance_in_step, compiled.fill_grid,
+                            lambda solvers: np.stack([solver.handle() for solver in solvers]))
+    return PhaseMachine(machine.run_phases, machine.advance, machine.advance_in_step, None, tuple)
 
 
 _pool: dict[tuple, list] = {}
