@@ -15,7 +15,7 @@ import pytest
 
 fmpy = pytest.importorskip("fmpy")
 
-from bouncingball.accuracy import impact_count_mismatches  # noqa: E402
+from bouncingball.accuracy import impact_counts  # noqa: E402
 from bouncingball.fmu.variables import FMI3_VARIABLES, VARIABLES  # noqa: E402
 from bouncingball.physics import Ball  # noqa: E402
 from bouncingball.solvers.exact import ExactSolution  # noqa: E402
@@ -62,7 +62,7 @@ def assert_exact(result, tolerance: float = 1e-6, tie: float = 1e-9) -> None:
     assert np.max(np.abs(result["h"] - h)) <= tolerance
     impact_times = np.array([e.time for e in ARTICLE.events if e.kind == IMPACT])
     tie = tie * np.maximum(1.0, np.abs(t))
-    assert impact_count_mismatches(impact_times, t, result["impacts"], tie).size == 0
+    assert impact_counts(impact_times, t, result["impacts"], tie).mismatches.size == 0
     assert result["impacts"][-1] == len(impact_times) == 21
 
 

@@ -146,43 +146,6 @@ def max_event_time_error(events: list[Event], exact_events: list[Event]) -> floa
     return float(max((abs(a.time - b.time) for a, b in zip(events, exact_events, strict=False)), default=0.0))
 
 
-def impact_count_mismatches(impact_times: np.ndarray, t: np.ndarray, impacts: np.ndarray, tie=0.0,
-                            mergeable: np.ndarray | None = None) -> np.ndarray:
-    """Indices of the points whose impact count is wrong.
-
-    impacts[i] must count the impacts up to t[i]; one within tie [s] of t[i] may count or not,
-    since a master that steps onto an impact may report it at that point or at the next one. An
-    impact marked mergeable (it ends a hop too small to matter, see event_hops) may be missing
-    from the count: see impact_counts.
-
-    Parameters
-    ----------
-    impact_times : numpy.ndarray
-        The exact impact times [s], increasing.
-    t : numpy.ndarray
-        The times of the points [s], non-decreasing.
-    impacts : numpy.ndarray
-        The impact count reported at each point.
-    tie : float or numpy.ndarray
-        How close [s] to an impact a point may count it either way (one value, or one per point).
-    mergeable : numpy.ndarray of bool, optional
-        One per exact impact: True where it may be missing (default: none may).
-
-    Returns
-    -------
-    numpy.ndarray
-        The indices i (increasing) where impacts[i] is outside what the exact impacts allow.
-
-    Examples
-    --------
-    >>> impact_count_mismatches(np.array([0.5]), np.array([0.0, 1.0]), np.array([0, 0]))
-    array([1])
-    >>> impact_count_mismatches(np.array([0.5]), np.array([0.0, 1.0]), np.array([0, 0]), mergeable=np.array([True]))
-    array([], dtype=int64)
-    """
-    return impact_counts(impact_times, t, impacts, tie, mergeable).mismatches
-
-
 @dataclass(frozen=True)
 class ImpactCounts:
     """An impacts column against the exact impacts: the points it is wrong at and the impacts it merged.
@@ -231,6 +194,8 @@ def impact_counts(impact_times: np.ndarray, t: np.ndarray, impacts: np.ndarray, 
 
     Examples
     --------
+    >>> impact_counts(np.array([0.5]), np.array([0.0, 1.0]), np.array([0, 0])).mismatches
+    array([1])
     >>> counts = impact_counts(np.array([0.5, 1.5]), np.array([0.0, 1.0, 2.0]), np.array([0, 0, 1]),
     ...                        mergeable=np.array([True, False]))
     >>> counts.mismatches, counts.merged

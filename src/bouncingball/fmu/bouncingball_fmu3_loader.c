@@ -45,7 +45,16 @@
 #error "define BB_VARIABLE_TYPES, BB_TIME_REFERENCE, BB_STATES and BB_EVENT_INDICATORS"
 #endif
 
-/* pythonfmu3's functions that are forwarded, loaded once per process */
+/* pythonfmu3's functions that are forwarded, loaded once per process (bouncingball_fmu_python.h) */
+#define FMI_PREFIX fmi3
+#define FMI_INSTANCE fmi3Instance
+#define FMI_STATE_TYPE fmi3FMUState
+#define GET_STATE GetFMUState
+#define SET_STATE SetFMUState
+#define FREE_STATE FreeFMUState
+#define STATE_SIZE SerializedFMUStateSize
+#define SERIALIZE_STATE SerializeFMUState
+#define DESERIALIZE_STATE DeserializeFMUState
 #define INNER_FUNCTIONS(X) \
     X(InstantiateModelExchange) X(InstantiateCoSimulation) X(FreeInstance) X(EnterInitializationMode) \
     X(ExitInitializationMode) X(Terminate) X(Reset) X(GetFloat64) X(GetInt32) X(GetBoolean) X(GetString) \
@@ -53,11 +62,7 @@
     X(SerializedFMUStateSize) X(SerializeFMUState) X(DeserializeFMUState) X(DoStep) X(SetTime) \
     X(SetContinuousStates) X(GetContinuousStates) X(GetContinuousStateDerivatives) X(GetEventIndicators) \
     X(GetNominalsOfContinuousStates) X(UpdateDiscreteStates) X(CompletedIntegratorStep)
-
-#define DECLARE(name) fmi3##name##TYPE *name;
-static struct {
-    INNER_FUNCTIONS(DECLARE)
-} inner;
+static const char *const TYPE_NAMES[] = {"Float64", "Int32", "Boolean", "String"};
 
 /* FMI 3.0 states (FMI 3.0.2, sections 3.2 and 4.2); configuration, reconfiguration, intermediate
  * update and clock activation modes are never entered (no structural parameters, no clocks, no
@@ -127,32 +132,33 @@ typedef struct Instance {
 
 #include "bouncingball_fmu_python.h"
 
-static pthread_once_t load_once = PTHREAD_ONCE_INIT;
-
-static void load(void)
+static void tell(Instance *c, fmi3Status status, const char *category, const char *message)
 {
-    void *library = open_inner();
-    if (library == NULL) {
-        return;
+    if (c->logger != NULL) {
+        c->logger(c->environment, status, category, message);
     }
-#define LOAD(name) *(void **)&inner.name = symbol(library, "fmi3" #name);
-    INNER_FUNCTIONS(LOAD)
 }
 
-static void say(Instance *c, fmi3Status status, const char *format, ...) __attribute__((format(printf, 3, 4)));
-
-/* Log one line to the master (warnings and errors always, the rest while logging is on). */
-static void say(Instance *c, fmi3Status status, const char *format, ...)
+static int in_mode(const Instance *c, unsigned mask)
 {
-    char message[4096];
-    va_list arguments;
-    if (c->logger == NULL || (status == fmi3OK && !c->logging_on)) {
-        return;
+    return (mask & IN(c->state)) && (mask & (c->interface == CO_SIMULATION ? CS : ME));
+}
+
+static const char *mode_name(const Instance *c)
+{
+    static const char *const names[] = {"FMI 3.0 co-simulation", "FMI 3.0 model exchange"};
+    return names[c->interface];
+}
+
+static int restorable(Instance *c, int state)
+{
+    if (state >= INSTANTIATED && state <= TERMINATED &&
+        state != (c->interface == CO_SIMULATION ? CONTINUOUS_TIME_MODE : STEP_MODE)) {
+        return 1;
     }
-    va_start(arguments, format);
-    vsnprintf(message, sizeof message, format, arguments);
-    va_end(arguments);
-    c->logger(c->environment, status, status == fmi3OK ? "logAll" : "logStatusError", message);
+    say(c, fmi3Error, "fmi3DeserializeFMUState: these bytes are not a state of this FMU's %s: nothing was done",
+        INTERFACE_NAMES[c->interface]);
+    return 0;
 }
 
 /* The logger pythonfmu3 calls: remember the worst status, pass the message on. */
@@ -160,97 +166,44 @@ static void log_message(fmi3InstanceEnvironment environment, fmi3Status status, 
                         fmi3String message)
 {
     Instance *c = (Instance *)environment;
-    if (status > c->worst) {
-        c->worst = status;
-    }
-    if ((status != fmi3OK || c->logging_on) && c->logger != NULL) {
-        c->logger(c->environment, status, category, message);
+    if (note(c, status)) {
+        tell(c, status, category, message);
     }
 }
-
-static fmi3Status finish(Instance *c, fmi3Status status)
-{
-    if (status == fmi3Fatal) {
-        c->dead = 1;
-        return fmi3Error;
-    }
-    if (c->worst > status) {
-        status = c->worst > fmi3Error ? fmi3Error : c->worst;
-    }
-    return status;
-}
-
-/* 1 if the call may run in c's state and interface; else logs why and returns 0. */
-static int allowed(Instance *c, const char *function, unsigned mask)
-{
-    if (c->dead) {
-        say(c, fmi3Error, "%s refused: an earlier error ended this instance", function);
-        return 0;
-    }
-    if (!(mask & IN(c->state)) || !(mask & (c->interface == CO_SIMULATION ? CS : ME))) {
-        say(c, fmi3Error, "%s is not allowed in state %s (FMI 3.0 %s): nothing was done", function,
-            STATE_NAMES[c->state], INTERFACE_NAMES[c->interface]);
-        return 0;
-    }
-    c->worst = fmi3OK;
-    return 1;
-}
-
-/* The instance of the call (c_), if the call is allowed in its state; else the call returns fmi3Error. */
-#define CHECK(function)                                                     \
-    Instance *c_ = (Instance *)instance;                                    \
-    if (c_ == NULL || !allowed(c_, "fmi3" #function, ALLOWED_##function)) { \
-        return fmi3Error;                                                   \
-    }
-
-/* Forward to pythonfmu3, return the combined status, and move to state `next` if it succeeded. */
-#define CALL_TO(next, function, ...)                                                  \
-    do {                                                                              \
-        fmi3Status status_ = finish(c_, inner.function(c_->inner, ##__VA_ARGS__));    \
-        if (status_ <= fmi3Warning) {                                                 \
-            c_->state = (next);                                                       \
-        }                                                                             \
-        return status_;                                                               \
-    } while (0)
-
-#define FORWARD_TO(next, function, ...) \
-    do {                                \
-        CHECK(function)                 \
-        CALL_TO(next, function, ##__VA_ARGS__); \
-    } while (0)
-
-#define FORWARD(function, ...) FORWARD_TO(c_->state, function, ##__VA_ARGS__)
 
 /* 1 if every vr[i] is a scalar variable of the given type ('R', 'I', 'B' or 'S') and nValues matches. */
 static int known_references(Instance *c, const char *function, const fmi3ValueReference vr[], size_t nvr,
                             size_t nValues, const void *values, char type)
 {
-    static const char types[] = BB_VARIABLE_TYPES;
-    static const char *const type_names[] = {"Float64", "Int32", "Boolean", "String"};
-    const char *type_name = type_names[strchr("RIBS", type) - "RIBS"];
     if ((nvr > 0 && (vr == NULL || values == NULL)) || nValues != nvr) {
         say(c, fmi3Error, "%s: %zu value references with %zu values%s (every variable of this FMU is a scalar): "
             "nothing was done", function, nvr, nValues, nvr > 0 && (vr == NULL || values == NULL) ? ", or NULL" : "");
         return 0;
     }
-    for (size_t i = 0; i < nvr; i++) {
-        if (vr[i] >= sizeof types - 1 || types[vr[i]] != type) {
-            say(c, fmi3Error, "%s: value reference %u is not a variable of type %s in this FMU: nothing was done",
-                function, (unsigned)vr[i], type_name);
-            return 0;
-        }
-    }
-    return 1;
+    return of_type(c, function, vr, nvr, type);
 }
 
-#define FORWARD_VALUES(function, type)                                                                   \
-    do {                                                                                                 \
-        CHECK(function)                                                                                  \
-        if (!known_references(c_, "fmi3" #function, valueReferences, nValueReferences, nValues, values, type)) { \
-            return fmi3Error;                                                                            \
-        }                                                                                                \
-        CALL_TO(c_->state, function, valueReferences, nValueReferences, values, nValues);                \
+#define FORWARD_VALUES(function, type)                                                                          \
+    do {                                                                                                        \
+        CHECK(function)                                                                                         \
+        if (!known_references(c_, FMI_STRING(function), valueReferences, nValueReferences, nValues, values, type)) { \
+            return fmi3Error;                                                                                   \
+        }                                                                                                       \
+        CALL_TO(c_->state, function, valueReferences, nValueReferences, values, nValues);                       \
     } while (0)
+
+/* The getter and setter of one type of variable. */
+#define VALUES_OF(type, ctype, letter)                                                                        \
+    fmi3Status fmi3Get##type(fmi3Instance instance, const fmi3ValueReference valueReferences[],               \
+                             size_t nValueReferences, ctype values[], size_t nValues)                         \
+    {                                                                                                         \
+        FORWARD_VALUES(Get##type, letter);                                                                    \
+    }                                                                                                         \
+    fmi3Status fmi3Set##type(fmi3Instance instance, const fmi3ValueReference valueReferences[],               \
+                             size_t nValueReferences, const ctype values[], size_t nValues)                   \
+    {                                                                                                         \
+        FORWARD_VALUES(Set##type, letter);                                                                    \
+    }
 
 /* An array argument of the model exchange calls: not NULL and of the model's size. */
 static int right_size(Instance *c, const char *function, const void *array, size_t n, size_t expected)
@@ -279,44 +232,19 @@ static Instance *instantiate(Interface interface, fmi3String instanceName, fmi3I
 {
     char problem[4096];
     Instance *c;
-    pthread_once(&load_once, load);
-    if (load_error[0] != '\0') {
-        if (logMessage != NULL) {
-            logMessage(environment, fmi3Error, "logStatusError", load_error);
-        }
-        return NULL;
-    }
-    if (!host_ready(problem, sizeof problem)) {
+    if (!can_instantiate(problem, sizeof problem)) {
         if (logMessage != NULL) {
             logMessage(environment, fmi3Error, "logStatusError", problem);
         }
         return NULL;
     }
-    c = calloc(1, sizeof *c);
+    c = new_instance(instanceName, loggingOn);
     if (c == NULL) {
-        return NULL;
-    }
-    c->name = strdup(instanceName != NULL ? instanceName : "");
-    if (c->name == NULL) {
-        free(c);
         return NULL;
     }
     c->environment = environment;
     c->logger = logMessage;
-    c->logging_on = loggingOn;
     c->interface = interface;
-    c->state = INSTANTIATED;
-    return c;
-}
-
-static fmi3Instance keep(Instance *c)
-{
-    if (c->inner == NULL) {
-        free(c->name);
-        free(c);
-        return NULL;
-    }
-    link_live(c);
     return c;
 }
 
@@ -381,28 +309,13 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3Stri
     return NULL;
 }
 
-void fmi3FreeInstance(fmi3Instance instance)
-{
-    Instance *c = (Instance *)instance;
-    if (c == NULL || !unlink_live(c)) {
-        return;
-    }
-    if (!c->dead) {
-        inner.FreeInstance(c->inner);
-    }
-    free(c->name);
-    free(c);
-}
+void fmi3FreeInstance(fmi3Instance instance) { free_instance(instance); }
 
 fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
                                const fmi3String categories[])
 {
     (void)nCategories, (void)categories;
-    if (instance == NULL) {
-        return fmi3Error;
-    }
-    ((Instance *)instance)->logging_on = loggingOn; /* pythonfmu3 keeps logging everything to us */
-    return fmi3OK;
+    return set_logging(instance, loggingOn);
 }
 
 fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
@@ -445,37 +358,26 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
 
 fmi3Status fmi3EnterEventMode(fmi3Instance instance)
 {
-    Instance *c = (Instance *)instance;
-    if (c == NULL || !allowed(c, "fmi3EnterEventMode", ALLOWED_EnterEventMode)) {
+    CHECK(EnterEventMode)
+    if (c_->interface == CO_SIMULATION && !c_->event_mode_used) {
+        say(c_, fmi3Error, "fmi3EnterEventMode: this instance was instantiated with eventModeUsed = false");
         return fmi3Error;
     }
-    if (c->interface == CO_SIMULATION && !c->event_mode_used) {
-        say(c, fmi3Error, "fmi3EnterEventMode: this instance was instantiated with eventModeUsed = false");
-        return fmi3Error;
-    }
-    c->state = EVENT_MODE; /* the slave's mode has switched at the event already: nothing to forward */
+    c_->state = EVENT_MODE; /* the slave's mode has switched at the event already: nothing to forward */
     return fmi3OK;
 }
 
-fmi3Status fmi3EnterStepMode(fmi3Instance instance)
-{
-    Instance *c = (Instance *)instance;
-    if (c == NULL || !allowed(c, "fmi3EnterStepMode", ALLOWED_EnterStepMode)) {
-        return fmi3Error;
-    }
-    c->state = STEP_MODE;
-    return fmi3OK;
-}
+/* A mode the slave has no part in: only the state machine moves. */
+#define ENTER(mode, function)   \
+    do {                        \
+        CHECK(function)         \
+        c_->state = (mode);     \
+        return fmi3OK;          \
+    } while (0)
 
-fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance)
-{
-    Instance *c = (Instance *)instance;
-    if (c == NULL || !allowed(c, "fmi3EnterContinuousTimeMode", ALLOWED_EnterContinuousTimeMode)) {
-        return fmi3Error;
-    }
-    c->state = CONTINUOUS_TIME_MODE;
-    return fmi3OK;
-}
+fmi3Status fmi3EnterStepMode(fmi3Instance instance) { ENTER(STEP_MODE, EnterStepMode); }
+
+fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) { ENTER(CONTINUOUS_TIME_MODE, EnterContinuousTimeMode); }
 
 fmi3Status fmi3Terminate(fmi3Instance instance) { FORWARD_TO(TERMINATED, Terminate); }
 
@@ -507,55 +409,15 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
 }
 
 /* --- variables ------------------------------------------------------------------------------------ */
-fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                          fmi3Float64 values[], size_t nValues)
-{
-    FORWARD_VALUES(GetFloat64, 'R');
-}
+VALUES_OF(Float64, fmi3Float64, 'R')
+VALUES_OF(Int32, fmi3Int32, 'I')
+VALUES_OF(Boolean, fmi3Boolean, 'B')
+VALUES_OF(String, fmi3String, 'S')
 
-fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                        fmi3Int32 values[], size_t nValues)
-{
-    FORWARD_VALUES(GetInt32, 'I');
-}
-
-fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                          fmi3Boolean values[], size_t nValues)
-{
-    FORWARD_VALUES(GetBoolean, 'B');
-}
-
-fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                         fmi3String values[], size_t nValues)
-{
-    FORWARD_VALUES(GetString, 'S');
-}
-
-fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                          const fmi3Float64 values[], size_t nValues)
-{
-    FORWARD_VALUES(SetFloat64, 'R');
-}
-
-fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                        const fmi3Int32 values[], size_t nValues)
-{
-    FORWARD_VALUES(SetInt32, 'I');
-}
-
-fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                          const fmi3Boolean values[], size_t nValues)
-{
-    FORWARD_VALUES(SetBoolean, 'B');
-}
-
-fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                         const fmi3String values[], size_t nValues)
-{
-    FORWARD_VALUES(SetString, 'S');
-}
-
-/* Calls for what this FMU does not have: answered here, never forwarded (pythonfmu3 throws from them). */
+/* Calls for what this FMU does not have: answered here, never forwarded (pythonfmu3 throws from them). They
+ * ignore their arguments. */
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wunused-parameter"
 static fmi3Status not_provided(fmi3Instance instance, const char *function, const char *what)
 {
     if (instance != NULL) {
@@ -568,13 +430,11 @@ static fmi3Status not_provided(fmi3Instance instance, const char *function, cons
     fmi3Status fmi3Get##type(fmi3Instance instance, const fmi3ValueReference valueReferences[],                 \
                              size_t nValueReferences, ctype values[], size_t nValues)                           \
     {                                                                                                           \
-        (void)valueReferences, (void)nValueReferences, (void)values, (void)nValues;                             \
         return not_provided(instance, "fmi3Get" #type, "no variable of type " #type);                           \
     }                                                                                                           \
     fmi3Status fmi3Set##type(fmi3Instance instance, const fmi3ValueReference valueReferences[],                 \
                              size_t nValueReferences, const ctype values[], size_t nValues)                     \
     {                                                                                                           \
-        (void)valueReferences, (void)nValueReferences, (void)values, (void)nValues;                             \
         return not_provided(instance, "fmi3Set" #type, "no variable of type " #type);                           \
     }
 
@@ -590,35 +450,30 @@ NO_VARIABLES_OF(UInt64, fmi3UInt64)
 fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                          size_t valueSizes[], fmi3Binary values[], size_t nValues)
 {
-    (void)valueReferences, (void)nValueReferences, (void)valueSizes, (void)values, (void)nValues;
     return not_provided(instance, "fmi3GetBinary", "no variable of type Binary");
 }
 
 fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                          const size_t valueSizes[], const fmi3Binary values[], size_t nValues)
 {
-    (void)valueReferences, (void)nValueReferences, (void)valueSizes, (void)values, (void)nValues;
     return not_provided(instance, "fmi3SetBinary", "no variable of type Binary");
 }
 
 fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                         fmi3Clock values[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)values;
     return not_provided(instance, "fmi3GetClock", "no clocks");
 }
 
 fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                         const fmi3Clock values[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)values;
     return not_provided(instance, "fmi3SetClock", "no clocks");
 }
 
 fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance instance, fmi3ValueReference valueReference,
                                                size_t *nDependencies)
 {
-    (void)valueReference, (void)nDependencies;
     return not_provided(instance, "fmi3GetNumberOfVariableDependencies", "no variable dependencies to give");
 }
 
@@ -627,8 +482,6 @@ fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference
                                        size_t elementIndicesOfIndependents[], fmi3DependencyKind dependencyKinds[],
                                        size_t nDependencies)
 {
-    (void)dependent, (void)elementIndicesOfDependent, (void)independents, (void)elementIndicesOfIndependents;
-    (void)dependencyKinds, (void)nDependencies;
     return not_provided(instance, "fmi3GetVariableDependencies", "no variable dependencies to give");
 }
 
@@ -636,8 +489,6 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueRe
                                         const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
                                         size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
 {
-    (void)unknowns, (void)nUnknowns, (void)knowns, (void)nKnowns, (void)seed, (void)nSeed, (void)sensitivity;
-    (void)nSensitivity;
     return not_provided(instance, "fmi3GetDirectionalDerivative", "no directional derivatives");
 }
 
@@ -645,8 +496,6 @@ fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueRefere
                                     const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
                                     size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
 {
-    (void)unknowns, (void)nUnknowns, (void)knowns, (void)nKnowns, (void)seed, (void)nSeed, (void)sensitivity;
-    (void)nSensitivity;
     return not_provided(instance, "fmi3GetAdjointDerivative", "no adjoint derivatives");
 }
 
@@ -654,7 +503,6 @@ fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueRefere
                                     size_t nValueReferences, const fmi3Int32 orders[], fmi3Float64 values[],
                                     size_t nValues)
 {
-    (void)valueReferences, (void)nValueReferences, (void)orders, (void)values, (void)nValues;
     return not_provided(instance, "fmi3GetOutputDerivatives", "no output derivatives");
 }
 
@@ -671,7 +519,6 @@ fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance)
 fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                   size_t nValueReferences, fmi3Float64 intervals[], fmi3IntervalQualifier qualifiers[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)intervals, (void)qualifiers;
     return not_provided(instance, "fmi3GetIntervalDecimal", "no clocks");
 }
 
@@ -679,28 +526,24 @@ fmi3Status fmi3GetIntervalFraction(fmi3Instance instance, const fmi3ValueReferen
                                    size_t nValueReferences, fmi3UInt64 counters[], fmi3UInt64 resolutions[],
                                    fmi3IntervalQualifier qualifiers[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)counters, (void)resolutions, (void)qualifiers;
     return not_provided(instance, "fmi3GetIntervalFraction", "no clocks");
 }
 
 fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                size_t nValueReferences, fmi3Float64 shifts[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)shifts;
     return not_provided(instance, "fmi3GetShiftDecimal", "no clocks");
 }
 
 fmi3Status fmi3GetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                 size_t nValueReferences, fmi3UInt64 counters[], fmi3UInt64 resolutions[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)counters, (void)resolutions;
     return not_provided(instance, "fmi3GetShiftFraction", "no clocks");
 }
 
 fmi3Status fmi3SetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                   size_t nValueReferences, const fmi3Float64 intervals[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)intervals;
     return not_provided(instance, "fmi3SetIntervalDecimal", "no clocks");
 }
 
@@ -708,21 +551,18 @@ fmi3Status fmi3SetIntervalFraction(fmi3Instance instance, const fmi3ValueReferen
                                    size_t nValueReferences, const fmi3UInt64 counters[],
                                    const fmi3UInt64 resolutions[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)counters, (void)resolutions;
     return not_provided(instance, "fmi3SetIntervalFraction", "no clocks");
 }
 
 fmi3Status fmi3SetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                size_t nValueReferences, const fmi3Float64 shifts[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)shifts;
     return not_provided(instance, "fmi3SetShiftDecimal", "no clocks");
 }
 
 fmi3Status fmi3SetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                 size_t nValueReferences, const fmi3UInt64 counters[], const fmi3UInt64 resolutions[])
 {
-    (void)valueReferences, (void)nValueReferences, (void)counters, (void)resolutions;
     return not_provided(instance, "fmi3SetShiftFraction", "no clocks");
 }
 
@@ -734,117 +574,9 @@ fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance instance)
 fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clockReference,
                                       fmi3Float64 activationTime)
 {
-    (void)clockReference, (void)activationTime;
     return not_provided(instance, "fmi3ActivateModelPartition", "no scheduled execution");
 }
-
-/* --- FMU state (FmuState, bouncingball_fmu_python.h) ------------------------------------------------ */
-static fmi3Status get_state_inner(fmi3Instance instance, fmi3FMUState *FMUState) { FORWARD(GetFMUState, FMUState); }
-
-static fmi3Status size_inner(fmi3Instance instance, fmi3FMUState FMUState, size_t *size)
-{
-    FORWARD(SerializedFMUStateSize, FMUState, size);
-}
-
-static fmi3Status serialize_inner(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte bytes[], size_t size)
-{
-    FORWARD(SerializeFMUState, FMUState, bytes, size);
-}
-
-static fmi3Status deserialize_inner(fmi3Instance instance, const fmi3Byte bytes[], size_t size, fmi3FMUState *FMUState)
-{
-    FORWARD(DeserializeFMUState, bytes, size, FMUState);
-}
-
-fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
-{
-    FmuState *saved;
-    if (instance == NULL || FMUState == NULL) {
-        return fmi3Error;
-    }
-    saved = state_to_fill(FMUState);
-    if (saved == NULL) {
-        return fmi3Error;
-    }
-    return into_state(get_state_inner(instance, &saved->inner), saved, FMUState, ((Instance *)instance)->state);
-}
-
-fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState)
-{
-    FmuState *saved = (FmuState *)FMUState;
-    if (saved == NULL) {
-        return fmi3Error;
-    }
-    FORWARD_TO(saved->state, SetFMUState, saved->inner);
-}
-
-fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
-{
-    Instance *c = (Instance *)instance;
-    FmuState *saved;
-    fmi3Status status = fmi3OK;
-    if (c == NULL || FMUState == NULL) {
-        return fmi3Error;
-    }
-    saved = (FmuState *)*FMUState;
-    if (saved == NULL) {
-        return fmi3OK;
-    }
-    if (!c->dead) {
-        c->worst = fmi3OK;
-        status = finish(c, inner.FreeFMUState(c->inner, &saved->inner));
-    }
-    free(saved);
-    *FMUState = NULL;
-    return status;
-}
-
-fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState, size_t *size)
-{
-    FmuState *saved = (FmuState *)FMUState;
-    fmi3Status status;
-    if (saved == NULL || size == NULL) {
-        return fmi3Error;
-    }
-    status = size_inner(instance, saved->inner, size);
-    if (status <= fmi3Warning) {
-        *size += 1;
-    }
-    return status;
-}
-
-fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[], size_t size)
-{
-    FmuState *saved = (FmuState *)FMUState;
-    if (saved == NULL || serializedState == NULL || size < 1) {
-        return fmi3Error;
-    }
-    serializedState[0] = (fmi3Byte)saved->state;
-    return serialize_inner(instance, saved->inner, serializedState + 1, size - 1);
-}
-
-fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[], size_t size,
-                                   fmi3FMUState *FMUState)
-{
-    Instance *c = (Instance *)instance;
-    FmuState *saved;
-    if (c == NULL || FMUState == NULL) {
-        return fmi3Error;
-    }
-    if (serializedState == NULL || size < 1 || serializedState[0] > TERMINATED ||
-        (c->interface == CO_SIMULATION && serializedState[0] == CONTINUOUS_TIME_MODE) ||
-        (c->interface == MODEL_EXCHANGE && serializedState[0] == STEP_MODE)) {
-        say(c, fmi3Error, "fmi3DeserializeFMUState: these bytes are not a state of this FMU's %s: nothing was done",
-            INTERFACE_NAMES[c->interface]);
-        return fmi3Error;
-    }
-    saved = state_to_fill(FMUState);
-    if (saved == NULL) {
-        return fmi3Error;
-    }
-    return into_state(deserialize_inner(instance, serializedState + 1, size - 1, &saved->inner), saved, FMUState,
-                      (State)serializedState[0]);
-}
+#pragma GCC diagnostic pop
 
 /* --- co-simulation ---------------------------------------------------------------------------------- */
 /* The time the slave has reached (the independent variable), or NAN with c->worst raised. */

@@ -15,7 +15,7 @@
  *      A fatal status from pythonfmu becomes fmi2Error for this instance only, which is then
  *      refused further calls (pythonfmu has already released its Python objects).
  *   3. pythonfmu 0.7.0 releases its interpreter state twice at process exit; the loader
- *      releases it once, first (see load()).
+ *      releases it once, first (see open_inner() in bouncingball_fmu_python.h).
  *   4. pythonfmu does not keep FMI 2.0's co-simulation state machine, and an unknown value
  *      reference raises inside it (fmi2Fatal, the instance is gone). The loader keeps the state
  *      machine (ALLOWED, one row per call) and checks value references against the variable
@@ -36,6 +36,7 @@
 #include <dlfcn.h>
 #include <libgen.h>
 #include <pthread.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -63,7 +64,16 @@
 #error "define BB_HOST_CHECK, the Python code that leaves in `problem` what the host's Python lacks (\"\" if nothing)"
 #endif
 
-/* pythonfmu's functions, loaded once per process */
+/* pythonfmu's functions, loaded once per process (bouncingball_fmu_python.h) */
+#define FMI_PREFIX fmi2
+#define FMI_INSTANCE fmi2Component
+#define FMI_STATE_TYPE fmi2FMUstate
+#define GET_STATE GetFMUstate
+#define SET_STATE SetFMUstate
+#define FREE_STATE FreeFMUstate
+#define STATE_SIZE SerializedFMUstateSize
+#define SERIALIZE_STATE SerializeFMUstate
+#define DESERIALIZE_STATE DeSerializeFMUstate
 #define INNER_FUNCTIONS(X) \
     X(SetDebugLogging) X(Instantiate) X(FreeInstance) X(SetupExperiment) X(EnterInitializationMode) \
     X(ExitInitializationMode) X(Terminate) X(Reset) X(GetReal) X(GetInteger) X(GetBoolean) X(GetString) \
@@ -71,12 +81,7 @@
     X(SerializedFMUstateSize) X(SerializeFMUstate) X(DeSerializeFMUstate) X(GetDirectionalDerivative) \
     X(SetRealInputDerivatives) X(GetRealOutputDerivatives) X(DoStep) X(CancelStep) X(GetStatus) \
     X(GetRealStatus) X(GetIntegerStatus) X(GetBooleanStatus) X(GetStringStatus)
-
-#define DECLARE(name) fmi2##name##TYPE *name;
-static struct {
-    INNER_FUNCTIONS(DECLARE)
-} inner;
-
+static const char *const TYPE_NAMES[] = {"Real", "Integer", "Boolean", "String"};
 
 /* FMI 2.0 co-simulation states (FMI 2.0.4, section 4.2.4). A slave that completes its steps
  * synchronously is never "step in progress"; the error state is not entered, because a refused
@@ -135,16 +140,28 @@ typedef struct Instance {
 
 #include "bouncingball_fmu_python.h"
 
-static pthread_once_t load_once = PTHREAD_ONCE_INIT;
-
-static void load(void)
+static void tell(Instance *c, fmi2Status status, const char *category, const char *message)
 {
-    void *library = open_inner();
-    if (library == NULL) {
-        return;
+    if (c->master.logger != NULL) {
+        c->master.logger(c->master.componentEnvironment, c->name, status, category, "%s", message);
     }
-#define LOAD(name) *(void **)&inner.name = symbol(library, "fmi2" #name);
-    INNER_FUNCTIONS(LOAD)
+}
+
+static int in_mode(const Instance *c, unsigned mask) { return (mask & IN(c->state)) != 0; }
+
+static const char *mode_name(const Instance *c)
+{
+    (void)c;
+    return "FMI 2.0 co-simulation";
+}
+
+static int restorable(Instance *c, int state)
+{
+    if (state >= INSTANTIATED && state <= TERMINATED) {
+        return 1;
+    }
+    say(c, fmi2Error, "fmi2DeSerializeFMUstate: these bytes are not a state of this FMU: nothing was done");
+    return 0;
 }
 
 /* The logger pythonfmu calls: remember the worst status, pass the message on. pythonfmu always
@@ -154,107 +171,36 @@ static void log_message(fmi2ComponentEnvironment environment, fmi2String name, f
                         fmi2String category, fmi2String message, ...)
 {
     Instance *c = (Instance *)environment;
-    if (status > c->worst) {
-        c->worst = status;
-    }
-    if ((status != fmi2OK || c->logging_on) && c->master.logger != NULL) {
+    if (note(c, status) && c->master.logger != NULL) {
         c->master.logger(c->master.componentEnvironment, name, status, category, "%s", message);
     }
 }
 
-static fmi2Status refuse(Instance *c, const char *function)
-{
-    if (c->master.logger != NULL) {
-        c->master.logger(c->master.componentEnvironment, c->name, fmi2Error, "logStatusError",
-                         "%s refused: an earlier error ended this instance", function);
-    }
-    return fmi2Error;
-}
-
-static fmi2Status not_allowed(Instance *c, const char *function)
-{
-    if (c->master.logger != NULL) {
-        c->master.logger(c->master.componentEnvironment, c->name, fmi2Error, "logStatusError",
-                         "%s is not allowed in state %s (FMI 2.0 co-simulation): nothing was done", function,
-                         STATE_NAMES[c->state]);
-    }
-    return fmi2Error;
-}
-
-/* 1 if every vr[i] is a variable of the given type ('R', 'I', 'B' or 'S'); else logs the first that is not. */
-static int known_references(Instance *c, const char *function, const fmi2ValueReference vr[], size_t nvr, char type)
-{
-    static const char types[] = BB_VARIABLE_TYPES;
-    static const char *const type_names[] = {"Real", "Integer", "Boolean", "String"};
-    const char *type_name = type_names[strchr("RIBS", type) - "RIBS"];
-    if (nvr > 0 && vr == NULL) {
-        if (c->master.logger != NULL) {
-            c->master.logger(c->master.componentEnvironment, c->name, fmi2Error, "logStatusError",
-                             "%s: vr is NULL for %zu value references", function, nvr);
-        }
-        return 0;
-    }
-    for (size_t i = 0; i < nvr; i++) {
-        if (vr[i] >= sizeof types - 1 || types[vr[i]] != type) {
-            if (c->master.logger != NULL) {
-                c->master.logger(c->master.componentEnvironment, c->name, fmi2Error, "logStatusError",
-                                 "%s: value reference %u is not a variable of type %s in this FMU: nothing was done",
-                                 function, (unsigned)vr[i], type_name);
-            }
-            return 0;
-        }
-    }
-    return 1;
-}
-
-static fmi2Status finish(Instance *c, fmi2Status status)
-{
-    if (status == fmi2Fatal) {
-        c->dead = 1;
-        return fmi2Error;
-    }
-    if (c->worst > status) {
-        status = c->worst > fmi2Error ? fmi2Error : c->worst;
-    }
-    return status;
-}
-
-/* Forward one call to pythonfmu if the state machine allows it, return the combined status, and move
- * the instance to state `next` if it succeeded (GNU ##__VA_ARGS__: gcc and clang drop the comma for
- * calls without arguments). */
-#define FORWARD_TO(next, function, ...)                                 \
-    do {                                                                \
-        Instance *c_ = (Instance *)c;                                   \
-        if (c_ == NULL) {                                               \
-            return fmi2Error;                                           \
-        }                                                               \
-        if (c_->dead) {                                                 \
-            return refuse(c_, "fmi2" #function);                        \
-        }                                                               \
-        if (!(ALLOWED_##function & IN(c_->state))) {                    \
-            return not_allowed(c_, "fmi2" #function);                   \
-        }                                                               \
-        c_->worst = fmi2OK;                                             \
-        fmi2Status status_ = finish(c_, inner.function(c_->inner, ##__VA_ARGS__)); \
-        if (status_ <= fmi2Warning) {                                   \
-            c_->state = (next);                                         \
-        }                                                               \
-        return status_;                                                 \
-    } while (0)
-
-/* A call that leaves the state as it is. */
-#define FORWARD(function, ...) FORWARD_TO(c_->state, function, ##__VA_ARGS__)
-
 /* FORWARD for a getter or setter of one type: its value references are checked first. */
-#define FORWARD_VALUES(function, type, vr, nvr, ...)                    \
-    do {                                                                \
-        Instance *c_ = (Instance *)c;                                   \
-        if (c_ != NULL && !c_->dead && (ALLOWED_##function & IN(c_->state)) && \
-            !known_references(c_, "fmi2" #function, vr, nvr, type)) {   \
-            return fmi2Error;                                           \
-        }                                                               \
-        FORWARD(function, vr, nvr, ##__VA_ARGS__);                      \
+#define FORWARD_VALUES(function, type, ...)                                                           \
+    do {                                                                                              \
+        CHECK(function)                                                                               \
+        if (nvr > 0 && vr == NULL) {                                                                  \
+            say(c_, fmi2Error, "%s: vr is NULL for %zu value references", FMI_STRING(function), nvr); \
+            return fmi2Error;                                                                         \
+        }                                                                                             \
+        if (!of_type(c_, FMI_STRING(function), vr, nvr, type)) {                                      \
+            return fmi2Error;                                                                         \
+        }                                                                                             \
+        CALL_TO(c_->state, function, vr, nvr, ##__VA_ARGS__);                                         \
     } while (0)
+
+/* The getter and setter of one type of variable. */
+#define VALUES_OF(type, ctype, letter)                                                                     \
+    fmi2Status fmi2Get##type(fmi2Component instance, const fmi2ValueReference vr[], size_t nvr, ctype value[]) \
+    {                                                                                                       \
+        FORWARD_VALUES(Get##type, letter, value);                                                           \
+    }                                                                                                       \
+    fmi2Status fmi2Set##type(fmi2Component instance, const fmi2ValueReference vr[], size_t nvr,            \
+                             const ctype value[])                                                           \
+    {                                                                                                       \
+        FORWARD_VALUES(Set##type, letter, value);                                                           \
+    }
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 
@@ -266,25 +212,17 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
 {
     char problem[4096];
     Instance *c;
-    pthread_once(&load_once, load);
-    if (load_error[0] != '\0') {
+    if (!can_instantiate(problem, sizeof problem)) {
         if (functions != NULL && functions->logger != NULL) {
             functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError", "%s",
-                              load_error);
+                              problem);
         }
         return NULL;
     }
     if (functions == NULL) {
         return NULL; /* FMI requires the callbacks; without a logger there is no one to tell */
     }
-    if (!host_ready(problem, sizeof problem)) {
-        if (functions->logger != NULL) {
-            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError", "%s",
-                              problem);
-        }
-        return NULL;
-    }
-    c = calloc(1, sizeof *c);
+    c = new_instance(instanceName, loggingOn);
     if (c == NULL) {
         return NULL;
     }
@@ -296,262 +234,87 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         c->own.allocateMemory = calloc;
         c->own.freeMemory = free;
     }
-    c->name = strdup(instanceName != NULL ? instanceName : "");
-    if (c->name == NULL) {
-        free(c);
-        return NULL;
-    }
-    c->logging_on = loggingOn;
-    c->state = INSTANTIATED;
     c->inner = inner.Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, &c->own, visible, fmi2True);
-    if (c->inner == NULL) {
-        free(c->name);
-        free(c);
-        return NULL;
-    }
-    link_live(c);
-    return c;
+    return keep(c);
 }
 
-void fmi2FreeInstance(fmi2Component c)
-{
-    Instance *instance = (Instance *)c;
-    /* A second call for the same instance is undefined by the standard: do nothing rather than
-     * free it twice (its memory, and with it the master's logger, is gone: nothing to log to). */
-    if (instance == NULL || !unlink_live(instance)) {
-        return;
-    }
-    if (!instance->dead) { /* a dead pythonfmu instance has released its objects already */
-        inner.FreeInstance(instance->inner);
-    }
-    free(instance->name);
-    free(instance);
-}
+void fmi2FreeInstance(fmi2Component c) { free_instance(c); }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[])
 {
     (void)nCategories;
     (void)categories;
-    if (c == NULL) {
-        return fmi2Error;
-    }
-    ((Instance *)c)->logging_on = loggingOn; /* pythonfmu keeps logging everything to us */
-    return fmi2OK;
+    return set_logging(c, loggingOn);
 }
 
-fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+fmi2Status fmi2SetupExperiment(fmi2Component instance, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
 {
     FORWARD(SetupExperiment, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime);
 }
 
-fmi2Status fmi2EnterInitializationMode(fmi2Component c) { FORWARD_TO(INITIALIZATION_MODE, EnterInitializationMode); }
+fmi2Status fmi2EnterInitializationMode(fmi2Component instance) { FORWARD_TO(INITIALIZATION_MODE, EnterInitializationMode); }
 
-fmi2Status fmi2ExitInitializationMode(fmi2Component c) { FORWARD_TO(STEP_COMPLETE, ExitInitializationMode); }
+fmi2Status fmi2ExitInitializationMode(fmi2Component instance) { FORWARD_TO(STEP_COMPLETE, ExitInitializationMode); }
 
-fmi2Status fmi2Terminate(fmi2Component c) { FORWARD_TO(TERMINATED, Terminate); }
+fmi2Status fmi2Terminate(fmi2Component instance) { FORWARD_TO(TERMINATED, Terminate); }
 
-fmi2Status fmi2Reset(fmi2Component c) { FORWARD_TO(INSTANTIATED, Reset); }
+fmi2Status fmi2Reset(fmi2Component instance) { FORWARD_TO(INSTANTIATED, Reset); }
 
-fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
-{
-    FORWARD_VALUES(GetReal, 'R', vr, nvr, value);
-}
+VALUES_OF(Real, fmi2Real, 'R')
+VALUES_OF(Integer, fmi2Integer, 'I')
+VALUES_OF(Boolean, fmi2Boolean, 'B')
+VALUES_OF(String, fmi2String, 'S')
 
-fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[])
-{
-    FORWARD_VALUES(GetInteger, 'I', vr, nvr, value);
-}
-
-fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
-{
-    FORWARD_VALUES(GetBoolean, 'B', vr, nvr, value);
-}
-
-fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
-{
-    FORWARD_VALUES(GetString, 'S', vr, nvr, value);
-}
-
-fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
-{
-    FORWARD_VALUES(SetReal, 'R', vr, nvr, value);
-}
-
-fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[])
-{
-    FORWARD_VALUES(SetInteger, 'I', vr, nvr, value);
-}
-
-fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
-{
-    FORWARD_VALUES(SetBoolean, 'B', vr, nvr, value);
-}
-
-fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])
-{
-    FORWARD_VALUES(SetString, 'S', vr, nvr, value);
-}
-
-/* An FMU state (FmuState, bouncingball_fmu_python.h): a fresh instance given the state of an initialised one
- * is initialised. */
-static fmi2Status get_state_inner(fmi2Component c, fmi2FMUstate *FMUstate) { FORWARD(GetFMUstate, FMUstate); }
-
-static fmi2Status size_inner(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
-{
-    FORWARD(SerializedFMUstateSize, FMUstate, size);
-}
-
-static fmi2Status serialize_inner(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte bytes[], size_t size)
-{
-    FORWARD(SerializeFMUstate, FMUstate, bytes, size);
-}
-
-static fmi2Status deserialize_inner(fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *FMUstate)
-{
-    FORWARD(DeSerializeFMUstate, bytes, size, FMUstate);
-}
-
-fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
-{
-    FmuState *saved;
-    if (c == NULL || FMUstate == NULL) {
-        return fmi2Error;
-    }
-    saved = state_to_fill(FMUstate);
-    if (saved == NULL) {
-        return fmi2Error;
-    }
-    return into_state(get_state_inner(c, &saved->inner), saved, FMUstate, ((Instance *)c)->state);
-}
-
-fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
-{
-    FmuState *saved = (FmuState *)FMUstate;
-    if (saved == NULL) {
-        return fmi2Error;
-    }
-    FORWARD_TO(saved->state, SetFMUstate, saved->inner);
-}
-
-fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
-{
-    Instance *instance = (Instance *)c;
-    FmuState *saved;
-    fmi2Status status = fmi2OK;
-    if (instance == NULL || FMUstate == NULL) {
-        return fmi2Error;
-    }
-    saved = (FmuState *)*FMUstate;
-    if (saved == NULL) {
-        return fmi2OK; /* freeing nothing is allowed */
-    }
-    if (!instance->dead) {
-        instance->worst = fmi2OK;
-        status = finish(instance, inner.FreeFMUstate(instance->inner, &saved->inner));
-    }
-    free(saved);
-    *FMUstate = NULL;
-    return status;
-}
-
-fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
-{
-    FmuState *saved = (FmuState *)FMUstate;
-    fmi2Status status;
-    if (saved == NULL || size == NULL) {
-        return fmi2Error;
-    }
-    status = size_inner(c, saved->inner, size);
-    if (status <= fmi2Warning) {
-        *size += 1;
-    }
-    return status;
-}
-
-fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size)
-{
-    FmuState *saved = (FmuState *)FMUstate;
-    if (saved == NULL || serializedState == NULL || size < 1) {
-        return fmi2Error;
-    }
-    serializedState[0] = (fmi2Byte)saved->state;
-    return serialize_inner(c, saved->inner, serializedState + 1, size - 1);
-}
-
-fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
-                                   fmi2FMUstate *FMUstate)
-{
-    Instance *instance = (Instance *)c;
-    FmuState *saved;
-    if (instance == NULL || FMUstate == NULL) {
-        return fmi2Error;
-    }
-    if (serializedState == NULL || size < 1 || (unsigned char)serializedState[0] > TERMINATED) {
-        if (instance->master.logger != NULL) {
-            instance->master.logger(instance->master.componentEnvironment, instance->name, fmi2Error,
-                                    "logStatusError", "fmi2DeSerializeFMUstate: these bytes are not a state of this "
-                                    "FMU: nothing was done");
-        }
-        return fmi2Error;
-    }
-    saved = state_to_fill(FMUstate);
-    if (saved == NULL) {
-        return fmi2Error;
-    }
-    return into_state(deserialize_inner(c, serializedState + 1, size - 1, &saved->inner), saved, FMUstate,
-                      (State)(unsigned char)serializedState[0]);
-}
-
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component instance, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[])
 {
     FORWARD(GetDirectionalDerivative, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown, dvUnknown);
 }
 
-fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component instance, const fmi2ValueReference vr[], size_t nvr,
                                        const fmi2Integer order[], const fmi2Real value[])
 {
     FORWARD(SetRealInputDerivatives, vr, nvr, order, value);
 }
 
-fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component instance, const fmi2ValueReference vr[], size_t nvr,
                                         const fmi2Integer order[], fmi2Real value[])
 {
     FORWARD(GetRealOutputDerivatives, vr, nvr, order, value);
 }
 
-fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
+fmi2Status fmi2DoStep(fmi2Component instance, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
     FORWARD(DoStep, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint);
 }
 
-fmi2Status fmi2CancelStep(fmi2Component c) { FORWARD(CancelStep); }
+fmi2Status fmi2CancelStep(fmi2Component instance) { FORWARD(CancelStep); }
 
-fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value)
+fmi2Status fmi2GetStatus(fmi2Component instance, const fmi2StatusKind s, fmi2Status *value)
 {
     FORWARD(GetStatus, s, value);
 }
 
-fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
+fmi2Status fmi2GetRealStatus(fmi2Component instance, const fmi2StatusKind s, fmi2Real *value)
 {
     FORWARD(GetRealStatus, s, value);
 }
 
-fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value)
+fmi2Status fmi2GetIntegerStatus(fmi2Component instance, const fmi2StatusKind s, fmi2Integer *value)
 {
     FORWARD(GetIntegerStatus, s, value);
 }
 
-fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
+fmi2Status fmi2GetBooleanStatus(fmi2Component instance, const fmi2StatusKind s, fmi2Boolean *value)
 {
     FORWARD(GetBooleanStatus, s, value);
 }
 
-fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value)
+fmi2Status fmi2GetStringStatus(fmi2Component instance, const fmi2StatusKind s, fmi2String *value)
 {
     FORWARD(GetStringStatus, s, value);
 }

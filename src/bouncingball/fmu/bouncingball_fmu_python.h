@@ -1,12 +1,45 @@
 /* The part of the BouncingBall FMU's binaries that does not depend on the FMI version: the Python
- * that runs pythonfmu (or pythonfmu3), the loading of their binary, and the check of the host's
- * Python. Included by bouncingball_fmu_loader.c (FMI 2.0) and bouncingball_fmu3_loader.c (FMI 3.0),
- * which define the macros they describe (BB_LIBPYTHON, BB_PYTHON, BB_INNER, BB_PYTHON_VERSION,
- * BB_HOST_CHECK), include <dlfcn.h>, <libgen.h>, <pthread.h>, <stdio.h>, <stdlib.h>, <string.h>,
- * <unistd.h> and <wchar.h>, and define their Instance (with a `struct Instance *next`) first.
+ * that runs pythonfmu (or pythonfmu3), the loading of their binary, the check of the host's Python,
+ * the instances' life, the status of a forwarded call, and the FMU state calls. Included by
+ * bouncingball_fmu_loader.c (FMI 2.0) and bouncingball_fmu3_loader.c (FMI 3.0), which define the
+ * macros they describe (BB_LIBPYTHON, BB_PYTHON, BB_INNER, BB_PYTHON_VERSION, BB_HOST_CHECK,
+ * BB_VARIABLE_TYPES), include <dlfcn.h>, <libgen.h>, <pthread.h>, <stdarg.h>, <stdio.h>, <stdlib.h>,
+ * <string.h>, <unistd.h>, <wchar.h> and their FMI headers, and define first:
+ *   FMI_PREFIX            fmi2 or fmi3: FMI(Status) is fmi2Status or fmi3Status (the statuses are numbered alike);
+ *   FMI_INSTANCE, FMI_STATE_TYPE  the types of an instance and of an FMU state (fmi2Component, fmi2FMUstate);
+ *   GET_STATE, SET_STATE, FREE_STATE, STATE_SIZE, SERIALIZE_STATE, DESERIALIZE_STATE  how the version
+ *                         spells the FMU state calls (GetFMUstate, ..., DeSerializeFMUstate);
+ *   INNER_FUNCTIONS(X)    the inner binary's functions to load, by name without the prefix;
+ *   State                 an enum whose first value is INSTANTIATED, STATE_NAMES, IN(state) (a mask bit)
+ *                         and ALLOWED_<call> (the mask of the states each forwarded call is allowed in);
+ *   TYPE_NAMES            the version's names of the variable types R, I, B and S;
+ *   Instance              with inner, name, logging_on, worst, dead, state and `struct Instance *next`;
+ * and, after the #include, the functions declared below as the loader's.
  */
 #ifndef BOUNCINGBALL_FMU_PYTHON_H
 #define BOUNCINGBALL_FMU_PYTHON_H
+
+#define FMI_PASTE_(a, b) a##b
+#define FMI_PASTE(a, b) FMI_PASTE_(a, b)
+#define FMI(name) FMI_PASTE(FMI_PREFIX, name)
+#define FMI_QUOTE_(text) #text
+#define FMI_QUOTE(text) FMI_QUOTE_(text)
+#define FMI_STRING(name) FMI_QUOTE(FMI(name)) /* FMI_STRING(DoStep): "fmi2DoStep" */
+
+/* Defined by the loader: pass one line to the master's logger (if it has one), */
+static void tell(Instance *c, FMI(Status) status, const char *category, const char *message);
+/* 1 if a call allowed in mask may run in c's state (and interface), */
+static int in_mode(const Instance *c, unsigned mask);
+/* what c runs, as "FMI 2.0 co-simulation", */
+static const char *mode_name(const Instance *c);
+/* 1 if state (a serialized state's first byte, -1 if it has none) is one c may be restored to; else logs why, 0. */
+static int restorable(Instance *c, int state);
+
+/* The inner binary's functions, loaded once per process */
+#define DECLARE(name) FMI(name##TYPE) *name;
+static struct {
+    INNER_FUNCTIONS(DECLARE)
+} inner;
 
 static void (*release_python_state)(void); /* pythonfmu's finalizePythonInterpreter */
 
@@ -23,11 +56,10 @@ static FmuState *state_to_fill(void *const *FMUstate)
     return *FMUstate != NULL ? (FmuState *)*FMUstate : calloc(1, sizeof(FmuState));
 }
 
-/* Hand saved back in *FMUstate once pythonfmu's part is in it, or free it if it was new and that failed.
- * status is an fmi2Status or fmi3Status (numbered alike: above 1, Warning, it failed). */
-static int into_state(int status, FmuState *saved, void **FMUstate, int state)
+/* Hand saved back in *FMUstate once pythonfmu's part is in it, or free it if it was new and that failed. */
+static FMI(Status) into_state(FMI(Status) status, FmuState *saved, void **FMUstate, int state)
 {
-    if (status > 1) {
+    if (status > FMI(Warning)) {
         if (*FMUstate == NULL) {
             free(saved);
         }
@@ -272,6 +304,289 @@ static int host_ready(char *problem, size_t size)
     }
     release(gil);
     return ready;
+}
+
+static pthread_once_t load_once = PTHREAD_ONCE_INIT;
+
+static void load(void)
+{
+    void *library = open_inner();
+    if (library == NULL) {
+        return;
+    }
+#define LOAD(name) *(void **)&inner.name = symbol(library, FMI_STRING(name));
+    INNER_FUNCTIONS(LOAD)
+}
+
+/* --- instances -------------------------------------------------------------------------------------- */
+/* 1 if this process can make an instance: the inner binary is loaded and the host's Python has what the
+ * FMU needs; else 0 with the reason (one line for the master's log) in problem. */
+static int can_instantiate(char *problem, size_t size)
+{
+    pthread_once(&load_once, load);
+    if (load_error[0] != '\0') {
+        snprintf(problem, size, "%s", load_error);
+        return 0;
+    }
+    return host_ready(problem, size);
+}
+
+/* A new instance in state INSTANTIATED, without its inner instance yet (see keep); NULL if out of memory. */
+static Instance *new_instance(const char *instanceName, FMI(Boolean) loggingOn)
+{
+    Instance *c = calloc(1, sizeof *c);
+    if (c == NULL) {
+        return NULL;
+    }
+    c->name = strdup(instanceName != NULL ? instanceName : "");
+    if (c->name == NULL) {
+        free(c);
+        return NULL;
+    }
+    c->logging_on = loggingOn;
+    c->state = INSTANTIATED;
+    return c;
+}
+
+/* c, now live, if the inner binary made its instance; else NULL, c freed. */
+static Instance *keep(Instance *c)
+{
+    if (c->inner == NULL) {
+        free(c->name);
+        free(c);
+        return NULL;
+    }
+    link_live(c);
+    return c;
+}
+
+static void free_instance(FMI_INSTANCE instance)
+{
+    Instance *c = (Instance *)instance;
+    /* A second call for the same instance is undefined by the standard: do nothing rather than
+     * free it twice (its memory, and with it the master's logger, is gone: nothing to log to). */
+    if (c == NULL || !unlink_live(c)) {
+        return;
+    }
+    if (!c->dead) { /* a dead inner instance has released its objects already */
+        inner.FreeInstance(c->inner);
+    }
+    free(c->name);
+    free(c);
+}
+
+static FMI(Status) set_logging(FMI_INSTANCE instance, FMI(Boolean) loggingOn)
+{
+    if (instance == NULL) {
+        return FMI(Error);
+    }
+    ((Instance *)instance)->logging_on = loggingOn; /* the inner binary keeps logging everything to us */
+    return FMI(OK);
+}
+
+/* --- the status of a call --------------------------------------------------------------------------- */
+/* For the logger the inner binary calls: remember the worst status logged during the call; 1 if the
+ * master is to see the message (warnings and errors always, the rest while logging is on). */
+static int note(Instance *c, FMI(Status) status)
+{
+    if (status > c->worst) {
+        c->worst = status;
+    }
+    return status != FMI(OK) || c->logging_on;
+}
+
+static void say(Instance *c, FMI(Status) status, const char *format, ...) __attribute__((format(printf, 3, 4)));
+
+/* Log one line to the master (warnings and errors always, the rest while logging is on). */
+static void say(Instance *c, FMI(Status) status, const char *format, ...)
+{
+    char message[4096];
+    va_list arguments;
+    if (status == FMI(OK) && !c->logging_on) {
+        return;
+    }
+    va_start(arguments, format);
+    vsnprintf(message, sizeof message, format, arguments);
+    va_end(arguments);
+    tell(c, status, status == FMI(OK) ? "logAll" : "logStatusError", message);
+}
+
+/* The status of a forwarded call: the worst of what the inner binary returned and what it logged. A
+ * fatal status ends this instance only: fmi2Error or fmi3Error, then refused further calls. */
+static FMI(Status) finish(Instance *c, FMI(Status) status)
+{
+    if (status == FMI(Fatal)) {
+        c->dead = 1;
+        return FMI(Error);
+    }
+    if (c->worst > status) {
+        status = c->worst > FMI(Error) ? FMI(Error) : c->worst;
+    }
+    return status;
+}
+
+/* 1 if the call may run in c's state (and interface); else logs why and returns 0. */
+static int allowed(Instance *c, const char *function, unsigned mask)
+{
+    if (c->dead) {
+        say(c, FMI(Error), "%s refused: an earlier error ended this instance", function);
+        return 0;
+    }
+    if (!in_mode(c, mask)) {
+        say(c, FMI(Error), "%s is not allowed in state %s (%s): nothing was done", function, STATE_NAMES[c->state],
+            mode_name(c));
+        return 0;
+    }
+    c->worst = FMI(OK);
+    return 1;
+}
+
+/* The instance of the call (c_, from the argument `instance`), if the call is allowed in its state;
+ * else the call returns an error. */
+#define CHECK(function)                                                          \
+    Instance *c_ = (Instance *)instance;                                         \
+    if (c_ == NULL || !allowed(c_, FMI_STRING(function), ALLOWED_##function)) { \
+        return FMI(Error);                                                       \
+    }
+
+/* Forward to the inner binary, return the combined status, and move to state `next` if it succeeded
+ * (GNU ##__VA_ARGS__: gcc and clang drop the comma for calls without arguments). */
+#define CALL_TO(next, function, ...)                                               \
+    do {                                                                           \
+        FMI(Status) status_ = finish(c_, inner.function(c_->inner, ##__VA_ARGS__)); \
+        if (status_ <= FMI(Warning)) {                                             \
+            c_->state = (next);                                                    \
+        }                                                                          \
+        return status_;                                                            \
+    } while (0)
+
+#define FORWARD_TO(next, function, ...)         \
+    do {                                        \
+        CHECK(function)                         \
+        CALL_TO(next, function, ##__VA_ARGS__); \
+    } while (0)
+
+/* A call that leaves the state as it is. */
+#define FORWARD(function, ...) FORWARD_TO(c_->state, function, ##__VA_ARGS__)
+
+/* 1 if every vr[i] is a variable of the given type ('R', 'I', 'B' or 'S'); else logs the first that is not. */
+static int of_type(Instance *c, const char *function, const FMI(ValueReference) vr[], size_t nvr, char type)
+{
+    static const char types[] = BB_VARIABLE_TYPES;
+    const char *type_name = TYPE_NAMES[strchr("RIBS", type) - "RIBS"];
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] >= sizeof types - 1 || types[vr[i]] != type) {
+            say(c, FMI(Error), "%s: value reference %u is not a variable of type %s in this FMU: nothing was done",
+                function, (unsigned)vr[i], type_name);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* --- FMU state (FmuState): a fresh instance given the state of an initialised one is initialised ------ */
+static FMI(Status) get_state_inner(FMI_INSTANCE instance, FMI_STATE_TYPE *FMUstate) { FORWARD(GET_STATE, FMUstate); }
+
+static FMI(Status) size_inner(FMI_INSTANCE instance, FMI_STATE_TYPE FMUstate, size_t *size)
+{
+    FORWARD(STATE_SIZE, FMUstate, size);
+}
+
+static FMI(Status) serialize_inner(FMI_INSTANCE instance, FMI_STATE_TYPE FMUstate, FMI(Byte) bytes[], size_t size)
+{
+    FORWARD(SERIALIZE_STATE, FMUstate, bytes, size);
+}
+
+static FMI(Status) deserialize_inner(FMI_INSTANCE instance, const FMI(Byte) bytes[], size_t size,
+                                     FMI_STATE_TYPE *FMUstate)
+{
+    FORWARD(DESERIALIZE_STATE, bytes, size, FMUstate);
+}
+
+FMI(Status) FMI(GET_STATE)(FMI_INSTANCE instance, FMI_STATE_TYPE *FMUstate)
+{
+    FmuState *saved;
+    if (instance == NULL || FMUstate == NULL) {
+        return FMI(Error);
+    }
+    saved = state_to_fill(FMUstate);
+    if (saved == NULL) {
+        return FMI(Error);
+    }
+    return into_state(get_state_inner(instance, &saved->inner), saved, FMUstate, ((Instance *)instance)->state);
+}
+
+FMI(Status) FMI(SET_STATE)(FMI_INSTANCE instance, FMI_STATE_TYPE FMUstate)
+{
+    FmuState *saved = (FmuState *)FMUstate;
+    if (saved == NULL) {
+        return FMI(Error);
+    }
+    FORWARD_TO(saved->state, SET_STATE, saved->inner);
+}
+
+FMI(Status) FMI(FREE_STATE)(FMI_INSTANCE instance, FMI_STATE_TYPE *FMUstate)
+{
+    Instance *c = (Instance *)instance;
+    FmuState *saved;
+    FMI(Status) status = FMI(OK);
+    if (c == NULL || FMUstate == NULL) {
+        return FMI(Error);
+    }
+    saved = (FmuState *)*FMUstate;
+    if (saved == NULL) {
+        return FMI(OK); /* freeing nothing is allowed */
+    }
+    if (!c->dead) {
+        c->worst = FMI(OK);
+        status = finish(c, inner.FREE_STATE(c->inner, &saved->inner));
+    }
+    free(saved);
+    *FMUstate = NULL;
+    return status;
+}
+
+FMI(Status) FMI(STATE_SIZE)(FMI_INSTANCE instance, FMI_STATE_TYPE FMUstate, size_t *size)
+{
+    FmuState *saved = (FmuState *)FMUstate;
+    FMI(Status) status;
+    if (saved == NULL || size == NULL) {
+        return FMI(Error);
+    }
+    status = size_inner(instance, saved->inner, size);
+    if (status <= FMI(Warning)) {
+        *size += 1;
+    }
+    return status;
+}
+
+FMI(Status) FMI(SERIALIZE_STATE)(FMI_INSTANCE instance, FMI_STATE_TYPE FMUstate, FMI(Byte) serializedState[],
+                                 size_t size)
+{
+    FmuState *saved = (FmuState *)FMUstate;
+    if (saved == NULL || serializedState == NULL || size < 1) {
+        return FMI(Error);
+    }
+    serializedState[0] = (FMI(Byte))saved->state;
+    return serialize_inner(instance, saved->inner, serializedState + 1, size - 1);
+}
+
+FMI(Status) FMI(DESERIALIZE_STATE)(FMI_INSTANCE instance, const FMI(Byte) serializedState[], size_t size,
+                                   FMI_STATE_TYPE *FMUstate)
+{
+    FmuState *saved;
+    if (instance == NULL || FMUstate == NULL) {
+        return FMI(Error);
+    }
+    if (!restorable((Instance *)instance, serializedState == NULL || size < 1 ? -1 : (unsigned char)serializedState[0])) {
+        return FMI(Error);
+    }
+    saved = state_to_fill(FMUstate);
+    if (saved == NULL) {
+        return FMI(Error);
+    }
+    return into_state(deserialize_inner(instance, serializedState + 1, size - 1, &saved->inner), saved, FMUstate,
+                      (unsigned char)serializedState[0]);
 }
 
 #endif

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..accuracy import Accuracy, accuracy_of, accuracy_of_result, exact_on_grid, impact_count_mismatches
+from ..accuracy import Accuracy, accuracy_of, accuracy_of_result, exact_on_grid, impact_counts
 from ..capped import FINISHED, Capped, run_capped
 from ..scenes import Scene, load_scene
 from ..solvers import ARTICLE_LABEL
@@ -160,7 +160,7 @@ def _impacts_match(result, scene: Scene) -> bool:
     at_points = exact_on_grid(result["time"], scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=0.0)
     t = at_points.t
     tie = 1e-9 * np.maximum(1.0, np.abs(t))  # an impact on a communication point, to 1 ns, may count or not
-    return impact_count_mismatches(at_points.impact_times, t, result["impacts"], tie).size == 0
+    return impact_counts(at_points.impact_times, t, result["impacts"], tie).mismatches.size == 0
 
 
 def check_fmu_file(fmu: Path) -> None:
