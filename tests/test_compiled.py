@@ -381,6 +381,7 @@ def test_solvers_free_their_sundials_memory():
         import numpy as np
         import bouncingball as bb
         from bouncingball.physics import Mode
+        from bouncingball.solvers import compiled
         from bouncingball.solvers.compiled import PhaseSolver
 
         def resident():
@@ -389,10 +390,11 @@ def test_solvers_free_their_sundials_memory():
 
         def cycle(i):
             solver = PhaseSolver(bb.Ball(), Mode.FLIGHT, "Adams", 1e-11, 0.0, 1000, 1e-300, [-1, 0, 1], 10**6)
-            solver.init_step(0.0, np.array([2.0 - 0.06, 0.0]))  # the gap; frame 1 m, 1 m/s
-            while (result := solver.step(1.0)).status == 0:
+            engine, scratch = np.stack([solver.handle()] * 2), np.zeros((1, 5))
+            assert compiled._engine_start(engine, 0, np.inf, 2.0 - 0.06, 0.0, 1.0, 1.0, 0.0, 9.81) == 0  # the gap
+            while (flag := compiled._engine_step(engine, 0, scratch, 1.0)[0]) == 0:
                 pass
-            assert result.status == 2 and abs(result.t - (2.0 - 0.06) ** 0.5 * (2 / 9.81) ** 0.5) < 1e-9
+            assert flag == 2 and abs(scratch[0, 0] - (2.0 - 0.06) ** 0.5 * (2 / 9.81) ** 0.5) < 1e-9
             if i % 2:
                 solver.close()
 

@@ -165,7 +165,7 @@ def settings(ball, h0: float, v0: float, t0: float, F_ext: float, rtol: float, a
     codes = [compiled.CV_ADAMS if m == "Adams" else compiled.CV_BDF for m in integrator_methods]
     s = _Settings(m=ball.m, k=ball.k, b=ball.b, R=ball.R, g=ball.g, F_ext=F_ext, h0=h0, v0=v0, t0=t0, rtol=rtol,
                   atol=0.0 if atol is None else atol, max_step=0.0,
-                  own_side=integrator.BallIntegrator._own_side(Mode.FLIGHT),
+                  own_side=integrator._own_side(Mode.FLIGHT),
                   hop_resolution=solver_settings.HOP_RESOLUTION,
                   soft_contact_cap=phases.SOFT_CONTACT_CAP, min_phase_scale=phases.MIN_PHASE_SCALE,
                   max_num_steps=integrator._MAX_STEPS_PER_CALL, max_steps_per_phase=integrator.MAX_STEPS_PER_PHASE,

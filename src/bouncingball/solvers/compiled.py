@@ -42,7 +42,6 @@ from .jit import (
     doubles,
     functions_of,
 )
-from .stepper import PhaseResult
 from .sundials import EngineUnavailable, library, unavailable_reason
 from .sundials import free as _free
 from .sundials import message as _message
@@ -60,9 +59,9 @@ _NUM_ROOTS = 3
 # The block user_data points to (int64): what the callbacks need besides the state.
 _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_SIZE = range(6)
 # The parameters (float64) the callbacks read.
-# CVODE integrates x / length and v / speed (x = h - R), the phase's frame set by PhaseSolver.set_frame.
-(_P_M, _P_K, _P_B, _P_R, _P_G, _P_F_EXT, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
- _P_LENGTH, _P_SPEED, _P_LOAD, _P_SIZE) = range(17)
+# CVODE integrates x / length and v / speed (x = h - R), the phase's frame set by _engine_start.
+(_P_M, _P_K, _P_B, _P_R, _P_G, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
+ _P_LENGTH, _P_SPEED, _P_LOAD, _P_SIZE) = range(16)
 
 
 
@@ -131,7 +130,7 @@ def _unpacked(engine, mode):
 def _engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load):
     calls, memory, vector, state, parameters, user_data, work, counter = _unpacked(engine, mode)
     parameters[_P_LENGTH], parameters[_P_SPEED], parameters[_P_HOP], parameters[_P_LOAD] = length, speed, hop, load
-    # the Jacobian in the scaled variables (x / length, v / speed), as PhaseSolver.set_frame
+    # the Jacobian in the scaled variables (x / length, v / speed)
     contact = mode == 1
     parameters[_P_J00], parameters[_P_J01] = 0.0, 1.0 * speed / length
     parameters[_P_J10] = (-parameters[_P_K] / parameters[_P_M] if contact else 0.0) * length / speed
@@ -287,8 +286,6 @@ class PhaseSolver:
         self._calls = np.array([addresses[name] for name in _LOOP_FUNCTIONS], dtype=np.intp)
         self._work = np.zeros(1 + _NUM_ROOTS)
         self._counter = np.zeros(1, dtype=np.int64)  # a C long
-        self._out = np.empty((1, 3))  # step() takes one step
-        self._roots = [0, 0, 0]
         self._handles = {}
         self._state = None
 
@@ -346,46 +343,13 @@ class PhaseSolver:
 
     # --- the calls BallIntegrator makes (solvers/stepper.py) ---------------------------------------
     def bind(self, ball) -> None:
-        """Integrate ball's equations from now on (F_ext 0 and a unit frame until set)."""
-        self._jacobian = ball.jacobian(self._mode)
+        """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
         self.parameters[[_P_M, _P_K, _P_B, _P_R, _P_G]] = ball.m, ball.k, ball.b, ball.R, ball.g
-        self.F_ext = 0.0
-        self.set_frame(1.0, 1.0, 0.0)
-
-    @property
-    def F_ext(self) -> float:
-        return self.parameters[_P_F_EXT]
-
-    @F_ext.setter
-    def F_ext(self, value: float) -> None:
-        self.parameters[_P_F_EXT] = value
-        self.parameters[_P_LOAD] = physics.load_value(value, self.parameters[_P_M], self.parameters[_P_G])
-
-    def set_frame(self, length: float, speed: float, hop_tolerance: float) -> None:
-        """The phase's scales [m, m/s] and the rest root's margin [m] (Ball.rest_margin); set before init_step/solve."""
-        (j00, j01), (j10, j11) = self._jacobian
-        self.parameters[[_P_LENGTH, _P_SPEED, _P_HOP]] = length, speed, hop_tolerance
-        # the Jacobian of (x / length, v / speed)' in those scaled variables
-        self.parameters[[_P_J00, _P_J01, _P_J10, _P_J11]] = j00, j01 * speed / length, j10 * length / speed, j11
 
     @property
     def exceeded(self) -> bool:
         """True if the last call failed because the phase took more root evaluations than allowed."""
         return self._user_data[_U_EVALUATIONS] > self._user_data[_U_MAX_EVALUATIONS]
-
-    def roots_found(self) -> list[int]:
-        """CVodeGetRootInfo of the last root return: per root function, 0 or the crossing's sign."""
-        return self._roots
-
-    def init_step(self, t0: float, y0) -> None:
-        """(Re)start CVODE at t0 from y0 (new history, statistics and root-evaluation count)."""
-        self._user_data[_U_EVALUATIONS] = 0
-        self._roots = [0, 0, 0]
-        if not self._handles:
-            self._setup(t0, y0)
-            return
-        self._state[:] = y0
-        self._check("CVodeReInit", self._lib.functions["CVodeReInit"](self._memory, t0, self._handles["vector"]))
 
     def handle(self) -> np.ndarray:
         """This solver's row of the compiled machine's engine (see _H_*; its CVODE made on first use)."""
@@ -402,22 +366,6 @@ class PhaseSolver:
     def message(self, flag: int) -> str:
         """CVODE's flag in words."""
         return _message(flag)
-
-    def step(self, t_toward: float, method: str = "onestep") -> PhaseResult:
-        """One internal step toward t_toward; its end, or the root it stopped at."""
-        out = self._out
-        flag, _ = _steps(self._calls, self._memory, self._handles["vector"], self._state, t_toward, out, 0, True,
-                         self._work)
-        self._read_roots(flag)
-        return PhaseResult(float(out[0, 0]), out[0, 1:].copy(), flag, _message(flag), self._nfev())
-
-    def _read_roots(self, flag: int) -> None:
-        self._roots = list(map(int, self._work[1:].tolist())) if flag == CV_ROOT_RETURN else [0, 0, 0]
-
-    def _nfev(self) -> int:
-        self._check("CVodeGetNumRhsEvals", self._lib.functions["CVodeGetNumRhsEvals"](
-            self._memory, self._counter.ctypes.data))
-        return int(self._counter[0])
 
 
 __all__ = ["EngineUnavailable", "PhaseSolver", "library", "unavailable_reason"]

@@ -6,11 +6,21 @@ integrator switches mode and re-initialises CVODE at the event, so no step ever 
 discontinuity. The phases are run by the engine's phase machine (solvers/machine.py, its decisions
 in solvers/phases.py); the integrator holds the machine's state, checks what it is given, decides
 the phases the machine hands back, and keeps the restart point that makes a rollback bit for bit.
+
+Each mode has its own CVODE object with three root functions: h - R, terminal, in the mode's
+direction (impact downwards, departure upwards); v, non-terminal, which makes CVODE end a step
+at every extremum of h so that no step can hold both crossings of a hop (h leaving R and coming
+back within one step shows no sign change of h - R); and in contact the rest margin
+(physics.Ball.rest_margin), terminal, which turns positive once the contact can never again
+lift the ball more than hop_tolerance above R: the rest that follows is taken on the contact's
+exact flow. Hops and contacts too small for CVODE to tell from its own error are also taken on
+the mode's exact flow. At an impact or departure the event time CVODE located (to ~100 ulps of
+t) is polished on the mode's flow to a few ulps, h is set to R, and CVODE restarts in the other
+mode.
 """
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 
@@ -18,15 +28,14 @@ import numpy as np
 
 from .. import limits, validation
 from ..limits import check_resolvable, resolvable_until
-from ..physics import Ball, Mode, gap_acceleration, load_value
+from ..physics import Ball, Mode
 from . import engines, machine, phases, stepper
 from . import state as state_checks
 from .dense_output import interpolate
 from .engines import choose_engine
-from .exact import time_to_departure, velocity_at_departure
 from .result import DEPARTURE, IMPACT, Event
-from .settings import CvodeSettings, choose_method, hop_tolerance
-from .state import IntegratorState, RestartPoint
+from .settings import CvodeSettings, choose_method
+from .state import IntegratorState, IntegratorView
 from .stepper import SolverError
 
 # The value the root function h - R takes at h == R: the mode's own side (see _own_side).
@@ -39,7 +48,7 @@ _SCRATCH_ROWS = 512  # step ends the compiled engine hands over at a time
 MAX_STEPS_PER_PHASE = 500_000
 
 
-class BallIntegrator:
+class BallIntegrator(IntegratorView):
     """A ball integrated by CVODE that can be advanced piece by piece (the FMU's integrator).
 
     Parameters
@@ -73,19 +82,6 @@ class BallIntegrator:
     ['impact', 'departure']
     >>> state = integrator.get_state()  # roll back later with set_state(state)
 
-    Notes
-    -----
-    Each mode has its own CVODE object with three root functions: h - R, terminal, in the mode's
-    direction (impact downwards, departure upwards); v, non-terminal, which makes CVODE end a step
-    at every extremum of h so that no step can hold both crossings of a hop (h leaving R and coming
-    back within one step shows no sign change of h - R); and in contact the rest margin
-    (physics.Ball.rest_margin), terminal, which turns positive once the contact can never again
-    lift the ball more than hop_tolerance above R: the rest that follows is taken on the contact's
-    exact flow. Hops and contacts too small for CVODE to tell from its own error are also taken on
-    the mode's exact flow. At an impact or departure the event time CVODE located (to ~100 ulps of
-    t) is polished on the mode's flow to a few ulps, h is set to R, and CVODE restarts in the other
-    mode.
-
     Change F_ext between advances; a state restored by set_state(get_state()) continues bit for bit.
     """
 
@@ -112,8 +108,8 @@ class BallIntegrator:
         loaded, started = engines.loaded(), time.perf_counter()
         self.engine, self.engine_reason = choose_engine(s.engine, expected_steps)
         self._solvers = {mode: stepper.acquire(self.engine, ball, mode, self.methods[mode], s.rtol, s.max_step,
-                                               _MAX_STEPS_PER_CALL, self._own_side(mode),
-                                               self._root_directions(mode), MAX_STEPS_PER_PHASE)
+                                               _MAX_STEPS_PER_CALL, _own_side(mode),
+                                               _root_directions(mode), MAX_STEPS_PER_PHASE)
                          for mode in Mode}
         self._machine = stepper.phase_machine(self.engine)
         self._engine = self._machine.engine([self._solvers[mode] for mode in Mode])
@@ -124,131 +120,18 @@ class BallIntegrator:
         self.set_state(IntegratorState(t=t0, h=h0, v=v0, mode=ball.initial_mode(h0, v0, F_ext), F_ext=F_ext,
                                        t_start=t0))
 
-    # --- CVODE set-up ---------------------------------------------------------------------
-    # x = h - R is exactly 0 where a phase starts (at each event). CVODE takes a root function that
-    # is 0 at the start as inactive until it turns non-zero, and then misses the crossing (the ball
-    # fell through the floor); one that turns 0 later is a root (an "impact" on the way up). So
-    # x == 0 counts as the mode's own side: the crossing is where the ball truly leaves it.
-    @staticmethod
-    def _own_side(mode: Mode) -> float:
-        return _OWN_SIDE if mode == Mode.FLIGHT else -_OWN_SIDE
-
-    @staticmethod
-    def _root_directions(mode: Mode) -> list[int]:
-        """h - R: an impact downwards, a departure upwards; v: every extremum; the rest margin: turning positive."""
-        return [-1 if mode == Mode.FLIGHT else 1, 0, 1]
-
-    @property
-    def hop_tolerance(self) -> float:
-        """The highest hop [m] merged into the contact around it at the current F_ext; see hop_tolerance()."""
-        return self._hop
-
-    # --- read-only view --------------------------------------------------------------------
-    @property
-    def t(self) -> float:
-        """Current time [s]."""
-        return float(self._state[machine.T])
-
-    @property
-    def h(self) -> float:
-        """Height of the centre [m] at t."""
-        return self.ball.R + float(self._state[machine.X])
-
-    @property
-    def v(self) -> float:
-        """Velocity [m/s] at t, positive upwards."""
-        return float(self._state[machine.V])
-
-    @property
-    def mode(self) -> Mode:
-        """The mode held at t: flight or contact."""
-        return Mode(int(self._state[machine.MODE]))
-
-    @property
-    def impacts(self) -> int:
-        """Impacts so far."""
-        return int(self._state[machine.IMPACTS])
-
-    @property
-    def departures(self) -> int:
-        """Departures so far."""
-        return int(self._state[machine.DEPARTURES])
-
-    @property
-    def rhs_calls(self) -> int:
-        """Right-hand-side evaluations so far."""
-        return int(self._state[machine.RHS_CALLS] + self._state[machine.NFEV])
-
-    @property
-    def steps(self) -> int:
-        """CVODE's internal steps so far."""
-        return int(self._state[machine.STEPS])
-
-    @property
-    def F_ext(self) -> float:
-        """External force [N], positive upwards, held constant until changed; setting it restarts CVODE."""
-        return self._F_ext
-
-    @F_ext.setter
-    def F_ext(self, value: float) -> None:
-        value = validation.finite("F_ext", value, "N")
-        if value != self._F_ext:
-            self._F_ext = value
-            self._sync_F_ext()
-            machine.restart_needed(self._state)
-
-    @property
-    def acceleration(self) -> float:
-        """dv/dt [m/s2] at t in the current mode."""
-        ball, state = self.ball, self._state
-        return gap_acceleration(float(state[machine.X]), float(state[machine.V]), self.mode, self._load, ball.m,
-                                ball.k, ball.b)
-
-    @property
-    def contact_force(self) -> float:
-        """Force of the ground on the ball [N] at t, positive upwards; zero in flight."""
-        x, v = float(self._state[machine.X]), float(self._state[machine.V])
-        return 0.0 if self.mode == Mode.FLIGHT else -self.ball.k * x - self.ball.b * v
-
     @property
     def rest_time(self) -> float | None:
         """Start of the current contact if it can never again lift the ball above R + hop_tolerance, else None.
 
         F_ext is taken as held constant from now on.
         """
-        state = self._state
-        x, v = float(state[machine.X]), float(state[machine.V])
-        decision = phases.rest_decision(self._parameters, self.mode, x, v, self._load, self._hop, self.settings.rtol)
-        if decision == 1 or (decision == phases.UNDECIDED
-                             and math.isinf(time_to_departure(self.ball, x, v, self._F_ext))):
+        x, v = float(self._state[machine.X]), float(self._state[machine.V])
+        if phases.at_rest(self.ball, self.mode, x, v, self._load, self._hop, self.settings.rtol, self._F_ext):
             return self._last_impact_time if self._last_impact_time is not None else self._t_start
         return None
 
-    @property
-    def _last_impact_time(self) -> float | None:
-        last = float(self._state[machine.LAST_IMPACT])
-        return None if math.isnan(last) else last
-
     # --- state ---------------------------------------------------------------------------------
-    def get_state(self) -> IntegratorState:
-        """A snapshot to resume from; taking it does not disturb the integration.
-
-        It holds the point where CVODE last restarted (see RestartPoint): set_state integrates again
-        from there, so a restored snapshot continues bit for bit as the run it was taken from, in
-        this integrator or a fresh one with the same ball and settings.
-        """
-        state = self._state
-        last = float(state[machine.RS_LAST_IMPACT])
-        restart = RestartPoint(float(state[machine.RS_T]), float(state[machine.RS_X]), float(state[machine.RS_V]),
-                               Mode(int(state[machine.RS_MODE])), int(state[machine.RS_IMPACTS]),
-                               int(state[machine.RS_DEPARTURES]), None if math.isnan(last) else last,
-                               int(state[machine.RS_RHS_CALLS]), int(state[machine.RS_STEPS]))
-        return IntegratorState(t=self.t, h=self.h, v=self.v, mode=self.mode, F_ext=self._F_ext,
-                               impacts=self.impacts, departures=self.departures,
-                               last_impact_time=self._last_impact_time, t_start=self._t_start,
-                               rhs_calls=self.rhs_calls, steps=self.steps, gap=float(state[machine.X]),
-                               restart=restart)
-
     def set_state(self, state: IntegratorState) -> None:
         """Resume from state (one of get_state()); ValueError names a bad field, and then nothing changed.
 
@@ -282,32 +165,6 @@ class BallIntegrator:
         # The counters as they were: CVODE's step history is the original's.
         self._set_counts(counts)
         reached[machine.RHS_CALLS] -= reached[machine.NFEV]
-
-    def _restart_at(self, point, F_ext: float, counts, t_start: float) -> None:
-        """Set the state (t, x, v, mode), F_ext and the counters; CVODE restarts there."""
-        state = self._state
-        state[machine.T], state[machine.X], state[machine.V], state[machine.MODE] = point
-        self._F_ext, self._t_start = F_ext, t_start
-        self._set_counts(counts)
-        state[machine.NFEV] = 0.0
-        self._sync_F_ext()
-        machine.restart_needed(state)
-
-    def _set_counts(self, counts) -> None:
-        """impacts, departures, last impact time [s] or None, right-hand-side calls, steps."""
-        impacts, departures, last_impact_time, rhs_calls, steps = counts
-        state = self._state
-        state[machine.IMPACTS], state[machine.DEPARTURES], state[machine.STEPS] = impacts, departures, steps
-        state[machine.LAST_IMPACT] = math.nan if last_impact_time is None else last_impact_time
-        state[machine.RHS_CALLS] = rhs_calls
-
-    def _sync_F_ext(self) -> None:
-        """The load m g - F_ext and the hop tolerance at F_ext, for the machine and the engines' right-hand sides."""
-        self._load = load_value(self._F_ext, self.ball.m, self.ball.g)
-        self._hop = hop_tolerance(self.ball, self.settings.rtol, self.settings.atol, self._F_ext)
-        self._state[machine.LOAD], self._state[machine.HOP] = self._load, self._hop
-        for solver in self._solvers.values():
-            solver.F_ext = self._F_ext
 
     def close(self) -> None:
         """Give the CVODE objects back to the process's pool for the next integrator; unusable after.
@@ -397,22 +254,17 @@ class BallIntegrator:
         return self.ball.R + x_out, v_out, _events(events, n_events)
 
     def _decide_phase(self) -> None:
-        """The contact the machine handed back (phases.UNDECIDED), decided by the search for its departure.
-
-        A rest if it never departs; its departure in closed form if CVODE cannot resolve it or F_ext
-        lifts the ball; else CVODE integrates it after all.
-        """
-        state, parameters, rtol = self._state, self._parameters, self.settings.rtol
+        """The contact the machine handed back (phases.UNDECIDED): phases.decide_contact decides it."""
+        state = self._state
         t, x, v = float(state[machine.T]), float(state[machine.X]), float(state[machine.V])
-        departs = not math.isinf(tau := time_to_departure(self.ball, x, v, self._F_ext))
-        if not departs and phases.rest_decision(parameters, Mode.CONTACT, x, v, self._load, self._hop,
-                                                rtol) == phases.UNDECIDED:
+        answer, tau, v_departure = phases.decide_contact(self.ball, x, v, self._load, self._hop, self.settings.rtol,
+                                                         self._F_ext)
+        if answer == phases.REST:
             state[machine.REST_T], state[machine.REST_X], state[machine.REST_V] = t, x, v
-        elif departs and phases.closed_form(parameters, Mode.CONTACT, x, v, self._load, self._hop,
-                                            rtol) == phases.UNDECIDED:
-            machine.closed_form_phase(state, t + tau, velocity_at_departure(self.ball, x, v, tau, self._F_ext))
+        elif answer == phases.DEPARTURE_IN_CLOSED_FORM:
+            machine.closed_form_phase(state, t + tau, v_departure)
         else:
-            state[machine.DECIDED] = 1.0  # CVODE integrates it
+            state[machine.DECIDED] = 1.0
 
     def _machine_failure(self, status: int) -> SolverError:
         state = self._state
@@ -436,6 +288,19 @@ class BallIntegrator:
             self._cvode_called = False
             for solver in self._solvers.values():
                 solver.log.report(stacklevel=4)
+
+
+# x = h - R is exactly 0 where a phase starts (at each event). CVODE takes a root function that
+# is 0 at the start as inactive until it turns non-zero, and then misses the crossing (the ball
+# fell through the floor); one that turns 0 later is a root (an "impact" on the way up). So
+# x == 0 counts as the mode's own side: the crossing is where the ball truly leaves it.
+def _own_side(mode: Mode) -> float:
+    return _OWN_SIDE if mode == Mode.FLIGHT else -_OWN_SIDE
+
+
+def _root_directions(mode: Mode) -> list[int]:
+    """h - R: an impact downwards, a departure upwards; v: every extremum; the rest margin: turning positive."""
+    return [-1 if mode == Mode.FLIGHT else 1, 0, 1]
 
 
 def _events(rows: np.ndarray, count: int) -> list[Event]:

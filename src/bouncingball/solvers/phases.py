@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import math
 
-from ..physics import gap_acceleration, gap_flow_value, hypot_value, rest_margin_value
-from .exact import time_to_impact
+from ..physics import Ball, gap_acceleration, gap_flow_value, hypot_value, rest_margin_value
+from .exact import time_to_departure, time_to_impact, velocity_at_departure
 from .settings import HOP_RESOLUTION
 
 FLIGHT, CONTACT = 0, 1
@@ -31,6 +31,8 @@ MIN_PHASE_SCALE = 1e-200
 SOFT_CONTACT_CAP = 1e3  # a contact's length scale is at most this many max(R, |gap|): see phase_scales
 # rest_decision and closed_form: the answer needs a search on the contact's exact flow (time_to_departure)
 UNDECIDED = -1
+# decide_contact's answers
+REST, DEPARTURE_IN_CLOSED_FORM, BY_CVODE = range(3)
 
 
 def phase_scales(parameters, mode, x, v, load):
@@ -180,3 +182,25 @@ def taylor_step(parameters, mode, x, v, load, dt):
     m, k, b, R, g = parameters
     a = gap_acceleration(x, v, mode, load, m, k, b)
     return x + dt * (v + 0.5 * dt * a), v + dt * a
+
+
+# --- the decisions that need the search for a departure (interpreted only: never compiled) ----------
+def at_rest(ball: Ball, mode, x, v, load, hop, rtol, F_ext) -> bool:
+    """rest_decision, an UNDECIDED contact a rest if the search finds no departure; F_ext [N] is the load's."""
+    decision = rest_decision(ball.parameters, mode, x, v, load, hop, rtol)
+    return decision == 1 or (decision == UNDECIDED and math.isinf(time_to_departure(ball, x, v, F_ext)))
+
+
+def decide_contact(ball: Ball, x, v, load, hop, rtol, F_ext):
+    """What a contact starting at (x, v) that rest_decision or closed_form left UNDECIDED is; (answer, tau, v).
+
+    REST if it never departs; DEPARTURE_IN_CLOSED_FORM after tau [s] at v [m/s] (time_to_departure,
+    velocity_at_departure) if CVODE cannot resolve it or F_ext lifts the ball; else BY_CVODE.
+    """
+    tau = time_to_departure(ball, x, v, F_ext)
+    departs = not math.isinf(tau)
+    if not departs and rest_decision(ball.parameters, CONTACT, x, v, load, hop, rtol) == UNDECIDED:
+        return REST, 0.0, 0.0
+    if departs and closed_form(ball.parameters, CONTACT, x, v, load, hop, rtol) == UNDECIDED:
+        return DEPARTURE_IN_CLOSED_FORM, tau, velocity_at_departure(ball, x, v, tau, F_ext)
+    return BY_CVODE, 0.0, 0.0

@@ -10,7 +10,9 @@ import numbers
 from dataclasses import dataclass
 
 from .. import validation
-from ..physics import Ball, Mode
+from ..physics import Ball, Mode, gap_acceleration, load_value
+from . import machine
+from .settings import hop_tolerance
 
 
 @dataclass(frozen=True)
@@ -59,6 +61,138 @@ class IntegratorState:
         """Take the restart point from a dict of its fields (a deserialized state); TypeError names a bad one."""
         if isinstance(self.restart, dict):
             object.__setattr__(self, "restart", RestartPoint(**self.restart))
+
+
+
+
+class IntegratorView:
+    """BallIntegrator's state as the phase machine holds it (machine.new_state's array): read, saved, restarted.
+
+    The ball's quantities at t, the snapshot get_state takes, and what sets a state and restarts
+    CVODE there; BallIntegrator integrates it (the attributes ball, settings, _state, _F_ext,
+    _t_start, _load and _hop are its).
+    """
+
+    ball: Ball
+
+    @property
+    def t(self) -> float:
+        """Current time [s]."""
+        return float(self._state[machine.T])
+
+    @property
+    def h(self) -> float:
+        """Height of the centre [m] at t."""
+        return self.ball.R + float(self._state[machine.X])
+
+    @property
+    def v(self) -> float:
+        """Velocity [m/s] at t, positive upwards."""
+        return float(self._state[machine.V])
+
+    @property
+    def mode(self) -> Mode:
+        """The mode held at t: flight or contact."""
+        return Mode(int(self._state[machine.MODE]))
+
+    @property
+    def impacts(self) -> int:
+        """Impacts so far."""
+        return int(self._state[machine.IMPACTS])
+
+    @property
+    def departures(self) -> int:
+        """Departures so far."""
+        return int(self._state[machine.DEPARTURES])
+
+    @property
+    def rhs_calls(self) -> int:
+        """Right-hand-side evaluations so far."""
+        return int(self._state[machine.RHS_CALLS] + self._state[machine.NFEV])
+
+    @property
+    def steps(self) -> int:
+        """CVODE's internal steps so far."""
+        return int(self._state[machine.STEPS])
+
+    @property
+    def F_ext(self) -> float:
+        """External force [N], positive upwards, held constant until changed; setting it restarts CVODE."""
+        return self._F_ext
+
+    @F_ext.setter
+    def F_ext(self, value: float) -> None:
+        value = validation.finite("F_ext", value, "N")
+        if value != self._F_ext:
+            self._F_ext = value
+            self._sync_F_ext()
+            machine.restart_needed(self._state)
+
+    @property
+    def acceleration(self) -> float:
+        """dv/dt [m/s2] at t in the current mode."""
+        ball, state = self.ball, self._state
+        return gap_acceleration(float(state[machine.X]), float(state[machine.V]), self.mode, self._load, ball.m,
+                                ball.k, ball.b)
+
+    @property
+    def contact_force(self) -> float:
+        """Force of the ground on the ball [N] at t, positive upwards; zero in flight."""
+        x, v = float(self._state[machine.X]), float(self._state[machine.V])
+        return 0.0 if self.mode == Mode.FLIGHT else -self.ball.k * x - self.ball.b * v
+
+    @property
+    def _last_impact_time(self) -> float | None:
+        last = float(self._state[machine.LAST_IMPACT])
+        return None if math.isnan(last) else last
+
+    def get_state(self) -> IntegratorState:
+        """A snapshot to resume from; taking it does not disturb the integration.
+
+        It holds the point where CVODE last restarted (see RestartPoint): set_state integrates again
+        from there, so a restored snapshot continues bit for bit as the run it was taken from, in
+        this integrator or a fresh one with the same ball and settings.
+        """
+        state = self._state
+        last = float(state[machine.RS_LAST_IMPACT])
+        restart = RestartPoint(float(state[machine.RS_T]), float(state[machine.RS_X]), float(state[machine.RS_V]),
+                               Mode(int(state[machine.RS_MODE])), int(state[machine.RS_IMPACTS]),
+                               int(state[machine.RS_DEPARTURES]), None if math.isnan(last) else last,
+                               int(state[machine.RS_RHS_CALLS]), int(state[machine.RS_STEPS]))
+        return IntegratorState(t=self.t, h=self.h, v=self.v, mode=self.mode, F_ext=self._F_ext,
+                               impacts=self.impacts, departures=self.departures,
+                               last_impact_time=self._last_impact_time, t_start=self._t_start,
+                               rhs_calls=self.rhs_calls, steps=self.steps, gap=float(state[machine.X]),
+                               restart=restart)
+
+    def _restart_at(self, point, F_ext: float, counts, t_start: float) -> None:
+        """Set the state (t, x, v, mode), F_ext and the counters; CVODE restarts there."""
+        state = self._state
+        state[machine.T], state[machine.X], state[machine.V], state[machine.MODE] = point
+        self._F_ext, self._t_start = F_ext, t_start
+        self._set_counts(counts)
+        state[machine.NFEV] = 0.0
+        self._sync_F_ext()
+        machine.restart_needed(state)
+
+    def _set_counts(self, counts) -> None:
+        """impacts, departures, last impact time [s] or None, right-hand-side calls, steps."""
+        impacts, departures, last_impact_time, rhs_calls, steps = counts
+        state = self._state
+        state[machine.IMPACTS], state[machine.DEPARTURES], state[machine.STEPS] = impacts, departures, steps
+        state[machine.LAST_IMPACT] = math.nan if last_impact_time is None else last_impact_time
+        state[machine.RHS_CALLS] = rhs_calls
+
+    def _sync_F_ext(self) -> None:
+        """The load m g - F_ext and the hop tolerance at F_ext, for the machine (which gives the engine the load)."""
+        self._load = load_value(self._F_ext, self.ball.m, self.ball.g)
+        self._hop = hop_tolerance(self.ball, self.settings.rtol, self.settings.atol, self._F_ext)
+        self._state[machine.LOAD], self._state[machine.HOP] = self._load, self._hop
+
+    @property
+    def hop_tolerance(self) -> float:
+        """The highest hop [m] merged into the contact around it at the current F_ext; see hop_tolerance()."""
+        return self._hop
 
 
 Counts = tuple[int, int, float | None, int, int]  # impacts, departures, last impact time [s], RHS calls, steps

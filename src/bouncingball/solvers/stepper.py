@@ -1,14 +1,15 @@
-"""The stepper protocol: what BallIntegrator asks of a CVODE engine for one mode, and the pool of them.
+"""The stepper protocol: what a CVODE engine offers for one mode of the ball, and the pool of them.
 
-Each engine offers a ``PhaseSolver`` for one mode of the ball (compiled.PhaseSolver, numba callbacks
-over the SUNDIALS library; SksundaePhaseSolver, scikit-sundae's CVODE object with Python callbacks)
-with the same calls and the same CVODE settings, so the event logic of BallIntegrator serves both:
+Each engine offers a ``PhaseSolver`` for one mode (compiled.PhaseSolver, numba callbacks over the
+SUNDIALS library; SksundaePhaseSolver, scikit-sundae's CVODE object with Python callbacks) with the
+same CVODE settings, and a phase machine (``phase_machine``: solvers/machine.py, compiled or as
+written) that drives the two modes' solvers through ``handle()``:
 
 - ``bind(ball)``: the ball whose equations it integrates (a pooled solver serves many balls);
-- ``F_ext`` (settable) and ``set_frame(length, speed, hop_tolerance)``: the phase's constants;
-- ``init_step(t0, y0)`` then ``step(t_toward)``: one internal step (the FMU's path);
-- ``solve((t0, t_end), y0)``: every internal step to t_end or the first terminal root (simulate's path);
-- ``roots_found()``, ``exceeded`` and the ``log`` of SUNDIALS' warnings (solvers/sundials_log.py).
+- ``handle()``: what the engine's machine calls it through (for scikit-sundae, the solver itself,
+  whose start, steps, step_once and finish are the machine's engine_* calls; for the compiled
+  engine a row of integers, the addresses its compiled calls read);
+- ``message(flag)``, ``exceeded`` and the ``log`` of SUNDIALS' warnings (solvers/sundials_log.py).
 
 Creating a CVODE object and its warnings file costs more than integrating a whole phase (~0.1 ms
 each, two per integrator), so solvers are kept per process in a pool, by engine, mode, method and
@@ -25,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..physics import Ball, Mode, gap_acceleration, load_value, rest_margin_value
+from ..physics import Ball, Mode, gap_acceleration, rest_margin_value
 from . import machine, sksundae_events
 from .sundials_log import ErrorsOffStdout, SundialsLog
 
@@ -107,22 +108,11 @@ class SksundaePhaseSolver:
                             num_events=3, jacfn=jac, max_num_steps=max_num_steps)
 
     def bind(self, ball: Ball) -> None:
-        """Integrate ball's equations from now on (F_ext 0 and a unit frame until set), as compiled.PhaseSolver."""
+        """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
         self._m, self._k, self._b = ball.m, ball.k, ball.b
         self._w2, self._damping = ball.k / ball.m, ball.b / ball.m
-        self._g = ball.g
-        self.F_ext = 0.0
+        self._load = 0.0
         self.set_frame(1.0, 1.0, 0.0)
-
-    @property
-    def F_ext(self) -> float:
-        """External force [N] of the phase, positive upwards."""
-        return self._F_ext
-
-    @F_ext.setter
-    def F_ext(self, value: float) -> None:
-        self._F_ext = value
-        self._load = load_value(value, self._m, self._g)
 
     def set_frame(self, length: float, speed: float, hop_tolerance: float) -> None:
         """The phase's scales [m, m/s] and the rest root's margin [m]; set before init_step/solve."""
