@@ -83,3 +83,19 @@ def test_permanent_contact_criterion():
     assert ball.contact_is_permanent(ball.rest_height(), 0.0)
     assert not ball.contact_is_permanent(ball.R, -1.0)
     assert not Ball(g=0.0).contact_is_permanent(0.05, 0.0)  # no deflection: nothing holds it down
+
+
+def test_hypot_value_rounds_as_pythons_math_hypot():
+    """The phase scales' hypot, written out so that compiled code computes it too: Python's own numbers."""
+    import random
+
+    from bouncingball.rounding import hypot_value
+
+    generator = random.Random(7)
+    for _ in range(20000):
+        exponent = generator.uniform(-300, 300)
+        x = generator.uniform(-1.0, 1.0) * 10.0**exponent
+        y = generator.uniform(-1.0, 1.0) * 10.0 ** min(300.0, exponent + generator.uniform(-20.0, 20.0))
+        assert hypot_value(x, y) == math.hypot(x, y), (x, y)
+    for x, y in ((0.0, 0.0), (3.0, 4.0), (1e308, 1e308), (-0.0, 5e-324), (math.inf, math.nan), (math.nan, 1.0)):
+        assert hypot_value(x, y) == math.hypot(x, y) or math.isnan(math.hypot(x, y)) and math.isnan(hypot_value(x, y))

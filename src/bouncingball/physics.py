@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import validation
+from .rounding import product_error
 
 
 class Mode(enum.IntEnum):
@@ -224,50 +225,7 @@ def load_value(F_ext, m, g):
     product = m * g
     if not (abs(134217729.0 * m) < 1e300 and abs(134217729.0 * g) < 1e300 and abs(product) < 1e300):
         return product - F_ext
-    return (product - F_ext) + _product_error(m, g, product)
-
-
-def _product_error(a, b, product):
-    """a b - product, exactly, for product = a b rounded (Dekker's two-product; factors within 7e291)."""
-    split_a, split_b = 134217729.0 * a, 134217729.0 * b  # 2^27 + 1: each factor in two 26-bit halves
-    a_high = split_a - (split_a - a)
-    b_high = split_b - (split_b - b)
-    a_low, b_low = a - a_high, b - b_high
-    return ((a_high * b_high - product) + a_high * b_low + a_low * b_high) + a_low * b_low
-
-
-def hypot_value(x, y):
-    """sqrt(x^2 + y^2) [the unit of x and y], rounded as Python's math.hypot rounds it; plain floats.
-
-    CPython's algorithm for two values (the sum of squares carried in two doubles, then one
-    correction of the square root), so that the compiled engine's phase scales are the interpreted
-    ones to the bit wherever the result is a normal number: a C library's hypot, which compiled code
-    would call, is at times an ulp off, and a scale an ulp off changes CVODE's steps.
-    """
-    x, y = abs(x), abs(y)
-    largest = max(x, y)
-    if math.isinf(x) or math.isinf(y):
-        return math.inf
-    if math.isnan(x) or math.isnan(y):
-        return math.nan
-    if largest == 0.0:
-        return largest
-    exponent = math.frexp(largest)[1]
-    if exponent < -1023:  # 2^-exponent would overflow: scaled to normal numbers first, as CPython does
-        tiny = 2.2250738585072014e-308
-        return tiny * hypot_value(x / tiny, y / tiny)
-    scale = math.ldexp(1.0, -exponent)
-    total, low_products, low_sums = 1.0, 0.0, 0.0
-    for value in (x * scale, y * scale):
-        square = value * value
-        low_products += _product_error(value, value, square)
-        total, low_sums = total + square, low_sums + ((total - (total + square)) + square)
-    h = math.sqrt(total - 1.0 + (low_products + low_sums))
-    square = -h * h
-    low_products += _product_error(-h, h, square)
-    total, low_sums = total + square, low_sums + ((total - (total + square)) + square)
-    h += (total - 1.0 + (low_products + low_sums)) / (2.0 * h)
-    return h / scale
+    return (product - F_ext) + product_error(m, g, product)
 
 
 def rest_margin_value(x, v, d, hop_tolerance, w2):

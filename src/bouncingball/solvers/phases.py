@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import math
 
-from ..physics import Ball, gap_acceleration, gap_flow_value, hypot_value, rest_margin_value
+from ..physics import Ball, gap_acceleration, gap_flow_value, rest_margin_value
+from ..rounding import hypot_value
 from .exact import time_to_departure, time_to_impact, velocity_at_departure
 from .settings import HOP_RESOLUTION
 
