@@ -115,8 +115,10 @@ class BallSlave:
             if not (step_size >= 0.0 and math.isfinite(current_time + step_size)):
                 raise ValueError(f"communicationStepSize = {step_size!r} s is not allowed: it must be >= 0 and "
                                  "end the step at a finite time")
+            target = max(current_time + step_size, t)
+            if integrator.advance_within_step(target):  # most short steps: arithmetic that cannot warn
+                return True
             with _caught_warnings() as caught:
-                target = max(current_time + step_size, t)
                 if self.STOP_AT_EVENT:
                     integrator.advance(target, stop_at_event=True)
                 else:

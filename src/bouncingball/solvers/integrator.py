@@ -186,12 +186,20 @@ class BallIntegrator(IntegratorView):
         (an FMI 3.0 early return); an event at t_target itself is left to the next advance.
         """
         t_target = float(t_target)
-        if self._machine.advance_in_step(self._parameters, self._state, t_target):
+        if self.advance_within_step(t_target):
             return []
         try:
             return self._advance(t_target, stop_at_event)
         finally:
             self._report_sundials_warnings()
+
+    def advance_within_step(self, t_target: float) -> bool:
+        """Advance to t_target [s] if it lies inside CVODE's last step, after t; whether it did.
+
+        Read off the step's dense output as advance() reads it (advance asks this first): no CVODE
+        call, nothing that can fail or warn. Most of an FMU's short steps end there.
+        """
+        return self._machine.advance_in_step(self._parameters, self._state, t_target)
 
     def _advance(self, t_target: float, stop_at_event: bool = False) -> list[Event]:
         if not t_target >= self._state[machine.T]:
@@ -255,16 +263,9 @@ class BallIntegrator(IntegratorView):
 
     def _decide_phase(self) -> None:
         """The contact the machine handed back (phases.UNDECIDED): phases.decide_contact decides it."""
-        state = self._state
-        t, x, v = float(state[machine.T]), float(state[machine.X]), float(state[machine.V])
-        answer, tau, v_departure = phases.decide_contact(self.ball, x, v, self._load, self._hop, self.settings.rtol,
-                                                         self._F_ext)
-        if answer == phases.REST:
-            state[machine.REST_T], state[machine.REST_X], state[machine.REST_V] = t, x, v
-        elif answer == phases.DEPARTURE_IN_CLOSED_FORM:
-            machine.closed_form_phase(state, t + tau, v_departure)
-        else:
-            state[machine.DECIDED] = 1.0
+        x, v = float(self._state[machine.X]), float(self._state[machine.V])
+        machine.take_decision(self._state, *phases.decide_contact(self.ball, x, v, self._load, self._hop,
+                                                                  self.settings.rtol, self._F_ext))
 
     def _machine_failure(self, status: int) -> SolverError:
         state = self._state

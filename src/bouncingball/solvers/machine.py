@@ -29,7 +29,9 @@ from ..physics import gap_flow_value
 from .dense_output import step_state
 from .phases import (
     CONTACT,
+    DEPARTURE_IN_CLOSED_FORM,
     FLIGHT,
+    REST,
     UNDECIDED,
     closed_form,
     flight_impact,
@@ -85,6 +87,16 @@ def closed_form_phase(state, t_event, v_event):
     state[SEG_T0], state[SEG_X0], state[SEG_V0] = state[T], state[X], state[V]
     state[SEG_T1], state[SEG_X1], state[SEG_V1] = t_event, 0.0, v_event
     state[PENDING], state[PEND_T], state[PEND_V] = 1.0, t_event, v_event
+
+
+def take_decision(state, answer, tau, v_event):
+    """phases.decide_contact's answer for the contact at the state: a rest, a departure after tau, or CVODE."""
+    if answer == REST:
+        state[REST_T], state[REST_X], state[REST_V] = state[T], state[X], state[V]
+    elif answer == DEPARTURE_IN_CLOSED_FORM:
+        closed_form_phase(state, state[T] + tau, v_event)
+    else:
+        state[DECIDED] = 1.0
 
 
 def _decisions(parameters, rtol, state):
