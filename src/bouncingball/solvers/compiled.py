@@ -146,12 +146,21 @@ def _engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load):
 
 
 @njit(cache=_CACHE)
-def _engine_steps(engine, mode, scratch, t_stop):
+def _engine_steps(engine, mode, scratch, points, n_points, t_stop, origin, length, speed):
     calls, memory, vector, state, parameters, user_data, work, counter = _unpacked(engine, mode)
     flag, count = _steps(calls, memory, vector, state, t_stop, scratch, 0, False, work)
-    if flag == CV_ROOT_RETURN:
-        scratch[count - 1, 3], scratch[count - 1, 4] = work[1], work[3]
-    return flag, count, scratch
+    root, rest = (int(work[1]), int(work[3])) if flag == CV_ROOT_RETURN else (0, 0)
+    while points.shape[0] < n_points + count:
+        points = np.concatenate((points, np.empty_like(points)))
+    extreme = math.inf if mode == 0 else -math.inf
+    for i in range(count):  # as stepper.SksundaePhaseSolver.steps does in numpy
+        x = length * scratch[i, 1]
+        row = points[n_points + i]
+        row[0], row[1], row[2], row[3] = origin + scratch[i, 0], x, speed * scratch[i, 2], mode
+        if i < count - 1 or root == 0:
+            extreme = min(extreme, x) if mode == 0 else max(extreme, x)
+    tau_prior = scratch[count - 2, 0] if count > 1 else math.nan
+    return flag, count, points, scratch[count - 1, 0] if count > 0 else 0.0, tau_prior, root, rest, extreme
 
 
 @njit(cache=_CACHE)
@@ -185,7 +194,8 @@ def _engine_exceeded(engine, mode):
 _compiled = compiled_together(
     functions_of(rounding, physics, exact, phases, machine, dense_output),
     {physics.oscillator_basis: physics.oscillator_basis_value, physics.unit_response: physics.unit_response_value,
-     machine.engine_start: _engine_start, machine.engine_steps: _engine_steps, machine.engine_step: _engine_step,
+     rounding.hypot: rounding.hypot_value, machine.engine_start: _engine_start, machine.engine_steps: _engine_steps,
+     machine.engine_step: _engine_step,
      machine.engine_finish: _engine_finish, machine.engine_exceeded: _engine_exceeded}, _CACHE)
 run_phases = _compiled[machine.run_phases]
 fill_grid = _compiled[dense_output.fill_grid]

@@ -273,35 +273,23 @@ def _cvode_phase(engine, parameters, rtol, atol, state, t_end, points, n_points,
     flag = engine_start(engine, mode, t_stop, x / length, v / speed, length, speed, hop, load)
     tau_before, root, rest = 0.0, 0, 0
     while flag >= 0:
-        flag, count, scratch = engine_steps(engine, mode, scratch, t_stop)
+        flag, count, points, tau, tau_prior, root, rest, extreme = engine_steps(
+            engine, mode, scratch, points, n_points, t_stop, origin, length, speed)
         if count == 0:
             break
-        # the chunk's step ends, in whole arrays: one pass each, compiled or in numpy
-        points = _room(points, n_points + count)
-        rows = points[n_points:n_points + count]
-        rows[:, 0] = origin + scratch[:count, 0]
-        rows[:, 1] = length * scratch[:count, 1]
-        rows[:, 2] = speed * scratch[:count, 2]
-        rows[:, 3] = mode
-        checked = count
-        if flag == CV_ROOT_RETURN:
-            root, rest = int(scratch[count - 1, 3]), int(scratch[count - 1, 4])
-            if root != 0:
-                before = scratch[count - 2, 0] if count > 1 else tau_before
-                tau, v = polish_event(parameters, mode, load, length, before, scratch[count - 1, 0], rows[count - 1, 1],
-                                      rows[count - 1, 2])
-                rows[count - 1, 0], rows[count - 1, 1], rows[count - 1, 2] = origin + tau, 0.0, v
-                checked = count - 1
-        elif flag != BUFFER_FULL:
-            rows[count - 1, 0] = t_end  # CVODE stopped at t_end - origin, which may round off t_end
-        if checked > 0:
-            extreme = rows[:checked, 1].min() if mode == FLIGHT else rows[:checked, 1].max()
-            if on_wrong_side(mode, extreme, margin):
-                state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = rows[checked - 1, 0], extreme, 0.0
-                return STEPPED_OVER, points, n_points, events, n_events
+        last = n_points + count - 1
+        if root != 0:
+            tau, v = polish_event(parameters, mode, load, length, tau_prior if count > 1 else tau_before, tau,
+                                  points[last, 1], points[last, 2])
+            points[last, 0], points[last, 1], points[last, 2] = origin + tau, 0.0, v
+        elif flag != CV_ROOT_RETURN and flag != BUFFER_FULL:
+            points[last, 0] = t_end  # CVODE stopped at t_end - origin, which may round off t_end
+        if on_wrong_side(mode, extreme, margin):
+            state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = points[last - (root != 0), 0], extreme, 0.0
+            return STEPPED_OVER, points, n_points, events, n_events
         n_points += count
         state[STEPS] += count
-        tau_before = scratch[count - 1, 0]
+        tau_before = tau
         if flag != BUFFER_FULL:
             break
     if flag < 0:
@@ -349,9 +337,7 @@ def _room(rows, n_rows):
 
 
 def _grown(rows):
-    bigger = np.empty((2 * rows.shape[0], rows.shape[1]))
-    bigger[:rows.shape[0]] = rows
-    return bigger
+    return np.concatenate((rows, np.empty_like(rows)))
 
 
 def _ulp(a):
@@ -375,12 +361,16 @@ def engine_step(engine, mode, scratch, t_toward):
     return engine[mode].step_once(scratch, t_toward)
 
 
-def engine_steps(engine, mode, scratch, t_stop):
-    """CVODE's step ends (tau, y0, y1, the gap root, the rest root) into scratch; (flag, count, scratch).
+def engine_steps(engine, mode, scratch, points, n_points, t_stop, origin, length, speed):
+    """CVODE's step ends after the phase's start, appended to points from n_points as rows (t, x, v, mode).
 
-    The flag is CVODE's (a root, t_stop reached, a failure) or BUFFER_FULL: call again for more.
+    Returns (flag, count, points, tau, tau_prior, gap root, rest root, extreme): CVODE's flag (a root,
+    t_stop reached, a failure) or BUFFER_FULL (call again for more; scratch is the engine's buffer),
+    the rows appended, points (grown if it had to), CVODE's times of the last two rows (tau_prior NaN
+    if one), the last root's information, and the extreme gap of the rows on the side an unseen event
+    would leave (the smallest in flight, the largest in contact), the polished root's row left out.
     """
-    return engine[mode].steps(scratch, t_stop)
+    return engine[mode].steps(points, n_points, t_stop, origin, length, speed, mode)
 
 
 def engine_finish(engine, mode):

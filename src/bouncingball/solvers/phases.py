@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 
 from ..physics import Ball, gap_acceleration, gap_flow_value, rest_margin_value
-from ..rounding import hypot_value
+from ..rounding import hypot
 from .exact import time_to_departure, time_to_impact, velocity_at_departure
 from .settings import HOP_RESOLUTION
 
@@ -56,7 +56,7 @@ def phase_scales(parameters, mode, x, v, load):
         length = max(abs(x), R)
         return length, max(abs(v), math.sqrt(2.0 * abs(g_eff) * length), length)
     w = math.sqrt(k / m)
-    amplitude = hypot_value(x + load / k, v / w)
+    amplitude = hypot(x + load / k, v / w)
     # Never far beyond the scene's own scale: a contact so soft that its amplitude dwarfs R (k/m = 7e-12
     # 1/s2, 6e120 m against R = 3e97 m) is left long before it gets there, and rtol times the amplitude
     # was 4e-6 of the ball's whole motion. (A cap at max(R, |x|) itself cost an R = 1 um ball, whose

@@ -173,22 +173,27 @@ class SksundaePhaseSolver:
         scratch[0, 3], scratch[0, 4] = roots[0], roots[2]
         return result.status, int(result.nfev)
 
-    def steps(self, scratch: np.ndarray, t_stop: float):
-        """The phase's step ends after its start, rows (tau, y0, y1, gap root, rest root); (flag, count, scratch)."""
+    def steps(self, points: np.ndarray, n_points: int, t_stop: float, origin: float, length: float, speed: float,
+              mode: int):
+        """The phase solved to t_stop or its terminal root, its step ends appended to points (machine.engine_steps)."""
         with self.log.capturing():
-            result = self.solve(np.array([0.0, t_stop]), np.array(self._start[1:]))
-        self.result = result
+            result = self.result = self.solve(np.array([0.0, t_stop]), np.array(self._start[1:]))
         if result.status < 0:
-            return result.status, 0, scratch
-        count = len(result.t) - 1
-        if count > scratch.shape[0]:
-            scratch = np.empty((count, scratch.shape[1]))
-        scratch[:count, 0], scratch[:count, 1:3] = result.t[1:], result.y[1:]
-        flag = CV_ROOT_RETURN if result.status == CV_ROOT_RETURN else CV_TSTOP_RETURN
-        if flag == CV_ROOT_RETURN:
-            roots = self.roots_found()
-            scratch[count - 1, 3], scratch[count - 1, 4] = roots[0], roots[2]
-        return flag, count, scratch
+            return result.status, 0, points, 0.0, math.nan, 0, 0, 0.0
+        taus, count = result.t[1:], len(result.t) - 1
+        points = machine._room(points, n_points + count)
+        rows = points[n_points:n_points + count]
+        rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = (origin + taus, length * result.y[1:, 0],
+                                                          speed * result.y[1:, 1], mode)
+        flag, root, rest = CV_TSTOP_RETURN, 0, 0
+        if result.status == CV_ROOT_RETURN:
+            flag, (root, _, rest) = CV_ROOT_RETURN, self.roots_found()
+        checked = rows[:count - 1 if root else count, 1]  # the root's row is polished, not checked
+        extreme = math.inf if mode == 0 else -math.inf
+        if len(checked):
+            extreme = float(checked.min() if mode == 0 else checked.max())
+        tau_prior = float(taus[-2]) if count > 1 else math.nan
+        return flag, count, points, float(taus[-1]), tau_prior, root, rest, extreme
 
     def finish(self) -> tuple[int, int]:
         """The phase's end: (0, its right-hand-side evaluations)."""
