@@ -411,56 +411,53 @@ def test_solvers_free_their_sundials_memory():
     assert int(completed.stdout) < 5e6
 
 
-def test_a_change_to_physics_reaches_the_compiled_engine_through_numbas_disk_cache(tmp_path):
-    """numba keys each cached function by its own file: the callbacks in compiled.py inline physics.py's functions,
-    and after a change to physics.py alone it loaded compiled.py's old code (the engines then disagreed)."""
+def _copied_package(tmp_path: Path):
+    """The package copied without its caches, and a call that runs Python code on the copy and reads its floats."""
     import shutil
 
     package = tmp_path / "bouncingball"
     shutil.copytree(Path(bb.__file__).parent, package, ignore=shutil.ignore_patterns("__pycache__"))
-    code = ("import bouncingball as bb; b = bb.Ball(g=9.81); "
-            "r = [bb.simulate(b, 2.0, 0.0, 1.0, 1e-3, **o).events[0].time for o in ({'engine': 'compiled'}, "
-            "{'solver': 'exact'})]; print(r[0], r[1])")
 
-    def first_impacts() -> list[float]:
+    def numbers_printed(code: str) -> list[float]:
         completed = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
                                    timeout=300, check=True, env={**os.environ, "PYTHONPATH": str(tmp_path)})
         return [float(word) for word in completed.stdout.split()]
 
-    compiled, exact = first_impacts()  # compiles and caches
+    return package, numbers_printed
+
+
+def test_a_change_to_physics_reaches_the_compiled_engine_through_numbas_disk_cache(tmp_path):
+    """numba keys each cached function by its own file: the callbacks in compiled.py inline physics.py's functions,
+    and after a change to physics.py alone it loaded compiled.py's old code (the engines then disagreed)."""
+    package, numbers_printed = _copied_package(tmp_path)
+    code = ("import bouncingball as bb; b = bb.Ball(g=9.81); "
+            "r = [bb.simulate(b, 2.0, 0.0, 1.0, 1e-3, **o).events[0].time for o in ({'engine': 'compiled'}, "
+            "{'solver': 'exact'})]; print(r[0], r[1])")
+    compiled, exact = numbers_printed(code)  # compiles and caches
     assert compiled == pytest.approx(exact, abs=1e-12)
     physics = package / "physics.py"
     source = physics.read_text()
     assert source.count("        return -load / m\n") == 1
     physics.write_text(source.replace("        return -load / m\n", "        return -2.0 * load / m\n"))  # flight: 2 g
-    compiled_after, _ = first_impacts()  # the exact solution keeps its own closed forms: only CVODE sees 2 g
+    compiled_after, _ = numbers_printed(code)  # the exact solution keeps its own closed forms: only CVODE sees 2 g
     assert compiled_after == pytest.approx(math.sqrt(2.0 * (2.0 - 0.06) / (2.0 * 9.81)), rel=1e-6)  # not 0.629 s
 
 
 def test_a_change_to_the_phase_machine_reaches_the_compiled_engine_through_numbas_disk_cache(tmp_path):
     """The compiled run_phases inlines phases.py's and machine.py's functions: a change to machine.py's event
     record alone must reach it."""
-    import shutil
-
-    package = tmp_path / "bouncingball"
-    shutil.copytree(Path(bb.__file__).parent, package, ignore=shutil.ignore_patterns("__pycache__"))
+    package, numbers_printed = _copied_package(tmp_path)
     code = ("import bouncingball as bb; "
             "print(*(bb.simulate(bb.Ball(), 2.0, 0.0, 1.0, 1e-3, engine=e).events[0].velocity "
             "for e in ('compiled', 'sksundae')))")
-
-    def impact_velocities() -> list[float]:
-        completed = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
-                                   timeout=300, check=True, env={**os.environ, "PYTHONPATH": str(tmp_path)})
-        return [float(word) for word in completed.stdout.split()]
-
-    compiled, interpreted = impact_velocities()  # compiles and caches
+    compiled, interpreted = numbers_printed(code)  # compiles and caches
     assert compiled == interpreted == pytest.approx(-math.sqrt(2.0 * 9.81 * (2.0 - 0.06)), rel=1e-9)
     machine = package / "solvers" / "machine.py"
     source = machine.read_text()
     record = "events[n_events, 2] = state[T], kind, state[V]\n"
     assert source.count(record) == 1
     machine.write_text(source.replace(record, "events[n_events, 2] = state[T], kind, 2.0 * state[V]\n"))
-    compiled_after, interpreted_after = impact_velocities()
+    compiled_after, interpreted_after = numbers_printed(code)
     assert compiled_after == interpreted_after == 2.0 * compiled
 
 
