@@ -186,7 +186,7 @@ class BallIntegrator(IntegratorView):
         (an FMI 3.0 early return); an event at t_target itself is left to the next advance.
         """
         t_target = float(t_target)
-        if self.advance_within_step(t_target):
+        if self._machine.advance_in_step(self._parameters, self._state, t_target):
             return []
         try:
             return self._advance(t_target, stop_at_event)
@@ -199,7 +199,7 @@ class BallIntegrator(IntegratorView):
         Read off the step's dense output as advance() reads it (advance asks this first): no CVODE
         call, nothing that can fail or warn. Most of an FMU's short steps end there.
         """
-        return self._machine.advance_in_step(self._parameters, self._state, t_target)
+        return self._machine.advance_in_step(self._parameters, self._state, float(t_target))
 
     def _advance(self, t_target: float, stop_at_event: bool = False) -> list[Event]:
         if not t_target >= self._state[machine.T]:
