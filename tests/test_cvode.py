@@ -280,6 +280,25 @@ def test_random_balls_against_the_exact_solution(m, k, zeta, R, g, h0, v0):
 
 
 
+@pytest.mark.parametrize("method", ["BDF", "Adams", "auto"])
+def test_a_max_step_too_short_for_a_phase_is_named_as_the_cause(monkeypatch, method):
+    """A flight from 2 m lasts 0.63 s, a few steps without max_step: 50 steps of 1e-6 s cover 5e-5 s of it.
+
+    The cause is max_step, whatever the method; advising method 'BDF' (the stiffness hint), as was
+    done even to a BDF run, sends the user the wrong way.
+    """
+    import bouncingball.solvers.integrator as integrator
+
+    monkeypatch.setattr(integrator, "MAX_STEPS_PER_PHASE", 50)
+    with pytest.raises(integrator.SolverError) as failure:
+        bouncingball.simulate(Ball(), 2.0, 0.0, 1.0, 1e-3, method=method, max_step=1e-6)
+    message = str(failure.value)
+    assert "took more than 50 steps in one flight phase" in message
+    assert "max_step = 1e-06 s lets 50 steps cover only 5e-05 s; raise max_step" in message
+    assert "use method 'BDF'" not in message
+    assert bouncingball.simulate(Ball(), 2.0, 0.0, 0.6, 1e-3, method=method).stats.steps < 50  # the flight alone
+
+
 def test_a_method_fighting_stiffness_fails_with_a_reason(monkeypatch):
     """Past MAX_STEPS_PER_PHASE steps in one phase CVODE stops with the reason, rather than run for hours.
 

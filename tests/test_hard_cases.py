@@ -15,7 +15,13 @@ from hypothesis import strategies as st
 
 import bouncingball as bb
 from bouncingball.accuracy import event_mismatches, height_scale, max_height_error
-from bouncingball.solvers.cvode import BallIntegrator, check_resolvable, merged_hop_limit, resolvable_until
+from bouncingball.solvers.cvode import (
+    BallIntegrator,
+    CvodeSettings,
+    check_resolvable,
+    merged_hop_limit,
+    resolvable_until,
+)
 from bouncingball.solvers.exact import ExactSolution
 from closed_forms import undamped_event_count
 
@@ -258,6 +264,24 @@ def test_random_balls_against_the_exact_solution(m, k, zeta, R, g, lift, v0, for
     result = bb.simulate(ball, h0, v0, t_end, t_end / 2000, F_ext=F_ext)
     assert_exact(result, h0, v0)
     assert np.all(np.isfinite(result.h))
+
+
+@pytest.mark.parametrize("engine", ["sksundae", "compiled"])
+def test_a_hop_shorter_than_the_last_ulps_of_a_grid_still_lands(engine):
+    """At t0 = 1e6 s a grid end 31 ulps (3.6e-9 s) on is finished by a Taylor step; a hop from R at
+    1e-9 m/s lands 2.0e-10 s after the start, before it. The Taylor step was taken over the pending
+    impact: no event, the ball in flight below R, and the next grid crashed inside scikit-sundae.
+    """
+    ball, t0, v0 = bb.Ball(), 1e6, 1e-9
+    t1 = t0 + 31 * np.spacing(t0)
+    exact = ExactSolution(ball, ball.R, v0, t0, t0 + 1.0)
+    integrator = BallIntegrator(ball, ball.R, v0, t0=t0, settings=CvodeSettings(engine=engine))
+    _, _, events = integrator.integrate_grid(np.array([t0, t1]))
+    assert [e.kind for e in events] == ["impact"] and exact.events[0].time < t1
+    assert events[0].time == pytest.approx(exact.events[0].time, abs=np.spacing(t0))
+    assert integrator.mode == bb.Mode.CONTACT and integrator.h <= ball.R
+    h, _, _ = integrator.integrate_grid(np.array([t1, t0 + 1.0]))
+    assert abs(h[-1] - exact.state(np.array([t0 + 1.0]))[0][0]) <= 1e-12
 
 
 # --- 5. SUNDIALS warnings -------------------------------------------------------------------------

@@ -149,9 +149,6 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
         t, mode = state[T], int(state[MODE])
         if not t < t_end:
             return DONE, points, n_points, events, n_events
-        if _finish_by_taylor(parameters, state, t_end):
-            points, n_points = _record(points, n_points, t_end, state[X], state[V], mode)
-            return DONE, points, n_points, events, n_events
         if state[PENDING] != 0.0:  # a phase in closed form: to its event, or on its flow to t_end
             points, n_points = _record(points, n_points, t, state[X], state[V], mode)
             if state[PEND_T] <= t_end:
@@ -173,6 +170,10 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
         if rest == UNDECIDED or closed == UNDECIDED:
             return HANDOFF, points, n_points, events, n_events
         if rest == 0 and closed == 0:
+            # Only once the phase is decided: one in closed form may end within these ulps before t_end.
+            if _finish_by_taylor(parameters, state, t_end):
+                points, n_points = _record(points, n_points, t_end, state[X], state[V], mode)
+                return DONE, points, n_points, events, n_events
             status, points, n_points, events, n_events = _cvode_phase(engine, parameters, rtol, atol, state, t_end,
                                                                       points, n_points, events, n_events, scratch)
             if status != DONE:
