@@ -496,3 +496,19 @@ def test_the_compiled_decisions_and_flows_are_the_interpreted_ones_to_the_bit():
             assert scales(ball, mode, x, v, load) == phases.phase_scales(ball, mode, x, v, load)
             assert flow(mode, x, v, tau, load, m, k, ball[2]) == physics.gap_flow_value(mode, x, v, tau, load, m, k,
                                                                                          ball[2])
+
+
+def test_both_engines_report_a_failed_phase_alike(monkeypatch):
+    """A phase past its step cap keeps none of its steps and is reported at its start, whichever engine ran it
+    (the compiled engine had counted the failed flight's steps and named the time it stopped at)."""
+    from bouncingball.solvers import integrator
+
+    monkeypatch.setattr(integrator, "MAX_STEPS_PER_PHASE", 150)  # root evaluations, a few per step
+    outcomes = []
+    for engine in ("sksundae", "compiled"):
+        # a contact from R at -1 m/s (about 30 steps of 1 ms), then a flight of 0.18 s that needs 180
+        ball_integrator = BallIntegrator(ARTICLE, 0.06, -1.0, settings=CvodeSettings(max_step=1e-3, engine=engine))
+        with pytest.raises(integrator.SolverError, match="took more than 150 steps in one flight phase") as failure:
+            ball_integrator.integrate_grid(np.linspace(0.0, 1.0, 101))
+        outcomes.append((str(failure.value), ball_integrator.steps, ball_integrator.t))
+    assert outcomes[0] == outcomes[1] and 0 < outcomes[0][1] < 150 and outcomes[0][2] > 0.0

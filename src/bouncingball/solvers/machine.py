@@ -270,13 +270,13 @@ def _cvode_phase(engine, parameters, rtol, atol, state, t_end, points, n_points,
     length, speed = frame(parameters, mode, x, v, load, rtol, atol)
     margin = side_margin(hop, rtol, length)
     points, n_points = _record(points, n_points, origin, x, v, mode)  # as it is, not scaled and back
-    t_stop = t_end - origin
+    t_stop, steps_at_start = t_end - origin, state[STEPS]
     flag = engine_start(engine, mode, t_stop, x / length, v / speed, length, speed, hop, load)
     tau_before, root, rest = 0.0, 0, 0
     while flag >= 0:
         flag, count, points, tau, tau_prior, root, rest, extreme = engine_steps(
             engine, mode, scratch, points, n_points, t_stop, origin, length, speed)
-        if count == 0:
+        if count == 0 or flag < 0:  # a failed phase keeps none of its steps, whichever engine ran it
             break
         last = n_points + count - 1
         if root != 0:
@@ -293,8 +293,9 @@ def _cvode_phase(engine, parameters, rtol, atol, state, t_end, points, n_points,
         tau_before = tau
         if flag != BUFFER_FULL:
             break
-    if flag < 0:
-        state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = origin + tau_before, state[X], flag
+    if flag < 0:  # reported at the phase's start, where its state is
+        state[STEPS] = steps_at_start
+        state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = origin, state[X], flag
         return TOO_MANY_STEPS if engine_exceeded(engine, mode) else CVODE_FAILED, points, n_points, events, n_events
     finished, rhs_calls = engine_finish(engine, mode)
     if finished < 0:
