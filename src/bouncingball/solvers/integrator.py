@@ -34,7 +34,7 @@ from . import state as state_checks
 from .dense_output import interpolate
 from .engines import choose_engine
 from .result import DEPARTURE, IMPACT, Event
-from .settings import CvodeSettings, choose_method
+from .settings import CvodeSettings, choose_method, too_many_steps_cause
 from .state import IntegratorState, IntegratorView
 from .stepper import SolverError
 
@@ -272,7 +272,8 @@ class BallIntegrator(IntegratorView):
         mode, t, x = self.mode, float(state[machine.FAIL_T]), float(state[machine.FAIL_X])
         if status == machine.TOO_MANY_STEPS:
             return SolverError(f"CVODE ({self.methods[mode]}) took more than {MAX_STEPS_PER_PHASE} steps in one "
-                               f"{mode.name.lower()} phase, at t = {t!r} s: {self._too_many_steps_cause(mode)}")
+                               f"{mode.name.lower()} phase, at t = {t!r} s: "
+                               + too_many_steps_cause(self.settings, self.methods[mode], mode, MAX_STEPS_PER_PHASE))
         R = self.ball.R
         if status == machine.STEPPED_OVER:
             return SolverError(f"CVODE stepped over an {'impact' if mode == Mode.FLIGHT else 'departure'} unseen "
@@ -281,16 +282,6 @@ class BallIntegrator(IntegratorView):
         message = self._solvers[mode].message(int(state[machine.FAIL_FLAG]))
         return SolverError(f"CVODE failed at t = {t!r} s ({mode.name.lower()}, h = {self.h!r} m, v = {self.v!r} m/s): "
                            f"{message}")
-
-    def _too_many_steps_cause(self, mode: Mode) -> str:
-        """Why a phase took too many steps: max_step caps its steps, Adams fights a stiff contact, or the tolerance."""
-        causes, max_step = [], self.settings.max_step
-        if max_step > 0.0:
-            causes.append(f"max_step = {max_step!r} s lets {MAX_STEPS_PER_PHASE} steps cover only "
-                          f"{MAX_STEPS_PER_PHASE * max_step:.3g} s; raise max_step (or set 0 for none)")
-        if self.methods[mode] == "Adams" and mode == Mode.CONTACT:
-            causes.append("the problem is stiff for this method; use method 'BDF' (or 'auto')")
-        return "; or ".join(causes) or "loosen rtol/atol"
 
     def _report_sundials_warnings(self) -> None:
         if self._cvode_called:

@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .. import validation
-from ..physics import Ball
+from ..physics import Ball, Mode
 
 METHODS = ("auto", "Adams", "BDF")
 ENGINES = ("auto", "compiled", "sksundae")
@@ -97,3 +97,17 @@ def merged_hop_limit(ball: Ball, rtol: float = DEFAULT_RTOL, atol: float | None 
     hop_tolerance may be merged too. The one rule every comparison with the exact solution uses.
     """
     return MERGED_HOP_MARGIN * hop_tolerance(ball, rtol, atol, F_ext)
+
+
+def too_many_steps_cause(settings: CvodeSettings, method: str, mode, max_steps: int) -> str:
+    """Why a phase in mode took more than max_steps steps with method: max_step, stiffness for Adams, or the tolerance.
+
+    max_step caps its steps; Adams creeps through a stiff contact; else the tolerance asks for them.
+    """
+    causes = []
+    if settings.max_step > 0.0:
+        causes.append(f"max_step = {settings.max_step!r} s lets {max_steps} steps cover only "
+                      f"{max_steps * settings.max_step:.3g} s; raise max_step (or set 0 for none)")
+    if method == "Adams" and mode == Mode.CONTACT:
+        causes.append("the problem is stiff for this method; use method 'BDF' (or 'auto')")
+    return "; or ".join(causes) or "loosen rtol/atol"
