@@ -130,11 +130,8 @@ def _unpacked(engine, mode):
 def _engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load):
     calls, memory, vector, state, parameters, user_data, work, counter = _unpacked(engine, mode)
     parameters[_P_LENGTH], parameters[_P_SPEED], parameters[_P_HOP], parameters[_P_LOAD] = length, speed, hop, load
-    # the Jacobian in the scaled variables (x / length, v / speed)
-    contact = mode == 1
-    parameters[_P_J00], parameters[_P_J01] = 0.0, 1.0 * speed / length
-    parameters[_P_J10] = (-parameters[_P_K] / parameters[_P_M] if contact else 0.0) * length / speed
-    parameters[_P_J11] = -parameters[_P_B] / parameters[_P_M] if contact else 0.0
+    parameters[_P_J00], parameters[_P_J01], parameters[_P_J10], parameters[_P_J11] = _scaled_jacobian(
+        mode, length, speed, parameters[_P_M], parameters[_P_K], parameters[_P_B])
     user_data[_U_EVALUATIONS] = 0
     state[0], state[1] = y0, y1
     flag = call_i3(calls[_REINIT], memory, 0.0, vector)
@@ -201,8 +198,8 @@ run_phases = _compiled[machine.run_phases]
 fill_grid = _compiled[dense_output.fill_grid]
 advance = _compiled[machine.advance]
 advance_in_step = _compiled[machine.advance_in_step]
-_acceleration = _compiled[physics.gap_acceleration]
-_rest_margin = _compiled[physics.rest_margin_value]
+_scaled_rates, _root_values = _compiled[phases.scaled_rates], _compiled[phases.root_values]
+_scaled_jacobian = _compiled[phases.scaled_jacobian]
 
 
 _callback_data = types.CPointer(types.intp)
@@ -214,10 +211,8 @@ def _rhs(t, y, ydot, user_data):
     p = carray(doubles(u[_U_PARAMETERS]), _P_SIZE)
     state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
     out = carray(doubles(call_p1(u[_U_GET_ARRAY], ydot)), 2)
-    length, speed = p[_P_LENGTH], p[_P_SPEED]
-    out[0] = (speed / length) * state[1]
-    out[1] = _acceleration(length * state[0], speed * state[1], p[_P_MODE], p[_P_LOAD], p[_P_M], p[_P_K],
-                           p[_P_B]) / speed
+    out[0], out[1] = _scaled_rates(state[0], state[1], p[_P_MODE], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD], p[_P_M],
+                                   p[_P_K], p[_P_B])
     return 0
 
 
@@ -227,14 +222,8 @@ def _roots(t, y, gout, user_data):
     p = carray(doubles(u[_U_PARAMETERS]), _P_SIZE)
     state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
     out = carray(gout, 3)
-    # as in BallIntegrator._make_solver: the scaled gap, its own side at 0; v; the rest margin
-    out[0] = state[0] if state[0] != 0.0 else p[_P_OWN_SIDE]
-    out[1] = state[1] if p[_P_MODE] == 1.0 or p[_P_LOAD] != 0.0 else 1.0
-    d = p[_P_LOAD] / p[_P_K]  # the static deflection (physics.static_deflection_value)
-    if p[_P_MODE] == 1.0 and d > 0.0:
-        out[2] = _rest_margin(p[_P_LENGTH] * state[0], p[_P_SPEED] * state[1], d, p[_P_HOP], p[_P_K] / p[_P_M])
-    else:
-        out[2] = -1.0
+    out[0], out[1], out[2] = _root_values(state[0], state[1], p[_P_MODE], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD],
+                                          p[_P_OWN_SIDE], p[_P_HOP], p[_P_K], p[_P_M])
     u[_U_EVALUATIONS] += 1
     return 1 if u[_U_EVALUATIONS] > u[_U_MAX_EVALUATIONS] else 0
 

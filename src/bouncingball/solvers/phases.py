@@ -185,6 +185,30 @@ def taylor_step(parameters, mode, x, v, load, dt):
     return x + dt * (v + 0.5 * dt * a), v + dt * a
 
 
+# --- CVODE's functions of a phase, in its frame: (y0, y1) = (x / length, v / speed), both engines' callbacks ---
+def scaled_rates(y0, y1, mode, length, speed, load, m, k, b):
+    """d(y0, y1)/dt: the mode's equations (physics.gap_acceleration) in the phase's frame."""
+    return (speed / length) * y1, gap_acceleration(length * y0, speed * y1, mode, load, m, k, b) / speed
+
+
+def scaled_jacobian(mode, length, speed, m, k, b):
+    """(j00, j01, j10, j11): the constant Jacobian of scaled_rates, row by row."""
+    contact = mode == CONTACT
+    return 0.0, 1.0 * speed / length, (-k / m if contact else 0.0) * length / speed, -b / m if contact else 0.0
+
+
+def root_values(y0, y1, mode, length, speed, load, own_side, hop, k, m):
+    """CVODE's three root functions: the gap (own_side where it is 0), v, and the rest margin in contact.
+
+    Under zero net load v never changes in flight: a root function identically 0 would only make
+    CVODE warn, so it is 1 there. The rest margin (physics.rest_margin_value, with the static
+    deflection from the phase's load) is -1 where the contact cannot rest.
+    """
+    d = load / k
+    rest = rest_margin_value(length * y0, speed * y1, d, hop, k / m) if mode == CONTACT and d > 0.0 else -1.0
+    return y0 if y0 != 0.0 else own_side, y1 if mode == CONTACT or load != 0.0 else 1.0, rest
+
+
 # --- the decisions that need the search for a departure (interpreted only: never compiled) ----------
 def at_rest(ball: Ball, mode, x, v, load, hop, rtol, F_ext) -> bool:
     """rest_decision, an UNDECIDED contact a rest if the search finds no departure; F_ext [N] is the load's."""

@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..physics import Ball, Mode, gap_acceleration, rest_margin_value
-from . import machine, sksundae_events
+from ..physics import Ball, Mode
+from . import machine, phases, sksundae_events
 from .sundials_log import ErrorsOffStdout, SundialsLog
 
 CV_RTFUNC_FAIL = -12
@@ -70,27 +70,25 @@ class SksundaePhaseSolver:
         self._frame = [1.0, 1.0, 0.0]  # length [m], speed [m/s], hop tolerance [m]
         self._evaluations = 0
         self.bind(ball)
-        contact = mode == Mode.CONTACT
-
         # CVODE integrates x / length and v / speed (the frame's scales), in time from the phase's start.
+        # The frame and the ball's constants are read from self._frame and self._constants (one lookup each):
+        # these run for every right-hand side and root evaluation, ~5000 times a run.
+        rates, jacobian, roots = phases.scaled_rates, phases.scaled_jacobian, phases.root_values
+
         def rhs(t, y, yp):
             length, speed, _ = self._frame
-            yp[0] = (speed / length) * y[1]
-            yp[1] = gap_acceleration(length * y[0], speed * y[1], mode, self._load, self._m, self._k, self._b) / speed
+            load, m, k, b = self._constants
+            yp[0], yp[1] = rates(y[0], y[1], mode, length, speed, load, m, k, b)
 
         def jac(t, y, yp, JJ):
             length, speed, _ = self._frame
-            JJ[0, 0], JJ[0, 1] = 0.0, speed / length
-            JJ[1, 0], JJ[1, 1] = (-self._w2 * length / speed, -self._damping) if contact else (0.0, 0.0)
+            _, m, k, b = self._constants
+            JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = jacobian(mode, length, speed, m, k, b)
 
         def event(t, y, out):
             length, speed, hop = self._frame
-            out[0] = y[0] if y[0] != 0.0 else own_side
-            # Under zero net gravity v never changes in flight: a root function identically 0 would
-            # only make CVODE warn.
-            out[1] = y[1] if contact or self._load != 0.0 else 1.0
-            d = self._load / self._k  # the static deflection, from the load kept for the phase
-            out[2] = rest_margin_value(length * y[0], speed * y[1], d, hop, self._w2) if contact and d > 0.0 else -1.0
+            load, m, k, _ = self._constants
+            out[0], out[1], out[2] = roots(y[0], y[1], mode, length, speed, load, own_side, hop, k, m)
             # CVODE evaluates the root functions once per step (and a few times per root found)
             self._evaluations += 1
             if self._evaluations > max_evaluations:
@@ -110,8 +108,7 @@ class SksundaePhaseSolver:
     def bind(self, ball: Ball) -> None:
         """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
         self._m, self._k, self._b = ball.m, ball.k, ball.b
-        self._w2, self._damping = ball.k / ball.m, ball.b / ball.m
-        self._load = 0.0
+        self._constants = (0.0, ball.m, ball.k, ball.b)  # load [N], m, k, b
         self.set_frame(1.0, 1.0, 0.0)
 
     def set_frame(self, length: float, speed: float, hop_tolerance: float) -> None:
@@ -156,7 +153,7 @@ class SksundaePhaseSolver:
               load: float) -> int:
         """Take the phase's frame; restart CVODE at 0 from (y0, y1) for step_once, or in steps() to solve to t_stop."""
         self.set_frame(length, speed, hop)
-        self._load, self._start = load, (t_stop, y0, y1)
+        self._constants, self._start = (load, self._m, self._k, self._b), (t_stop, y0, y1)
         if t_stop == math.inf:
             with self.log.capturing():
                 self.init_step(0.0, np.array([y0, y1]))
