@@ -97,11 +97,9 @@ class BallIntegrator(IntegratorView):
             self.methods = {Mode.FLIGHT: "Adams", Mode.CONTACT: choose_method(ball)}
         else:
             self.methods = dict.fromkeys(Mode, s.method)
-        h0 = validation.finite("h0", h0, "m")
-        v0 = validation.finite("v0", v0, "m/s")
         t0 = validation.finite("t0", t0, "s")
-        F_ext = validation.finite("F_ext", F_ext, "N")
-        limits.check_scene(ball, h0, v0, F_ext, t0)
+        limits.check_scene(ball, h0, v0, F_ext, t0)  # each value checked and named there
+        h0, v0, F_ext = float(h0), float(v0), float(F_ext)
         self.resolvable_until = resolvable_until(ball)
         check_resolvable(ball, t0)
         self._cvode_called = False
