@@ -49,7 +49,7 @@ from .sundials_log import SundialsLog
 
 CV_ADAMS, CV_BDF = 1, 2
 CV_ONE_STEP = 2
-CV_SUCCESS, CV_TSTOP_RETURN, CV_ROOT_RETURN = 0, 1, 2
+CV_SUCCESS, CV_ROOT_RETURN = 0, 2
 # cvode.py's defaults for scikit-sundae's options that CVODE would otherwise take from itself.
 _MAX_NONLIN_ITERS = 3
 _MAX_CONV_FAILS = 10
@@ -60,8 +60,8 @@ _NUM_ROOTS = 3
 _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_SIZE = range(6)
 # The parameters (float64) the callbacks read.
 # CVODE integrates x / length and v / speed (x = h - R), the phase's frame set by _engine_start.
-(_P_M, _P_K, _P_B, _P_R, _P_G, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
- _P_LENGTH, _P_SPEED, _P_LOAD, _P_SIZE) = range(16)
+(_P_M, _P_K, _P_B, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
+ _P_LENGTH, _P_SPEED, _P_LOAD, _P_SIZE) = range(14)
 
 
 
@@ -343,12 +343,7 @@ class PhaseSolver:
     # --- the calls BallIntegrator makes (solvers/stepper.py) ---------------------------------------
     def bind(self, ball) -> None:
         """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
-        self.parameters[[_P_M, _P_K, _P_B, _P_R, _P_G]] = ball.m, ball.k, ball.b, ball.R, ball.g
-
-    @property
-    def exceeded(self) -> bool:
-        """True if the last call failed because the phase took more root evaluations than allowed."""
-        return self._user_data[_U_EVALUATIONS] > self._user_data[_U_MAX_EVALUATIONS]
+        self.parameters[[_P_M, _P_K, _P_B]] = ball.m, ball.k, ball.b
 
     def handle(self) -> np.ndarray:
         """This solver's row of the compiled machine's engine (see _H_*; its CVODE made on first use)."""

@@ -232,7 +232,7 @@ class BallIntegrator(IntegratorView):
         t_end, state = float(grid[-1]), self._state
         check_resolvable(self.ball, t_end)
         machine.restart_needed(state)
-        points, events, scratch = np.empty((256, 4)), np.empty((16, 3)), np.empty((_SCRATCH_ROWS, 5))
+        points, events = np.empty((256, 4)), np.empty((16, 3))
         points[0] = state[machine.T], state[machine.X], state[machine.V], state[machine.MODE]
         n_points, n_events = 1, 0
         while True:
@@ -240,7 +240,7 @@ class BallIntegrator(IntegratorView):
                 self.progress(float(state[machine.T]))
             status, points, n_points, events, n_events = self._machine.run_phases(
                 self._engine, self._parameters, self.settings.rtol, self._atol, state, t_end, points, n_points,
-                events, n_events, scratch, PROGRESS_STEPS)
+                events, n_events, self._scratch, PROGRESS_STEPS)
             self._cvode_called = True
             if status == machine.DONE:
                 break

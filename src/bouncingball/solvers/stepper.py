@@ -7,9 +7,9 @@ written) that drives the two modes' solvers through ``handle()``:
 
 - ``bind(ball)``: the ball whose equations it integrates (a pooled solver serves many balls);
 - ``handle()``: what the engine's machine calls it through (for scikit-sundae, the solver itself,
-  whose start, steps, step_once and finish are the machine's engine_* calls; for the compiled
-  engine a row of integers, the addresses its compiled calls read);
-- ``message(flag)``, ``exceeded`` and the ``log`` of SUNDIALS' warnings (solvers/sundials_log.py).
+  whose start, steps, step_once, finish and exceeded are the machine's engine_* calls; for the
+  compiled engine a row of integers, the addresses its compiled calls read);
+- ``message(flag)`` and the ``log`` of SUNDIALS' warnings (solvers/sundials_log.py).
 
 Creating a CVODE object and its warnings file costs more than integrating a whole phase (~0.1 ms
 each, two per integrator), so solvers are kept per process in a pool, by engine, mode, method and
