@@ -49,6 +49,16 @@ def python_without_sksundae(tmp_path: Path, *packages: str) -> Path:
     return python
 
 
+def host_report(python: Path, script: str, fmu: Path) -> dict:
+    """What script, run by python on fmu, prints as JSON on its last line (it must exit 0)."""
+    import json
+
+    completed = subprocess.run([python, "-c", script, str(fmu)], capture_output=True, text=True, check=False,
+                               timeout=300)
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    return json.loads(completed.stdout.splitlines()[-1])
+
+
 def ecos_executables() -> dict[str, Path]:
     """ecospy's `ecos` (its command line) and `proxyfmu` (an FMU in a process of its own), made executable.
 

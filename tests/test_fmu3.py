@@ -20,7 +20,7 @@ from bouncingball.fmu.variables import FMI3_VARIABLES, VARIABLES  # noqa: E402
 from bouncingball.physics import Ball  # noqa: E402
 from bouncingball.solvers.exact import ExactSolution  # noqa: E402
 from bouncingball.solvers.result import IMPACT  # noqa: E402
-from fmu_helpers import exact_at, python_without_sksundae  # noqa: E402
+from fmu_helpers import exact_at, host_report, python_without_sksundae  # noqa: E402
 
 TESTS = Path(__file__).parent
 ARTICLE = ExactSolution(Ball(), 2.0, 0.0, 0.0, 8.0)
@@ -444,10 +444,7 @@ def test_a_python_host_without_scikit_sundae_gets_one_line_and_no_instance(fmu3,
     """The host check of the FMI 2.0 FMU, in the FMI 3.0 one: fmi3InstantiateCoSimulation returns NULL with one
     error line naming the interpreter, what it lacks and the fix; pythonfmu3 never runs."""
     python = python_without_sksundae(tmp_path, "fmpy", "numpy")
-    completed = subprocess.run([python, "-c", HOST_WITHOUT_SKSUNDAE, str(fmu3)], capture_output=True, text=True,
-                               check=False, timeout=300)
-    assert completed.returncode == 0, completed.stdout + completed.stderr
-    report = json.loads(completed.stdout.splitlines()[-1])
+    report = host_report(python, HOST_WITHOUT_SKSUNDAE, fmu3)
     assert report["outcome"] == "Failed to instantiate FMU"
     [(status, category, line)] = report["log"]
     assert (status, category) == (3, "logStatusError")

@@ -26,6 +26,7 @@ from fmu_helpers import (
     ecos_csv_to_check,
     ecos_executables,
     exact_at,
+    host_report,
     python_without_sksundae,
 )
 
@@ -375,10 +376,7 @@ def test_a_python_host_without_scikit_sundae_gets_one_line_and_no_instance(fmu, 
     """A venv with FMPy, numpy and libcosimpy but no scikit-sundae: fmi2Instantiate returns NULL with one error
     line naming the interpreter, what it lacks and the pip install that fixes it; pythonfmu never runs."""
     python = python_without_sksundae(tmp_path, "fmpy", "numpy", "libcosimpy")
-    completed = subprocess.run([python, "-c", HOST_WITHOUT_SKSUNDAE, str(fmu)], capture_output=True, text=True,
-                               check=False, timeout=300)
-    assert completed.returncode == 0, completed.stdout + completed.stderr
-    report = json.loads(completed.stdout.splitlines()[-1])
+    report = host_report(python, HOST_WITHOUT_SKSUNDAE, fmu)
     assert report["outcome"] == "Failed to instantiate model"
     [(status, category, line)] = report["log"]
     assert (status, category) == (3, "logStatusError")  # fmi2Error, not pythonfmu's fmi2Fatal
