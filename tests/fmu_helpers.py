@@ -77,8 +77,8 @@ def ecos_executables() -> dict[str, Path]:
 
 
 def ecos_csv_to_check(path: Path, instance: str, target: Path) -> Path:
-    """ecos' CSV (`iterations, time, instance::h[REAL], instance::impacts[INT], ...`) as time,h,impacts for
-    `bouncingball check`, which does not read ecos' columns yet."""
+    """One instance's time, h and impacts of ecos' CSV (`iterations, time, instance::h[REAL], ...`), as a plain
+    CSV for numpy."""
     with path.open(newline="") as file:
         rows = list(csv.reader(file, skipinitialspace=True))
     header = [name.strip() for name in rows[0]]

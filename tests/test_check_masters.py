@@ -100,7 +100,7 @@ def write_ecos(path: Path, runs: dict[str, tuple[dict, Ball]]) -> Path:
     time = next(iter(runs.values()))[0]["time"]
     lines = [", ".join(header)]
     for i, t in enumerate(time):
-        values = [str(i), f"{t:.6f}"]
+        values = [str(i), f"{t:g}"]  # ecos prints its time as it comes (0.01), its variables to 6 decimals
         for run, ball in runs.values():
             values += [f"{getattr(ball, n):.6f}" for n in PARAMETERS] + [f"{run[n][i]:.6f}" for n in OUTPUTS]
             values += [f"{0.0:.6f}", f"{1e-12:.6f}", f"{0.0:.6f}", str(run["impacts"][i]), str(int(run["contact"][i])),
@@ -231,7 +231,9 @@ def test_ecos_a_right_run_passes_and_a_wrong_one_fails(article, moon, tmp_path, 
     code, out, err = check(capsys, path, "--instance", "ball")
     assert code == 0, out + err
     assert "printed            6 decimals" in out
-    assert "rtol, atol: as the scene and the FMU's defaults have them" in out  # rtol 1e-12 printed 0.000000
+    # rtol 1e-12 printed 0.000000, which the FMU would refuse: it changes nothing in the exact solution
+    assert "rtol printed as 0.0 (refused by the FMU), read as the FMU's default 1e-12, within its printed " \
+           "resolution 5e-07" in out
     assert 0.0 < exact_error(path, article, ARTICLE, instance="ball") <= 5e-7 * (1 + 1e-6)
     code, out, err = check(capsys, path, "--instance", "moon", "--start-value", "h=1")
     assert code == 0 and "g = 1.62 m/s2" in out, out + err
@@ -243,6 +245,25 @@ def test_ecos_a_right_run_passes_and_a_wrong_one_fails(article, moon, tmp_path, 
     assert code == EXIT_CHECK_FAILED
     assert "a = -1.62 m/s2 where the scene's ball has -9.81 m/s2 there (the file's own parameter columns do not give " \
            "the run it holds)" in out
+
+
+LIGHT = Ball(m=4e-7, k=4e-3, b=4e-6)  # the article's ball scaled by 4e-7 kg: the same motion; m prints 0.000000
+
+
+def test_ecos_a_physical_parameter_printed_as_a_refused_value_needs_its_start_value(article, tmp_path, capsys):
+    """m = 4e-7 kg printed 0.000000: too few digits to tell it from m = 0, refused even where the scene agrees."""
+    path = write_ecos(tmp_path / "light.csv", {"ball": (article, LIGHT)})
+    assert ", 0.000000, 0.004000, 0.000004, " in path.read_text().splitlines()[1]
+    code, _, err = check(capsys, path)  # the article's m = 1 kg contradicts the printed 0.0
+    assert code == EXIT_BAD_INPUT and "--start-value m=VALUE" in err, err
+    scene = tmp_path / "light.toml"
+    scene.write_text("m = 4e-7\nk = 4e-3\nb = 4e-6\n")
+    code, _, err = check(capsys, path, scene)  # the scene's 4e-7 is within the printed resolution: still unknown
+    assert code == EXIT_BAD_INPUT
+    assert "m is printed as 0.0, which the FMU refuses, to a resolution of 5e-07: too few digits to tell the value " \
+           "the master set; give it with --start-value m=VALUE" in err
+    code, out, err = check(capsys, path, scene, "--start-value", "m=4e-7")
+    assert code == 0, out + err
 
 
 # --- strict where it must be, lenient where masters differ ------------------------------------------

@@ -214,13 +214,18 @@ def read_result_file(path: str | Path, instance: str | None = None) -> ResultFil
                                      ">= 0")
             cells[variable].append(printed)
     rows = np.array([number for number, _ in lines[1:]])
-    printing = infer_printing(cells["time"], cells["h"])
+    printing = time_printing = infer_printing(cells["time"], cells["h"])
+    if printing.full:  # ecos prints its time as it comes (0.01) and every variable to 6 decimals (1.999510)
+        variables_printing = infer_printing([], cells["h"])
+        if not variables_printing.full:
+            printing, time_printing = variables_printing, infer_printing(cells["time"], [])
 
     def values(variable: str) -> np.ndarray | None:
         return np.array([c.value for c in cells[variable]]) if variable in cells else None
 
     def resolution(variable: str) -> np.ndarray | None:
-        return np.array([printing.resolution(c) for c in cells[variable]]) if variable in cells else None
+        format = time_printing if variable == "time" else printing
+        return np.array([format.resolution(c) for c in cells[variable]]) if variable in cells else None
 
     t = values("time")
     back = np.flatnonzero(np.diff(t) < 0.0)

@@ -174,21 +174,29 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
     values = dict(start_values or {})
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
-    taken = []
+    taken, defaults = [], []
     for name, parameter in file.parameters.items():
+        where = f"{source}: row {parameter.row}, column {parameter.column!r}"
         if name in values:
             given = _number(name, values[name])
             if not _agree(given, parameter):
                 within = f" (beyond its printed resolution, {parameter.resolution:.1g})" if parameter.resolution else ""
-                raise BadResultError(f"{source}: row {parameter.row}, column {parameter.column!r}: {name} = "
-                                     f"{parameter.value!r} contradicts the start value {name} = {values[name]}{within}")
+                raise BadResultError(f"{where}: {name} = {parameter.value!r} contradicts the start value {name} = "
+                                     f"{values[name]}{within}")
         elif not _agree(_setting(scene, name), parameter):  # the scene's value, unless the file shows another
             values[name] = parameter.value
             taken.append(f"{name} = {parameter.value!r} (the scene has {_setting(scene, name)!r})")
+        elif _refused(scene, name, parameter.value):  # printed too coarsely to tell from a value the FMU refuses
+            if name not in SOLVER_SETTINGS:
+                raise BadResultError(f"{where}: {name} is printed as {parameter.value!r}, which the FMU refuses, to a "
+                                     f"resolution of {parameter.resolution:.1g}: too few digits to tell the value the "
+                                     f"master set; give it with --start-value {name}=VALUE")
+            # a solver setting does not change the exact solution: the default it may be printing will do
+            defaults.append(f"{name} printed as {parameter.value!r} (refused by the FMU), read as the FMU's default "
+                            f"{_setting(scene, name)!r}, within its printed resolution {parameter.resolution:.1g}")
     try:
         scene = scene_with_start_values(scene, values)
-        rtol = validation.in_range("rtol", _number("rtol", values.get("rtol", DEFAULT_RTOL)), 0.0, 1.0)
-        atol = validation.non_negative("atol", _number("atol", values.get("atol", 0.0)), "m") or None
+        rtol, atol = _solver_settings(values)
     except ValueError as error:
         wrong = next((p for n, p in file.parameters.items() if n not in (start_values or {}) and
                       str(error).startswith(f"{n} = ")), None)
@@ -198,8 +206,8 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
                              f"value the master set with --start-value {wrong.name}=VALUE)") from None
     file_parameters = ", ".join(file.parameters)
     if file_parameters:
-        file_parameters += ": " + ("; ".join(taken) + " taken from it" if taken
-                                   else "as the scene and the FMU's defaults have them")
+        file_parameters += ": " + "; ".join([*(["; ".join(taken) + " taken from it"] if taken else []), *defaults]
+                                            or ["as the scene and the FMU's defaults have them"])
     ball = scene.ball
     t, h, t_res, h_res = file.time, file.h, file.time_resolution, file.h_resolution
     if t[0] < start_time - t_res[0]:
@@ -245,6 +253,22 @@ def _setting(scene: Scene, name: str) -> float:
     if name in BALL_KEYS:
         return getattr(scene.ball, name)
     return {"F_ext": scene.F_ext, "rtol": DEFAULT_RTOL, "atol": 0.0}[name]
+
+
+def _solver_settings(values: Mapping[str, float | str]) -> tuple[float, float | None]:
+    """(rtol, atol [m] or None) the FMU runs with for these start values; ValueError names a refused one."""
+    rtol = validation.in_range("rtol", _number("rtol", values.get("rtol", DEFAULT_RTOL)), 0.0, 1.0)
+    atol = validation.non_negative("atol", _number("atol", values.get("atol", 0.0)), "m") or None
+    return rtol, atol
+
+
+def _refused(scene: Scene, name: str, value: float) -> bool:
+    """Whether the FMU refuses value for its parameter name in scene."""
+    try:
+        _solver_settings({name: value}) if name in SOLVER_SETTINGS else scene_with_start_values(scene, {name: value})
+    except ValueError:
+        return True
+    return False
 
 
 def _agree(value: float, parameter: FileParameter) -> bool:

@@ -1,11 +1,13 @@
 /* A minimal FMI 2.0 co-simulation master in plain C, with no Python in the process.
  *
- * Usage: fmi2_master DIR MODEL_IDENTIFIER GUID STOP_TIME STEP [rVR=VALUE ...] [oVR ...] [iVR ...]
+ * Usage: fmi2_master DIR MODEL_IDENTIFIER GUID STOP_TIME STEP [t=TOLERANCE] [rVR=VALUE ...] [oVR ...] [iVR ...]
  *   DIR               the unzipped FMU
+ *   t=TOLERANCE       pass TOLERANCE to fmi2SetupExperiment (toleranceDefined), as OMSimulator passes 1e-4
  *   rVR=VALUE         set Real VR to VALUE before initialisation
  *   oVR, iVR          Real and Integer outputs printed at every communication point
  * Prints "t out1 out2 ..." per communication point on stdout and the FMU's log on stderr.
- * The exit code is 0, or 10 + the status of the first call that did not return fmi2OK.
+ * The exit code is 0, or 10 + the status of the first call that did not return fmi2OK: like fmusim and
+ * OMSimulator, it stops at any status other than OK, fmi2Warning included.
  * Built with -DHOST_SUNDIALS and linked to a SUNDIALS library, it is a host that carries its own
  * SUNDIALS (as fmusim or OpenModelica do): its symbols are in the process's global scope.
  */
@@ -63,7 +65,7 @@ int main(int argc, char *argv[])
     fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
 
     if (argc < 6) {
-        fprintf(stderr, "usage: %s DIR MODEL_IDENTIFIER GUID STOP_TIME STEP [rVR=VALUE ...] [oVR ...] [iVR ...]\n",
+        fprintf(stderr, "usage: %s DIR MODEL_IDENTIFIER GUID STOP_TIME STEP [t=TOLERANCE] [rVR=VALUE ...] [oVR ...] [iVR ...]\n",
                 argv[0]);
         return 2;
     }
@@ -73,9 +75,13 @@ int main(int argc, char *argv[])
     fprintf(stderr, "host SUNDIALS %s\n", version);
 #endif
     double stop_time = atof(argv[4]);
-    double step = atof(argv[5]);
+    double step = atof(argv[5]), tolerance = 0.0;
+    fmi2Boolean tolerance_defined = fmi2False;
     for (int i = 6; i < argc && n_set < MAX_VARIABLES && n_real < MAX_VARIABLES && n_int < MAX_VARIABLES; i++) {
-        if (argv[i][0] == 'r') {
+        if (strncmp(argv[i], "t=", 2) == 0) {
+            tolerance = atof(argv[i] + 2);
+            tolerance_defined = fmi2True;
+        } else if (argv[i][0] == 'r') {
             char *equals = strchr(argv[i], '=');
             if (equals == NULL) {
                 return 2;
@@ -115,7 +121,7 @@ int main(int argc, char *argv[])
     if (n_set > 0) {
         CHECK(set_real(c, set_vr, n_set, set_value), "fmi2SetReal");
     }
-    CHECK(setup(c, fmi2False, 0.0, 0.0, fmi2True, stop_time), "fmi2SetupExperiment");
+    CHECK(setup(c, tolerance_defined, tolerance, 0.0, fmi2True, stop_time), "fmi2SetupExperiment");
     CHECK(enter(c), "fmi2EnterInitializationMode");
     CHECK(exit_init(c), "fmi2ExitInitializationMode");
 

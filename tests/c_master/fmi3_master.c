@@ -1,13 +1,15 @@
 /* A minimal FMI 3.0 co-simulation master in plain C, with no Python in the process.
  *
- * Usage: fmi3_master DIR MODEL_IDENTIFIER TOKEN STOP_TIME STEP [e] [rVR=VALUE ...] [oVR ...] [iVR ...]
+ * Usage: fmi3_master DIR MODEL_IDENTIFIER TOKEN STOP_TIME STEP [e] [t=TOLERANCE] [rVR=VALUE ...] [oVR ...] [iVR ...]
  *   DIR               the unzipped FMU
  *   e                 allow early return and use event mode (a line is printed at each early return too)
+ *   t=TOLERANCE       pass TOLERANCE to fmi3EnterInitializationMode (toleranceDefined)
  *   rVR=VALUE         set Float64 VR to VALUE before initialisation
  *   oVR, iVR          Float64 and Int32 outputs printed at every communication point
  * Prints "t out1 out2 ..." per communication point on stdout and the FMU's log on stderr; it also
  * takes, serializes, restores and frees an FMU state halfway. The exit code is 0, or 10 + the status
- * of the first call that did not return fmi3OK.
+ * of the first call that did not return fmi3OK: like fmusim and OMSimulator, it stops at any status
+ * other than OK, fmi3Warning included.
  */
 #include <dlfcn.h>
 #include <stdio.h>
@@ -55,15 +57,19 @@ int main(int argc, char *argv[])
     int early = 0;
 
     if (argc < 6) {
-        fprintf(stderr, "usage: %s DIR MODEL_IDENTIFIER TOKEN STOP_TIME STEP [e] [rVR=VALUE ...] [oVR ...] [iVR ...]\n",
+        fprintf(stderr, "usage: %s DIR MODEL_IDENTIFIER TOKEN STOP_TIME STEP [e] [t=TOLERANCE] [rVR=VALUE ...] [oVR ...] [iVR ...]\n",
                 argv[0]);
         return 2;
     }
     double stop_time = atof(argv[4]);
-    double step = atof(argv[5]);
+    double step = atof(argv[5]), tolerance = 0.0;
+    fmi3Boolean tolerance_defined = fmi3False;
     for (int i = 6; i < argc && n_set < MAX_VARIABLES && n_real < MAX_VARIABLES && n_int < MAX_VARIABLES; i++) {
         if (strcmp(argv[i], "e") == 0) {
             early = 1;
+        } else if (strncmp(argv[i], "t=", 2) == 0) {
+            tolerance = atof(argv[i] + 2);
+            tolerance_defined = fmi3True;
         } else if (argv[i][0] == 'r') {
             char *equals = strchr(argv[i], '=');
             if (equals == NULL) {
@@ -113,7 +119,7 @@ int main(int argc, char *argv[])
     if (n_set > 0) {
         CHECK(SetFloat64(c, set_vr, n_set, set_value, n_set), "fmi3SetFloat64");
     }
-    CHECK(EnterInitializationMode(c, fmi3False, 0.0, 0.0, fmi3True, stop_time), "fmi3EnterInitializationMode");
+    CHECK(EnterInitializationMode(c, tolerance_defined, tolerance, 0.0, fmi3True, stop_time), "fmi3EnterInitializationMode");
     CHECK(ExitInitializationMode(c), "fmi3ExitInitializationMode");
     fmi3Boolean update, terminate, nominals, values, defined, needed, returned;
     fmi3Float64 next_time, reached;

@@ -16,9 +16,9 @@
  *      time, BB_TIME_REFERENCE) and either returns early (earlyReturn, lastSuccessfulTime = the event
  *      time, eventHandlingNeeded if the master uses event mode), or, where the master did not allow
  *      early return, steps on to the end of the communication step.
- *   3. The status of each call is the worst of what pythonfmu3 returns and what the slave logged
- *      during the call; a fatal status from pythonfmu3 ends this instance only (fmi3Error, then
- *      refused further calls).
+ *   3. A slave that logs an error during a call makes the call return fmi3Error; a warning it logs
+ *      is only logged (finish() in bouncingball_fmu_python.h); a fatal status from pythonfmu3 ends
+ *      this instance only (fmi3Error, then refused further calls).
  *   4. pythonfmu3's fmi3EnterInitializationMode drops startTime: it is passed to the slave first
  *      with fmi3SetTime, before initialisation (the slave takes it as the start time).
  *   5. pythonfmu3's fmi3UpdateDiscreteStates leaves an output it does not find on the slave's

@@ -10,8 +10,8 @@
  *      No LD_PRELOAD, PYTHONPATH or PYTHONHOME needed. In a master that runs Python itself
  *      (FMPy, libcosimpy) that Python is used as it is.
  *   2. pythonfmu reports a Python exception as fmi2Fatal and has no way to return fmi2Error.
- *      Here, the status of each call is the worst of what pythonfmu returns and what the slave
- *      logged during the call, so a slave that logs an error makes the call return fmi2Error.
+ *      Here, a slave that logs an error during a call makes the call return fmi2Error; a warning
+ *      it logs is only logged (finish() in bouncingball_fmu_python.h: the one rule for both versions).
  *      A fatal status from pythonfmu becomes fmi2Error for this instance only, which is then
  *      refused further calls (pythonfmu has already released its Python objects).
  *   3. pythonfmu 0.7.0 releases its interpreter state twice at process exit; the loader

@@ -385,8 +385,9 @@ static FMI(Status) set_logging(FMI_INSTANCE instance, FMI(Boolean) loggingOn)
 }
 
 /* --- the status of a call --------------------------------------------------------------------------- */
-/* For the logger the inner binary calls: remember the worst status logged during the call; 1 if the
- * master is to see the message (warnings and errors always, the rest while logging is on). */
+/* For the logger the inner binary calls: remember the worst status logged during the call (finish() makes
+ * a logged error the call's status); 1 if the master is to see the message (warnings and errors always, the
+ * rest while logging is on). */
 static int note(Instance *c, FMI(Status) status)
 {
     if (status > c->worst) {
@@ -411,16 +412,19 @@ static void say(Instance *c, FMI(Status) status, const char *format, ...)
     tell(c, status, status == FMI(OK) ? "logAll" : "logStatusError", message);
 }
 
-/* The status of a forwarded call: the worst of what the inner binary returned and what it logged. A
- * fatal status ends this instance only: fmi2Error or fmi3Error, then refused further calls. */
+/* The status of a forwarded call: what the inner binary returned, or Error where the slave logged an error
+ * (the inner binaries cannot return Error themselves). A warning the slave logged (a looser tolerance than
+ * rtol, an accuracy warning, SUNDIALS' own) is only logged: it describes something the FMU handled, and
+ * masters such as fmusim and OMSimulator stop at any status other than OK. A fatal status ends this
+ * instance only: Error, then refused further calls. */
 static FMI(Status) finish(Instance *c, FMI(Status) status)
 {
     if (status == FMI(Fatal)) {
         c->dead = 1;
         return FMI(Error);
     }
-    if (c->worst > status) {
-        status = c->worst > FMI(Error) ? FMI(Error) : c->worst;
+    if (c->worst >= FMI(Error) && status < FMI(Error)) {
+        status = FMI(Error);
     }
     return status;
 }

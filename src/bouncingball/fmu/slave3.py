@@ -20,7 +20,8 @@ from pythonfmu3.enums import Fmi3Causality, Fmi3Initial, Fmi3Status, Fmi3Variabi
 from pythonfmu3.modelexchange import ModelExchange
 
 from .. import validation
-from ..physics import Mode
+from ..physics import Ball, Mode, load_value
+from ..solvers.phases import phase_scales
 from .slave_base import BallSlave
 from .variables import EVENT_INDICATOR, FMI3_VARIABLES, VARIABLES
 
@@ -28,6 +29,21 @@ from .variables import EVENT_INDICATOR, FMI3_VARIABLES, VARIABLES
 SCRIPT_NAMESPACES: list[dict] = []
 TYPES = {"Real": Float64, "Integer": Int32, "Boolean": Boolean, "String": String}
 REFERENCES = {variable.name: i for i, variable in enumerate(VARIABLES + FMI3_VARIABLES)}
+
+
+def phase_nominals(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> list[float]:
+    """The nominals [m, m/s] of h and v for a phase starting at (h, v) in mode: the phase's own scales.
+
+    In flight the apex height of the centre and the speed at impact; in contact the amplitude of the
+    oscillation about the rest height and its largest speed (phases.phase_scales, the scales our own
+    CVODE integrates a phase in). Always > 0: a scale of 0 (a ball at rest at its rest height) is
+    replaced by max(R, |h|) and 1 m/s.
+    """
+    length, speed = phase_scales(ball.parameters, mode, h - ball.R, v, load_value(F_ext, ball.m, ball.g))
+    if mode == Mode.FLIGHT:
+        length += ball.R
+    return [length if 0.0 < length < math.inf else max(ball.R, abs(h)),
+            speed if 0.0 < speed < math.inf else 1.0]
 
 
 class DiscreteStatesUpdate(NamedTuple):
@@ -56,7 +72,7 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
 
     def __init__(self, **kwargs):
         self.time = 0.0
-        self._exchange: list | None = None  # model exchange: [h, v, mode, impacts] once a call of it came
+        self._exchange: list | None = None  # model exchange (_model_exchange) once a call of it came
         super().__init__(**kwargs)
         self.author, self.description = BallSlave.author, BallSlave.description  # pythonfmu3 resets them
         getters = {"time": lambda: self._integrator.t if self._exchange is None and self._integrator else self.time,
@@ -88,10 +104,13 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
 
     # --- model exchange ---------------------------------------------------------------------------
     def _model_exchange(self) -> list:
-        """The model exchange state, from the initialised integrator's at the first call that needs it."""
+        """The model exchange state [h, v, mode, impacts, nominal of h, nominal of v], from the initialised
+        integrator's at the first call that needs it."""
         if self._exchange is None:
             integrator = self._integrator
-            self._exchange = [integrator.h, integrator.v, integrator.mode, integrator.impacts]
+            self._exchange = [integrator.h, integrator.v, integrator.mode, integrator.impacts,
+                              *phase_nominals(integrator.ball, integrator.h, integrator.v, integrator.mode,
+                                              self._values["F_ext"])]
         return self._exchange
 
     def get_continuous_states(self):
@@ -112,25 +131,44 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         return [self._gap()]
 
     def get_nominals_of_continuous_states(self, size):
-        """h: the larger of R and the start height; v: the speed of a fall from there (1 m/s without one)."""
-        ball = self._integrator.ball if self._integrator else None
-        R, g = (ball.R, ball.g) if ball else (self._values["R"], self._values["g"])
-        h0 = abs(self._values["h"])
-        speed = max(abs(self._values["v"]), math.sqrt(2.0 * abs(g) * max(abs(h0 - R), R)))
-        return [max(R, h0), speed if speed > 0.0 else 1.0][:size]
+        """The nominals of h [m] and v [m/s] of the current phase (phase_nominals); fixed between events."""
+        if self._exchange is not None:
+            return self._exchange[4:6][:size]
+        if self._integrator is not None:
+            integrator = self._integrator
+            return phase_nominals(integrator.ball, integrator.h, integrator.v, integrator.mode,
+                                  self._values["F_ext"])[:size]
+        # Before initialisation: from the start values, as a flight (the mode is decided at initialisation).
+        values = self._values
+        try:
+            ball = self._ball_and_settings()[0]
+            return phase_nominals(ball, values["h"], values["v"], Mode.FLIGHT, values["F_ext"])[:size]
+        except ValueError:  # a start value not yet valid: set and refused at initialisation
+            return [1.0, 1.0][:size]
 
     def update_discrete_states(self):
-        """The mode switch: to contact where h - R has turned negative, to flight where it turned positive."""
+        """The mode switch: to contact where h - R has turned negative, to flight where it turned positive.
+
+        The states' nominals are those of the new phase (phase_nominals), and a switch says they changed:
+        h and v do not jump, so their values did not change (the standard forbids saying so), but an
+        importer that restarts its integrator only when told (fmusim's model exchange) must restart here,
+        where the equations change.
+        """
         if self._integrator is None:
             return DiscreteStatesUpdate()
         state = self._model_exchange()
-        h, v, mode, impacts = state
+        h, v, mode, impacts = state[:4]
         x = h - self._integrator.ball.R
         if mode == Mode.FLIGHT and (x < 0.0 or (x == 0.0 and v < 0.0)):
             state[2], state[3] = Mode.CONTACT, impacts + 1
         elif mode == Mode.CONTACT and (x > 0.0 or (x == 0.0 and v > 0.0)):
             state[2] = Mode.FLIGHT
-        return DiscreteStatesUpdate()
+        else:
+            return DiscreteStatesUpdate()
+        nominals = phase_nominals(self._integrator.ball, h, v, state[2], self._values["F_ext"])
+        changed = nominals != state[4:6]
+        state[4:6] = nominals
+        return DiscreteStatesUpdate(nominalContinuousStatesChanged=changed)
 
     # --- outputs: the model exchange state once there is one, else the integrator's -------------------
     def _h(self):
@@ -142,7 +180,7 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
     def _a(self):
         if not self._exchange:
             return super()._a()
-        h, v, mode, _ = self._exchange
+        h, v, mode = self._exchange[:3]
         return self._integrator.ball.acceleration(h, v, mode, self._values["F_ext"])
 
     def _contact(self):
@@ -151,7 +189,7 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
     def _contact_force(self):
         if not self._exchange:
             return super()._contact_force()
-        h, v, mode, _ = self._exchange
+        h, v, mode = self._exchange[:3]
         return self._integrator.ball.contact_force(h, v, mode)
 
     def _impacts(self):
@@ -165,7 +203,7 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         state = super()._get_fmu_state()
         exchange = self._exchange
         state["model_exchange"] = None if exchange is None else [*exchange[:2], int(exchange[2]), exchange[3],
-                                                                  self.time]
+                                                                  self.time, *exchange[4:6]]
         return state
 
     def _set_fmu_state(self, state):
@@ -174,7 +212,9 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
             exchange = None if saved is None else [validation.finite("state h", saved[0], "m"),
                                                    validation.finite("state v", saved[1], "m/s"),
                                                    Mode(saved[2]), int(saved[3]), validation.finite("state time",
-                                                                                                    saved[4], "s")]
+                                                                                                    saved[4], "s"),
+                                                   validation.positive("state nominal of h", saved[5], "m"),
+                                                   validation.positive("state nominal of v", saved[6], "m/s")]
         except (TypeError, ValueError, IndexError) as error:
             self._error(f"{self.CALLS['set_state']} failed, nothing was changed: {error}")
             return
@@ -182,6 +222,6 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         super()._set_fmu_state(state)
         if any(message.status >= Fmi3Status.error for message in self.log_queue[before:]):
             return
-        self._exchange = None if exchange is None else exchange[:4]
+        self._exchange = None if exchange is None else [*exchange[:4], *exchange[5:7]]
         if exchange is not None:
             self.time = exchange[4]
