@@ -256,9 +256,7 @@ def test_random_balls_against_the_exact_solution(m, k, zeta, R, g, lift, v0, for
     h0 = ball.rest_height(F_ext) + lift
     t_end = 3.0
     exact = ExactSolution(ball, h0, v0, 0.0, t_end, F_ext)
-    # An undamped ball keeps every error it makes: each contact's departure speed is off by a few
-    # rtol, so event times drift with the square of the number of bounces (50 at the defaults:
-    # within 1e-6 of the height scale; the 1000 s `undamped` scene measures the long run).
+    # At most 100 events, for time: tests/test_long_runs.py measures the long undamped runs.
     assume(len(exact.events) <= 100)
     assume(resolvable_until(ball) >= t_end)
     result = bb.simulate(ball, h0, v0, t_end, t_end / 2000, F_ext=F_ext)

@@ -281,9 +281,10 @@ static int close_enough(struct run *r, double t_target) {
     return 1;
 }
 
-/* The crossing of x = 0 CVODE located at (tau, x, v): Newton on the exact flow (BallIntegrator._polish_event). */
+/* The crossing of x = 0 CVODE located at (tau, x, v): Newton on the exact flow (phases.polish_event); the speed
+ * -v_start where the phase started on R at (x_start, v_start) and conserves it (phases.conserved_speed). */
 static void polish(const struct run *r, double length, double tau_before, double *tau_root, double x_root,
-                   double *v_root) {
+                   double *v_root, double x_start, double v_start) {
     double tau = 0.0, x = x_root, v = *v_root, v0 = *v_root;
     for (int i = 0; i < 8; i++) {
         if (x == 0.0 || v == 0.0) break;
@@ -293,6 +294,7 @@ static void polish(const struct run *r, double length, double tau_before, double
         if (fabs(correction) <= 2.0 * EPS * fabs(*tau_root + tau)) break;
     }
     if (fabs(x) <= 16.0 * EPS * length && *tau_root + tau >= tau_before) *tau_root = *tau_root + tau, *v_root = v;
+    if (x_start == 0.0 && (r->mode == FLIGHT ? v_start > 0.0 : v_start < 0.0 && r->c->b == 0.0)) *v_root = -v_start;
     if (r->mode == FLIGHT ? *v_root > 0.0 : *v_root < 0.0) *v_root = 0.0;
 }
 
@@ -356,7 +358,7 @@ static int integrate_phase(struct run *r, double t_end, int *resting, double *ev
         extreme = mode == FLIGHT ? fmin(extreme, xs[i]) : fmax(extreme, xs[i]);
     if (root) {
         double tau_before = ts[last - 1] - origin, tau_root = tau, v_root = vs[last];
-        polish(r, length, tau_before, &tau_root, xs[last], &v_root);
+        polish(r, length, tau_before, &tau_root, xs[last], &v_root, xs[first], vs[first]);
         ts[last] = origin + tau_root, xs[last] = 0.0, vs[last] = v_root;
         if (check_side(r, origin + tau_before, extreme, length) < 0) return -3;
     } else if (check_side(r, ts[last], extreme, length) < 0) {

@@ -211,8 +211,11 @@ def velocity_at_departure(ball: Ball, x0: float, v0: float, tau: float, F_ext: f
 
     A departure crosses R upwards; where the ball barely moves (at R with v0 = -1e-112) the flow can
     round it to a tiny downward speed, and the flight would end at once in an impact at R, and so on
-    for ever.
+    for ever. An undamped contact from R leaves at the speed it came with, exactly (energy is
+    conserved; the flow's rounding would otherwise add up over many bounces).
     """
+    if x0 == 0.0 and v0 < 0.0 and ball.b == 0.0:
+        return -v0
     return max(float(ball.gap_flow(Mode.CONTACT, x0, v0, tau, F_ext)[1]), 0.0)
 
 

@@ -247,7 +247,7 @@ def _one_step(engine, parameters, rtol, atol, state, scratch):
     x, v = length * scratch[0, 1], speed * scratch[0, 2]
     if flag == CV_ROOT_RETURN:
         if scratch[0, 3] != 0.0:
-            tau, v = polish_event(parameters, mode, load, length, tau_before, tau, x, v)
+            tau, v = polish_event(parameters, mode, load, length, tau_before, tau, x, v, state[RS_X], state[RS_V])
             x = 0.0
             state[PENDING], state[PEND_T], state[PEND_V] = 1.0, origin + tau, v
         elif scratch[0, 4] != 0.0:
@@ -267,6 +267,7 @@ def _one_step(engine, parameters, rtol, atol, state, scratch):
 def _cvode_phase(engine, parameters, rtol, atol, state, t_end, points, n_points, events, n_events, scratch):
     """One phase by CVODE from the state to its terminal root or t_end; DONE or a failure, as run_phases."""
     origin, x, v, mode, load, hop = state[T], state[X], state[V], int(state[MODE]), state[LOAD], state[HOP]
+    x_start, v_start = x, v
     length, speed = frame(parameters, mode, x, v, load, rtol, atol)
     margin = side_margin(hop, rtol, length)
     points, n_points = _record(points, n_points, origin, x, v, mode)  # as it is, not scaled and back
@@ -281,7 +282,7 @@ def _cvode_phase(engine, parameters, rtol, atol, state, t_end, points, n_points,
         last = n_points + count - 1
         if root != 0:
             tau, v = polish_event(parameters, mode, load, length, tau_prior if count > 1 else tau_before, tau,
-                                  points[last, 1], points[last, 2])
+                                  points[last, 1], points[last, 2], x_start, v_start)
             points[last, 0], points[last, 1], points[last, 2] = origin + tau, 0.0, v
         elif flag != CV_ROOT_RETURN and flag != BUFFER_FULL:
             points[last, 0] = t_end  # CVODE stopped at t_end - origin, which may round off t_end

@@ -137,7 +137,7 @@ def flight_impact(parameters, x, v, load):
     return time_to_impact(x, v, load / parameters[0])
 
 
-def polish_event(parameters, mode, load, length, tau_before, tau_root, x_root, v_root):
+def polish_event(parameters, mode, load, length, tau_before, tau_root, x_root, v_root, x_start, v_start):
     """The crossing of x = 0 that CVODE located at (tau_root, x_root, v_root) in the phase's frame: (tau, v) there.
 
     CVODE locates a root to ~100 ulps of its time, on its own trajectory, which is off the true
@@ -149,6 +149,10 @@ def polish_event(parameters, mode, load, length, tau_before, tau_root, x_root, v
     m, so a time error becomes a velocity error. A correction that does not converge (to 16 ulps of
     the phase's length [m]), or that would go back past the step's start tau_before, keeps CVODE's
     root (a grazing root, v ~ 0). An impact never leaves upwards, a departure never downwards.
+    Where the phase started on R at (x_start, v_start) = (0, v0) and its exact flow conserves the
+    speed at R (conserved_speed: a flight, an undamped contact), the event's speed is -v0 exactly,
+    not CVODE's: each bounce's small error would otherwise add up to an energy drift, and the drift
+    to an error of the bounces' times growing with the square of their count.
     """
     m, k, b, R, g = parameters
     tau, x, v = 0.0, x_root, v_root
@@ -162,7 +166,20 @@ def polish_event(parameters, mode, load, length, tau_before, tau_root, x_root, v
             break
     if abs(x) <= 16.0 * _EPS * length and tau_root + tau >= tau_before:
         tau_root, v_root = tau_root + tau, v
+    if conserved_speed(parameters, mode, x_start, v_start):
+        v_root = -v_start
     return tau_root, (min(v_root, 0.0) if mode == FLIGHT else max(v_root, 0.0))
+
+
+def conserved_speed(parameters, mode, x_start, v_start):
+    """Whether a phase from (x_start, v_start) ends on R at -v_start exactly.
+
+    It does where it starts on R leaving its own side (up in flight, down in contact) and its exact
+    flow conserves energy (a flight; a contact with b = 0).
+    """
+    if x_start != 0.0:
+        return False
+    return v_start > 0.0 if mode == FLIGHT else (v_start < 0.0 and parameters[2] == 0.0)
 
 
 def side_margin(hop, rtol, length):
