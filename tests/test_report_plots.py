@@ -79,11 +79,17 @@ def test_heat_maps_explain_their_white_cells_and_label_legibly():
     for solver in grid.solvers:
         rows = frame[frame["solver"] == solver]
         fig = heat_map_figure(frame, grid, solver)
-        outcome, error, wall = fig.axes[:3]  # the colour bars come after the maps
+        outcome, error, work = fig.axes[:3]  # the colour bars come after the maps
         missing = np.zeros((len(grid.axis("zeta")), len(grid.axis("k"))), bool)
+        calls = np.full(missing.shape, np.nan)
         for row in rows.itertuples():
-            missing[grid.axis("zeta").index(row.zeta), grid.axis("k").index(row.k)] = row.status != "finished"
-        for ax in (error, wall):
+            cell = grid.axis("zeta").index(row.zeta), grid.axis("k").index(row.k)
+            missing[cell] = row.status != "finished"
+            calls[cell] = row.rhs_calls if row.status == "finished" else np.nan
+        # The work as right-hand-side calls, which do not depend on the machine's load (wall time does).
+        assert "right-hand-side calls" in work.get_title() and "wall time [s]" not in work.get_title()
+        np.testing.assert_allclose(work.get_images()[0].get_array().filled(np.nan), np.log10(calls))
+        for ax in (error, work):
             assert np.array_equal(np.isnan(ax.get_images()[0].get_array().filled(np.nan)), missing)
             legend = ax.get_legend()
             if missing.any():
@@ -92,7 +98,7 @@ def test_heat_maps_explain_their_white_cells_and_label_legibly():
             else:
                 assert legend is None
         assert outcome.get_legend() is None  # every cell was run
-        for ax in (outcome, error, wall):
+        for ax in (outcome, error, work):
             assert all(label.get_fontsize() >= 10 for label in ax.get_xticklabels() + ax.get_yticklabels())
             assert [label.get_text() for label in ax.get_xticklabels()][:3] == ["1e2", "1e3", "1e4"]
         assert (solver != "cvode") == missing.any()  # the stored map: only the SciPy runs time out
