@@ -1,6 +1,8 @@
 """The work-precision plot and the sweep's heat maps, redrawn from the stored results in docs/."""
 
 import csv
+import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +60,47 @@ def test_work_precision_groups_the_fmu_series_and_names_the_reference_lines():
     fig.canvas.draw()
     box = legend.get_window_extent()
     assert not any(_overlaps(box, ax.get_window_extent()) for ax in fig.axes)
+
+
+def _quick(points):
+    """The stored points as `bench --quick` would have them: its tolerances only, and its repeats."""
+    from bouncingball.bench.work_precision import QUICK
+
+    return [dataclasses.replace(p, times=p.times[:QUICK.repeats]) for p in points
+            if p.rtol is None or any(math.isclose(p.rtol, rtol) for rtol in QUICK.rtols)]
+
+
+@pytest.mark.parametrize("quick", [False, True])
+def test_work_precision_names_each_line_hidden_under_another(quick):
+    """A line drawn under a later one with the same errors, at times closer than a marker, is named as hidden."""
+    points = tables.read_work_precision_csv(DOCS / "work_precision.csv")
+    fig = plots.work_precision_figure(_quick(points) if quick else points)
+    texts = [t.get_text() for t in fig.legends[0].get_texts()]
+    found = set()
+    for ax in fig.axes:
+        lines = [line for line in ax.get_lines() if not line.get_label().startswith("_")]
+        for i, line in enumerate(lines):
+            x, y = line.get_xdata(), line.get_ydata()
+            covering = [later.get_label() for later in lines[i + 1:]
+                        if np.array_equal(later.get_ydata(), y) and len(x) > 1
+                        and np.all(np.abs(np.log(later.get_xdata() / x)) < np.log(plots.SAME_TIME_FACTOR))]
+            if covering:
+                found.add(line.get_label())
+                assert "hidden under it" in line.get_label() and f"= {covering[0]}" in line.get_label()
+    assert found and all(label in texts for label in found)
+    assert sorted(text for text in texts if "hidden" in text) == sorted(found)
+    # The stored run: CVODE Adams and auto take the same steps, so their errors are equal in both panels.
+    assert any(text.startswith("Adams (= auto") for text in texts)
+
+
+def test_a_quick_work_precision_figure_says_it_is_quick():
+    points = tables.read_work_precision_csv(DOCS / "work_precision.csv")
+    full = plots.work_precision_figure(points).get_suptitle()
+    rtols = {p.rtol for p in points if p.rtol is not None}
+    assert "QUICK" not in full and f"{len(rtols)} tolerances" in full and "median of 5 timed runs" in full
+    quick = plots.work_precision_figure(_quick(points)).get_suptitle()
+    assert quick.startswith("QUICK run (bouncingball bench --quick): 4 tolerances") and "2 timed runs" in quick
+    assert "not the published figure" in quick
 
 
 def test_work_precision_redraws_from_the_csv(tmp_path):
