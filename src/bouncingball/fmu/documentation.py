@@ -241,9 +241,9 @@ compared with the exact piecewise-analytic solution at the same times:</p>
 <tr><td>impacts</td><td>{accuracy.events_found} counted, {accuracy.events_exact} in the exact solution;
 the count differs from the exact one at {wrong_counts} of the {len(run.t)} points</td></tr>
 </table>
-<p>A tighter rtol lowers the error; an atol bounds the absolute error of h. The result at a
-communication point is the same whatever the communication step, so these figures hold for any
-{api}DoStep size.{" In model exchange the accuracy is the master's." if fmi3 else ""}</p>"""
+<p>A tighter rtol lowers the error; an atol bounds the absolute error of h. The value at a given time
+does not depend on the communication steps taken to reach it: a master stepping otherwise gets the
+same values at the same times.{" In model exchange the accuracy is the master's." if fmi3 else ""}</p>"""
 
 
 def _default_rtol() -> str:
