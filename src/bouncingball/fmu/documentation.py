@@ -31,7 +31,7 @@ from .slave_base import DEFAULT_ENGINE, BallSlave
 from .variables import EVENT_INDICATOR, FMI3_VARIABLES, MODEL_NAME, OUTPUTS, SMALLEST_POSITIVE, VARIABLES
 
 PLOT_DPI = 80
-# A master's step ends at one communication point; with early return it is stepped on from each event.
+# do_step calls to reach one communication point: one, and with early return one more per event inside the step
 MAX_CALLS_PER_STEP = 16
 BAD_VALUE = ("m", -1.0)  # the refusal the page quotes, produced by the slave itself at build time
 
@@ -87,13 +87,15 @@ def default_run(stop_at_event: bool = False) -> DefaultRun:
     h, v, impacts = np.empty_like(t), np.empty_like(t), np.zeros(len(t), dtype=int)
     calls = 0
     for i, target in enumerate(t):
-        for _ in range(MAX_CALLS_PER_STEP):
-            now = slave._integrator.t
-            if now >= target:
-                break
-            calls += 1
+        calls_to_target = 0
+        while (now := slave._integrator.t) < target:
+            if calls_to_target == MAX_CALLS_PER_STEP:
+                raise RuntimeError(f"the FMU's default experiment did not reach t = {target!r} s in "
+                                   f"{MAX_CALLS_PER_STEP} calls of do_step")
+            calls_to_target += 1
             if not slave.do_step(now, target - now):
                 raise RuntimeError(f"the FMU's default experiment failed at t = {now!r} s: {slave.errors()}")
+        calls += calls_to_target
         h[i], v[i], impacts[i] = slave.getters["h"](), slave.getters["v"](), slave.getters["impacts"]()
     if slave.errors():
         raise RuntimeError(f"the FMU's default experiment logged errors: {slave.errors()}")
