@@ -44,13 +44,20 @@ import matplotlib  # noqa: E402  (only the plot needs it)
 matplotlib.use("Agg")  # no display needed
 import matplotlib.pyplot as plt  # noqa: E402
 
-figure, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
-top.plot(exact.t, exact.h, label="exact")
-top.plot(runs["scipy"].t, runs["scipy"].h, "--", label="scipy (the article's RK45)")
+COLOURS = {"exact": "k", "cvode": "C0", "scipy": "C1"}  # one colour per solver, in both panels
+LABELS = {"exact": "exact", "cvode": "cvode", "scipy": "scipy (the article's RK45)"}
+figure, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(9, 6.5), layout="constrained")
+figure.suptitle(f"The article's ball from h0 = {h0:g} m: three solvers, and their error against the exact solution")
+# exact last and dotted, on top: the three lines agree to the eye (the lower panel shows by how much)
+for name, style, width in (("cvode", "-", 3.0), ("scipy", "--", 1.5), ("exact", ":", 1.2)):
+    top.plot(runs[name].t, runs[name].h, style, lw=width, color=COLOURS[name], label=LABELS[name])
 top.set_ylabel("h [m]")
+top.set_title("height of the centre", fontsize=10)
 top.legend()
 for name in ("cvode", "scipy"):
-    bottom.semilogy(exact.t, np.abs(runs[name].h - exact.h) + 1e-16, label=name)
+    # + 1e-16: a log axis cannot show an error of 0 (the first fall, before any contact)
+    bottom.semilogy(exact.t, np.abs(runs[name].h - exact.h) + 1e-16, color=COLOURS[name], label=LABELS[name])
+bottom.set_title("|h - h_exact| (the exact solution's own error is 0)", fontsize=10)
 bottom.set_xlabel("t [s]")
 bottom.set_ylabel("|h - h_exact| [m]")
 bottom.legend()

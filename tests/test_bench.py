@@ -50,6 +50,23 @@ def test_writes_every_file(quick):
     assert (quick / "work_precision.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_the_quick_figure_says_it_is_quick(quick):
+    """The figure of a real `bench --quick` run, redrawn from its CSV, is titled as quick; its points have
+    QUICK's tolerances and repeats, from which the title is drawn."""
+    pytest.importorskip("matplotlib")
+    import matplotlib.pyplot as plt
+
+    from bouncingball.bench import plots, tables
+
+    points = tables.read_work_precision_csv(quick / CSV_FILE)
+    assert {len(p.times) for p in points if p.times} == {QUICK.repeats}
+    fig = plots.work_precision_figure(points)
+    try:
+        assert fig.get_suptitle().startswith("QUICK run (bouncingball bench --quick)")
+    finally:
+        plt.close(fig)
+
+
 def test_every_solver_in_every_section_of_the_csv(rows):
     for section in ("dense", "sparse"):
         found = [row["solver"] for row in rows if row["section"] == section]

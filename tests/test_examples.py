@@ -63,6 +63,35 @@ def test_api_tour(tmp_path):
     assert list(tmp_path.iterdir()) == [tmp_path / "out"]  # nothing written anywhere else
 
 
+def test_api_tour_figure_has_a_title_every_solver_on_top_and_one_colour_per_solver(tmp_path, monkeypatch):
+    """The figure itself (run in this process to read it): titled, the three solvers in the top panel, each
+    solver one colour in both panels and no two solvers one colour."""
+    pytest.importorskip("scipy")
+    pytest.importorskip("matplotlib")
+    import runpy
+
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import to_hex
+
+    monkeypatch.setattr(sys, "argv", ["api_tour.py", str(tmp_path)])
+    namespace = runpy.run_path(str(EXAMPLES / "api_tour.py"))
+    figure, runs = namespace["figure"], namespace["runs"]
+    try:
+        assert figure.get_suptitle()
+        colours: dict[str, set] = {}
+        for ax, solvers in ((namespace["top"], {"exact", "cvode", "scipy"}), (namespace["bottom"], {"cvode", "scipy"})):
+            lines = {line.get_label().split()[0]: line for line in ax.get_lines()}
+            assert set(lines) == solvers
+            for name, line in lines.items():
+                colours.setdefault(name, set()).add(to_hex(line.get_color()))
+        assert all(len(used) == 1 for used in colours.values()), colours
+        assert len({next(iter(used)) for used in colours.values()}) == 3, colours
+        for line in namespace["top"].get_lines():  # each line is its solver's run
+            np.testing.assert_array_equal(line.get_ydata(), runs[line.get_label().split()[0]].h)
+    finally:
+        plt.close(figure)
+
+
 def test_fmpy_cli_script(tmp_path):
     pytest.importorskip("fmpy")
     pytest.importorskip("pythonfmu")

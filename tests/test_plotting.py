@@ -98,6 +98,22 @@ def test_undamped_long_run_draws_few_points_keeps_the_extremes_and_adds_an_energ
     _assert_legends_outside_every_panel(fig)
 
 
+@pytest.mark.parametrize(("ball", "t_end", "interval"), [(bb.Ball(), 8.0, 1e-3), (bb.Ball(b=0.0), 1000.0, 1e-2)])
+def test_the_run_has_one_colour_in_every_panel_and_the_exact_solution_another(ball, t_end, interval):
+    from matplotlib.colors import to_hex
+
+    result, exact = _run(ball, t_end, interval)
+    fig = height_figure(result, exact)
+    height, *others = fig.axes
+    labels = {line.get_label().split("\n")[0]: to_hex(line.get_color()) for line in height.get_lines()}
+    run = labels.get("cvode", labels.get("highest h of each bounce"))
+    assert len(others) == (2 if ball.b == 0.0 else 1)
+    for ax in others:  # the error and the energy are the run's (the zero line aside)
+        assert {to_hex(line.get_color()) for line in ax.get_lines() if not line.get_label().startswith("_")} == {run}
+    if "exact solution" in labels:
+        assert labels["exact solution"] != run
+
+
 def test_a_damped_ball_has_no_energy_panel_and_the_exact_solver_no_error_panel():
     result, exact = _run(bb.Ball(), 2.0)
     assert len(height_figure(result, exact).axes) == 2

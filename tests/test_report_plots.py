@@ -1,6 +1,8 @@
 """The work-precision plot and the sweep's heat maps, redrawn from the stored results in docs/."""
 
 import csv
+import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -60,6 +62,47 @@ def test_work_precision_groups_the_fmu_series_and_names_the_reference_lines():
     assert not any(_overlaps(box, ax.get_window_extent()) for ax in fig.axes)
 
 
+def _quick(points):
+    """The stored points as `bench --quick` would have them: its tolerances only, and its repeats."""
+    from bouncingball.bench.work_precision import QUICK
+
+    return [dataclasses.replace(p, times=p.times[:QUICK.repeats]) for p in points
+            if p.rtol is None or any(math.isclose(p.rtol, rtol) for rtol in QUICK.rtols)]
+
+
+@pytest.mark.parametrize("quick", [False, True])
+def test_work_precision_names_each_line_hidden_under_another(quick):
+    """A line drawn under a later one with the same errors, at times closer than a marker, is named as hidden."""
+    points = tables.read_work_precision_csv(DOCS / "work_precision.csv")
+    fig = plots.work_precision_figure(_quick(points) if quick else points)
+    texts = [t.get_text() for t in fig.legends[0].get_texts()]
+    found = set()
+    for ax in fig.axes:
+        lines = [line for line in ax.get_lines() if not line.get_label().startswith("_")]
+        for i, line in enumerate(lines):
+            x, y = line.get_xdata(), line.get_ydata()
+            covering = [later.get_label() for later in lines[i + 1:]
+                        if np.array_equal(later.get_ydata(), y) and len(x) > 1
+                        and np.all(np.abs(np.log(later.get_xdata() / x)) < np.log(plots.SAME_TIME_FACTOR))]
+            if covering:
+                found.add(line.get_label())
+                assert "hidden under it" in line.get_label() and f"= {covering[0]}" in line.get_label()
+    assert found and all(label in texts for label in found)
+    assert sorted(text for text in texts if "hidden" in text) == sorted(found)
+    # The stored run: CVODE Adams and auto take the same steps, so their errors are equal in both panels.
+    assert any(text.startswith("Adams (= auto") for text in texts)
+
+
+def test_a_quick_work_precision_figure_says_it_is_quick():
+    points = tables.read_work_precision_csv(DOCS / "work_precision.csv")
+    full = plots.work_precision_figure(points).get_suptitle()
+    rtols = {p.rtol for p in points if p.rtol is not None}
+    assert "QUICK" not in full and f"{len(rtols)} tolerances" in full and "median of 5 timed runs" in full
+    quick = plots.work_precision_figure(_quick(points)).get_suptitle()
+    assert quick.startswith("QUICK run (bouncingball bench --quick): 4 tolerances") and "2 timed runs" in quick
+    assert "not the published figure" in quick
+
+
 def test_work_precision_redraws_from_the_csv(tmp_path):
     assert plots.main([str(DOCS / "work_precision.csv"), str(tmp_path / "wp.png")]) == 0
     assert (tmp_path / "wp.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -79,11 +122,17 @@ def test_heat_maps_explain_their_white_cells_and_label_legibly():
     for solver in grid.solvers:
         rows = frame[frame["solver"] == solver]
         fig = heat_map_figure(frame, grid, solver)
-        outcome, error, wall = fig.axes[:3]  # the colour bars come after the maps
+        outcome, error, work = fig.axes[:3]  # the colour bars come after the maps
         missing = np.zeros((len(grid.axis("zeta")), len(grid.axis("k"))), bool)
+        calls = np.full(missing.shape, np.nan)
         for row in rows.itertuples():
-            missing[grid.axis("zeta").index(row.zeta), grid.axis("k").index(row.k)] = row.status != "finished"
-        for ax in (error, wall):
+            cell = grid.axis("zeta").index(row.zeta), grid.axis("k").index(row.k)
+            missing[cell] = row.status != "finished"
+            calls[cell] = row.rhs_calls if row.status == "finished" else np.nan
+        # The work as right-hand-side calls, which do not depend on the machine's load (wall time does).
+        assert "right-hand-side calls" in work.get_title() and "wall time [s]" not in work.get_title()
+        np.testing.assert_allclose(work.get_images()[0].get_array().filled(np.nan), np.log10(calls))
+        for ax in (error, work):
             assert np.array_equal(np.isnan(ax.get_images()[0].get_array().filled(np.nan)), missing)
             legend = ax.get_legend()
             if missing.any():
@@ -92,7 +141,7 @@ def test_heat_maps_explain_their_white_cells_and_label_legibly():
             else:
                 assert legend is None
         assert outcome.get_legend() is None  # every cell was run
-        for ax in (outcome, error, wall):
+        for ax in (outcome, error, work):
             assert all(label.get_fontsize() >= 10 for label in ax.get_xticklabels() + ax.get_yticklabels())
             assert [label.get_text() for label in ax.get_xticklabels()][:3] == ["1e2", "1e3", "1e4"]
         assert (solver != "cvode") == missing.any()  # the stored map: only the SciPy runs time out

@@ -23,6 +23,8 @@ FIGURE_WIDTH = 11.0  # inches
 DPI = 110
 COLUMNS = 900  # pixel columns of the data area at FIGURE_WIDTH and DPI (the legend takes the rest)
 PIXELS_PER_BOUNCE = 6  # bounces closer than this are drawn as the envelope of h
+# One colour for the run in every panel (its height, its error, its energy), another for the exact solution
+RUN_COLOUR, LOWEST_COLOUR, EXACT_COLOUR = "C0", "C9", "k"
 
 
 def parse_time_range(option: str, text: str, t_start: float, t_end: float) -> tuple[float, float]:
@@ -174,20 +176,20 @@ def _height_panel(ax, result, t, h, exact, selected, events) -> None:
             starts = np.concatenate(([0], starts))
         middles = t[np.minimum(starts + np.diff(np.append(starts, len(t))) // 2, len(t) - 1)]
         highest, lowest = np.maximum.reduceat(h, starts), np.minimum.reduceat(h, starts)
-        ax.fill_between(middles, lowest, highest, color="C0", alpha=0.15, lw=0,
+        ax.fill_between(middles, lowest, highest, color=RUN_COLOUR, alpha=0.15, lw=0,
                         label=f"{result.solver}: h sweeps this band\non each of {plural(len(impacts), 'bounce')} "
                               "(zoom with\n--plot-range to see them)")
-        ax.plot(middles, highest, color="C0", lw=1.4, label="highest h of each bounce\n(at the output times)")
-        ax.plot(middles, lowest, color="C9", lw=1.4, label="lowest h of each bounce\n(at the output times)")
+        ax.plot(middles, highest, color=RUN_COLOUR, lw=1.4, label="highest h of each bounce\n(at the output times)")
+        ax.plot(middles, lowest, color=LOWEST_COLOUR, lw=1.4, label="lowest h of each bounce\n(at the output times)")
         ax.plot([], [], " ", label=f"{plural(len(impacts), 'impact')}, {plural(len(departures), 'departure')}\n"
                                    "(too close to mark here)")
     else:
         keep = decimate(t, h)
-        ax.plot(t[keep], h[keep], color="C0", lw=2.2, alpha=0.8, label=result.solver)
+        ax.plot(t[keep], h[keep], color=RUN_COLOUR, lw=2.2, alpha=0.8, label=result.solver)
         if exact is not None:
             h_exact = exact.h[selected]
             keep = decimate(t, h_exact)
-            ax.plot(t[keep], h_exact[keep], color="k", lw=0.8, ls=(0, (4, 3)), label="exact solution")
+            ax.plot(t[keep], h_exact[keep], color=EXACT_COLOUR, lw=0.8, ls=(0, (4, 3)), label="exact solution")
         for times, marker, colour, kind in ((impacts, "v", "C3", "impact"), (departures, "^", "C2", "departure")):
             if times:
                 ax.plot(times, [R] * len(times), marker, color=colour, ms=5, label=plural(len(times), kind))
@@ -210,12 +212,12 @@ def _error_panel(ax, solver: str, t: np.ndarray, error: np.ndarray, dense: bool)
         ax.set_yticks([])
     elif dense:  # its dips at each bounce would fill the panel: the largest error in each pixel column
         centres, _, high = envelope(t[positive], error[positive])
-        ax.plot(centres, high, color="C1", lw=1.2, label=f"largest |h - h_exact| of {solver}\n"
+        ax.plot(centres, high, color=RUN_COLOUR, lw=1.2, label=f"largest |h - h_exact| of {solver}\n"
                                                           f"in each {(t[-1] - t[0]) / COLUMNS:.3g} s")
         ax.set_yscale("log")
     else:
         keep = decimate(t, np.where(positive, error, np.nan))
-        ax.plot(t[keep], error[keep], color="C1", lw=1.0, label=f"|h - h_exact| of {solver}")
+        ax.plot(t[keep], error[keep], color=RUN_COLOUR, lw=1.0, label=f"|h - h_exact| of {solver}")
         ax.set_yscale("log")
     ax.set_ylabel("|h - h_exact| [m]")
     ax.grid(True, which="major", color="0.92")
@@ -226,7 +228,8 @@ def _energy_panel(ax, result: SimulationResult, selected: slice) -> None:
     drift = (energy - energy[0]) / abs(energy[0]) if energy[0] else energy - energy[0]
     t, drift = result.t[selected], drift[selected]
     keep = decimate(t, drift)
-    ax.plot(t[keep], drift[keep], color="C4", lw=1.0, label="energy of the run\n(b = 0: the exact one\nis constant)")
+    ax.plot(t[keep], drift[keep], color=RUN_COLOUR, lw=1.0,
+            label="energy of the run\n(b = 0: the exact one\nis constant)")
     ax.axhline(0.0, color="0.4", lw=0.6)
     ax.set_ylabel("(E - E0) / |E0|" if energy[0] else "E - E0 [J]")
     ax.grid(True, color="0.92")

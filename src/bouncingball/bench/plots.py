@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ..output import atomic_write
 from .targets import MATCHED_ERRORS
-from .work_precision import DENSE, SPARSE, Point, by_solver
+from .work_precision import DENSE, QUICK, SPARSE, Point, by_solver
 
 # The families, in the legend's order: (heading, the solver kinds in it).
 FAMILIES = (("CVODE (this package)", ("cvode",)), ("the FMU through FMPy", ("fmu",)),
@@ -19,6 +19,9 @@ FAMILIES = (("CVODE (this package)", ("cvode",)), ("the FMU through FMPy", ("fmu
             ("floors and references", ("floor", "exact", "evaluation", "empty")))
 SCIPY_COLOURS = {"RK45": "C9", "DOP853": "C8", "LSODA": "C5", "Radau": "#d4a017", "BDF": "C7"}  # muted, apart
 FLOORS = ("exact", "evaluation", "empty")  # no error to plot: their time is a floor, drawn as a vertical line
+# Two lines with the same errors whose times differ by less than this factor are one line on these log axes.
+SAME_TIME_FACTOR = 1.1
+PANELS = (("dense", f"{DENSE * 1e3:g} ms"), ("sparse", f"{SPARSE:g} s"))
 
 
 def _curve(points: list[Point]) -> tuple[list[float], list[float]]:
@@ -52,6 +55,43 @@ def _label(point: Point) -> str:
     return solver.label.removeprefix("solve_ivp ").removeprefix("CVODE ")
 
 
+def hidden_lines(points: list[Point]) -> dict[str, str]:
+    """The legend label of each line that lies under a line drawn after it, as the legend names it then.
+
+    Under means: the same errors at every tolerance and times within SAME_TIME_FACTOR (CVODE Adams under
+    auto, which takes Adams in flight and in contact at the article's stiffness). A line hidden in some
+    panels only says in which.
+    """
+    hidden: dict[str, dict[str, str]] = {}  # label -> {panel: the label of the line over it}
+    shown: dict[str, list[str]] = {}  # label -> the panels it is drawn in
+    for section, panel in PANELS:
+        curves = [(_label(group[0]), *_curve(group)) for group in by_solver(points, section).values()
+                  if group[0].solver.kind not in FLOORS]
+        for i, (label, x, y) in enumerate(curves):
+            if x:
+                shown.setdefault(label, []).append(panel)
+            for other, x_other, y_other in curves[i + 1:]:
+                if x and y == y_other and all(max(a, b) < SAME_TIME_FACTOR * min(a, b)
+                                              for a, b in zip(x, x_other, strict=True)):
+                    hidden.setdefault(label, {})[panel] = other
+    notes = {}
+    for label, panels in hidden.items():
+        where = "" if list(panels) == shown[label] else f" in the {' and '.join(panels)} panel"
+        notes[label] = f"{label} (= {' and '.join(dict.fromkeys(panels.values()))}{where}, hidden under it)"
+    return notes
+
+
+def run_kind(points: list[Point]) -> str:
+    """The figure's title: what the run measured, and whether it is a quick one (`bouncingball bench --quick`)."""
+    rtols = sorted({p.rtol for p in points if p.rtol is not None}, reverse=True)
+    repeats = max((len(p.times) for p in points), default=0)
+    span = f"rtol {rtols[0]:g} to {rtols[-1]:g}" if rtols else "no tolerances"
+    what = f"{len(rtols)} tolerances ({span}), median of {repeats} timed runs each"
+    if set(rtols) <= set(QUICK.rtols) and repeats <= QUICK.repeats:
+        return f"QUICK run (bouncingball bench --quick): {what}\nnot the published figure: its times are noisy"
+    return f"Work against precision: {what}"
+
+
 def plot_work_precision(points: list[Point], path: Path) -> Path:
     """Save work_precision_figure(points) to path as PNG."""
     import matplotlib.pyplot as plt
@@ -66,9 +106,10 @@ def plot_work_precision(points: list[Point], path: Path) -> Path:
 def work_precision_figure(points: list[Point]):
     """Max height error against median wall time, log-log, one line per solver; one panel per output grid.
 
-    The legend groups the solvers by family beside the panels; the dashed horizontal lines are
-    the errors the benchmark's tables compare the solvers at, named beside the panels; the
-    vertical lines are times without an error (the exact solution, the empty FMU).
+    The legend groups the solvers by family beside the panels and names a line hidden under another
+    (hidden_lines); the dashed horizontal lines are the errors the benchmark's tables compare the
+    solvers at, named beside the panels; the vertical lines are times without an error (the exact
+    solution, the empty FMU). The title says what the run measured, and whether it was a quick one.
     """
     import matplotlib
 
@@ -79,7 +120,8 @@ def work_precision_figure(points: list[Point]):
     fig, axes = plt.subplots(1, 2, figsize=(14, 6), layout="constrained", sharey=True)
     entries: dict[str, dict[str, object]] = {heading: {} for heading, _ in FAMILIES}
     family_of = {kind: heading for heading, kinds in FAMILIES for kind in kinds}
-    for ax, section, title in ((axes[0], "dense", f"{DENSE * 1e3:g} ms"), (axes[1], "sparse", f"{SPARSE:g} s")):
+    hidden = hidden_lines(points)
+    for ax, (section, title) in zip(axes, PANELS, strict=True):
         for index, group in enumerate(by_solver(points, section).values()):
             first = group[0]
             times = [p.median for p in group if p.status == "ok"]
@@ -97,8 +139,9 @@ def work_precision_figure(points: list[Point]):
                 continue
             x, y = _curve(group)
             if x:
-                line, = ax.plot(x, y, **_style(first, index))
-                entries[family_of[first.solver.kind]].setdefault(_label(first), line)
+                label = hidden.get(_label(first), _label(first))
+                line, = ax.plot(x, y, label=label, **_style(first, index))
+                entries[family_of[first.solver.kind]].setdefault(label, line)
         for target in MATCHED_ERRORS:
             matched = ax.axhline(target, color="0.55", lw=0.8, ls="--", zorder=1)
             if ax is axes[-1]:  # named beside the panels, where no data is
@@ -122,6 +165,9 @@ def work_precision_figure(points: list[Point]):
             handles += list(lines.values())
             labels += list(lines)
     legend = fig.legend(handles, labels, loc="outside right upper", fontsize=9, frameon=False)
+    title = run_kind(points)
+    # Over the panels, left of the legend (which starts at the top on the right)
+    fig.suptitle(title, x=0.01, ha="left", fontsize=12, color="C3" if title.startswith("QUICK") else "k")
     for index in headings:
         legend.get_texts()[index].set_fontweight("bold")
     return fig

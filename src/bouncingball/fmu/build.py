@@ -63,11 +63,10 @@ def build_fmu(output: str | Path | None = None, fmi_version: int = 2) -> Path:
     compiler = _compiler()
     library = "pythonfmu" if fmi_version == 2 else "pythonfmu3"
     try:
-        import docutils  # noqa: F401  (it renders documentation/index.html)
         import fmpy  # noqa: F401  (its FMI headers compile the loader)
         FmuBuilder = importlib.import_module(library).FmuBuilder
     except ImportError as error:
-        raise ImportError(f"build-fmu needs {library}, FMPy and docutils ({error}): pip install "
+        raise ImportError(f"build-fmu needs {library} and FMPy ({error}): pip install "
                           "'bouncingball[fmu]'") from None
 
     with tempfile.TemporaryDirectory(prefix="bouncingball_fmu_") as temp:
