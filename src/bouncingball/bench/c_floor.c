@@ -57,6 +57,7 @@ struct run {
     struct solver solvers[2];
     struct points p;
     double t, x, v, load, g_eff, hop;
+    double t_low; /* the rounding error of an event time t (machine.later); 0 elsewhere */
     int mode;
     long steps, rhs_calls;
     char *message;
@@ -277,8 +278,17 @@ static int close_enough(struct run *r, double t_target) {
     double acceleration = gap_acceleration(r->x, r->v, r->mode, r->load, r->c->m, r->c->k, r->c->b);
     r->x = r->x + dt * (r->v + 0.5 * dt * acceleration);
     r->v = r->v + dt * acceleration;
-    r->t = t_target;
+    r->t = t_target, r->t_low = 0.0;
     return 1;
+}
+
+/* (t + t_low) + tau as a double, and its rounding error in *low (machine.later). */
+static double later(double t, double t_low, double tau, double *low) {
+    double total = t + tau, tau_part = total - t;
+    double error = ((t - (total - tau_part)) + (tau - tau_part)) + t_low;
+    double t_event = total + error;
+    *low = error - (t_event - total);
+    return t_event;
 }
 
 /* The crossing of x = 0 CVODE located at (tau, x, v): Newton on the exact flow (phases.polish_event); the speed
@@ -311,7 +321,7 @@ static int integrate_phase(struct run *r, double t_end, int *resting, double *ev
     const struct sundials *S = r->S;
     const struct floor_settings *c = r->c;
     struct solver *s = &r->solvers[r->mode];
-    double origin = r->t, length, speed;
+    double origin = r->t, origin_low = r->t_low, t_low = 0.0, length, speed;
     phase_scales(r, r->mode, r->x, r->v, &length, &speed);
     if (c->atol > 0.0 && c->rtol * length > c->atol) {
         speed *= c->atol / (c->rtol * length);
@@ -359,13 +369,13 @@ static int integrate_phase(struct run *r, double t_end, int *resting, double *ev
     if (root) {
         double tau_before = ts[last - 1] - origin, tau_root = tau, v_root = vs[last];
         polish(r, length, tau_before, &tau_root, xs[last], &v_root, xs[first], vs[first]);
-        ts[last] = origin + tau_root, xs[last] = 0.0, vs[last] = v_root;
+        ts[last] = later(origin, origin_low, tau_root, &t_low), xs[last] = 0.0, vs[last] = v_root;
         if (check_side(r, origin + tau_before, extreme, length) < 0) return -3;
     } else if (check_side(r, ts[last], extreme, length) < 0) {
         return -3;
     }
     if (!(root || *resting)) ts[last] = t_end;
-    r->t = ts[last], r->x = xs[last], r->v = vs[last];
+    r->t = ts[last], r->x = xs[last], r->v = vs[last], r->t_low = root ? t_low : 0.0;
     r->steps += last - first;
     r->rhs_calls += rhs_calls;
     if (root) {

@@ -29,7 +29,8 @@ from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, Rest
 from ..solvers.sundials_log import SundialsWarning
 from .variables import SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES
 
-STATE_FORMAT = "bouncingball-fmu-state-5"  # 5: with the restart point (4: the master's tolerance only tightens rtol)
+# 6: the restart time's rounding error, model exchange's nominals (5: with the restart point)
+STATE_FORMAT = "bouncingball-fmu-state-6"
 # Not "auto" as in process: the FMU's copy of the package is unzipped afresh by most masters, so numba's cache
 # (keyed by the source's path) is cold in each new process, and the compiled engine's first use costs seconds.
 DEFAULT_ENGINE = "sksundae"

@@ -14,6 +14,7 @@ import numpy as np
 
 from .. import limits
 from ..physics import Ball, Mode, contact_gap_flow
+from ..rounding import later
 from . import forcing
 from .forcing import ForceTable
 from .result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
@@ -55,7 +56,7 @@ class ExactSolution:
         resolvable_until = limits.resolvable_until(ball)
         constant_pieces = forcing.pieces(self.F_ext, self.t_start, self.t_end)
         for number, (t, piece_end, F_ext) in enumerate(constant_pieces):
-            last = number == len(constant_pieces) - 1
+            last, t_low = number == len(constant_pieces) - 1, 0.0  # t_low: t's rounding error (rounding.later)
             if number == 0:
                 mode = ball.initial_mode(h, v, F_ext)
             else:  # a change of F_ext: the state where the previous phase has it, the mode held
@@ -80,9 +81,10 @@ class ExactSolution:
                         break
                     v_next = velocity_at_departure(ball, h - R, v, tau, F_ext)
                     kind, next_mode = DEPARTURE, Mode.FLIGHT
-                if not t + tau <= piece_end:
+                t_event, t_event_low = later(t, t_low, tau)
+                if not t_event <= piece_end:
                     break
-                t, h, v, mode = t + tau, R, v_next, next_mode
+                t, t_low, h, v, mode = t_event, t_event_low, R, v_next, next_mode
                 self.events.append(Event(t, kind, v))
 
     # --- evaluation ---------------------------------------------------------------------------

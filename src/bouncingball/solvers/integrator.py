@@ -144,7 +144,7 @@ class BallIntegrator(IntegratorView):
         if checked.restart_point is None:
             self._restart_at((t, x, v, mode), F_ext, counts, t_start)
             return
-        self._restart_at(checked.restart_point, F_ext, checked.restart_counts, t_start)
+        self._restart_at(checked.restart_point, F_ext, checked.restart_counts, t_start, checked.restart_t_low)
         try:
             self._advance(t)
         except (SolverError, ValueError):

@@ -26,6 +26,7 @@ import math
 import numpy as np
 
 from ..physics import gap_flow_value
+from ..rounding import later
 from .dense_output import step_state
 from .phases import (
     CONTACT,
@@ -50,11 +51,14 @@ from .phases import (
 # state before its next step. SEGMENT: the last step (SEG_*, from start to end, in mode SEG_MODE) is kept
 # for the dense output; PENDING: its end is an event (PEND_T, PEND_V) still to take. STEP_*: the last
 # step's end. ORIGIN, LENGTH, SPEED: the phase's frame. NFEV: CVODE's right-hand-side calls since its
-# restart. RS_*: the restart point (solvers/state.py's RestartPoint).
+# restart. RS_*: the restart point (solvers/state.py's RestartPoint). T_LOW, ORIGIN_LOW, PEND_T_LOW, RS_T_LOW:
+# the rounding error of an event time T, ORIGIN, PEND_T, RS_T (the time is T + T_LOW; 0 at a time given, such
+# as a grid point), so that event times do not drift by an ulp of t per event (rounding.later).
 (T, X, V, MODE, LOAD, HOP, IMPACTS, DEPARTURES, LAST_IMPACT, STEPS, RHS_CALLS, DECIDED, REST_T, REST_X, REST_V,
  NEEDS_INIT, SEGMENT, SEG_MODE, SEG_T0, SEG_X0, SEG_V0, SEG_T1, SEG_X1, SEG_V1, PENDING, PEND_T, PEND_V,
  STEP_T, STEP_X, STEP_V, ORIGIN, LENGTH, SPEED, NFEV, RS_T, RS_X, RS_V, RS_MODE, RS_IMPACTS, RS_DEPARTURES,
- RS_LAST_IMPACT, RS_RHS_CALLS, RS_STEPS, FAIL_T, FAIL_X, FAIL_FLAG, STATE_SIZE) = range(47)
+ RS_LAST_IMPACT, RS_RHS_CALLS, RS_STEPS, FAIL_T, FAIL_X, FAIL_FLAG, T_LOW, ORIGIN_LOW, PEND_T_LOW, RS_T_LOW,
+ STATE_SIZE) = range(51)
 # What run_phases returns.
 DONE, HANDOFF, RETURNED, CVODE_FAILED, TOO_MANY_STEPS, STEPPED_OVER = range(6)
 IMPACT, DEPARTURE = 0, 1  # an event row's kind: (t, kind, v)
@@ -76,17 +80,20 @@ def restart_needed(state):
     state[NFEV], state[NEEDS_INIT], state[SEGMENT], state[PENDING], state[DECIDED] = 0.0, 1.0, 0.0, 0.0, 0.0
     state[REST_T] = math.nan
     state[RS_T], state[RS_X], state[RS_V], state[RS_MODE] = state[T], state[X], state[V], state[MODE]
+    state[RS_T_LOW] = state[T_LOW]
     state[RS_IMPACTS], state[RS_DEPARTURES] = state[IMPACTS], state[DEPARTURES]
     state[RS_LAST_IMPACT] = state[LAST_IMPACT]
     state[RS_RHS_CALLS], state[RS_STEPS] = state[RHS_CALLS], state[STEPS]
 
 
-def closed_form_phase(state, t_event, v_event):
-    """The phase from the state ends at an event (t_event, v_event) from the exact flow: kept as the last step."""
+def closed_form_phase(state, tau, v_event):
+    """The phase from the state ends at an event tau later at v_event, from the exact flow: kept as the last step."""
+    t_event, t_low = later(state[T], state[T_LOW], tau)
     state[SEGMENT], state[SEG_MODE] = 1.0, state[MODE]
     state[SEG_T0], state[SEG_X0], state[SEG_V0] = state[T], state[X], state[V]
     state[SEG_T1], state[SEG_X1], state[SEG_V1] = t_event, 0.0, v_event
-    state[PENDING], state[PEND_T], state[PEND_V] = 1.0, t_event, v_event
+    state[PENDING], state[PEND_T], state[PEND_V], state[PEND_T_LOW] = 1.0, t_event, v_event, t_low
+
 
 
 def take_decision(state, answer, tau, v_event):
@@ -94,7 +101,7 @@ def take_decision(state, answer, tau, v_event):
     if answer == REST:
         state[REST_T], state[REST_X], state[REST_V] = state[T], state[X], state[V]
     elif answer == DEPARTURE_IN_CLOSED_FORM:
-        closed_form_phase(state, state[T] + tau, v_event)
+        closed_form_phase(state, tau, v_event)
     else:
         state[DECIDED] = 1.0
 
@@ -111,7 +118,7 @@ def _decisions(parameters, rtol, state):
     closed = 0 if rest != 0 else closed_form(parameters, mode, x, v, load, hop, rtol)
     if closed == 1:
         tau, v_impact = flight_impact(parameters, x, v, load)
-        closed_form_phase(state, state[T] + tau, v_impact)
+        closed_form_phase(state, tau, v_impact)
     return rest, closed
 
 
@@ -121,7 +128,7 @@ def _finish_by_taylor(parameters, state, t_target):
     if dt > 32.0 * _ulp(max(abs(t_target), abs(state[T]), 1e-300)):
         return False
     state[X], state[V] = taylor_step(parameters, int(state[MODE]), state[X], state[V], state[LOAD], dt)
-    state[T] = t_target
+    state[T], state[T_LOW] = t_target, 0.0
     return True
 
 
@@ -129,7 +136,7 @@ def _rest_state(parameters, state, t):
     """The state at t on the rest that began at REST_*, on the contact's exact flow."""
     state[X], state[V] = gap_flow_value(CONTACT, state[REST_X], state[REST_V], t - state[REST_T], state[LOAD],
                                         parameters[0], parameters[1], parameters[2])
-    state[T] = t
+    state[T], state[T_LOW] = t, 0.0
 
 
 def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, events, n_events, scratch,
@@ -152,11 +159,11 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
         if state[PENDING] != 0.0:  # a phase in closed form: to its event, or on its flow to t_end
             points, n_points = _record(points, n_points, t, state[X], state[V], mode)
             if state[PEND_T] <= t_end:
-                state[T], state[X], state[V] = state[PEND_T], 0.0, state[PEND_V]
+                state[T], state[X], state[V], state[T_LOW] = state[PEND_T], 0.0, state[PEND_V], state[PEND_T_LOW]
                 events, n_events = _switch_mode(state, events, n_events)
             else:
                 state[X], state[V] = gap_flow_value(mode, state[X], state[V], t_end - t, state[LOAD], m, k, b)
-                state[T] = t_end
+                state[T], state[T_LOW] = t_end, 0.0
             points, n_points = _record(points, n_points, state[T], state[X], state[V], mode)
             continue
         if not math.isnan(state[REST_T]):
@@ -186,7 +193,7 @@ def advance_in_step(parameters, state, t_target):
         return False
     state[X], state[V] = step_state(parameters, state[LOAD], int(state[SEG_MODE]), state[SEG_T0], state[SEG_X0],
                                     state[SEG_V0], state[SEG_T1], state[SEG_X1], state[SEG_V1], t_target)
-    state[T] = t_target
+    state[T], state[T_LOW] = t_target, 0.0
     return True
 
 
@@ -202,7 +209,7 @@ def advance(engine, parameters, rtol, atol, state, t_target, stop_at_event, even
         if advance_in_step(parameters, state, t_target):
             break
         if state[PENDING] != 0.0:  # the kept step ends at an event before t_target
-            state[T], state[X], state[V] = state[PEND_T], 0.0, state[PEND_V]
+            state[T], state[X], state[V], state[T_LOW] = state[PEND_T], 0.0, state[PEND_V], state[PEND_T_LOW]
             events, n_events = _switch_mode(state, events, n_events)
             if stop_at_event:
                 break
@@ -229,7 +236,7 @@ def _one_step(engine, parameters, rtol, atol, state, scratch):
     mode, load, hop = int(state[MODE]), state[LOAD], state[HOP]
     if state[NEEDS_INIT] != 0.0:
         length, speed = frame(parameters, mode, state[X], state[V], load, rtol, atol)
-        state[ORIGIN], state[LENGTH], state[SPEED] = state[T], length, speed
+        state[ORIGIN], state[LENGTH], state[SPEED], state[ORIGIN_LOW] = state[T], length, speed, state[T_LOW]
         flag = engine_start(engine, mode, math.inf, state[X] / length, state[V] / speed, length, speed, hop, load)
         if flag < 0:
             state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = state[T], state[X], flag
@@ -249,7 +256,8 @@ def _one_step(engine, parameters, rtol, atol, state, scratch):
         if scratch[0, 3] != 0.0:
             tau, v = polish_event(parameters, mode, load, length, tau_before, tau, x, v, state[RS_X], state[RS_V])
             x = 0.0
-            state[PENDING], state[PEND_T], state[PEND_V] = 1.0, origin + tau, v
+            state[PENDING], state[PEND_V] = 1.0, v
+            state[PEND_T], state[PEND_T_LOW] = later(origin, state[ORIGIN_LOW], tau)
         elif scratch[0, 4] != 0.0:
             state[REST_T], state[REST_X], state[REST_V] = origin + tau, x, v
     else:
@@ -267,7 +275,7 @@ def _one_step(engine, parameters, rtol, atol, state, scratch):
 def _cvode_phase(engine, parameters, rtol, atol, state, t_end, points, n_points, events, n_events, scratch):
     """One phase by CVODE from the state to its terminal root or t_end; DONE or a failure, as run_phases."""
     origin, x, v, mode, load, hop = state[T], state[X], state[V], int(state[MODE]), state[LOAD], state[HOP]
-    x_start, v_start = x, v
+    x_start, v_start, origin_low, t_low = x, v, state[T_LOW], 0.0
     length, speed = frame(parameters, mode, x, v, load, rtol, atol)
     margin = side_margin(hop, rtol, length)
     points, n_points = _record(points, n_points, origin, x, v, mode)  # as it is, not scaled and back
@@ -283,7 +291,8 @@ def _cvode_phase(engine, parameters, rtol, atol, state, t_end, points, n_points,
         if root != 0:
             tau, v = polish_event(parameters, mode, load, length, tau_prior if count > 1 else tau_before, tau,
                                   points[last, 1], points[last, 2], x_start, v_start)
-            points[last, 0], points[last, 1], points[last, 2] = origin + tau, 0.0, v
+            points[last, 0], t_low = later(origin, origin_low, tau)
+            points[last, 1], points[last, 2] = 0.0, v
         elif flag != CV_ROOT_RETURN and flag != BUFFER_FULL:
             points[last, 0] = t_end  # CVODE stopped at t_end - origin, which may round off t_end
         if on_wrong_side(mode, extreme, margin):
@@ -304,6 +313,7 @@ def _cvode_phase(engine, parameters, rtol, atol, state, t_end, points, n_points,
         return CVODE_FAILED, points, n_points, events, n_events
     state[RHS_CALLS] += rhs_calls
     state[T], state[X], state[V] = points[n_points - 1, 0], points[n_points - 1, 1], points[n_points - 1, 2]
+    state[T_LOW] = t_low if root != 0 else 0.0
     if root != 0:
         events, n_events = _switch_mode(state, events, n_events)
     elif rest != 0:

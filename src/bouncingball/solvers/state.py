@@ -32,6 +32,7 @@ class RestartPoint:
     last_impact_time: float | None = None
     rhs_calls: int = 0
     steps: int = 0
+    t_low: float = 0.0  # the rounding error of t [s] where it is an event's time (machine.later)
 
 
 @dataclass(frozen=True)
@@ -158,17 +159,19 @@ class IntegratorView:
         restart = RestartPoint(float(state[machine.RS_T]), float(state[machine.RS_X]), float(state[machine.RS_V]),
                                Mode(int(state[machine.RS_MODE])), int(state[machine.RS_IMPACTS]),
                                int(state[machine.RS_DEPARTURES]), None if math.isnan(last) else last,
-                               int(state[machine.RS_RHS_CALLS]), int(state[machine.RS_STEPS]))
+                               int(state[machine.RS_RHS_CALLS]), int(state[machine.RS_STEPS]),
+                               float(state[machine.RS_T_LOW]))
         return IntegratorState(t=self.t, h=self.h, v=self.v, mode=self.mode, F_ext=self._F_ext,
                                impacts=self.impacts, departures=self.departures,
                                last_impact_time=self._last_impact_time, t_start=self._t_start,
                                rhs_calls=self.rhs_calls, steps=self.steps, gap=float(state[machine.X]),
                                restart=restart)
 
-    def _restart_at(self, point, F_ext: float, counts, t_start: float) -> None:
-        """Set the state (t, x, v, mode), F_ext and the counters; CVODE restarts there."""
+    def _restart_at(self, point, F_ext: float, counts, t_start: float, t_low: float = 0.0) -> None:
+        """Set the state (t, x, v, mode) with t's rounding error t_low, F_ext and the counters; CVODE restarts there."""
         state = self._state
         state[machine.T], state[machine.X], state[machine.V], state[machine.MODE] = point
+        state[machine.T_LOW] = t_low
         self._F_ext, self._t_start = F_ext, t_start
         self._set_counts(counts)
         state[machine.NFEV] = 0.0
@@ -207,6 +210,7 @@ class CheckedState:
     t_start: float
     restart_point: tuple[float, float, float, Mode] | None
     restart_counts: Counts | None
+    restart_t_low: float = 0.0
 
 
 def checked(ball: Ball, state: IntegratorState) -> CheckedState:
@@ -224,7 +228,11 @@ def checked(ball: Ball, state: IntegratorState) -> CheckedState:
         raise ValueError(f"state restart at t = {start[0]!r} s in {start[3].name.lower()} is not allowed "
                          f"for a state at t = {point[0]!r} s in {point[3].name.lower()}: it must be of the same "
                          "mode, no later")
-    return CheckedState(point, counts, t_start, start[:4], _counts("state restart", restart))
+    t_low = validation.finite("state restart t_low", restart.t_low, "s")
+    if not abs(t_low) <= math.ulp(start[0]):
+        raise ValueError(f"state restart t_low = {t_low!r} s is not allowed: it is the rounding error of t = "
+                         f"{start[0]!r} s, at most an ulp of it ({math.ulp(start[0])!r} s)")
+    return CheckedState(point, counts, t_start, start[:4], _counts("state restart", restart), t_low)
 
 
 def _point(ball: Ball, name: str, t, gap, h, v, mode, F_ext=0.0) -> tuple[float, float, float, Mode, float]:
