@@ -12,6 +12,7 @@ Import this module only to compile: it imports numba.
 
 from __future__ import annotations
 
+import fcntl
 import glob
 import hashlib
 import os
@@ -32,34 +33,56 @@ def cache_allowed(modules) -> bool:
     phase machine's modules) is kept beside the cache, and all their cached code is removed when
     it differs. Where a source is gone (an FMU's copy of the package, whose unzipped folder the
     master deleted after the process imported it), or the cache cannot be found through numba's
-    locators, nothing is cached: it compiles afresh.
+    locators, nothing is cached: it compiles afresh. Processes importing at once (Dask's workers)
+    take turns: the check, the removal and the new digest happen under one lock file, and the
+    digest is written whole (a temporary file renamed) or not at all.
     """
     files = [module.__file__ for module in modules]
     if not all(os.path.isfile(file) for file in files):
         return False
+    digest = hashlib.sha256()
+    for file in files:
+        with open(file, "rb") as source:
+            digest.update(source.read())
     try:
-        from numba.core.caching import CacheImpl  # numba's own search for the cache folder
-
-        def folder_of(file):
-            locators = (cls.from_function(cache_allowed, file) for cls in CacheImpl._locator_classes)
-            return next(locator for locator in locators if locator is not None).get_cache_path()
-
-        digest = hashlib.sha256()
-        for file in files:
-            with open(file, "rb") as source:
-                digest.update(source.read())
-        stamp = os.path.join(folder_of(files[-1]), f"{os.path.splitext(os.path.basename(files[-1]))[0]}.sources-sha256")
-        if not os.path.isfile(stamp) or open(stamp).read() != digest.hexdigest():
-            for file in files:
-                stem = os.path.splitext(os.path.basename(file))[0]
-                for stale in glob.glob(os.path.join(folder_of(file), f"{stem}.*.nb[ic]")):
-                    os.remove(stale)
-            os.makedirs(os.path.dirname(stamp), exist_ok=True)
-            with open(stamp, "w") as file:
-                file.write(digest.hexdigest())
+        folders = [cache_folder(file) for file in files]
+        stem = os.path.splitext(os.path.basename(files[-1]))[0]
+        stamp = os.path.join(folders[-1], f"{stem}.sources-sha256")
+        os.makedirs(folders[-1], exist_ok=True)
+        with open(stamp + ".lock", "a") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+            if _read(stamp) != digest.hexdigest():
+                for file, folder in zip(files, folders, strict=True):
+                    stem = os.path.splitext(os.path.basename(file))[0]
+                    for stale in glob.glob(os.path.join(folder, f"{stem}.*.nb[ic]")):
+                        os.remove(stale)
+                written = f"{stamp}.{os.getpid()}"
+                with open(written, "w") as out:
+                    out.write(digest.hexdigest())
+                os.replace(written, stamp)
     except Exception:  # a numba without these internals, or a cache folder we cannot write
         return False
     return True
+
+
+def cache_folder(file: str) -> str:
+    """The folder numba caches the functions of the source file in, as numba itself finds it.
+
+    The one use of numba's private API (numba.core.caching.CacheImpl._locator_classes, numba 0.59 to
+    0.61 at least): tests/test_compiled.py fails loudly if an upgrade removes or changes it.
+    """
+    from numba.core.caching import CacheImpl
+
+    locators = (cls.from_function(cache_allowed, file) for cls in CacheImpl._locator_classes)
+    return next(locator for locator in locators if locator is not None).get_cache_path()
+
+
+def _read(path: str) -> str | None:
+    try:
+        with open(path) as file:
+            return file.read()
+    except OSError:
+        return None
 
 
 def functions_of(*modules) -> tuple:
