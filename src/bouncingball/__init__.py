@@ -2,9 +2,9 @@
 
 from .physics import Ball, Mode
 from .solvers import SOLVERS, simulate
-from .solvers.result import Event, EventKind, SimulationResult, SolverStats
+from .solvers.result import AccuracyWarning, Event, EventKind, SimulationResult, SolverStats
 
 __version__ = "0.1.0"
 
-__all__ = ["SOLVERS", "Ball", "Event", "EventKind", "Mode", "SimulationResult", "SolverStats", "simulate",
-           "__version__"]
+__all__ = ["SOLVERS", "AccuracyWarning", "Ball", "Event", "EventKind", "Mode", "SimulationResult", "SolverStats",
+           "simulate", "__version__"]

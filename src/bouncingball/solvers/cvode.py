@@ -127,4 +127,5 @@ def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     options = {"rtol": settings.rtol, "atol": settings.atol, "method": settings.method,
                "contact_method": integrator.methods[Mode.CONTACT], "max_step": settings.max_step,
                "engine": settings.engine}
-    return SimulationResult("cvode", ball, grid, h, v, events, integrator.rest_time, stats, F_ext, options)
+    return SimulationResult("cvode", ball, grid, h, v, events, integrator.rest_time, stats, F_ext, options,
+                            integrator.error_estimate)

@@ -278,4 +278,8 @@ def simulate_exact(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     h, v = exact.state(grid)
     stats = SolverStats(steps=len(exact.phases), rhs_calls=0, events=len(exact.events),
                         wall_time=time.perf_counter() - started)
-    return SimulationResult("exact", ball, grid, h, v, list(exact.events), exact.rest_time, stats, F_ext)
+    # Its error is the rounding of closed forms evaluated once per point from each phase's start (at most a few
+    # ulps of the height scale against the mpmath solution, tests/test_mpmath_oracle.py).
+    rounding = 16.0 * np.finfo(float).eps * max(float(np.max(np.abs(h))), ball.R)
+    return SimulationResult("exact", ball, grid, h, v, list(exact.events), exact.rest_time, stats, F_ext,
+                            error_estimate=rounding)

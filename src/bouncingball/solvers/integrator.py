@@ -22,6 +22,7 @@ mode.
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 
 import numpy as np
@@ -33,7 +34,7 @@ from . import engines, machine, phases, stepper
 from . import state as state_checks
 from .dense_output import interpolate
 from .engines import choose_engine
-from .result import DEPARTURE, IMPACT, Event
+from .result import DEPARTURE, IMPACT, Event, accuracy_warning
 from .settings import CvodeSettings, choose_method, too_many_steps_cause
 from .state import IntegratorState, IntegratorView
 from .stepper import SolverError
@@ -102,7 +103,7 @@ class BallIntegrator(IntegratorView):
         h0, v0, F_ext = float(h0), float(v0), float(F_ext)
         self.resolvable_until = resolvable_until(ball)
         check_resolvable(ball, t0)
-        self._cvode_called = False
+        self._cvode_called, self._accuracy_warned = False, False
         loaded, started = engines.loaded(), time.perf_counter()
         self.engine, self.engine_reason = choose_engine(s.engine, expected_steps)
         self._solvers = {mode: stepper.acquire(self.engine, ball, mode, self.methods[mode], s.rtol, s.max_step,
@@ -117,6 +118,31 @@ class BallIntegrator(IntegratorView):
         self._state, self._scratch = machine.new_state(), np.empty((_SCRATCH_ROWS, 5))
         self.set_state(IntegratorState(t=t0, h=h0, v=v0, mode=ball.initial_mode(h0, v0, F_ext), F_ext=F_ext,
                                        t_start=t0))
+
+    @property
+    def error_estimate(self) -> float:
+        """An estimate of max |h - h_true| [m] over everything integrated so far.
+
+        Each phase's own error is measured against its exact flow (the flow is affine in the start
+        state, in closed form), the error it started with carried by the flow's transition matrix and,
+        at an event, the saltation of the field's jump; see machine.phase_error. It passes 1e-6 of
+        the height scale only where the run is ill-conditioned, and then an AccuracyWarning says from
+        when the run cannot be trusted.
+        """
+        return float(machine.error_estimate(self._parameters, self.settings.rtol, self._atol, self._state)[0])
+
+    def _warn_if_untrusted(self, whole: bool) -> None:
+        """AccuracyWarning, once, where the estimate passed the promise.
+
+        Checked at the phases' ends (one comparison) or, with whole, over everything integrated so far.
+        """
+        if self._accuracy_warned or not (whole or not np.isnan(self._state[machine.ERR_FROM])):
+            return
+        warning = accuracy_warning(*machine.error_estimate(self._parameters, self.settings.rtol, self._atol,
+                                                           self._state))
+        if warning is not None:
+            self._accuracy_warned = True
+            warnings.warn(warning, stacklevel=4)
 
     @property
     def rest_time(self) -> float | None:
@@ -144,7 +170,8 @@ class BallIntegrator(IntegratorView):
         if checked.restart_point is None:
             self._restart_at((t, x, v, mode), F_ext, counts, t_start)
             return
-        self._restart_at(checked.restart_point, F_ext, checked.restart_counts, t_start, checked.restart_t_low)
+        self._restart_at(checked.restart_point, F_ext, checked.restart_counts, t_start, checked.restart_t_low,
+                         checked.restart_errors)
         try:
             self._advance(t)
         except (SolverError, ValueError):
@@ -158,7 +185,7 @@ class BallIntegrator(IntegratorView):
             # Not where this restart point leads (a state made by hand, or one a Taylor step within ulps
             # of an earlier target reached): CVODE would continue another trajectory, so it restarts at
             # the state itself, which continues within the tolerance.
-            self._restart_at((t, x, v, mode), F_ext, counts, t_start)
+            self._restart_at((t, x, v, mode), F_ext, counts, t_start, errors=checked.restart_errors)
             return
         # The counters as they were: CVODE's step history is the original's.
         self._set_counts(counts)
@@ -211,6 +238,7 @@ class BallIntegrator(IntegratorView):
                 events, n_events, self._scratch)
             self._cvode_called = True
             if status == machine.DONE:
+                self._warn_if_untrusted(whole=False)
                 return _events(events, n_events)
             if status != machine.HANDOFF:
                 raise self._machine_failure(status)
@@ -231,7 +259,7 @@ class BallIntegrator(IntegratorView):
     def _integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
         t_end, state = float(grid[-1]), self._state
         check_resolvable(self.ball, t_end)
-        machine.restart_needed(state)
+        machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0)
         points, events = np.empty((256, 4)), np.empty((16, 3))
         points[0] = state[machine.T], state[machine.X], state[machine.V], state[machine.MODE]
         n_points, n_events = 1, 0
@@ -249,8 +277,9 @@ class BallIntegrator(IntegratorView):
             elif status != machine.RETURNED:
                 raise self._machine_failure(status)
         rest = state[[machine.REST_T, machine.REST_X, machine.REST_V]]
-        machine.restart_needed(state)
+        machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0)
         state[[machine.REST_T, machine.REST_X, machine.REST_V]] = rest  # a rest goes on
+        self._warn_if_untrusted(whole=True)
         points = points[:n_points]
         if self._machine.fill_grid is None:
             x_out, v_out = interpolate(self._parameters, self._load, points, grid)

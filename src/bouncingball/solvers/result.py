@@ -11,6 +11,7 @@ import numpy as np
 from ..limits import check_output_interval
 from ..physics import Ball
 from .forcing import ForceTable
+from .settings import PROMISE
 
 
 class EventKind(StrEnum):
@@ -79,6 +80,11 @@ class SimulationResult:
         (times, values) when it was a table.
     options : dict
         The solver's settings as used (for CVODE also the method chosen in contact).
+    error_estimate : float or None
+        An estimate of max |h - h_true| [m] over the output grid, from what the run did (for CVODE
+        each phase's own error against its exact flow, carried by the run's sensitivity: see
+        README, "How far from the truth"); the exact solver's is its rounding; None for the SciPy
+        reference, which does not estimate it.
 
     Examples
     --------
@@ -102,6 +108,7 @@ class SimulationResult:
     stats: SolverStats
     F_ext: float | ForceTable = 0.0
     options: dict = field(default_factory=dict)
+    error_estimate: float | None = None
 
     @property
     def event_times(self) -> np.ndarray:
@@ -118,6 +125,27 @@ class SimulationResult:
         """Total energy [J] on the output grid; with a table, the potential -F_ext h of the force at each time."""
         F_ext = self.F_ext.at(self.t) if isinstance(self.F_ext, ForceTable) else self.F_ext
         return self.ball.energy(self.h, self.v, F_ext)
+
+
+class AccuracyWarning(UserWarning):
+    """A run's error estimate passes the promise, 1e-6 of its height scale max(|h|, R).
+
+    The result is not to be trusted from the time the warning names (an ill-conditioned run, or one
+    double precision cannot follow). It is still returned, with its error_estimate.
+    """
+
+
+def accuracy_warning(estimate: float, scale: float, since: float) -> AccuracyWarning | None:
+    """The AccuracyWarning for an error estimate [m] at a height scale [m], past the promise from since [s].
+
+    None where the estimate is within the promise.
+    """
+    if estimate <= PROMISE * scale:
+        return None
+    return AccuracyWarning(f"the run's error estimate is {estimate:.2g} m, {estimate / scale:.2g} of its height scale "
+                           f"{scale:.3g} m, past the promise of {PROMISE:g}: the run cannot be trusted from t = "
+                           f"{since:.6g} s on (a small error there grows faster than double precision can follow: "
+                           "an ill-conditioned run)")
 
 
 DEFAULT_OUTPUT_INTERVAL = 1e-3  # s: the article's output grid, every default grid's (simulate, scenes, bench)

@@ -33,6 +33,13 @@ STIFF_DAMPING_RATIO = 2.0
 # contact's own error (CVODE controls the contact relative to its amplitude, ~ the deflection near rest).
 HOP_RESOLUTION = 10.0
 MERGED_HOP_MARGIN = 10.0
+# The promise: max |h - h_true| <= PROMISE max(|h|, R) over a run. A run whose error estimate passes it
+# says so (AccuracyWarning).
+PROMISE = 1e-6
+# CVODE's error inside a phase, where only its end is measured (machine.phase_error): this many rtol the
+# phase's length scale. Measured against the mpmath solution: tests/test_error_estimate.py.
+ERROR_WITHIN_PHASE = 10.0
+ESTIMATE_CAP = 10.0  # an error estimate is at most this many times the height scale: the run is then lost
 
 
 def choose_method(ball: Ball) -> str:

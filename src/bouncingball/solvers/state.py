@@ -33,6 +33,13 @@ class RestartPoint:
     rhs_calls: int = 0
     steps: int = 0
     t_low: float = 0.0  # the rounding error of t [s] where it is an event's time (machine.later)
+    # the run's error estimate there (machine.phase_error): the error of (x [m], v [m/s]), the bound on
+    # |h - h_true| [m] before it, the start [s] of the first phase past the promise (None: none), the height scale [m]
+    error_x: float = 0.0
+    error_v: float = 0.0
+    error_bound: float = 0.0
+    untrusted_from: float | None = None
+    height_scale: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -125,9 +132,10 @@ class IntegratorView:
     def F_ext(self, value: float) -> None:
         value = validation.finite("F_ext", value, "N")
         if value != self._F_ext:
+            # the phase at the old load ends here: its error carried into the next one
+            machine.phase_ends(self.ball.parameters, self.settings.rtol, self._atol, self._state, 0.0)
             self._F_ext = value
             self._sync_F_ext()
-            machine.restart_needed(self._state)
 
     @property
     def acceleration(self) -> float:
@@ -160,18 +168,32 @@ class IntegratorView:
                                Mode(int(state[machine.RS_MODE])), int(state[machine.RS_IMPACTS]),
                                int(state[machine.RS_DEPARTURES]), None if math.isnan(last) else last,
                                int(state[machine.RS_RHS_CALLS]), int(state[machine.RS_STEPS]),
-                               float(state[machine.RS_T_LOW]))
+                               float(state[machine.RS_T_LOW]), *self._errors())
         return IntegratorState(t=self.t, h=self.h, v=self.v, mode=self.mode, F_ext=self._F_ext,
                                impacts=self.impacts, departures=self.departures,
                                last_impact_time=self._last_impact_time, t_start=self._t_start,
                                rhs_calls=self.rhs_calls, steps=self.steps, gap=float(state[machine.X]),
                                restart=restart)
 
-    def _restart_at(self, point, F_ext: float, counts, t_start: float, t_low: float = 0.0) -> None:
-        """Set the state (t, x, v, mode) with t's rounding error t_low, F_ext and the counters; CVODE restarts there."""
+    def _errors(self) -> tuple[float, float, float, float | None, float]:
+        """The error estimate's fields at the restart point, as RestartPoint holds them."""
+        state = self._state
+        since = float(state[machine.ERR_FROM])
+        return (float(state[machine.ERR_X]), float(state[machine.ERR_V]), float(state[machine.ERR_MAX]),
+                None if math.isnan(since) else since, float(state[machine.SCALE]))
+
+    def _restart_at(self, point, F_ext: float, counts, t_start: float, t_low: float = 0.0,
+                    errors=(0.0, 0.0, 0.0, None, 0.0)) -> None:
+        """Set the state (t, x, v, mode) and what goes with it; CVODE restarts there.
+
+        With t's rounding error t_low, F_ext, the counters and the error estimate's fields (_errors).
+        """
         state = self._state
         state[machine.T], state[machine.X], state[machine.V], state[machine.MODE] = point
         state[machine.T_LOW] = t_low
+        error_x, error_v, bound, since, scale = errors
+        state[machine.ERR_X], state[machine.ERR_V], state[machine.ERR_MAX] = error_x, error_v, bound
+        state[machine.ERR_FROM], state[machine.SCALE] = math.nan if since is None else since, scale
         self._F_ext, self._t_start = F_ext, t_start
         self._set_counts(counts)
         state[machine.NFEV] = 0.0
@@ -211,6 +233,7 @@ class CheckedState:
     restart_point: tuple[float, float, float, Mode] | None
     restart_counts: Counts | None
     restart_t_low: float = 0.0
+    restart_errors: tuple = (0.0, 0.0, 0.0, None, 0.0)
 
 
 def checked(ball: Ball, state: IntegratorState) -> CheckedState:
@@ -232,7 +255,19 @@ def checked(ball: Ball, state: IntegratorState) -> CheckedState:
     if not abs(t_low) <= math.ulp(start[0]):
         raise ValueError(f"state restart t_low = {t_low!r} s is not allowed: it is the rounding error of t = "
                          f"{start[0]!r} s, at most an ulp of it ({math.ulp(start[0])!r} s)")
-    return CheckedState(point, counts, t_start, start[:4], _counts("state restart", restart), t_low)
+    return CheckedState(point, counts, t_start, start[:4], _counts("state restart", restart), t_low,
+                        _errors("state restart", restart))
+
+
+def _errors(name: str, restart: RestartPoint) -> tuple[float, float, float, float | None, float]:
+    """The error estimate's fields of a restart point, checked."""
+    error_x = validation.finite(f"{name} error_x", restart.error_x, "m")
+    error_v = validation.finite(f"{name} error_v", restart.error_v, "m/s")
+    bound = validation.non_negative(f"{name} error_bound", restart.error_bound, "m")
+    scale = validation.non_negative(f"{name} height_scale", restart.height_scale, "m")
+    since = None if restart.untrusted_from is None else validation.finite(f"{name} untrusted_from",
+                                                                         restart.untrusted_from, "s")
+    return error_x, error_v, bound, since, scale
 
 
 def _point(ball: Ball, name: str, t, gap, h, v, mode, F_ext=0.0) -> tuple[float, float, float, Mode, float]:
