@@ -100,6 +100,7 @@ class BallIntegrator(IntegratorView):
         t0 = validation.finite("t0", t0, "s")
         limits.check_scene(ball, h0, v0, F_ext, t0)  # each value checked and named there
         h0, v0, F_ext = float(h0), float(v0), float(F_ext)
+        limits.check_cvode_settings(ball, h0, s.atol, s.max_step, t0)
         self.resolvable_until = resolvable_until(ball)
         check_resolvable(ball, t0)
         self._cvode_called = False
