@@ -184,10 +184,7 @@ class BallSlave:
         elif name == "F_ext" and self._integrator is not None:
             integrator = self._integrator
             try:
-                # A force outside the range double precision resolves from the current state is refused too.
-                limits.check_scene(integrator.ball, integrator.h, integrator.v,
-                                   validation.finite("F_ext", value, "N"), integrator.t)
-                integrator.F_ext = value  # checks it first: a rejected value changes nothing
+                integrator.F_ext = value  # checked first (its range from the current state): refused, nothing changes
             except ValueError as error:
                 self._error(error)
                 return
