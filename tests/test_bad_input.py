@@ -27,9 +27,9 @@ BALL = Ball()
     (dict(rtol=1e-17), "rtol = 1e-17 is not allowed: it must be in [1e-15, 1] (CVODE cannot honour"),
     (dict(rtol=10**400), "rtol = 1e+400 is not allowed: it must be in [1e-15, 1]"),
     (dict(atol=-1.0), "atol = -1.0 m is not allowed: it must be finite and >= 0"),
-    # 4 ulps of max(|h0|, R) = 2 m: 4 * 2**-51
-    (dict(atol=1e-320), "atol = 1e-320 m is not allowed: it must be 0 (none) or finite and >= 1.7763568394002505e-15"),
-    (dict(atol=1.7e-15), "atol = 1.7e-15 m is not allowed: it must be 0 (none) or finite and >= 1.776356839400250"),
+    # an ulp of max(|h0|, R) = 2 m: 2**-51
+    (dict(atol=1e-320), "atol = 1e-320 m is not allowed: it must be 0 (none) or finite and >= 4.440892098500626e-16"),
+    (dict(atol=4.4e-16), "atol = 4.4e-16 m is not allowed: it must be 0 (none) or finite and >= 4.440892098500626e-16"),
     (dict(max_step=1e-320), "max_step = 1e-320 s is not allowed: it must be 0 (none) or finite and >= 8e-07 s"),
     (dict(max_step=7.9e-7), "max_step = 7.9e-07 s is not allowed: it must be 0 (none) or finite and >= 8e-07 s"),
     (dict(h0=10**400), "h0 = 1e+400 m is not allowed: it must be a finite number"),

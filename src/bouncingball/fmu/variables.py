@@ -64,7 +64,7 @@ VARIABLES = (
                 "phase's own scale; a tighter tolerance the master gives (FMI 2.0: fmi2SetupExperiment) replaces "
                 "it, a looser one does not", min=MIN_RTOL, max=1.0),
     FmuVariable("atol", "Real", "parameter", "fixed", "upper bound on CVODE's absolute error of h (0, or at "
-                "least 4 ulps of max(|h|, R)); 0, the default, for none: the error is controlled relative to each "
+                "least an ulp of max(|h|, R)); 0, the default, for none: the error is controlled relative to each "
                 "phase's own scale", "m", 0.0),
     FmuVariable("method", "String", "parameter", "fixed", "CVODE method: auto (Adams in flight, BDF for a "
                 "stiff contact), Adams or BDF"),
