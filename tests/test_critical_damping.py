@@ -57,14 +57,14 @@ def resting_scenes():
     return scenes
 
 
-def worst_error(solver, scene, offset):
+def worst_error(solver, scene, offset, **options):
     """max |h - h_oracle| / max(|h_oracle|, R) on a 300-point grid over the fall and 30 / w of contact."""
     m, k, R, F_ext, h0, v0 = scene
     b = 2.0 * math.sqrt(k * m) * (1.0 + offset)
     fall = math.sqrt(2.0 * max(h0 - R, 0.0) / G) if F_ext < m * G else 0.0
     t_end = fall + 30.0 / math.sqrt(k / m)
     result = bb.simulate(bb.Ball(m=m, k=k, b=b, R=R, g=G), h0, v0, t_end, t_end / 300, solver=solver,
-                         F_ext=F_ext)
+                         F_ext=F_ext, **options)
     h_true, _ = Oracle(m, k, b, R, G, h0, v0, t_end, F_ext=F_ext).state(result.t)
     return np.max(np.abs(result.h - h_true)) / max(np.max(np.abs(h_true)), R)
 
@@ -75,7 +75,8 @@ def test_exact_solver_is_right_to_its_last_digits(scene, offset):
     assert worst_error("exact", scene, offset) <= TOLERANCE
 
 
+@pytest.mark.parametrize("engine", ["sksundae", "compiled"])  # the rest's flow interpreted, and compiled by numba
 @pytest.mark.parametrize("offset", DAMPING_OFFSETS)
 @pytest.mark.parametrize("scene", resting_scenes())
-def test_cvode_solver_is_right_to_its_last_digits_on_the_exact_flow(scene, offset):
-    assert worst_error("cvode", scene, offset) <= TOLERANCE
+def test_cvode_solver_is_right_to_its_last_digits_on_the_exact_flow(scene, offset, engine):
+    assert worst_error("cvode", scene, offset, engine=engine) <= TOLERANCE
