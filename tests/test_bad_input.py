@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 
 import bouncingball
@@ -22,8 +23,19 @@ BALL = Ball()
     (dict(solver="euler"), "solver = 'euler' is not allowed: it must be one of cvode, exact, scipy"),
     (dict(method="RK4"), "method = 'RK4' is not allowed: it must be one of auto, Adams, BDF"),
     (dict(solver="scipy", method="Adams"), "method = 'Adams' is not allowed: it must be one of RK45"),
-    (dict(rtol=0.0), "rtol = 0.0 is not allowed: it must be in (0, 1]"),
-    (dict(atol=-1.0), "atol = -1.0 m is not allowed: it must be finite and > 0"),
+    (dict(rtol=0.0), "rtol = 0.0 is not allowed: it must be in [1e-15, 1] (CVODE cannot honour"),
+    (dict(rtol=1e-17), "rtol = 1e-17 is not allowed: it must be in [1e-15, 1] (CVODE cannot honour"),
+    (dict(rtol=10**400), "rtol = 1e+400 is not allowed: it must be in [1e-15, 1]"),
+    (dict(atol=-1.0), "atol = -1.0 m is not allowed: it must be finite and >= 0"),
+    # an ulp of max(|h0|, R) = 2 m: 2**-51
+    (dict(atol=1e-320), "atol = 1e-320 m is not allowed: it must be 0 (none) or finite and >= 4.440892098500626e-16"),
+    (dict(atol=4.4e-16), "atol = 4.4e-16 m is not allowed: it must be 0 (none) or finite and >= 4.440892098500626e-16"),
+    (dict(max_step=1e-320), "max_step = 1e-320 s is not allowed: it must be 0 (none) or finite and >= 8e-07 s"),
+    (dict(max_step=7.9e-7), "max_step = 7.9e-07 s is not allowed: it must be 0 (none) or finite and >= 8e-07 s"),
+    (dict(h0=10**400), "h0 = 1e+400 m is not allowed: it must be a finite number"),
+    (dict(v0=-10**400), "v0 = -1e+400 m/s is not allowed: it must be a finite number"),
+    (dict(t_end=10**400), "t_end = 1e+400 s is not allowed: it must be a finite number"),
+    (dict(F_ext=10**400), "F_ext = 1e+400 N is not allowed"),
     (dict(max_step=-1.0), "max_step = -1.0 s is not allowed"),
     (dict(solver="exact", rtol=1e-6), "option rtol = 1e-06 is not allowed for solver 'exact': it takes no options"),
     (dict(tolerance=1e-6), "option tolerance = 1e-06 is not allowed for solver 'cvode': it takes rtol, atol"),
@@ -43,3 +55,106 @@ def test_simulate_rejects_bad_input(kwargs, message):
 def test_method_names_are_case_insensitive():
     result = bouncingball.simulate(BALL, 2.0, 0.0, 1.0, method="bdf")
     assert result.options["contact_method"] == "BDF"
+
+
+@pytest.mark.parametrize("field", ["m", "k", "b", "R", "g"])
+def test_an_int_beyond_double_precision_is_refused_by_name(field):
+    with pytest.raises(ValueError, match=rf"^{field} = 1e\+400 .* is not allowed: it must be finite"):
+        Ball(**{field: 10**400})
+
+
+@pytest.mark.parametrize("kwargs", [dict(max_step=1e-320), dict(rtol=1e-17), dict(atol=1e-320)])
+def test_settings_cvode_cannot_honour_are_refused_within_a_second(kwargs):
+    """max_step = 1e-320 never returned; rtol 1e-17 and atol 1e-320 failed at t = 0 naming neither."""
+    import time
+
+    started = time.perf_counter()
+    with pytest.raises(ValueError, match=rf"^{next(iter(kwargs))} = "):
+        bouncingball.simulate(BALL, 2.0, 0.0, 8.0, **kwargs)
+    assert time.perf_counter() - started < 1.0
+
+
+def test_atol_zero_means_none():
+    result = bouncingball.simulate(BALL, 2.0, 0.0, 1.0, atol=0)
+    assert result.options["atol"] is None
+    assert np.array_equal(result.h, bouncingball.simulate(BALL, 2.0, 0.0, 1.0).h)
+
+
+# --- the stepping integrator ---------------------------------------------------------------------------
+def _integrator():
+    from bouncingball.solvers.cvode import BallIntegrator
+
+    return BallIntegrator(BALL, 2.0, 0.0)
+
+
+@pytest.mark.parametrize("value, message", [
+    (1e300, "F_ext = 1e+300 N is not allowed for this ball (m = 1 kg, k = 10000 N/m, R = 0.06 m, g = 9.81 m/s2): "
+            "it must be in [-1e+152, 1e+152] N"),
+    (10**400, "F_ext = 1e+400 N is not allowed: it must be a finite number"),
+    (None, "F_ext = None is not allowed: it must be a number"),
+])
+def test_the_integrator_refuses_an_F_ext_simulate_refuses_and_changes_nothing(value, message):
+    integrator = _integrator()
+    with pytest.raises(ValueError) as info:
+        integrator.F_ext = value
+    assert message in str(info.value)
+    if value == 1e300:  # the same value and range as simulate's
+        with pytest.raises(ValueError) as from_simulate:
+            bouncingball.simulate(BALL, 2.0, 0.0, 1.0, F_ext=value)
+        assert str(info.value) == str(from_simulate.value)
+    assert integrator.F_ext == 0.0
+    assert [str(e.kind) for e in integrator.advance(1.0)] == ["impact", "departure"]
+
+
+@pytest.mark.parametrize("target", [None, "1", 10**400])
+def test_advance_refuses_a_target_that_is_not_a_number_by_name(target):
+    integrator = _integrator()
+    with pytest.raises(ValueError, match=r"^t_target = .* is not allowed: it must be a"):
+        integrator.advance(target)
+    with pytest.raises(ValueError, match=r"^t_target = "):
+        integrator.advance_within_step(target)
+    assert integrator.t == 0.0 and integrator.advance(0.5) == []
+
+
+def test_set_state_refuses_what_is_not_a_state_by_name():
+    integrator = _integrator()
+    with pytest.raises(ValueError, match=r"^state = None is not allowed: it must be an IntegratorState"):
+        integrator.set_state(None)
+    assert integrator.t == 0.0 and integrator.h == 2.0
+
+
+@pytest.mark.parametrize("t, h, message", [
+    (0.0, 0.01, "is not allowed in flight: it must be at or above R = 0.06 m"),
+    (0.64, 1.0, "is not allowed in contact: it must be at or below R = 0.06 m"),
+])
+def test_set_state_refuses_a_mode_that_contradicts_the_height(t, h, message):
+    """A flight below R gave a ZeroDivisionError at the next advance, a contact at 1 m a misleading "tighten rtol"."""
+    from dataclasses import replace
+
+    integrator = _integrator()
+    integrator.advance(t)  # the first impact is at 0.6277 s: in contact at 0.64 s
+    saved = integrator.get_state()
+    for restart in (saved.restart, None):
+        with pytest.raises(ValueError) as info:
+            integrator.set_state(replace(saved, h=h, gap=None, restart=restart))
+        assert str(info.value).startswith(f"state h = {h!r} m (h - R = {h - 0.06!r} m) {message} (within ")
+        assert integrator.get_state() == saved  # nothing changed, and it goes on
+    exact = bouncingball.simulate(BALL, 2.0, 0.0, 1.0, solver="exact")
+    integrator.advance(1.0)
+    assert integrator.h == pytest.approx(float(exact.h[-1]), abs=1e-9)
+
+
+def test_set_state_takes_back_every_state_of_a_run():
+    """The check of the mode against the height allows what CVODE's own steps show (a merged hop, a step end
+    just past R): each state a damped run passes through, restored, continues bit for bit."""
+    from bouncingball.solvers.cvode import BallIntegrator
+
+    integrator = BallIntegrator(Ball(b=30.0), 0.5, 0.0)
+    states = []
+    for t in np.linspace(0.0, 3.0, 601)[1:]:
+        integrator.advance(t)
+        states.append(integrator.get_state())
+    for saved in states[::7]:
+        fresh = BallIntegrator(Ball(b=30.0), 0.5, 0.0)
+        fresh.set_state(saved)
+        assert fresh.get_state() == saved

@@ -88,7 +88,11 @@ def _one_line(completed, code=2):
 def test_bad_input_is_one_line_and_exit_code_2():
     for args, fragment in [
         (["run", "moon"], "scene = 'moon' is not allowed"),
-        (["run", "--rtol", "-1"], "rtol = -1.0 is not allowed: it must be in (0, 1]"),
+        (["run", "--rtol", "-1"], "rtol = -1.0 is not allowed: it must be in [1e-15, 1]"),
+        (["run", "--rtol", "1e-17"], "rtol = 1e-17 is not allowed: it must be in [1e-15, 1] (CVODE cannot honour"),
+        (["run", "--atol", "1e-320"], "atol = 1e-320 m is not allowed: it must be 0 (none) or finite and >= "),
+        (["run", "--max-step", "1e-320"], "max_step = 1e-320 s is not allowed: it must be 0 (none) or finite and >= "
+                                          "8e-07 s"),
         (["run", "--solver", "euler"], "solver = 'euler' is not allowed"),
         (["run", "--method", "RK4"], "method = 'RK4' is not allowed"),
         (["run", "--engine", "fast"], "engine = 'fast' is not allowed"),
@@ -272,12 +276,26 @@ def test_bench_writes_to_a_folder_of_its_own_unless_told():
     assert _build_parser().parse_args(["bench", "--quick"]).output_dir == "bench-results"
 
 
-def test_sundials_own_error_text_stays_off_the_terminal():
-    """scikit-sundae prints "[CVode, Error: -2] At t = 0, too much accuracy requested." to stdout on a failure."""
-    completed = _cli("run", "article", "--rtol", "1e-300", "--engine", "sksundae")
-    line = _one_line(completed, code=1)
-    assert line.startswith("bouncingball: solver failed: CVODE failed at t = 0.0 s") and "accuracy" in line
-    assert completed.stdout == "" and "Error: -2" not in completed.stderr
+def test_sundials_own_error_text_stays_off_the_terminal(monkeypatch, capfd, tmp_path):
+    """scikit-sundae prints "[CVode, Error: -2] At t = 0, too much accuracy requested." to stdout on a failure.
+
+    Such an rtol is refused before any work; the floor is lowered here to reach CVODE's own failure.
+    """
+    from bouncingball.solvers import settings
+
+    monkeypatch.setattr(settings, "MIN_RTOL", 0.0)
+    code = main(["run", "article", "--rtol", "1e-300", "--engine", "sksundae", "--output", str(tmp_path / "r.csv")])
+    out, err = capfd.readouterr()
+    [line] = err.strip().splitlines()
+    assert code == 1 and line.startswith("bouncingball: solver failed: CVODE failed at t = 0.0 s")
+    assert "accuracy" in line
+    assert out == "" and "Error: -2" not in err
+
+
+def test_atol_zero_is_none_on_the_command_line(capsys, tmp_path):
+    """The FMU documents atol = 0 as none; --atol 0 was refused "must be > 0"."""
+    assert main(["run", "article", "--atol", "0", "--t-end", "0.1", "--output", str(tmp_path / "r.csv")]) == 0
+    assert "atol None" in capsys.readouterr().out
 
 
 def test_text_printed_during_a_solver_call_other_than_sundials_errors_is_passed_on(capsys):

@@ -374,7 +374,8 @@ def test_two_instances_with_different_g_stay_independent(unzipped):
     ("g", -9.81, "g = -9.81 m/s2 is not allowed: it must be finite and >= 0"),
     ("h", math.inf, "h = inf m is not allowed: it must be a finite number"),
     ("F_ext", math.nan, "F_ext = nan N is not allowed: it must be a finite number"),
-    ("rtol", 2.0, "rtol = 2.0 is not allowed: it must be in (0, 1]"),
+    ("rtol", 2.0, "rtol = 2.0 is not allowed: it must be in [1e-15, 1] (CVODE cannot honour a relative tolerance "
+                  "within a few ulps of double precision's 2.2e-16)"),
     ("atol", -1.0, "atol = -1.0 m is not allowed: it must be finite and >= 0"),
     ("method", "RK4", "method = 'RK4' is not allowed: it must be one of auto, Adams, BDF"),
     ("engine", "fast", "engine = 'fast' is not allowed: it must be one of auto, compiled, sksundae"),
@@ -403,20 +404,39 @@ def test_invalid_tolerance_in_setup_experiment_gives_fmi2Error(unzipped):
         with pytest.raises(fmpy.fmi1.FMICallException) as raised:
             ball.initialize(tolerance=5.0)
         assert raised.value.status == 3
-        assert ball.errors() == ["tolerance (fmi2SetupExperiment) = 5.0 is not allowed: it must be in (0, 1]"]
+        [error] = ball.errors()
+        assert error.startswith("tolerance (fmi2SetupExperiment) = 5.0 is not allowed: it must be in [1e-15, 1]")
     finally:
         ball.free()
 
 
-def test_cvode_failure_gives_fmi2Error_with_cvode_reason(unzipped):
+@pytest.mark.parametrize("values, tolerance, expected", [
+    (dict(rtol=1e-20), None, "rtol = 1e-20 is not allowed: it must be in [1e-15, 1] (CVODE cannot honour"),
+    # an ulp of max(|h|, R) = 2 m: 2**-51 m
+    (dict(atol=1e-30), None, "atol = 1e-30 m is not allowed: it must be 0 (none) or finite and >= "
+                             "4.440892098500626e-16 m"),
+    ({}, 1e-17, "tolerance (fmi2SetupExperiment) = 1e-17 is not allowed: it must be in [1e-15, 1]"),
+])
+def test_a_tolerance_beyond_double_precision_gives_fmi2Error_at_initialisation(unzipped, values, tolerance, expected):
+    """More accuracy than double precision allows: it failed at the first doStep with CVODE's text naming neither."""
     ball = Instance(unzipped)
     try:
-        ball.initialize(rtol=1e-20, atol=1e-30)  # more accuracy than double precision allows
         with pytest.raises(fmpy.fmi1.FMICallException) as raised:
-            ball.fmu.doStep(0.0, 0.1)
+            ball.initialize(tolerance=tolerance, **values)
         assert raised.value.status == 3
         [message] = ball.errors()
-        assert message.startswith("CVODE failed at t = 0.0 s") and "demanded accuracy" in message
+        assert message.startswith(expected)
+    finally:
+        ball.free()
+
+
+def test_atol_zero_is_none(unzipped):
+    ball = Instance(unzipped)
+    try:
+        ball.initialize(atol=0.0)
+        ball.fmu.doStep(0.0, 1.0)
+        assert ball.errors() == []
+        assert abs(ball.outputs()[0] - exact_at([1.0])[0][0]) < 1e-8
     finally:
         ball.free()
 

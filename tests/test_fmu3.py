@@ -452,3 +452,37 @@ def test_a_python_host_without_scikit_sundae_gets_one_line_and_no_instance(fmu3,
     assert "has no scikit-sundae (ModuleNotFoundError: No module named 'sksundae')" in line
     assert line.endswith(f"{report['executable']} -m pip install 'scikit-sundae>=1.2,<2'"), line
     assert not report["pythonfmu3 ran"]
+
+
+def test_a_state_whose_mode_contradicts_its_height_is_refused_and_the_instance_goes_on(unzipped3):
+    """In contact at h = 1 m > R, in flight at h = 0.01 m < R: fmi3Error with one line, the instance as it was."""
+    out = run3(unzipped3, """
+        def moved(data, h):
+            state = json.loads(bytes(data[1:]).decode())
+            state["integrator"].update(h=h, gap=None)
+            return bytes(data[:1]) + json.dumps(state).encode()
+
+        ball = Instance3(unzipped)
+        f = ball.fmu
+        f.enterInitializationMode(startTime=0.0)
+        f.exitInitializationMode()
+        t, out["errors"], out["kept"] = 0.0, [], []
+        for until, h in [(0.64, 1.0), (0.7, 0.01)]:
+            f.doStep(t, until - t)  # the first contact lasts from 0.6277 to 0.659 s
+            t = until
+            before = ball.get("h", "v", "impacts", "contact")
+            bad = f.deserializeFMUState(moved(f.serializeFMUState(f.getFMUState()), h))
+            refused(ball, lambda: f.setFMUState(bad), "fmi3SetFMUState failed, nothing was changed")
+            out["errors"].append(ball.errors()[-1])
+            out["kept"].append(ball.get("h", "v", "impacts", "contact") == before)
+        f.doStep(t, 1.0 - t)
+        out["h"] = ball.get("h")[0]
+    """)
+    expected = ["state h = 1.0 m (h - R = 0.94 m) is not allowed in contact: it must be at or below R = 0.06 m",
+                "state h = 0.01 m (h - R = -0.049999999999999996 m) is not allowed in flight: it must be at or above "
+                "R = 0.06 m"]
+    for error, text in zip(out["errors"], expected, strict=True):
+        assert error.startswith("fmi3SetFMUState failed, nothing was changed: " + text) and "\n" not in error
+    assert out["kept"] == [True, True]
+    h_exact, _ = ARTICLE.state([1.0])
+    assert abs(out["h"] - h_exact[0]) < 1e-8

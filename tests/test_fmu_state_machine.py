@@ -344,3 +344,31 @@ def test_repeated_instantiation_keeps_sys_path_and_memory_flat(unzipped):
         assert sys.path == before, len(sys.path) - len(before)
         assert per_instance < 8.0, per_instance
     """))
+
+
+def test_a_state_whose_mode_contradicts_its_height_is_refused_and_the_instance_goes_on(unzipped):
+    """In contact at h = 1 m > R, in flight at h = 0.01 m < R: the next doStep logged a fatal ZeroDivisionError."""
+    assert_ok(run_case(unzipped, """
+        import json
+
+        def moved(saved, h):
+            state = json.loads(bytes(saved[1:]).decode())
+            state["integrator"].update(h=h, gap=None)
+            return bytes(saved[:1]) + json.dumps(state).encode()
+
+        ball.initialize()
+        t = 0.0
+        for until, h, expected in [(0.64, 1.0, "state h = 1.0 m (h - R = 0.94 m) is not allowed in contact: it "
+                                                "must be at or below R = 0.06 m"),
+                                   (0.7, 0.01, "state h = 0.01 m (h - R = -0.049999999999999996 m) is not allowed "
+                                               "in flight: it must be at or above R = 0.06 m")]:
+            f.doStep(t, until - t)  # the first contact lasts from 0.6277 to 0.659 s
+            t = until
+            before = ball.outputs()
+            bad = f.deSerializeFMUstate(moved(f.serializeFMUstate(f.getFMUstate()), h))
+            refused(lambda: f.setFMUstate(bad), "fmi2SetFMUstate failed, nothing was changed: " + expected)
+            assert "\\n" not in ball.errors()[-1] and ball.outputs() == before
+        f.doStep(t, 1.0 - t)
+        assert abs(f.getReal([vr])[0] - exact_at([1.0])[0][0]) < 1e-8
+        ball.free()
+    """))

@@ -17,6 +17,7 @@ largest time on it.
 from __future__ import annotations
 
 import math
+import sys
 
 from . import validation
 from .physics import Ball
@@ -30,6 +31,38 @@ MIN_GRID_ULPS = 4.0  # output points t_start + i dt, each rounded by <= 1.5 ulps
 # Measured with CVODE in absolute time: at the default tolerances the departure speed stayed within
 # 1e-8 down to contacts of 30 ulps of t (at 10 ulps CVODE failed its error test); 1e4 keeps a margin of 300.
 MIN_CONTACT_ULPS = 1e4
+
+
+# CVODE's settings, by the scene's scales. An error bound of h finer than the spacing of doubles at the
+# ball's height scale is not one double precision can hold (h = R + x rounds to half an ulp of h); far
+# below it the state scaled by atol / rtol overflowed (atol = 1e-320: CVODE failed at t = 0). The work-
+# precision benchmark's tightest, 1e-15 m on the article from 2 m, is 2.3 ulps.
+MIN_ATOL_ULPS = 1.0
+# A max_step asking for more steps than this over the run (1 to 20 us each: minutes to hours) is refused;
+# a subnormal one never returned (CVODE divides by it, and 1 / 1e-320 overflows).
+MAX_STEPS_BY_MAX_STEP = 1e7
+
+
+def check_cvode_settings(ball: Ball, h0: float, atol: float | None, max_step: float, t_start: float,
+                         t_end: float | None = None) -> None:
+    """Raise ValueError naming atol or max_step if CVODE cannot honour it in this scene; else return None.
+
+    atol [m]: None or 0 (none), or at least an ulp (MIN_ATOL_ULPS) of the height scale max(|h0|, R).
+    max_step [s]: 0 (none), or a normal double at least MIN_GRID_ULPS ulps of |t_start| (and of |t_end|),
+    and with t_end at least (t_end - t_start) / MAX_STEPS_BY_MAX_STEP. h0, t_start, t_end: checked floats.
+    """
+    scale = max(abs(h0), ball.R)
+    validation.zero_or_at_least("atol", 0.0 if atol is None else atol, MIN_ATOL_ULPS * math.ulp(scale), "m",
+                                f"the spacing of doubles at the height scale max(|h0|, R) = {scale!r} m: double "
+                                "precision holds h no closer")
+    latest = max(abs(t_start), abs(t_start if t_end is None else t_end))
+    smallest = max(sys.float_info.min, MIN_GRID_ULPS * math.ulp(latest))
+    why = f"a normal double, >= {MIN_GRID_ULPS:g} ulps of t = {latest!r} s, so that a step advances t"
+    if t_end is not None and (t_end - t_start) / MAX_STEPS_BY_MAX_STEP > smallest:
+        smallest = (t_end - t_start) / MAX_STEPS_BY_MAX_STEP
+        why = (f"that is (t_end - t_start) / {MAX_STEPS_BY_MAX_STEP:.0e}: a smaller one asks for more than "
+               f"{MAX_STEPS_BY_MAX_STEP:.0e} steps")
+    validation.zero_or_at_least("max_step", max_step, smallest, "s", why)
 
 
 def min_output_interval(t_start: float, t_end: float) -> float:
@@ -211,8 +244,8 @@ def _longest_run(g_eff: float, speed: float, start: float, speed_squared_limit: 
     return min(by_speed, by_reach)
 
 
-__all__ = ["HEIGHT_LIMIT", "MIN_GRID_ULPS", "SCALE_LIMIT", "SQUARE_LIMIT", "check_output_interval", "check_scene",
-           "min_output_interval"]
+__all__ = ["HEIGHT_LIMIT", "MIN_GRID_ULPS", "SCALE_LIMIT", "SQUARE_LIMIT", "check_cvode_settings",
+           "check_output_interval", "check_scene", "min_output_interval"]
 
 
 def contact_duration(ball: Ball) -> float:

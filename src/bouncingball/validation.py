@@ -10,15 +10,28 @@ from collections.abc import Iterable
 def _as_float(name: str, value: object) -> float:
     # bool is an int to Python and TOML's true would pass as 1; text ("1e4" in quotes) is not a number either.
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} = {value!r} is not allowed: it must be a number")
-    return float(value)
+        raise ValueError(f"{name} = {shown(value)} is not allowed: it must be a number")
+    try:
+        return float(value)
+    except OverflowError:  # an int beyond 1.8e308 (10**400): infinite, refused with the field's own range
+        return math.inf if value > 0 else -math.inf
+
+
+def shown(value: object) -> str:
+    """value as a message prints it: its repr, an int of more than 30 digits as its power of ten (10**400: 1e+400).
+
+    The repr of such an int is hundreds of digits, and beyond 4300 Python refuses to write it.
+    """
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**30:
+        return f"{'-' if value < 0 else ''}{10.0 ** (math.log10(abs(value)) % 1.0):.3g}e+{int(math.log10(abs(value)))}"
+    return repr(value)
 
 
 def positive(name: str, value: object, unit: str = "") -> float:
     """Return value as a float if it is finite and > 0."""
     x = _as_float(name, value)
     if not (math.isfinite(x) and x > 0.0):
-        raise ValueError(f"{name} = {value!r}{_unit(unit)} is not allowed: it must be finite and > 0")
+        raise ValueError(f"{name} = {shown(value)}{_unit(unit)} is not allowed: it must be finite and > 0")
     return x
 
 
@@ -26,7 +39,7 @@ def non_negative(name: str, value: object, unit: str = "") -> float:
     """Return value as a float if it is finite and >= 0."""
     x = _as_float(name, value)
     if not (math.isfinite(x) and x >= 0.0):
-        raise ValueError(f"{name} = {value!r}{_unit(unit)} is not allowed: it must be finite and >= 0")
+        raise ValueError(f"{name} = {shown(value)}{_unit(unit)} is not allowed: it must be finite and >= 0")
     return x
 
 
@@ -34,7 +47,7 @@ def finite(name: str, value: object, unit: str = "") -> float:
     """Return value as a float if it is finite (not NaN, not infinite)."""
     x = _as_float(name, value)
     if not math.isfinite(x):
-        raise ValueError(f"{name} = {value!r}{_unit(unit)} is not allowed: it must be a finite number")
+        raise ValueError(f"{name} = {shown(value)}{_unit(unit)} is not allowed: it must be a finite number")
     return x
 
 
@@ -42,7 +55,26 @@ def in_range(name: str, value: object, low: float, high: float, unit: str = "") 
     """Return value as a float if low < value <= high."""
     x = _as_float(name, value)
     if not (math.isfinite(x) and low < x <= high):
-        raise ValueError(f"{name} = {value!r}{_unit(unit)} is not allowed: it must be in ({exact(low)}, {exact(high)}]")
+        raise ValueError(f"{name} = {shown(value)}{_unit(unit)} is not allowed: it must be in "
+                         f"({exact(low)}, {exact(high)}]")
+    return x
+
+
+def zero_or_at_least(name: str, value: object, low: float, unit: str = "", why: str = "") -> float:
+    """Return value as a float if it is 0 (none) or finite and >= low; why, if given, ends the message in brackets."""
+    x = _as_float(name, value)
+    if not (x == 0.0 or (math.isfinite(x) and x >= low)):
+        raise ValueError(f"{name} = {shown(value)}{_unit(unit)} is not allowed: it must be 0 (none) or "
+                         f"finite and >= {exact(low)}{_unit(unit)}" + (f" ({why})" if why else ""))
+    return x
+
+
+def in_closed_range(name: str, value: object, low: float, high: float, unit: str = "", why: str = "") -> float:
+    """Return value as a float if low <= value <= high; why, if given, ends the message in brackets."""
+    x = _as_float(name, value)
+    if not (math.isfinite(x) and low <= x <= high):
+        raise ValueError(f"{name} = {shown(value)}{_unit(unit)} is not allowed: it must be in "
+                         f"[{exact(low)}, {exact(high)}]" + (f" ({why})" if why else ""))
     return x
 
 
@@ -67,7 +99,7 @@ def choice(name: str, value: object, allowed: Iterable[str]) -> str:
     for option in allowed:
         if isinstance(value, str) and value.lower() == option.lower():
             return option
-    raise ValueError(f"{name} = {value!r} is not allowed: it must be one of {', '.join(allowed)}")
+    raise ValueError(f"{name} = {shown(value)} is not allowed: it must be one of {', '.join(allowed)}")
 
 
 def _unit(unit: str) -> str:

@@ -26,6 +26,7 @@ from .. import limits, validation
 from ..physics import Ball, Mode
 from ..scenes import BALL_KEYS, SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
+from ..solvers.settings import MIN_RTOL, RTOL_RANGE_WHY
 from ..solvers.sundials_log import SundialsWarning
 from .variables import SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES
 
@@ -184,10 +185,7 @@ class BallSlave:
         elif name == "F_ext" and self._integrator is not None:
             integrator = self._integrator
             try:
-                # A force outside the range double precision resolves from the current state is refused too.
-                limits.check_scene(integrator.ball, integrator.h, integrator.v,
-                                   validation.finite("F_ext", value, "N"), integrator.t)
-                integrator.F_ext = value  # checks it first: a rejected value changes nothing
+                integrator.F_ext = value  # checked first (its range from the current state): refused, nothing changes
             except ValueError as error:
                 self._error(error)
                 return
@@ -222,11 +220,11 @@ class BallSlave:
         if values is None:
             values, tolerance = self._values, self._tolerance
         ball = Ball(**{key: values[key] for key in BALL_KEYS})
-        rtol = validation.in_range("rtol", values["rtol"], 0.0, 1.0)
+        rtol = values["rtol"]
         if tolerance is not None:  # the master's tolerance may tighten rtol, never loosen it
-            rtol = min(rtol, validation.in_range(f"tolerance ({self.CALLS['setup']})", tolerance, 0.0, 1.0))
-        atol = validation.non_negative("atol", values["atol"], "m") or None  # 0: no absolute bound
-        return ball, CvodeSettings(rtol=rtol, atol=atol, method=values["method"], engine=values["engine"])
+            rtol = min(CvodeSettings(rtol=rtol).rtol, validation.in_closed_range(
+                f"tolerance ({self.CALLS['setup']})", tolerance, MIN_RTOL, 1.0, why=RTOL_RANGE_WHY))
+        return ball, CvodeSettings(rtol=rtol, atol=values["atol"], method=values["method"], engine=values["engine"])
 
     def _tell_tolerance(self, used: float) -> None:
         """Once per instance: a warning if the master asked for a looser tolerance than rtol, a note if tighter."""

@@ -8,6 +8,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..solvers.settings import MIN_RTOL
+
 MODEL_NAME = "BouncingBall"
 SMALLEST_POSITIVE = math.ulp(0.0)  # FMI's min is inclusive: "> 0" is ">= 5e-324"
 
@@ -58,11 +60,12 @@ VARIABLES = (
     FmuVariable("impacts", "Integer", "output", "discrete", "number of impacts since the start", min=0),
     FmuVariable("F_ext", "Real", "input", "continuous", "external vertical force on the ball, upwards "
                 "positive, held constant over each communication step", "N"),
-    FmuVariable("rtol", "Real", "parameter", "fixed", "CVODE relative tolerance, in (0, 1], relative to each "
+    FmuVariable("rtol", "Real", "parameter", "fixed", "CVODE relative tolerance, in [1e-15, 1], relative to each "
                 "phase's own scale; a tighter tolerance the master gives (FMI 2.0: fmi2SetupExperiment) replaces "
-                "it, a looser one does not", min=SMALLEST_POSITIVE, max=1.0),
-    FmuVariable("atol", "Real", "parameter", "fixed", "upper bound on CVODE's absolute error of h (>= 0); 0, "
-                "the default, for none: the error is controlled relative to each phase's own scale", "m", 0.0),
+                "it, a looser one does not", min=MIN_RTOL, max=1.0),
+    FmuVariable("atol", "Real", "parameter", "fixed", "upper bound on CVODE's absolute error of h (0, or at "
+                "least an ulp of max(|h|, R)); 0, the default, for none: the error is controlled relative to each "
+                "phase's own scale", "m", 0.0),
     FmuVariable("method", "String", "parameter", "fixed", "CVODE method: auto (Adams in flight, BDF for a "
                 "stiff contact), Adams or BDF"),
     FmuVariable("engine", "String", "parameter", "fixed", "CVODE engine: sksundae (scikit-sundae's CVODE), "

@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..limits import check_resolvable, resolvable_until
+from ..limits import check_cvode_settings, check_resolvable, resolvable_until
 from ..physics import Ball, Mode
 from . import engines, forcing
 from .engines import choose_engine, expected_steps
@@ -99,6 +99,7 @@ def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     CVODE steps or so, for a progress display.
     """
     settings = CvodeSettings(rtol=rtol, atol=atol, method=method, max_step=max_step, engine=engine)
+    check_cvode_settings(ball, h0, settings.atol, settings.max_step, t_start, t_end)
     grid = output_grid(t_start, t_end, output_interval)
     table = F_ext if isinstance(F_ext, ForceTable) else None
     integrator = BallIntegrator(ball, h0, v0, t_start, F_ext if table is None else float(table.at(t_start)),

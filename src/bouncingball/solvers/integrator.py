@@ -101,6 +101,7 @@ class BallIntegrator(IntegratorView):
         t0 = validation.finite("t0", t0, "s")
         limits.check_scene(ball, h0, v0, F_ext, t0)  # each value checked and named there
         h0, v0, F_ext = float(h0), float(v0), float(F_ext)
+        limits.check_cvode_settings(ball, h0, s.atol, s.max_step, t0)
         self.resolvable_until = resolvable_until(ball)
         check_resolvable(ball, t0)
         self._cvode_called, self._accuracy_warned = False, False
@@ -162,7 +163,7 @@ class BallIntegrator(IntegratorView):
         With a restart point, CVODE restarts there and integrates to state.t again (at most the
         current phase), then the state is exactly the one taken.
         """
-        checked = state_checks.checked(self.ball, state)
+        checked = state_checks.checked(self.ball, state, self.settings)
         t, x, v, mode, F_ext = checked.point
         counts, t_start = checked.counts, checked.t_start
         check_resolvable(self.ball, t)
@@ -210,7 +211,8 @@ class BallIntegrator(IntegratorView):
         impact or departure before t_target instead, with t the event's time and the mode switched
         (an FMI 3.0 early return); an event at t_target itself is left to the next advance.
         """
-        t_target = float(t_target)
+        if type(t_target) is not float:  # None, text, an int beyond 1e308: named
+            t_target = validation.finite("t_target", t_target, "s")
         if self._machine.advance_in_step(self._parameters, self._state, t_target):
             return []
         try:
@@ -224,7 +226,9 @@ class BallIntegrator(IntegratorView):
         Read off the step's dense output as advance() reads it (advance asks this first): no CVODE
         call, nothing that can fail or warn. Most of an FMU's short steps end there.
         """
-        return self._machine.advance_in_step(self._parameters, self._state, float(t_target))
+        if type(t_target) is not float:
+            t_target = validation.finite("t_target", t_target, "s")
+        return self._machine.advance_in_step(self._parameters, self._state, t_target)
 
     def _advance(self, t_target: float, stop_at_event: bool = False) -> list[Event]:
         if not t_target >= self._state[machine.T]:

@@ -23,6 +23,13 @@ DEFAULT_RTOL = 1e-12
 # phase_scales), so rtol is relative to the phase's own size whatever R, the drop height or the
 # stiffness. An atol, where given, only tightens that rule.
 DEFAULT_ATOL = None
+# CVODE refuses a relative tolerance below its unit roundoff, 2.2e-16 ("too much accuracy", at t = 0);
+# at that roundoff its error test passes on the rounding of the state alone. 1e-15, 4.5 of it, leaves the
+# corrector's few ulps of rounding room: every built-in scene ran at 2.2e-16 .. 1e-15 on both engines,
+# and the error stops following rtol there (the article 1.1e-12 of its height scale at 1e-15, 4.7e-14 at
+# 2.3e-16, 1.9e-12 at 1e-14).
+MIN_RTOL = 1e-15
+RTOL_RANGE_WHY = "CVODE cannot honour a relative tolerance within a few ulps of double precision's 2.2e-16"
 # The contact oscillator is stiff for Adams when it is strongly over-damped (fast and slow rates
 # far apart). A high natural frequency alone is not: a bounce must be resolved for accuracy
 # anyway, where Adams beats BDF (an undamped k = 1e8 N/m ball over 39 contacts: 1.1e-9 m in 1707
@@ -53,10 +60,11 @@ def choose_method(ball: Ball) -> str:
 
 @dataclass(frozen=True)
 class CvodeSettings:
-    """rtol [-], atol [m] (None: no absolute bound), method ("auto", "Adams", "BDF"), max_step [s] (0: none), engine.
+    """rtol [-], atol [m] (None or 0: none), method ("auto", "Adams", "BDF"), max_step [s] (0: none), engine.
 
-    rtol is relative to each phase's own scale (see phase_scales); atol, where given, is an upper
-    bound on the absolute error of h and never loosens that rule.
+    rtol, in [MIN_RTOL, 1], is relative to each phase's own scale (see phase_scales); atol, where given,
+    is an upper bound on the absolute error of h and never loosens that rule. The floors of atol and
+    max_step depend on the scene: limits.check_cvode_settings.
 
     engine: "sksundae" (scikit-sundae's CVODE with Python callbacks), "compiled" (the same CVODE
     library driven by compiled callbacks and a compiled stepping loop, needs numba) or "auto"
@@ -71,9 +79,10 @@ class CvodeSettings:
 
     def __post_init__(self) -> None:
         """Check every setting before the settings exist."""
-        object.__setattr__(self, "rtol", validation.in_range("rtol", self.rtol, 0.0, 1.0))
-        if self.atol is not None:
-            object.__setattr__(self, "atol", validation.positive("atol", self.atol, "m"))
+        object.__setattr__(self, "rtol", validation.in_closed_range("rtol", self.rtol, MIN_RTOL, 1.0,
+                                                                    why=RTOL_RANGE_WHY))
+        if self.atol is not None:  # 0 is none, as the FMU's parameter and the command line's --atol 0 say
+            object.__setattr__(self, "atol", validation.non_negative("atol", self.atol, "m") or None)
         object.__setattr__(self, "method", validation.choice("method", self.method, METHODS))
         object.__setattr__(self, "max_step", validation.non_negative("max_step", self.max_step, "s"))
         object.__setattr__(self, "engine", validation.choice("engine", self.engine, ENGINES))

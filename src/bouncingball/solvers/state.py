@@ -9,10 +9,11 @@ import math
 import numbers
 from dataclasses import dataclass
 
-from .. import validation
+from .. import limits, validation
 from ..physics import Ball, Mode, gap_acceleration, load_value
 from . import machine
-from .settings import hop_tolerance
+from .phases import frame, on_wrong_side, side_margin
+from .settings import CvodeSettings, hop_tolerance
 
 
 @dataclass(frozen=True)
@@ -132,6 +133,8 @@ class IntegratorView:
     def F_ext(self, value: float) -> None:
         value = validation.finite("F_ext", value, "N")
         if value != self._F_ext:
+            # the range double precision resolves from the current state (simulate checks it from the start)
+            limits.check_scene(self.ball, self.h, self.v, value, self.t)
             # the phase at the old load ends here: its error carried into the next one
             machine.phase_ends(self.ball.parameters, self.settings.rtol, self._atol, self._state, 0.0)
             self._F_ext = value
@@ -236,13 +239,17 @@ class CheckedState:
     restart_errors: tuple = (0.0, 0.0, 0.0, None, 0.0)
 
 
-def checked(ball: Ball, state: IntegratorState) -> CheckedState:
-    """Every field of state checked for ball; ValueError names the first bad one."""
+def checked(ball: Ball, state: IntegratorState, settings: CvodeSettings) -> CheckedState:
+    """Every field of state checked for ball and the integrator's settings; ValueError names the first bad one."""
+    if not isinstance(state, IntegratorState):
+        raise ValueError(f"state = {validation.shown(state)} is not allowed: it must be an IntegratorState "
+                         "(one of get_state())")
     point = _point(ball, "state", state.t, state.gap, state.h, state.v, state.mode, state.F_ext)
     t_start = validation.finite("state t_start", state.t_start, "s")
     counts = _counts("state", state)
     restart = state.restart
     if restart is None:
+        _check_side(ball, settings, "state", point, point, state.h)
         return CheckedState(point, counts, t_start, None, None)
     if not isinstance(restart, RestartPoint):
         raise ValueError(f"state restart = {restart!r} is not allowed: it must be a RestartPoint or None")
@@ -251,6 +258,8 @@ def checked(ball: Ball, state: IntegratorState) -> CheckedState:
         raise ValueError(f"state restart at t = {start[0]!r} s in {start[3].name.lower()} is not allowed "
                          f"for a state at t = {point[0]!r} s in {point[3].name.lower()}: it must be of the same "
                          "mode, no later")
+    _check_side(ball, settings, "state restart", start[:4] + point[4:], start, ball.R + start[1])
+    _check_side(ball, settings, "state", point, start, state.h)
     t_low = validation.finite("state restart t_low", restart.t_low, "s")
     if not abs(t_low) <= math.ulp(start[0]):
         raise ValueError(f"state restart t_low = {t_low!r} s is not allowed: it is the rounding error of t = "
@@ -268,6 +277,26 @@ def _errors(name: str, restart: RestartPoint) -> tuple[float, float, float, floa
     since = None if restart.untrusted_from is None else validation.finite(f"{name} untrusted_from",
                                                                          restart.untrusted_from, "s")
     return error_x, error_v, bound, since, scale
+
+
+def _check_side(ball: Ball, settings: CvodeSettings, name: str, point, start, h) -> None:
+    """ValueError if point's mode contradicts its height h [m]: in flight below R, in contact above it.
+
+    Within the margin the phase machine lets CVODE's own steps stray to the other side of R (phases.side_margin,
+    of the phase's length from its start, or from the point if larger), which a saved state may show. A state
+    beyond it would send the machine on a flight from inside the ground (a division by zero) or a contact
+    above it.
+    """
+    t, x, v, mode, F_ext = point
+    load, rtol = load_value(F_ext, ball.m, ball.g), settings.rtol
+    atol = 0.0 if settings.atol is None else settings.atol
+    length = max(frame(ball.parameters, mode, x, v, load, rtol, atol)[0],
+                 frame(ball.parameters, start[3], start[1], start[2], load, rtol, atol)[0])
+    margin = side_margin(hop_tolerance(ball, rtol, settings.atol, F_ext), rtol, length)
+    if on_wrong_side(mode, x, margin):
+        where = "at or above" if mode == Mode.FLIGHT else "at or below"
+        raise ValueError(f"{name} h = {h!r} m (h - R = {x!r} m) is not allowed in {mode.name.lower()}: "
+                         f"it must be {where} R = {ball.R!r} m (within {margin:.3g} m, CVODE's own margin)")
 
 
 def _point(ball: Ball, name: str, t, gap, h, v, mode, F_ext=0.0) -> tuple[float, float, float, Mode, float]:
