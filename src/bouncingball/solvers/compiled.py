@@ -29,7 +29,7 @@ import numpy as np
 from numba import carray, cfunc, njit, types
 
 from .. import physics, rounding
-from . import dense_output, exact, jit, machine, phases
+from . import dense_output, error_estimate, exact, jit, layout, machine, phases
 from .jit import (
     addresses,
     cache_allowed,
@@ -65,7 +65,8 @@ _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_
 
 
 
-_CACHE = cache_allowed((rounding, physics, phases, machine, dense_output, exact, jit, sys.modules[__name__]))
+_CACHE = cache_allowed((rounding, physics, phases, layout, error_estimate, machine, dense_output, exact, jit,
+                        sys.modules[__name__]))
 
 # The C functions the compiled loop calls, by their place in the address array it receives.
 _LOOP_FUNCTIONS = ("CVode", "CVodeGetRootInfo", "CVodeReInit", "CVodeSetStopTime", "CVodeClearStopTime",
@@ -189,7 +190,7 @@ def _engine_exceeded(engine, mode):
 # Lazily: numba compiles a function at its first call from compiled code, so only what the machine and
 # the callbacks reach is ever compiled (and cached).
 _compiled = compiled_together(
-    functions_of(rounding, physics, exact, phases, machine, dense_output),
+    functions_of(rounding, physics, exact, phases, error_estimate, machine, dense_output),
     {physics.oscillator_basis: physics.oscillator_basis_value, physics.unit_response: physics.unit_response_value,
      rounding.hypot: rounding.hypot_value, machine.engine_start: _engine_start, machine.engine_steps: _engine_steps,
      machine.engine_step: _engine_step,

@@ -30,7 +30,7 @@ import numpy as np
 from .. import limits, validation
 from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode
-from . import engines, machine, phases, stepper
+from . import engines, error_estimate, layout, machine, phases, stepper
 from . import state as state_checks
 from .dense_output import interpolate
 from .engines import choose_engine
@@ -130,16 +130,16 @@ class BallIntegrator(IntegratorView):
         the height scale only where the run is ill-conditioned, and then an AccuracyWarning says from
         when the run cannot be trusted.
         """
-        return float(machine.error_estimate(self._parameters, self.settings.rtol, self._atol, self._state)[0])
+        return float(error_estimate.run_estimate(self._parameters, self.settings.rtol, self._atol, self._state)[0])
 
     def _warn_if_untrusted(self, whole: bool) -> None:
         """AccuracyWarning, once, where the estimate passed the promise.
 
         Checked at the phases' ends (one comparison) or, with whole, over everything integrated so far.
         """
-        if self._accuracy_warned or not (whole or not np.isnan(self._state[machine.ERR_FROM])):
+        if self._accuracy_warned or not (whole or not np.isnan(self._state[layout.ERR_FROM])):
             return
-        warning = accuracy_warning(*machine.error_estimate(self._parameters, self.settings.rtol, self._atol,
+        warning = accuracy_warning(*error_estimate.run_estimate(self._parameters, self.settings.rtol, self._atol,
                                                            self._state))
         if warning is not None:
             self._accuracy_warned = True
@@ -151,7 +151,7 @@ class BallIntegrator(IntegratorView):
 
         F_ext is taken as held constant from now on.
         """
-        x, v = float(self._state[machine.X]), float(self._state[machine.V])
+        x, v = float(self._state[layout.X]), float(self._state[layout.V])
         if phases.at_rest(self.ball, self.mode, x, v, self._load, self._hop, self.settings.rtol, self._F_ext):
             return self._last_impact_time if self._last_impact_time is not None else self._t_start
         return None
@@ -182,7 +182,7 @@ class BallIntegrator(IntegratorView):
         finally:
             self._report_sundials_warnings()
         reached = self._state
-        if (float(reached[machine.X]), float(reached[machine.V])) != (x, v):
+        if (float(reached[layout.X]), float(reached[layout.V])) != (x, v):
             # Not where this restart point leads (a state made by hand, or one a Taylor step within ulps
             # of an earlier target reached): CVODE would continue another trajectory, so it restarts at
             # the state itself, which continues within the tolerance.
@@ -190,7 +190,7 @@ class BallIntegrator(IntegratorView):
             return
         # The counters as they were: CVODE's step history is the original's.
         self._set_counts(counts)
-        reached[machine.RHS_CALLS] -= reached[machine.NFEV]
+        reached[layout.RHS_CALLS] -= reached[layout.NFEV]
 
     def close(self) -> None:
         """Give the CVODE objects back to the process's pool for the next integrator; unusable after.
@@ -231,7 +231,7 @@ class BallIntegrator(IntegratorView):
         return self._machine.advance_in_step(self._parameters, self._state, t_target)
 
     def _advance(self, t_target: float, stop_at_event: bool = False) -> list[Event]:
-        if not t_target >= self._state[machine.T]:
+        if not t_target >= self._state[layout.T]:
             raise ValueError(f"t_target = {t_target!r} s is not allowed: it must be >= the current time {self.t!r} s")
         if t_target > self.resolvable_until:
             check_resolvable(self.ball, t_target)
@@ -265,11 +265,11 @@ class BallIntegrator(IntegratorView):
         check_resolvable(self.ball, t_end)
         machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0)
         points, events = np.empty((256, 4)), np.empty((16, 3))
-        points[0] = state[machine.T], state[machine.X], state[machine.V], state[machine.MODE]
+        points[0] = state[layout.T], state[layout.X], state[layout.V], state[layout.MODE]
         n_points, n_events = 1, 0
         while True:
             if self.progress is not None:
-                self.progress(float(state[machine.T]))
+                self.progress(float(state[layout.T]))
             status, points, n_points, events, n_events = self._machine.run_phases(
                 self._engine, self._parameters, self.settings.rtol, self._atol, state, t_end, points, n_points,
                 events, n_events, self._scratch, PROGRESS_STEPS)
@@ -280,9 +280,9 @@ class BallIntegrator(IntegratorView):
                 self._decide_phase()
             elif status != machine.RETURNED:
                 raise self._machine_failure(status)
-        rest = state[[machine.REST_T, machine.REST_X, machine.REST_V]]
+        rest = state[[layout.REST_T, layout.REST_X, layout.REST_V]]
         machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0)
-        state[[machine.REST_T, machine.REST_X, machine.REST_V]] = rest  # a rest goes on
+        state[[layout.REST_T, layout.REST_X, layout.REST_V]] = rest  # a rest goes on
         self._warn_if_untrusted(whole=True)
         points = points[:n_points]
         if self._machine.fill_grid is None:
@@ -294,13 +294,13 @@ class BallIntegrator(IntegratorView):
 
     def _decide_phase(self) -> None:
         """The contact the machine handed back (phases.UNDECIDED): phases.decide_contact decides it."""
-        x, v = float(self._state[machine.X]), float(self._state[machine.V])
+        x, v = float(self._state[layout.X]), float(self._state[layout.V])
         machine.take_decision(self._state, *phases.decide_contact(self.ball, x, v, self._load, self._hop,
                                                                   self.settings.rtol, self._F_ext))
 
     def _machine_failure(self, status: int) -> SolverError:
         state = self._state
-        mode, t, x = self.mode, float(state[machine.FAIL_T]), float(state[machine.FAIL_X])
+        mode, t, x = self.mode, float(state[layout.FAIL_T]), float(state[layout.FAIL_X])
         if status == machine.TOO_MANY_STEPS:
             return SolverError(f"CVODE ({self.methods[mode]}) took more than {MAX_STEPS_PER_PHASE} steps in one "
                                f"{mode.name.lower()} phase, at t = {t!r} s: "
@@ -310,7 +310,7 @@ class BallIntegrator(IntegratorView):
             return SolverError(f"CVODE stepped over an {'impact' if mode == Mode.FLIGHT else 'departure'} unseen "
                                f"near t = {t!r} s (h = {R + x!r} m, R = {R!r} m); "
                                "the result would be wrong: tighten rtol/atol or set max_step")
-        message = self._solvers[mode].message(int(state[machine.FAIL_FLAG]))
+        message = self._solvers[mode].message(int(state[layout.FAIL_FLAG]))
         return SolverError(f"CVODE failed at t = {t!r} s ({mode.name.lower()}, h = {self.h!r} m, v = {self.v!r} m/s): "
                            f"{message}")
 

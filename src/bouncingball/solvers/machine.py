@@ -26,8 +26,63 @@ import math
 import numpy as np
 
 from ..physics import gap_flow_value
-from ..rounding import hypot, later
+from ..rounding import later
 from .dense_output import step_state
+from .error_estimate import carry_error
+from .layout import (
+    DECIDED,
+    DEPARTURES,
+    ERR_FROM,
+    FAIL_FLAG,
+    FAIL_T,
+    FAIL_X,
+    HOP,
+    IMPACTS,
+    LAST_IMPACT,
+    LENGTH,
+    LOAD,
+    MODE,
+    NEEDS_INIT,
+    NFEV,
+    ORIGIN,
+    ORIGIN_LOW,
+    PEND_T,
+    PEND_T_LOW,
+    PEND_V,
+    PENDING,
+    REST_T,
+    REST_V,
+    REST_X,
+    RHS_CALLS,
+    RS_DEPARTURES,
+    RS_IMPACTS,
+    RS_LAST_IMPACT,
+    RS_MODE,
+    RS_RHS_CALLS,
+    RS_STEPS,
+    RS_T,
+    RS_T_LOW,
+    RS_V,
+    RS_X,
+    SEG_MODE,
+    SEG_T0,
+    SEG_T1,
+    SEG_V0,
+    SEG_V1,
+    SEG_X0,
+    SEG_X1,
+    SEGMENT,
+    SPEED,
+    STATE_SIZE,
+    STEP_T,
+    STEP_V,
+    STEP_X,
+    STEPS,
+    T_LOW,
+    T,
+    V,
+    X,
+)
 from .phases import (
     CONTACT,
     DEPARTURE_IN_CLOSED_FORM,
@@ -43,33 +98,13 @@ from .phases import (
     side_margin,
     taylor_step,
 )
-from .settings import ERROR_WITHIN_PHASE, ESTIMATE_CAP, PROMISE
 
-# The integrator's state array: the state, the phase's constants, the counters, the current CVODE phase,
-# the restart point, and where a failure happened.
-# REST_T, REST_X, REST_V: where the rest began (REST_T NaN: not at rest). DECIDED: CVODE integrates the
-# phase about to start (BallIntegrator decided it after a HANDOFF). NEEDS_INIT: CVODE restarts at the
-# state before its next step. SEGMENT: the last step (SEG_*, from start to end, in mode SEG_MODE) is kept
-# for the dense output; PENDING: its end is an event (PEND_T, PEND_V) still to take. STEP_*: the last
-# step's end. ORIGIN, LENGTH, SPEED: the phase's frame. NFEV: CVODE's right-hand-side calls since its
-# restart. RS_*: the restart point (solvers/state.py's RestartPoint). T_LOW, ORIGIN_LOW, PEND_T_LOW, RS_T_LOW:
-# the rounding error of an event time T, ORIGIN, PEND_T, RS_T (the time is T + T_LOW; 0 at a time given, such
-# as a grid point), so that event times do not drift by an ulp of t per event (rounding.later).
-# ERR_X, ERR_V: the run's estimated error of (x, v) at the restart point (phase_error); ERR_MAX: the bound on
-# |h - h_true| over the phases before it; ERR_FROM: the start of the first phase whose bound passed
-# PROMISE times SCALE (NaN: none), SCALE: the largest height [m] of the phases so far (max(|h|, R)).
-(T, X, V, MODE, LOAD, HOP, IMPACTS, DEPARTURES, LAST_IMPACT, STEPS, RHS_CALLS, DECIDED, REST_T, REST_X, REST_V,
- NEEDS_INIT, SEGMENT, SEG_MODE, SEG_T0, SEG_X0, SEG_V0, SEG_T1, SEG_X1, SEG_V1, PENDING, PEND_T, PEND_V,
- STEP_T, STEP_X, STEP_V, ORIGIN, LENGTH, SPEED, NFEV, RS_T, RS_X, RS_V, RS_MODE, RS_IMPACTS, RS_DEPARTURES,
- RS_LAST_IMPACT, RS_RHS_CALLS, RS_STEPS, FAIL_T, FAIL_X, FAIL_FLAG, T_LOW, ORIGIN_LOW, PEND_T_LOW, RS_T_LOW,
- ERR_X, ERR_V, ERR_MAX, ERR_FROM, SCALE, STATE_SIZE) = range(56)
 # What run_phases returns.
 DONE, HANDOFF, RETURNED, CVODE_FAILED, TOO_MANY_STEPS, STEPPED_OVER = range(6)
 IMPACT, DEPARTURE = 0, 1  # an event row's kind: (t, kind, v)
 CV_ROOT_RETURN = 2
 STEP_HORIZON = 1.0  # s: how far ahead advance's CVODE steps aim (see advance)
 BUFFER_FULL = 99  # engine_steps: its buffer is full, call it again for the phase's further steps
-_EPS = 2.0**-52
 
 
 def new_state():
@@ -77,79 +112,6 @@ def new_state():
     state = np.zeros(STATE_SIZE)
     state[LAST_IMPACT], state[REST_T], state[ERR_FROM] = math.nan, math.nan, math.nan
     return state
-
-
-def phase_error(parameters, rtol, atol, state):
-    """(ex, ev, bound): the run's error of (x [m], v [m/s]) at the state, and a bound on |h - h_true| [m] since.
-
-    The bound holds over the phase from the restart point to the state.
-
-    Each phase's flow is exact in closed form and affine in its start state, so its own error is
-    measured, not guessed: the state against the exact flow from the phase's start (CVODE's error
-    over the phase, the polish's). The error the start carried is propagated by the flow's
-    transition matrix (the flow of the unit vectors under no load). Over the phase, |h - h_true|
-    is at most the carried error's (at the ends of a flight; in contact its energy, which never
-    grows) plus the phase's own: CVODE's inside the phase, which is only measured at its end,
-    counted as ERROR_WITHIN_PHASE rtol its length scale; and the hop tolerance in contact, the hops
-    it may merge.
-    """
-    m, k, b, R = parameters[0], parameters[1], parameters[2], parameters[3]
-    mode, load = int(state[RS_MODE]), state[LOAD]
-    x0, v0, ex0, ev0 = state[RS_X], state[RS_V], state[ERR_X], state[ERR_V]
-    tau = (state[T] - state[RS_T]) + (state[T_LOW] - state[RS_T_LOW])
-    x_flow, v_flow = gap_flow_value(mode, x0, v0, tau, load, m, k, b)
-    p00, p10 = gap_flow_value(mode, 1.0, 0.0, tau, 0.0, m, k, b)
-    p01, p11 = gap_flow_value(mode, 0.0, 1.0, tau, 0.0, m, k, b)
-    ex = p00 * ex0 + p01 * ev0 + (state[X] - x_flow)
-    ev = p10 * ex0 + p11 * ev0 + (state[V] - v_flow)
-    length, _ = frame(parameters, mode, x0, v0, load, rtol, atol)
-    own = ERROR_WITHIN_PHASE * rtol * length + 8.0 * _EPS * (abs(x0) + length + R)
-    if mode == FLIGHT:
-        carried = max(abs(ex0), abs(ex))
-    else:
-        carried = max(hypot(ex0, ev0 / math.sqrt(k / m)), abs(ex))
-        own += state[HOP]
-    return ex, ev, carried + own
-
-
-def phase_ends(parameters, rtol, atol, state, jump):
-    """The phase from the restart point ends at the state: its error carried, and CVODE restarts there.
-
-    The error (phase_error) is carried through the field's jump there, jump [1/s] (-b/m at an
-    impact, b/m at a departure, 0 where it does not), and CVODE restarts (restart_needed).
-
-    The jump is the saltation matrix's: a perturbation dx of the state before the event moves the
-    event by -dx/v, over which the acceleration differs by the jump of the field, (a+ - a-) = -+ b v / m:
-    dv after = dv + jump dx, with no 1/v.
-    """
-    ex, ev, bound = phase_error(parameters, rtol, atol, state)
-    mode, length = int(state[RS_MODE]), 0.0
-    if mode == FLIGHT:
-        length, _ = frame(parameters, mode, state[RS_X], state[RS_V], state[LOAD], rtol, atol)
-    state[SCALE] = max(state[SCALE], parameters[3] + length, abs(parameters[3] + state[X]))  # a flight's apex
-    state[ERR_MAX] = max(state[ERR_MAX], bound)
-    if math.isnan(state[ERR_FROM]) and not state[ERR_MAX] <= PROMISE * state[SCALE]:
-        state[ERR_FROM] = state[RS_T]
-    state[ERR_X], state[ERR_V] = ex, ev + jump * ex
-    restart_needed(state)
-
-
-def error_estimate(parameters, rtol, atol, state):
-    """(estimate [m], scale [m], from [s]): the bound on |h - h_true| over the run so far, and what it is judged by.
-
-    scale: the height scale max(|h|, R) [m]; from: the start of the first phase past PROMISE of it
-    (NaN: none).
-    """
-    _, _, bound = phase_error(parameters, rtol, atol, state)
-    scale = max(state[SCALE], parameters[3], abs(parameters[3] + state[X]))
-    if int(state[RS_MODE]) == FLIGHT:
-        length, _ = frame(parameters, FLIGHT, state[RS_X], state[RS_V], state[LOAD], rtol, atol)
-        scale = max(scale, parameters[3] + length)
-    estimate, since = max(state[ERR_MAX], bound), state[ERR_FROM]
-    if math.isnan(since) and not estimate <= PROMISE * scale:
-        since = state[RS_T]
-    # past the range of the motion an estimate says nothing more (amplifications of 1e40 were measured)
-    return min(estimate, ESTIMATE_CAP * scale), scale, since
 
 
 def restart_needed(state):
@@ -162,6 +124,15 @@ def restart_needed(state):
     state[RS_IMPACTS], state[RS_DEPARTURES] = state[IMPACTS], state[DEPARTURES]
     state[RS_LAST_IMPACT] = state[LAST_IMPACT]
     state[RS_RHS_CALLS], state[RS_STEPS] = state[RHS_CALLS], state[STEPS]
+
+
+def phase_ends(parameters, rtol, atol, state, jump):
+    """The phase from the restart point ends at the state: its error is carried, and CVODE restarts there.
+
+    error_estimate.carry_error, with jump [1/s] the field's there; then restart_needed.
+    """
+    carry_error(parameters, rtol, atol, state, jump)
+    restart_needed(state)
 
 
 def closed_form_phase(state, tau, v_event):

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from .. import limits, validation
 from ..physics import Ball, Mode, gap_acceleration, load_value
-from . import machine
+from . import layout, machine
 from .phases import frame, on_wrong_side, side_margin
 from .settings import CvodeSettings, hop_tolerance
 
@@ -87,42 +87,42 @@ class IntegratorView:
     @property
     def t(self) -> float:
         """Current time [s]."""
-        return float(self._state[machine.T])
+        return float(self._state[layout.T])
 
     @property
     def h(self) -> float:
         """Height of the centre [m] at t."""
-        return self.ball.R + float(self._state[machine.X])
+        return self.ball.R + float(self._state[layout.X])
 
     @property
     def v(self) -> float:
         """Velocity [m/s] at t, positive upwards."""
-        return float(self._state[machine.V])
+        return float(self._state[layout.V])
 
     @property
     def mode(self) -> Mode:
         """The mode held at t: flight or contact."""
-        return Mode(int(self._state[machine.MODE]))
+        return Mode(int(self._state[layout.MODE]))
 
     @property
     def impacts(self) -> int:
         """Impacts so far."""
-        return int(self._state[machine.IMPACTS])
+        return int(self._state[layout.IMPACTS])
 
     @property
     def departures(self) -> int:
         """Departures so far."""
-        return int(self._state[machine.DEPARTURES])
+        return int(self._state[layout.DEPARTURES])
 
     @property
     def rhs_calls(self) -> int:
         """Right-hand-side evaluations so far."""
-        return int(self._state[machine.RHS_CALLS] + self._state[machine.NFEV])
+        return int(self._state[layout.RHS_CALLS] + self._state[layout.NFEV])
 
     @property
     def steps(self) -> int:
         """CVODE's internal steps so far."""
-        return int(self._state[machine.STEPS])
+        return int(self._state[layout.STEPS])
 
     @property
     def F_ext(self) -> float:
@@ -144,18 +144,18 @@ class IntegratorView:
     def acceleration(self) -> float:
         """dv/dt [m/s2] at t in the current mode."""
         ball, state = self.ball, self._state
-        return gap_acceleration(float(state[machine.X]), float(state[machine.V]), self.mode, self._load, ball.m,
+        return gap_acceleration(float(state[layout.X]), float(state[layout.V]), self.mode, self._load, ball.m,
                                 ball.k, ball.b)
 
     @property
     def contact_force(self) -> float:
         """Force of the ground on the ball [N] at t, positive upwards; zero in flight."""
-        x, v = float(self._state[machine.X]), float(self._state[machine.V])
+        x, v = float(self._state[layout.X]), float(self._state[layout.V])
         return 0.0 if self.mode == Mode.FLIGHT else -self.ball.k * x - self.ball.b * v
 
     @property
     def _last_impact_time(self) -> float | None:
-        last = float(self._state[machine.LAST_IMPACT])
+        last = float(self._state[layout.LAST_IMPACT])
         return None if math.isnan(last) else last
 
     def get_state(self) -> IntegratorState:
@@ -166,24 +166,24 @@ class IntegratorView:
         this integrator or a fresh one with the same ball and settings.
         """
         state = self._state
-        last = float(state[machine.RS_LAST_IMPACT])
-        restart = RestartPoint(float(state[machine.RS_T]), float(state[machine.RS_X]), float(state[machine.RS_V]),
-                               Mode(int(state[machine.RS_MODE])), int(state[machine.RS_IMPACTS]),
-                               int(state[machine.RS_DEPARTURES]), None if math.isnan(last) else last,
-                               int(state[machine.RS_RHS_CALLS]), int(state[machine.RS_STEPS]),
-                               float(state[machine.RS_T_LOW]), *self._errors())
+        last = float(state[layout.RS_LAST_IMPACT])
+        restart = RestartPoint(float(state[layout.RS_T]), float(state[layout.RS_X]), float(state[layout.RS_V]),
+                               Mode(int(state[layout.RS_MODE])), int(state[layout.RS_IMPACTS]),
+                               int(state[layout.RS_DEPARTURES]), None if math.isnan(last) else last,
+                               int(state[layout.RS_RHS_CALLS]), int(state[layout.RS_STEPS]),
+                               float(state[layout.RS_T_LOW]), *self._errors())
         return IntegratorState(t=self.t, h=self.h, v=self.v, mode=self.mode, F_ext=self._F_ext,
                                impacts=self.impacts, departures=self.departures,
                                last_impact_time=self._last_impact_time, t_start=self._t_start,
-                               rhs_calls=self.rhs_calls, steps=self.steps, gap=float(state[machine.X]),
+                               rhs_calls=self.rhs_calls, steps=self.steps, gap=float(state[layout.X]),
                                restart=restart)
 
     def _errors(self) -> tuple[float, float, float, float | None, float]:
         """The error estimate's fields at the restart point, as RestartPoint holds them."""
         state = self._state
-        since = float(state[machine.ERR_FROM])
-        return (float(state[machine.ERR_X]), float(state[machine.ERR_V]), float(state[machine.ERR_MAX]),
-                None if math.isnan(since) else since, float(state[machine.SCALE]))
+        since = float(state[layout.ERR_FROM])
+        return (float(state[layout.ERR_X]), float(state[layout.ERR_V]), float(state[layout.ERR_MAX]),
+                None if math.isnan(since) else since, float(state[layout.SCALE]))
 
     def _restart_at(self, point, F_ext: float, counts, t_start: float, t_low: float = 0.0,
                     errors=(0.0, 0.0, 0.0, None, 0.0)) -> None:
@@ -192,14 +192,14 @@ class IntegratorView:
         With t's rounding error t_low, F_ext, the counters and the error estimate's fields (_errors).
         """
         state = self._state
-        state[machine.T], state[machine.X], state[machine.V], state[machine.MODE] = point
-        state[machine.T_LOW] = t_low
+        state[layout.T], state[layout.X], state[layout.V], state[layout.MODE] = point
+        state[layout.T_LOW] = t_low
         error_x, error_v, bound, since, scale = errors
-        state[machine.ERR_X], state[machine.ERR_V], state[machine.ERR_MAX] = error_x, error_v, bound
-        state[machine.ERR_FROM], state[machine.SCALE] = math.nan if since is None else since, scale
+        state[layout.ERR_X], state[layout.ERR_V], state[layout.ERR_MAX] = error_x, error_v, bound
+        state[layout.ERR_FROM], state[layout.SCALE] = math.nan if since is None else since, scale
         self._F_ext, self._t_start = F_ext, t_start
         self._set_counts(counts)
-        state[machine.NFEV] = 0.0
+        state[layout.NFEV] = 0.0
         self._sync_F_ext()
         machine.restart_needed(state)
 
@@ -207,15 +207,15 @@ class IntegratorView:
         """impacts, departures, last impact time [s] or None, right-hand-side calls, steps."""
         impacts, departures, last_impact_time, rhs_calls, steps = counts
         state = self._state
-        state[machine.IMPACTS], state[machine.DEPARTURES], state[machine.STEPS] = impacts, departures, steps
-        state[machine.LAST_IMPACT] = math.nan if last_impact_time is None else last_impact_time
-        state[machine.RHS_CALLS] = rhs_calls
+        state[layout.IMPACTS], state[layout.DEPARTURES], state[layout.STEPS] = impacts, departures, steps
+        state[layout.LAST_IMPACT] = math.nan if last_impact_time is None else last_impact_time
+        state[layout.RHS_CALLS] = rhs_calls
 
     def _sync_F_ext(self) -> None:
         """The load m g - F_ext and the hop tolerance at F_ext, for the machine (which gives the engine the load)."""
         self._load = load_value(self._F_ext, self.ball.m, self.ball.g)
         self._hop = hop_tolerance(self.ball, self.settings.rtol, self.settings.atol, self._F_ext)
-        self._state[machine.LOAD], self._state[machine.HOP] = self._load, self._hop
+        self._state[layout.LOAD], self._state[layout.HOP] = self._load, self._hop
 
     @property
     def hop_tolerance(self) -> float:

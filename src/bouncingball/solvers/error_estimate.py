@@ -1,0 +1,110 @@
+"""The run's error estimate: each phase's own error measured against its exact flow, carried by the run's sensitivity.
+
+Each phase's flow is in closed form and affine in its start state (a parabola; a linear oscillator), so
+what a phase added to the error is measured, not guessed: the state at its end against the exact flow
+from its start. The error it started with is carried by the flow's transition matrix (the flow of the
+unit vectors under no load) and, at an impact or departure, by the saltation matrix of the field's
+jump there (-+ b/m: no 1/v). The functions are plain Python over floats and the state array
+(layout.py), run interpreted and compiled alike (machine.py calls them at each phase's end).
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..physics import gap_flow_value
+from ..rounding import hypot
+from .layout import (
+    ERR_FROM,
+    ERR_MAX,
+    ERR_V,
+    ERR_X,
+    HOP,
+    LOAD,
+    RS_MODE,
+    RS_T,
+    RS_T_LOW,
+    RS_V,
+    RS_X,
+    SCALE,
+    T_LOW,
+    T,
+    V,
+    X,
+)
+from .phases import FLIGHT, frame
+from .settings import ERROR_WITHIN_PHASE, ESTIMATE_CAP, PROMISE
+
+_EPS = 2.0**-52
+
+
+def phase_error(parameters, rtol, atol, state):
+    """(ex, ev, bound): the run's error of (x [m], v [m/s]) at the state, and a bound on |h - h_true| [m] since.
+
+    The bound holds over the phase from the restart point to the state.
+
+    Each phase's flow is exact in closed form and affine in its start state, so its own error is
+    measured, not guessed: the state against the exact flow from the phase's start (CVODE's error
+    over the phase, the polish's). The error the start carried is propagated by the flow's
+    transition matrix (the flow of the unit vectors under no load). Over the phase, |h - h_true|
+    is at most the carried error's (at the ends of a flight; in contact its energy, which never
+    grows) plus the phase's own: CVODE's inside the phase, which is only measured at its end,
+    counted as ERROR_WITHIN_PHASE rtol its length scale; and the hop tolerance in contact, the hops
+    it may merge.
+    """
+    m, k, b, R = parameters[0], parameters[1], parameters[2], parameters[3]
+    mode, load = int(state[RS_MODE]), state[LOAD]
+    x0, v0, ex0, ev0 = state[RS_X], state[RS_V], state[ERR_X], state[ERR_V]
+    tau = (state[T] - state[RS_T]) + (state[T_LOW] - state[RS_T_LOW])
+    x_flow, v_flow = gap_flow_value(mode, x0, v0, tau, load, m, k, b)
+    p00, p10 = gap_flow_value(mode, 1.0, 0.0, tau, 0.0, m, k, b)
+    p01, p11 = gap_flow_value(mode, 0.0, 1.0, tau, 0.0, m, k, b)
+    ex = p00 * ex0 + p01 * ev0 + (state[X] - x_flow)
+    ev = p10 * ex0 + p11 * ev0 + (state[V] - v_flow)
+    length, _ = frame(parameters, mode, x0, v0, load, rtol, atol)
+    own = ERROR_WITHIN_PHASE * rtol * length + 8.0 * _EPS * (abs(x0) + length + R)
+    if mode == FLIGHT:
+        carried = max(abs(ex0), abs(ex))
+    else:
+        carried = max(hypot(ex0, ev0 / math.sqrt(k / m)), abs(ex))
+        own += state[HOP]
+    return ex, ev, carried + own
+
+
+def run_estimate(parameters, rtol, atol, state):
+    """(estimate [m], scale [m], from [s]): the bound on |h - h_true| over the run so far, and what it is judged by.
+
+    scale: the height scale max(|h|, R) [m]; from: the start of the first phase past PROMISE of it
+    (NaN: none).
+    """
+    _, _, bound = phase_error(parameters, rtol, atol, state)
+    scale = max(state[SCALE], parameters[3], abs(parameters[3] + state[X]))
+    if int(state[RS_MODE]) == FLIGHT:
+        length, _ = frame(parameters, FLIGHT, state[RS_X], state[RS_V], state[LOAD], rtol, atol)
+        scale = max(scale, parameters[3] + length)
+    estimate, since = max(state[ERR_MAX], bound), state[ERR_FROM]
+    if math.isnan(since) and not estimate <= PROMISE * scale:
+        since = state[RS_T]
+    # past the range of the motion an estimate says nothing more (amplifications of 1e40 were measured)
+    return min(estimate, ESTIMATE_CAP * scale), scale, since
+
+
+def carry_error(parameters, rtol, atol, state, jump):
+    """The phase from the restart point ends at the state: its error is carried to the state, the next start.
+
+    The error (phase_error) is carried through the field's jump there, jump [1/s] (-b/m at an
+    impact, b/m at a departure, 0 where it does not); ERR_MAX, ERR_FROM and SCALE take the phase in.
+
+    The jump is the saltation matrix's: a perturbation dx of the state before the event moves the
+    event by -dx/v, over which the acceleration differs by the jump of the field, (a+ - a-) = -+ b v / m:
+    dv after = dv + jump dx, with no 1/v.
+    """
+    ex, ev, bound = phase_error(parameters, rtol, atol, state)
+    mode, length = int(state[RS_MODE]), 0.0
+    if mode == FLIGHT:
+        length, _ = frame(parameters, mode, state[RS_X], state[RS_V], state[LOAD], rtol, atol)
+    state[SCALE] = max(state[SCALE], parameters[3] + length, abs(parameters[3] + state[X]))  # a flight's apex
+    state[ERR_MAX] = max(state[ERR_MAX], bound)
+    if math.isnan(state[ERR_FROM]) and not state[ERR_MAX] <= PROMISE * state[SCALE]:
+        state[ERR_FROM] = state[RS_T]
+    state[ERR_X], state[ERR_V] = ex, ev + jump * ex
