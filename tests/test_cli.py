@@ -116,6 +116,16 @@ def test_output_paths_are_checked_before_the_run_and_nothing_partial_is_left(tmp
     assert list(tmp_path.iterdir()) == [folder] and list(folder.iterdir()) == []
 
 
+def test_build_fmu_refuses_a_folder_that_does_not_exist_as_run_does(tmp_path, capsys):
+    for command in (["build-fmu"], ["build-fmu", "--fmi-version", "3"]):
+        target = tmp_path / "missing" / "x.fmu"
+        assert main([*command, "-o", str(target)]) == 2
+        [line] = capsys.readouterr().err.splitlines()
+        assert line == f"bouncingball: error: output = {str(target)!r} is not allowed: its folder " \
+                       f"{str(target.parent)!r} does not exist"
+        assert list(tmp_path.iterdir()) == []  # the folder was not made
+
+
 def test_unwritable_and_odd_output_paths_and_formats_are_one_line_before_the_run(tmp_path):
     afile = tmp_path / "afile"
     afile.write_text("")
