@@ -116,6 +116,23 @@ def test_output_paths_are_checked_before_the_run_and_nothing_partial_is_left(tmp
     assert list(tmp_path.iterdir()) == [folder] and list(folder.iterdir()) == []
 
 
+@pytest.mark.parametrize(("args", "said"), [
+    (["run", "--rtl", "1e-6"], "bouncingball run: error: unrecognized arguments: --rtl (did you mean --rtol?)"),
+    (["run", "article", "--output-intervl=0.1"],
+     "bouncingball run: error: unrecognized arguments: --output-intervl=0.1 (did you mean --output-interval?)"),
+    (["check", "out.csv", "--tolerence", "1"],
+     "bouncingball check: error: unrecognized arguments: --tolerence 1 (did you mean --tolerance?)"),
+    (["run", "--zzz"], "bouncingball run: error: unrecognized arguments: --zzz"),
+])
+def test_a_mistyped_option_is_refused_by_its_command_with_the_option_it_may_mean(args, said, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(args)
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"usage: bouncingball {args[0]} ")  # the command's usage, not the top level's
+    assert err.splitlines()[-1] == said
+
+
 def test_build_fmu_refuses_a_folder_that_does_not_exist_as_run_does(tmp_path, capsys):
     for command in (["build-fmu"], ["build-fmu", "--fmi-version", "3"]):
         target = tmp_path / "missing" / "x.fmu"
