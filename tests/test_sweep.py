@@ -4,6 +4,7 @@ scheduler and a worker started here as separate processes, a worker killed mid-s
 Everything that starts a cluster runs in a subprocess with a timeout, so that a hang fails the test.
 """
 
+import contextlib
 import json
 import math
 import signal
@@ -105,9 +106,16 @@ def test_a_timed_out_or_failed_run_is_a_row_and_the_runner_goes_on():
 def local_sweep(tmp_path_factory) -> Path:
     """The small sweep (4 x 3 cells, 2 solvers) on a LocalCluster of 2 workers, through the CLI."""
     directory = tmp_path_factory.mktemp("local")
-    completed = _sweep(*SWEEP, "--workers", "2", "--output-dir", str(directory))
+    with contextlib.ExitStack() as stack:
+        try:  # Dask's default HTTP port taken, as by another cluster on the machine (unless it already is)
+            stack.enter_context(socket.create_server(("", 8787)))
+        except OSError:
+            pass
+        completed = _sweep(*SWEEP, "--workers", "2", "--output-dir", str(directory))
     assert completed.returncode == 0, completed.stderr
     assert "24 runs (24 run now): 24 finished" in completed.stderr
+    assert "already in use" not in completed.stderr
+    assert "\r" not in completed.stderr and "run/s" not in completed.stderr  # no progress bar into a pipe
     return directory
 
 
