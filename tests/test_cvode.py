@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +17,14 @@ from bouncingball.solvers.cvode import BallIntegrator, CvodeSettings, choose_met
 from bouncingball.solvers.exact import ExactSolution
 from bouncingball.solvers.result import output_grid
 from closed_forms import undamped_event_count
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def assert_readme_quotes(quote: str) -> None:
+    """The README (outside a source checkout: nothing to check) says quote, figures as the run gives them."""
+    if README.is_file():
+        assert quote in " ".join(README.read_text(encoding="utf-8").split()), f"README.md does not say: {quote}"
 
 
 def _accuracy(result, h0, v0):
@@ -63,6 +72,9 @@ def test_every_builtin_scene_matches_the_exact_events(name):
         assert len(result.events) == undamped_event_count(ball.m, ball.k, ball.R, ball.g, scene.h0, scene.t_end)
         energy = result.energy
         assert np.max(np.abs(energy - energy[0])) / energy[0] <= 1e-5
+        impacts = sum(e.kind == "impact" for e in result.events)
+        assert_readme_quotes(f"the `undamped` scene's {impacts} bounces over {scene.t_end:g} s end "
+                             f"{accuracy.max_height_error:.3e} m off at the default rtol")
     else:
         assert accuracy.max_height_error <= HEIGHT_LIMIT.get(name, 1e-5)
         assert accuracy.max_event_time_error <= 1e-5
@@ -70,6 +82,13 @@ def test_every_builtin_scene_matches_the_exact_events(name):
         assert result.rest_time is None
     else:
         assert result.rest_time == pytest.approx(exact.rest_time, abs=1e-6)
+
+
+def test_the_undamped_drift_at_rtol_1e_13_is_the_readmes():
+    scene = load_scene("undamped")
+    accuracy, _ = _accuracy(scene.simulate(rtol=1e-13), scene.h0, scene.v0)
+    assert accuracy.max_height_error <= 1e-6
+    assert_readme_quotes(f"at the default rtol, {accuracy.max_height_error:.3e} m at rtol 1e-13")
 
 
 def test_auto_method_rule():
