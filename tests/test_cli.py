@@ -4,6 +4,7 @@ import sys
 import tempfile
 import time
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -37,6 +38,22 @@ def test_run_article_prints_summary_and_writes_files(tmp_path, capsys):
     lines = events.read_text().splitlines()
     assert lines[0] == "time,kind,v" and len(lines) == 42 and lines[1].split(",")[1] == "impact"
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    printed = " ".join(text.split())
+    missing = [line for line in readme_run_article() if line not in printed]
+    assert missing == [], f"README.md's `bouncingball run article` shows lines this run does not print: {missing}"
+
+
+def readme_run_article() -> list[str]:
+    """The lines of README.md's `bouncingball run article` that do not depend on the machine or the process
+    (wall time, the engine's first use and the choice it makes in a process that ran others are left out)."""
+    readme = Path(__file__).resolve().parents[1] / "README.md"
+    if not readme.is_file():
+        return []
+    block = readme.read_text(encoding="utf-8").split("$ bouncingball run article\n")[1].split("```")[0]
+    lines = [" ".join(line.split()) for line in block.splitlines()]
+    kept = [line for line in lines if line and line != "..." and not line.startswith(("first use", "engine"))]
+    # the wall time's line: only its step and right-hand-side counts
+    return [line.split(" ", 2)[2].split(" ", 2)[2] if line.startswith("wall time") else line for line in kept]
 
 
 def test_run_options_reach_the_solver(capsys):
