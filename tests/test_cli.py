@@ -160,6 +160,7 @@ def test_build_fmu_refuses_a_folder_that_does_not_exist_as_run_does(tmp_path, ca
         assert list(tmp_path.iterdir()) == []  # the folder was not made
 
 
+@pytest.mark.slow
 def test_unwritable_and_odd_output_paths_and_formats_are_one_line_before_the_run(tmp_path):
     afile = tmp_path / "afile"
     afile.write_text("")
@@ -195,6 +196,7 @@ def test_output_dash_writes_the_csv_to_stdout_and_the_summary_to_stderr(tmp_path
     assert not (tmp_path / "-").exists() and not os.path.exists("-")
 
 
+@pytest.mark.slow
 def test_a_closed_pipe_ends_the_run_quietly():
     process = subprocess.Popen([sys.executable, "-m", "bouncingball.cli", "run", "undamped", "--engine", "sksundae",
                                 "--output", "-"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -243,6 +245,7 @@ def test_validate_names_a_bad_fmu_before_any_stage(tmp_path):
         assert line == f"bouncingball: error: --fmu = {str(fmu)!r} is not allowed: it is not an FMU ({reason})"
 
 
+@pytest.mark.slow
 def test_validate_skips_stages_and_caps_scipy():
     started = time.perf_counter()
     completed = _cli("validate", "tiny-mass", "--skip", "fmu", "--skip", "cvode", "--time-cap", "1")
@@ -255,6 +258,7 @@ def test_validate_skips_stages_and_caps_scipy():
     assert "--time-cap = 0.0 s is not allowed" in _one_line(_cli("validate", "--time-cap", "0"))
 
 
+@pytest.mark.slow
 def test_an_unreachable_scheduler_is_one_line_within_the_connect_timeout(tmp_path):
     pytest.importorskip("distributed")
     started = time.perf_counter()
@@ -294,6 +298,7 @@ def test_a_missing_extra_names_the_pip_install_that_adds_it(tmp_path):
     assert "fmpy" in line and "pip install 'bouncingball[fmu]'" in line
 
 
+@pytest.mark.slow
 def test_ctrl_c_is_one_line_and_exit_code_130():
     import signal
     import time
@@ -334,6 +339,7 @@ def test_text_printed_during_a_solver_call_other_than_sundials_errors_is_passed_
     assert capsys.readouterr().out == "before\nafter\n"
 
 
+@pytest.mark.slow
 def test_a_long_run_shows_its_progress_on_a_terminal_only():
     """A run past PROGRESS_AFTER seconds draws a tqdm bar of the simulated time on a terminal's stderr."""
     import fcntl

@@ -259,6 +259,7 @@ def test_constant_external_force_in_simulate():
     assert accuracy.events_match and accuracy.max_height_error <= 1e-6
 
 
+@pytest.mark.slow
 def test_event_history_is_not_kept():
     """scikit-sundae's per-call rebuild of the event history made each event cost more than the last."""
     integrator = BallIntegrator(Ball(b=0.0), 2.0, 0.0, settings=CvodeSettings(engine="sksundae"))

@@ -42,6 +42,7 @@ def test_every_example_says_what_it_shows_and_what_it_needs():
             assert len(path.read_text().splitlines()) <= 100, path
 
 
+@pytest.mark.slow
 def test_api_tour(tmp_path):
     pytest.importorskip("scipy")
     pytest.importorskip("matplotlib")
@@ -67,6 +68,7 @@ def test_api_tour(tmp_path):
     assert list(tmp_path.iterdir()) == [tmp_path / "out"]  # nothing written anywhere else
 
 
+@pytest.mark.slow
 def test_fmpy_cli_script(tmp_path):
     pytest.importorskip("fmpy")
     pytest.importorskip("pythonfmu")
@@ -83,6 +85,7 @@ def test_fmpy_cli_script(tmp_path):
                                                                       "moon.csv"]
 
 
+@pytest.mark.slow
 def test_regression_test_example(fmu, tmp_path):
     pytest.importorskip("fmpy")
     out = run_example([sys.executable, "-m", "pytest", "-q", "-s", "-p", "no:cacheprovider",
@@ -127,6 +130,7 @@ def levitation_limit(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
     return h, v, sum(e.kind == "impact" for e in free.events), sum(e.kind == "impact" for e in late.events)
 
 
+@pytest.mark.slow
 def test_cosim_levitation(tmp_path):
     pytest.importorskip("fmpy")
     pytest.importorskip("pythonfmu")
@@ -157,6 +161,7 @@ def test_cosim_levitation(tmp_path):
         "BouncingBall.fmu", "BouncingBall_ref.csv", "PDController.fmu", "cosim_levitation.csv"]
 
 
+@pytest.mark.slow
 def test_cosim_levitation3(tmp_path):
     """The FMI 3.0 variant: early return at each event; both cases converge at first order against the fine step."""
     pytest.importorskip("fmpy")
@@ -177,6 +182,7 @@ def test_cosim_levitation3(tmp_path):
             assert all(row[3] == 8 and row[2] <= row[1] for row in table), table
 
 
+@pytest.mark.slow
 def test_libcosim_system(tmp_path):
     pytest.importorskip("pythonfmu")
     pytest.importorskip("libcosimpy", reason="libcosimpy is not installed (the [test] extra installs it)")
@@ -202,6 +208,7 @@ def test_libcosim_system(tmp_path):
     assert "impacts 2 (exact 2): PASS" in out and "1024 steps of 0.0078125 s to 8 s, 7 impacts in all" in out
 
 
+@pytest.mark.slow
 def test_sweep_example(tmp_path):
     """Each printed cell: the exact event count recomputed here, CVODE finding it within 1e-6 m."""
     with contextlib.ExitStack() as stack:

@@ -19,6 +19,8 @@ import pytest
 from bouncingball.physics import Ball
 from fmu_helpers import exact_at
 
+pytestmark = pytest.mark.slow  # each test runs the FMU's compiled engine in a fresh process: numba compiles it there
+
 pytest.importorskip("fmpy", reason="the FMU tests need the [fmu] extra")
 pytest.importorskip("pythonfmu", reason="the FMU tests need the [fmu] extra")
 

@@ -393,6 +393,7 @@ def test_the_readme_accuracy_table_names_cases_run_here():
 
 
 @pytest.mark.parametrize("name", FMU_CASES)
+@pytest.mark.slow
 def test_family_through_fmpy(fmu, name):
     fmpy = pytest.importorskip("fmpy")
     case = BY_NAME[name]
@@ -540,5 +541,6 @@ def test_stiff_contact_after_a_long_fall(api, case):
 @PROPERTY
 @pytest.mark.parametrize("api", APIS)
 @given(case=micro_hops())
+@pytest.mark.slow
 def test_undamped_micro_hops(api, case):
     property_check(case, api)
