@@ -25,13 +25,10 @@ from dataclasses import fields, replace
 from .. import limits, validation
 from ..physics import Ball, Mode
 from ..scenes import BALL_KEYS, SCENE_DEFAULTS
-from ..solvers import engines
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
 from ..solvers.sundials_log import SundialsWarning
 from .variables import SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES
 
-# The compiled engine needs numba alone in the Python that runs the FMU (the package is the FMU's own copy).
-engines.INSTALL_NUMBA = "pip install numba, into the Python that runs the FMU"
 STATE_FORMAT = "bouncingball-fmu-state-5"  # 5: with the restart point (4: the master's tolerance only tightens rtol)
 # Not "auto" as in process: the FMU's copy of the package is unzipped afresh by most masters, so numba's cache
 # (keyed by the source's path) is cold in each new process, and the compiled engine's first use costs seconds.
