@@ -222,9 +222,13 @@ def test_a_file_that_is_no_csv_text_is_named_as_what_it_is(name, tmp_path, capsy
     assert code == 2 and out == "" and err.count("\n") == 1, err
     assert err.startswith(f"bouncingball: error: {path}: {message}"), err
     assert "codec" not in err
+    if "not a CSV file" in message:
+        assert err.rstrip().endswith("give the CSV a master wrote (a time and an h column)"), err
     (tmp_path / "ok.csv").write_text("time,h\n0,2\n")
     code, out, err = run_check(capsys, tmp_path / "ok.csv", "--input-file", path)  # the input file too
     assert code == 2 and err.startswith(f"bouncingball: error: {path}: {message}"), err
+    if "not a CSV file" in message:  # each says what it wanted instead
+        assert err.rstrip().endswith("give FMPy's input file (a CSV: time,F_ext)"), err
 
 
 @pytest.mark.parametrize(("args", "message"), [

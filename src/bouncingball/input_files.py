@@ -40,7 +40,7 @@ def read_input_file(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """
     name = str(path)
     try:
-        refuse_binary(path)
+        refuse_binary(path, "FMPy's input file (a CSV: time,F_ext)")
         with open(path, newline="", encoding="utf-8-sig") as file:
             lines = [(number, row) for number, row in enumerate(csv.reader(file, skipinitialspace=True), 1)
                      if any(cell.strip() for cell in row)]

@@ -43,8 +43,8 @@ class BadResultError(ValueError):
     """A result that cannot be checked: the message names the file, the row or column, and what is wrong."""
 
 
-def refuse_binary(path: str | Path) -> None:
-    """BadResultError naming what the file is when it is no text (an FMU, a zip archive, a binary file).
+def refuse_binary(path: str | Path, wanted: str = "the CSV a master wrote (a time and an h column)") -> None:
+    """BadResultError naming what the file is when it is no text (an FMU, a zip archive, a binary file), and wanted.
 
     A CSV is text: a NUL byte in its first 4 kB, or a zip's signature, says it is something else.
     """
@@ -59,8 +59,7 @@ def refuse_binary(path: str | Path) -> None:
         kind = "a binary file"
     else:
         return
-    raise BadResultError(f"{path}: it is {kind}, not a CSV file: give the CSV a master wrote (a time and an h "
-                         "column)")
+    raise BadResultError(f"{path}: it is {kind}, not a CSV file: give {wanted}")
 
 
 def unreadable(error: Exception) -> str:
