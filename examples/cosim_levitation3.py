@@ -1,10 +1,9 @@
 """cosim_levitation.py's coupling with the ball as an FMI 3.0 FMU returning early at each impact and departure, where
-the master sets F_ext (in event mode). Needs: pip install 'bouncingball[fmu]' (and a C compiler).
+the master sets F_ext (in event mode). Needs: pip install 'bouncingball[fmu]' tqdm (and a C compiler).
 Usage: python cosim_levitation3.py [OUTPUT_DIR]      (builds the FMUs there; default: the current directory)
-Two cases against the same fine-step reference (the FMI 2.0 coupling at 2^-12 s): levitation, cosim_levitation.py's
-(the controller on from 2.25 s to 5 s, when no impact happens), and catch: a softer controller on from 0.5 s, the
-ball still falling, holding it at 0.3 m: the ball hits the ground and bounces under the controller's force. The force
-is still held over the rest of each step, so both couplings converge at first order in the step.
+Two cases against one fine-step reference (the FMI 2.0 coupling at 2^-12 s, most of the time this takes: a bar shows
+it): levitation, cosim_levitation.py's (controller on from 2.25 s to 5 s, no impact then), and catch: a softer one from
+0.5 s, holding the ball at 0.3 m as it bounces under its force. The force is held over each step: first order in it.
 """
 
 import subprocess
@@ -16,6 +15,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 from pythonfmu import FmuBuilder
+from tqdm import tqdm
 
 out = Path(sys.argv[1] if len(sys.argv) > 1 else ".").resolve()
 out.mkdir(parents=True, exist_ok=True)
@@ -33,16 +33,14 @@ class Slave:
     """An FMU instance (FMI 2.0, or FMI 3.0 with early return and event mode), initialised with start values."""
     def __init__(self, fmu, name, **start):
         description = read_model_description(str(fmu))
-        self.refs = {v.name: v.valueReference for v in description.modelVariables}
+        self.refs, self.event = {v.name: v.valueReference for v in description.modelVariables}, False
         self.fmi3 = description.fmiVersion.startswith("3")
         self.fmu = (FMU3Slave if self.fmi3 else FMU2Slave)(
             guid=description.guid, unzipDirectory=extract(str(fmu)), instanceName=name,
             modelIdentifier=description.coSimulation.modelIdentifier)
         self.fmu.instantiate(**({"eventModeUsed": True, "earlyReturnAllowed": True} if self.fmi3 else {}))
-        self.event = False
         self.set(**start)
-        self.fmu.enterInitializationMode()
-        self.fmu.exitInitializationMode()
+        self.fmu.enterInitializationMode(), self.fmu.exitInitializationMode()
         self.event = self.fmi3  # with event mode, initialisation ends in event mode
 
     def get(self, *names):
@@ -60,13 +58,13 @@ class Slave:
             self.fmu.doStep(t, dt)
             return t + dt
         needed, _, early, reached = self.fmu.doStep(t, dt)
-        if early and needed:
+        self.event = early and needed
+        if self.event:
             self.fmu.enterEventMode()
-            self.event = True
         return reached if early else t + dt
 
 
-def cosimulate(ball_fmu, dt, case):
+def cosimulate(ball_fmu, dt, case, bar):
     """The coupled run: rows of (t, h, v, F_ext, 1 at a communication point or 0 at an early return's event)."""
     ball, controller = Slave(ball_fmu, "ball"), Slave(controller_fmu, "controller", **case)
     rows, t, n = [], 0.0, 0
@@ -80,6 +78,7 @@ def cosimulate(ball_fmu, dt, case):
             break
         reached = ball.step(t, (n + 1) * dt - t)
         controller.fmu.doStep(t, reached - t)
+        bar.update(reached - t)
         n, t = (n, reached) if ball.event else (n + 1, (n + 1) * dt)
     for slave in (ball, controller):
         slave.fmu.terminate(), slave.fmu.freeInstance()
@@ -88,13 +87,14 @@ def cosimulate(ball_fmu, dt, case):
 
 print(f"{'case':12s}{'step [s]':>10s}{'FMI 2.0: max |h - h_ref| [m]':>30s}{'FMI 3.0, early return':>24s}"
       f"{'early returns':>15s}")
-for name, case in CASES.items():
-    reference = cosimulate(out / "BouncingBall.fmu", REFERENCE_STEP, case)
-    common = reference[:: round(STEPS[0] / REFERENCE_STEP), 1]
-    for dt in STEPS:
-        runs = [cosimulate(out / fmu, dt, case) for fmu in ("BouncingBall.fmu", "BouncingBall3.fmu")]
-        errors = [np.max(np.abs(rows[rows[:, 4] == 1, 1][:: round(STEPS[0] / dt)] - common)) for rows in runs]
-        print(f"{name:12s}{dt:10.7f}{errors[0]:30.3e}{errors[1]:24.3e}{np.sum(runs[1][:, 4] == 0):15d}")
-    path = out / f"cosim_{name}_reference.csv"
-    np.savetxt(path, reference[:, :4], delimiter=",", header="time,h,v,F_ext", comments="")
+for name, case in CASES.items():  # the bar counts the simulated time of the case's runs (disable=None: on a tty)
+    with tqdm(total=(1 + 2 * len(STEPS)) * T_END, desc=name, unit="s", unit_scale=True, disable=None) as bar:
+        reference = cosimulate(out / "BouncingBall.fmu", REFERENCE_STEP, case, bar)
+        common = reference[:: round(STEPS[0] / REFERENCE_STEP), 1]
+        for dt in STEPS:
+            runs = [cosimulate(out / fmu, dt, case, bar) for fmu in ("BouncingBall.fmu", "BouncingBall3.fmu")]
+            errors = [np.max(np.abs(rows[rows[:, 4] == 1, 1][:: round(STEPS[0] / dt)] - common)) for rows in runs]
+            bar.write(f"{name:12s}{dt:10.7f}{errors[0]:30.3e}{errors[1]:24.3e}{np.sum(runs[1][:, 4] == 0):15d}")
+    np.savetxt(path := out / f"cosim_{name}_reference.csv", reference[:, :4], delimiter=",", header="time,h,v,F_ext",
+               comments="")
     print(f"wrote {path} (the reference run)")

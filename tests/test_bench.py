@@ -44,12 +44,14 @@ def expected_labels(section):
     return [solver.label for solver in solvers(section, QUICK)]
 
 
+@pytest.mark.slow
 def test_writes_every_file(quick):
     for name in ("benchmarks.md", CSV_FILE, H_FILE, "work_precision.png", "floor.csv"):
         assert (quick / name).stat().st_size > 0, name
     assert (quick / "work_precision.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.slow
 def test_the_quick_figure_says_it_is_quick(quick):
     """The figure of a real `bench --quick` run, redrawn from its CSV, is titled as quick; its points have
     QUICK's tolerances and repeats, from which the title is drawn."""
@@ -67,6 +69,7 @@ def test_the_quick_figure_says_it_is_quick(quick):
         plt.close(fig)
 
 
+@pytest.mark.slow
 def test_every_solver_in_every_section_of_the_csv(rows):
     for section in ("dense", "sparse"):
         found = [row["solver"] for row in rows if row["section"] == section]
@@ -77,6 +80,7 @@ def test_every_solver_in_every_section_of_the_csv(rows):
 
 
 @pytest.mark.parametrize("label", expected_labels("dense"))
+@pytest.mark.slow
 def test_every_solver_ran_and_was_timed(rows, label):
     if label == runners.C_FLOOR.label and c_floor.unavailable_reason():
         pytest.skip(c_floor.unavailable_reason())
@@ -89,6 +93,7 @@ def test_every_solver_ran_and_was_timed(rows, label):
         assert float(row["min_time"]) == min(times)
 
 
+@pytest.mark.slow
 def test_errors_recomputed_from_the_saved_h_values_match_csv_and_table(quick, rows, markdown):
     saved = np.load(quick / H_FILE)
     dense_md, sparse_md = markdown.split("### Sparse output grid")
@@ -114,6 +119,7 @@ def test_errors_recomputed_from_the_saved_h_values_match_csv_and_table(quick, ro
     assert checked == with_errors  # every solver that has an error has saved h values
 
 
+@pytest.mark.slow
 def test_cvode_is_accurate_where_it_claims(rows):
     """An independent check on the numbers: CVODE at rtol 1e-12 is within 1e-9 m of the exact solution."""
     row = next(r for r in rows if r["solver"] == runners.CVODE_AUTO.label and r["section"] == "dense"
@@ -122,6 +128,7 @@ def test_cvode_is_accurate_where_it_claims(rows):
     assert row["events_found"] == row["events_exact"]
 
 
+@pytest.mark.slow
 def test_markdown_states_machine_versions_and_every_target(markdown):
     for word in ("cores", "Python 3", "numpy", "scikit-sundae", "scipy", "FMPy", "pythonfmu", "date:"):
         assert word in markdown, word
@@ -130,6 +137,7 @@ def test_markdown_states_machine_versions_and_every_target(markdown):
         assert len(lines) == count, tag
 
 
+@pytest.mark.slow
 def test_a_run_over_the_cap_is_killed_and_a_failure_is_reported(tmp_path):
     stiff_rest = load_scene("stiff-rest")
     short = dataclasses.replace(ARTICLE, t_end=1.0)
@@ -154,6 +162,7 @@ def test_the_bench_package_imports_nothing_heavy():
     assert out.strip() == "[]"
 
 
+@pytest.mark.slow
 def test_fmu_steps_table_has_every_case_and_the_first_uses(markdown):
     section = markdown.split("### Per doStep, call by call")[1].split("## Stiff scenes")[0]
     for slave in ("empty pythonfmu slave", "FMU, engine sksundae", "FMU, engine compiled"):
@@ -167,6 +176,7 @@ def test_fmu_steps_table_has_every_case_and_the_first_uses(markdown):
                      re.M)
 
 
+@pytest.mark.slow
 def test_the_engine_choice_rows_measure_both_engines_first_use():
     """bench/engine_choice.py: fresh processes; the compiled engine hot is the faster, its loading the dearer."""
     pytest.importorskip("numba")
@@ -256,6 +266,7 @@ def test_the_c_floors_callback_types_are_the_ones_scikit_sundae_declares():
     assert typedefs["sunindextype"] == c_floor._BASIC["sunindextype"]
 
 
+@pytest.mark.slow
 def test_the_floor_section_says_the_work_was_the_same(markdown):
     if c_floor.unavailable_reason():
         pytest.skip(c_floor.unavailable_reason())

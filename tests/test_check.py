@@ -195,6 +195,42 @@ def test_a_malformed_file_is_bad_input_with_one_clear_line(name, tmp_path, capsy
         read_result_csv(path)
 
 
+def _zip(path: Path, members: list[str]) -> Path:
+    import zipfile
+
+    with zipfile.ZipFile(path, "w") as archive:
+        for member in members:
+            archive.writestr(member, "<fmiModelDescription/>")
+    return path
+
+
+NOT_TEXT = {
+    "BouncingBall.fmu": (lambda path: _zip(path, ["modelDescription.xml", "binaries/linux64/x.so"]),
+                         "it is an FMU (a zip archive), not a CSV file"),
+    "results.zip": (lambda path: _zip(path, ["out.csv"]), "it is a zip archive, not a CSV file"),
+    "out.mat": (lambda path: path.write_bytes(b"MATLAB 5.0\x00\x01\xff") and path, "it is a binary file, not a CSV"),
+    "latin1.csv": (lambda path: path.write_bytes("time,h\n0,2\n# h\xf6he\n".encode("latin-1")) and path,
+                   "cannot be read: it is not UTF-8 text (it holds the byte 0xf6): save it as UTF-8"),
+}
+
+
+@pytest.mark.parametrize("name", NOT_TEXT)
+def test_a_file_that_is_no_csv_text_is_named_as_what_it_is(name, tmp_path, capsys):
+    make, message = NOT_TEXT[name]
+    path = make(tmp_path / name)
+    code, out, err = run_check(capsys, path)
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert err.startswith(f"bouncingball: error: {path}: {message}"), err
+    assert "codec" not in err
+    if "not a CSV file" in message:
+        assert err.rstrip().endswith("give the CSV a master wrote (a time and an h column)"), err
+    (tmp_path / "ok.csv").write_text("time,h\n0,2\n")
+    code, out, err = run_check(capsys, tmp_path / "ok.csv", "--input-file", path)  # the input file too
+    assert code == 2 and err.startswith(f"bouncingball: error: {path}: {message}"), err
+    if "not a CSV file" in message:  # each says what it wanted instead
+        assert err.rstrip().endswith("give FMPy's input file (a CSV: time,F_ext)"), err
+
+
 @pytest.mark.parametrize(("args", "message"), [
     (["missing.csv"], "missing.csv: cannot be read"),
     (["ok.csv", "--start-value", "g"], "--start-value 'g' is not allowed: it must be NAME=VALUE"),

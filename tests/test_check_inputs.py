@@ -81,6 +81,22 @@ def test_check_passes_an_fmpy_run_driven_through_the_input_file_and_fails_anothe
     assert check_result(result).max_height_error > 1.0  # F_ext = 0 throughout: metres off
 
 
+def test_a_forced_run_checked_without_its_input_is_told_of_input_file(fmu, tmp_path, capsys):
+    inputs = write(tmp_path / "in.csv", INPUT)
+    result = write_result(tmp_path / "out.csv", fmpy_run(fmu, inputs, ["h", "impacts"]))
+    code, out = check(capsys, result)
+    verdict = out.splitlines()[-1]
+    assert code == 1 and "FAIL" in verdict
+    assert "the file has no F_ext column: if an input drove F_ext, give its file with --input-file F.csv" in verdict
+    code, out = check(capsys, result, "--input-file", write(tmp_path / "other.csv", OTHER))
+    assert code == 1 and "--input-file" not in out.splitlines()[-1]  # it was given: the input is wrong, not missing
+    with_column = write_result(tmp_path / "with_column.csv", fmpy_run(fmu, inputs, ["h", "F_ext"]))
+    verdict = check_result(with_column, tolerance=1e-15).verdict
+    assert verdict.startswith("FAIL") and "--input-file" not in verdict  # its F_ext column says what was applied
+    unforced = {"time": np.array([0.0, 0.1]), "h": np.array([2.0, 2.0])}  # no fall: fails
+    assert "--input-file" in check_result(unforced).verdict
+
+
 def test_a_master_recording_less_often_than_it_steps_needs_its_step_size(fmu, tmp_path, capsys):
     inputs = write(tmp_path / "in.csv", INPUT)
     result = write_result(tmp_path / "out.csv", fmpy_run(fmu, inputs, ["h", "impacts"]), every=7)

@@ -4,6 +4,7 @@ import sys
 import tempfile
 import time
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -37,6 +38,22 @@ def test_run_article_prints_summary_and_writes_files(tmp_path, capsys):
     lines = events.read_text().splitlines()
     assert lines[0] == "time,kind,v" and len(lines) == 42 and lines[1].split(",")[1] == "impact"
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    printed = " ".join(text.split())
+    missing = [line for line in readme_run_article() if line not in printed]
+    assert missing == [], f"README.md's `bouncingball run article` shows lines this run does not print: {missing}"
+
+
+def readme_run_article() -> list[str]:
+    """The lines of README.md's `bouncingball run article` that do not depend on the machine or the process
+    (wall time, the engine's first use and the choice it makes in a process that ran others are left out)."""
+    readme = Path(__file__).resolve().parents[1] / "README.md"
+    if not readme.is_file():
+        return []
+    block = readme.read_text(encoding="utf-8").split("$ bouncingball run article\n")[1].split("```")[0]
+    lines = [" ".join(line.split()) for line in block.splitlines()]
+    kept = [line for line in lines if line and line != "..." and not line.startswith(("first use", "engine"))]
+    # the wall time's line: only its step and right-hand-side counts
+    return [line.split(" ", 2)[2].split(" ", 2)[2] if line.startswith("wall time") else line for line in kept]
 
 
 def test_run_options_reach_the_solver(capsys):
@@ -120,6 +137,34 @@ def test_output_paths_are_checked_before_the_run_and_nothing_partial_is_left(tmp
     assert list(tmp_path.iterdir()) == [folder] and list(folder.iterdir()) == []
 
 
+@pytest.mark.parametrize(("args", "said"), [
+    (["run", "--rtl", "1e-6"], "bouncingball run: error: unrecognized arguments: --rtl (did you mean --rtol?)"),
+    (["run", "article", "--output-intervl=0.1"],
+     "bouncingball run: error: unrecognized arguments: --output-intervl=0.1 (did you mean --output-interval?)"),
+    (["check", "out.csv", "--tolerence", "1"],
+     "bouncingball check: error: unrecognized arguments: --tolerence 1 (did you mean --tolerance?)"),
+    (["run", "--zzz"], "bouncingball run: error: unrecognized arguments: --zzz"),
+])
+def test_a_mistyped_option_is_refused_by_its_command_with_the_option_it_may_mean(args, said, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(args)
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"usage: bouncingball {args[0]} ")  # the command's usage, not the top level's
+    assert err.splitlines()[-1] == said
+
+
+def test_build_fmu_refuses_a_folder_that_does_not_exist_as_run_does(tmp_path, capsys):
+    for command in (["build-fmu"], ["build-fmu", "--fmi-version", "3"]):
+        target = tmp_path / "missing" / "x.fmu"
+        assert main([*command, "-o", str(target)]) == 2
+        [line] = capsys.readouterr().err.splitlines()
+        assert line == f"bouncingball: error: output = {str(target)!r} is not allowed: its folder " \
+                       f"{str(target.parent)!r} does not exist"
+        assert list(tmp_path.iterdir()) == []  # the folder was not made
+
+
+@pytest.mark.slow
 def test_unwritable_and_odd_output_paths_and_formats_are_one_line_before_the_run(tmp_path):
     afile = tmp_path / "afile"
     afile.write_text("")
@@ -155,6 +200,7 @@ def test_output_dash_writes_the_csv_to_stdout_and_the_summary_to_stderr(tmp_path
     assert not (tmp_path / "-").exists() and not os.path.exists("-")
 
 
+@pytest.mark.slow
 def test_a_closed_pipe_ends_the_run_quietly():
     process = subprocess.Popen([sys.executable, "-m", "bouncingball.cli", "run", "undamped", "--engine", "sksundae",
                                 "--output", "-"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -203,6 +249,7 @@ def test_validate_names_a_bad_fmu_before_any_stage(tmp_path):
         assert line == f"bouncingball: error: --fmu = {str(fmu)!r} is not allowed: it is not an FMU ({reason})"
 
 
+@pytest.mark.slow
 def test_validate_skips_stages_and_caps_scipy():
     started = time.perf_counter()
     completed = _cli("validate", "tiny-mass", "--skip", "fmu", "--skip", "cvode", "--time-cap", "1")
@@ -215,6 +262,7 @@ def test_validate_skips_stages_and_caps_scipy():
     assert "--time-cap = 0.0 s is not allowed" in _one_line(_cli("validate", "--time-cap", "0"))
 
 
+@pytest.mark.slow
 def test_an_unreachable_scheduler_is_one_line_within_the_connect_timeout(tmp_path):
     pytest.importorskip("distributed")
     started = time.perf_counter()
@@ -254,6 +302,7 @@ def test_a_missing_extra_names_the_pip_install_that_adds_it(tmp_path):
     assert "fmpy" in line and "pip install 'bouncingball[fmu]'" in line
 
 
+@pytest.mark.slow
 def test_ctrl_c_is_one_line_and_exit_code_130():
     import signal
     import time
@@ -308,6 +357,7 @@ def test_text_printed_during_a_solver_call_other_than_sundials_errors_is_passed_
     assert capsys.readouterr().out == "before\nafter\n"
 
 
+@pytest.mark.slow
 def test_a_long_run_shows_its_progress_on_a_terminal_only():
     """A run past PROGRESS_AFTER seconds draws a tqdm bar of the simulated time on a terminal's stderr."""
     import fcntl

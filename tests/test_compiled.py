@@ -177,6 +177,7 @@ def test_without_numba_auto_falls_back_and_compiled_is_refused():
     assert lines[1].startswith("engine 'compiled' is not available: numba is not installed")
 
 
+@pytest.mark.slow
 def test_a_numba_that_cannot_compile_falls_back_with_the_reason(tmp_path):
     (tmp_path / "numba").mkdir()
     (tmp_path / "numba" / "__init__.py").write_text("raise RuntimeError('LLVM is broken here')\n")
@@ -234,6 +235,7 @@ def test_the_sksundae_engine_and_import_never_load_numba():
     assert completed.returncode == 0, completed.stderr
 
 
+@pytest.mark.slow
 def test_many_solvers_created_run_and_freed_in_a_separate_process():
     """A wrong binding crashes the interpreter: so this one runs in its own process, scikit-sundae loaded first."""
     completed = _run_python("""
@@ -376,6 +378,7 @@ def test_a_host_exporting_its_own_sundials_symbols_does_not_capture_the_engine(t
 
 
 @pytest.mark.skipif(not os.path.exists("/proc/self/statm"), reason="reads the resident size from /proc")
+@pytest.mark.slow
 def test_solvers_free_their_sundials_memory():
     """3000 solvers created, run and dropped (half closed explicitly): ~50 MB would stay resident if none were freed."""
     completed = _run_python("""
@@ -428,6 +431,7 @@ def _copied_package(tmp_path: Path):
     return package, numbers_printed
 
 
+@pytest.mark.slow
 def test_a_change_to_physics_reaches_the_compiled_engine_through_numbas_disk_cache(tmp_path):
     """numba keys each cached function by its own file: the callbacks in compiled.py inline physics.py's functions,
     and after a change to physics.py alone it loaded compiled.py's old code (the engines then disagreed)."""
@@ -445,6 +449,7 @@ def test_a_change_to_physics_reaches_the_compiled_engine_through_numbas_disk_cac
     assert compiled_after == pytest.approx(math.sqrt(2.0 * (2.0 - 0.06) / (2.0 * 9.81)), rel=1e-6)  # not 0.629 s
 
 
+@pytest.mark.slow
 def test_a_change_to_the_phase_machine_reaches_the_compiled_engine_through_numbas_disk_cache(tmp_path):
     """The compiled run_phases inlines phases.py's and machine.py's functions: a change to machine.py's event
     record alone must reach it."""
@@ -463,6 +468,7 @@ def test_a_change_to_the_phase_machine_reaches_the_compiled_engine_through_numba
     assert compiled_after == interpreted_after == 2.0 * compiled
 
 
+@pytest.mark.slow
 def test_many_short_runs_load_the_compiled_engine_once_they_would_have_paid_for_it():
     completed = _run_python("""
         import bouncingball as bb

@@ -54,6 +54,7 @@ def test_atomic_write_gives_a_new_file_the_mode_of_the_umask(tmp_path, mask):
     assert (tmp_path / "new.csv").read_text(encoding="utf-8") == "time,h,v\n"
 
 
+@pytest.mark.slow
 def test_run_output_events_and_plot_are_0644_under_umask_022(tmp_path):
     pytest.importorskip("matplotlib", reason="--plot needs the [plot] extra")
     completed = subprocess.run(
@@ -64,6 +65,7 @@ def test_run_output_events_and_plot_are_0644_under_umask_022(tmp_path):
     assert modes(tmp_path) == {"events.csv": PUBLIC, "h.png": PUBLIC, "out.csv": PUBLIC}
 
 
+@pytest.mark.slow
 def test_build_fmu_writes_the_fmu_and_its_reference_0644_under_umask_022(tmp_path):
     pytest.importorskip("fmpy", reason="building the FMU needs the [fmu] extra")
     pytest.importorskip("pythonfmu", reason="building the FMU needs the [fmu] extra")
@@ -73,6 +75,7 @@ def test_build_fmu_writes_the_fmu_and_its_reference_0644_under_umask_022(tmp_pat
     assert modes(tmp_path) == {"BouncingBall.fmu": PUBLIC, "BouncingBall_ref.csv": PUBLIC}
 
 
+@pytest.mark.slow
 def test_a_sweep_and_its_parts_are_0644_under_umask_022(tmp_path):
     pytest.importorskip("dask", reason="the sweep needs the [sweep] extra")
     completed = subprocess.run(

@@ -163,6 +163,29 @@ def test_article_at_1ms_matches_the_exact_solution_at_every_point(article_runs):
     assert impacts[-1] == 21
 
 
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def test_the_readme_says_what_fmpy_records_at_the_fmus_defaults(fmu):
+    """At 1 ms steps asked for: the README's height error and impact count; not asked (FMPy's command line): the
+    interval FMPy picks from the default experiment, which the README names."""
+    if not README.is_file():
+        pytest.skip("runs in a source checkout")
+    readme = " ".join(README.read_text(encoding="utf-8").split())
+    run = fmpy.simulate_fmu(str(fmu), output_interval=1e-3, output=["h", "impacts"])
+    h_exact, _, impacts = exact_at(run["time"])
+    error = float(np.max(np.abs(run["h"] - h_exact)))
+    quote = (f"the height is within {error:.3e} m of the exact solution, {int(run['impacts'][-1])} of "
+             f"{int(impacts[-1])} impacts")
+    assert quote in readme, quote
+    default = fmpy.simulate_fmu(str(fmu), output=["h"])  # as `fmpy simulate` without --output-interval
+    interval = float(np.diff(default["time"])[0])
+    assert np.allclose(np.diff(default["time"]), interval, rtol=0, atol=1e-12) and default["time"][-1] == 8.0
+    assert interval > 1e-3  # FMPy's 1000-point cap: not the 1 ms of the default experiment
+    quote = f"FMPy's command line records every {interval * 1e3:g} ms at the FMU's default experiment"
+    assert quote in readme, quote
+
+
 def test_answer_does_not_depend_on_the_communication_step(article_runs):
     coarse = article_runs[0.5]
     np.testing.assert_allclose(coarse["time"], np.arange(17) * 0.5, rtol=0, atol=1e-12)

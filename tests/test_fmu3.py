@@ -346,6 +346,7 @@ def test_model_exchange_state_round_trip(unzipped3):
     assert out["derivatives"] == [0.0, -Ball().g]
 
 
+@pytest.mark.slow
 def test_memory_stays_flat_over_1000_instantiate_free_pairs(unzipped3):
     out = run3(unzipped3, """
         import gc, os
@@ -380,6 +381,7 @@ def test_memory_stays_flat_over_1000_instantiate_free_pairs(unzipped3):
 
 
 # --- the command line ------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_validate_command_runs_the_fmi3_fmu_three_ways(fmu3, capsys):
     from bouncingball.cli import main
 
@@ -440,6 +442,7 @@ print(json.dumps({"outcome": outcome, "log": log, "executable": sys.executable,
 """
 
 
+@pytest.mark.slow
 def test_a_python_host_without_scikit_sundae_gets_one_line_and_no_instance(fmu3, tmp_path):
     """The host check of the FMI 2.0 FMU, in the FMI 3.0 one: fmi3InstantiateCoSimulation returns NULL with one
     error line naming the interpreter, what it lacks and the fix; pythonfmu3 never runs."""

@@ -19,6 +19,8 @@ import pytest
 from bouncingball.physics import Ball
 from fmu_helpers import exact_at
 
+pytestmark = pytest.mark.slow  # each test runs the FMU's compiled engine in a fresh process: numba compiles it there
+
 pytest.importorskip("fmpy", reason="the FMU tests need the [fmu] extra")
 pytest.importorskip("pythonfmu", reason="the FMU tests need the [fmu] extra")
 
@@ -183,6 +185,7 @@ def test_compiled_engine_without_numba_gives_fmi2Error_with_the_reason(unzipped,
         [message] = ball.errors()
         assert message.startswith("engine 'compiled' is not available: numba is not installed"), message
         assert "numba is hidden from this process" in message, message
+        assert message.endswith(": pip install numba, into the Python that runs the FMU"), message  # not [fast]
         ball.set(engine="sksundae")
         ball.fmu.exitInitializationMode()
         print(*ball.step_to(1.0, 0.5)[-1])

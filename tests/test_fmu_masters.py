@@ -30,6 +30,8 @@ from fmu_helpers import (
     python_without_sksundae,
 )
 
+pytestmark = pytest.mark.slow  # C masters (one under valgrind), libcosim, ecos, FMPy's command line: processes each
+
 fmpy = pytest.importorskip("fmpy", reason="the FMU tests need the [fmu] extra")
 pytest.importorskip("pythonfmu", reason="the FMU tests need the [fmu] extra")
 

@@ -314,6 +314,7 @@ def test_a_force_outside_the_resolvable_range_is_refused_between_steps_and_chang
     """))
 
 
+@pytest.mark.slow
 def test_repeated_instantiation_keeps_sys_path_and_memory_flat(unzipped):
     """pythonfmu 0.7 runs the slave script per instance and keeps what it defines: ~45 kB with the whole
     slave class in the script, under 8 kB now that the script only names a class imported once."""

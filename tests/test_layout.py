@@ -23,6 +23,7 @@ LOWER_LAYERS = {
 SINGLE_FILE_LAYERS = ("bouncingball.rounding", "bouncingball.physics", "bouncingball.limits")
 
 
+@pytest.mark.slow
 def test_every_module_imports_alone():
     script = ("import importlib, subprocess, sys\n"
               f"for name in {MODULES!r}:\n"

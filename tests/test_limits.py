@@ -184,3 +184,26 @@ def test_the_cli_refuses_an_extreme_scene_file_in_one_line_with_exit_2(tmp_path,
         lines = completed.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith(fragment), completed.stderr
         assert completed.stdout == ""
+
+
+def test_a_heavy_ball_on_a_stiff_spring_names_the_combination_and_what_to_change(tmp_path):
+    """m = k = 1e300 with the default g: the weight's energy at R is out of range. g, which the file does not set,
+    is not the one to blame alone: the message names the three and a bound on each that lets the ball in."""
+    scene = tmp_path / "heavy.toml"
+    scene.write_text("m = 1e300\nk = 1e300\nh0 = 1e200\n", encoding="utf-8")
+    completed = subprocess.run([sys.executable, "-m", "bouncingball.cli", "run", str(scene)], capture_output=True,
+                               text=True, timeout=TIMEOUT, check=False)
+    assert completed.returncode == 2 and completed.stdout == ""
+    [line] = completed.stderr.splitlines()
+    assert line.startswith("bouncingball: error: m = 1e+300 kg, k = 1e+300 N/m and g = 9.81 m/s2 are not allowed "
+                           "together"), line
+    fixes = line.split("change one: ")[1].replace(" or ", ", ").split(", ")
+    assert [fix.split()[0] for fix in fixes] == ["g", "m", "k"], fixes
+    for fix in fixes:
+        name, relation, value = fix.split()[:3]
+        value = float(value)
+        assert relation == ("<=" if name in "gm" else ">=")
+        limits.check_scene(Ball(**{"m": 1e300, "k": 1e300, name: value}), 0.06, 0.0)  # the bound is in range
+        beyond = value * (1.0 + 1e-9) if relation == "<=" else value * (1.0 - 1e-9)
+        with pytest.raises(ValueError, match="are not allowed together|is not allowed for this ball"):
+            limits.check_scene(Ball(**{"m": 1e300, "k": 1e300, name: beyond}), 0.06, 0.0)

@@ -214,6 +214,7 @@ def test_issue_lifted_near_critical_contact():
     assert float(o.state_mp(1.0)[0]) == pytest.approx(4.787, abs=5e-4)
 
 
+@pytest.mark.slow
 def test_issue_undamped_micro_hops():
     o = Oracle(1.0, 1e12, 0.0, 0.06, 9.81, 0.06, 1.7717787672280082e-4, 0.05)
     assert len(o.events) == 2538 and o.rest_time is None

@@ -26,8 +26,10 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache, lru_cache
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -280,6 +282,8 @@ def article_lifted(zeta: float, name: str) -> Case:
 
 
 FAMILIES = [
+    # 0. the article's scene, for the README's table
+    Case("0-article", 1.0, 1e4, 10.0, 0.06, G, 2.0, 0.0, 8.0, 1e-3),
     # 1. a lifted contact near critical damping
     Case("1-issue-lifted-0.1kg", 0.1, 1e4, 2 * math.sqrt(1e4 * 0.1), 0.06, G, 0.05, 0.0, 1.0, 1e-3,
          F_ext=2 * 0.1 * G),
@@ -322,10 +326,74 @@ BY_NAME = {case.name: case for case in FAMILIES}
 @pytest.mark.parametrize("api", APIS)
 @pytest.mark.parametrize("case", FAMILIES, ids=lambda case: case.name)
 def test_family(case, api):
-    assert_judged(case, api, run(case, api))
+    outcome = run(case, api)
+    assert_judged(case, api, outcome)
+    assert_readme_figures(case, api, outcome)
+
+
+# --- the README's accuracy table: its figures are the runs above, measured here, as printed there -----------------
+README = Path(__file__).resolve().parents[1] / "README.md"
+# | description (`case`) | simulate's error; stepping the stepping API's | events found of the oracle's |
+README_ROW = re.compile(r"^\| (?P<description>.+) \(`(?P<name>[^`]+)`\) \| (?P<simulate>[^;|]+); stepping "
+                        r"(?P<stepping>[^|]+) \| (?P<found>\d+) of (?P<expected>\d+) \|$", re.M)
+
+
+@cache
+def readme_rows() -> dict[str, dict[str, str]]:
+    """The README's accuracy table by case name (empty outside a source checkout)."""
+    if not README.is_file():
+        return {}
+    return {match["name"]: match.groupdict() for match in README_ROW.finditer(README.read_text(encoding="utf-8"))}
+
+
+def relative_error(case: Case, t, h) -> float:
+    """max |h - h_oracle| / max(|h_oracle|, R) on the judged points: the README table's measure."""
+    t, h = np.asarray(t, dtype=float), np.asarray(h, dtype=float)
+    idx = judged_indices(t, oracle_of(case))
+    h_oracle, _ = oracle_states(case, t[idx])
+    return float(np.max(np.abs(h[idx] - h_oracle))) / max(float(np.max(np.abs(h_oracle))), case.R)
+
+
+def printed_error(error: float) -> str:
+    """An error as the table prints it: two significant digits, and errors of a few ulps as "< 1e-14"."""
+    return "< 1e-14" if error < 1e-14 else f"{error:.1e}".replace("e-0", "e-")
+
+
+def table_row(case: Case, description: str, outcomes: dict) -> str:
+    """The README row of a case from its runs (outcomes by api: t, h, events, rest time)."""
+    errors = {api: printed_error(relative_error(case, *outcomes[api][:2])) for api in outcomes}
+    assert errors["sksundae"] == errors["compiled"], errors  # one figure for simulate: both engines
+    return (f"| {description} (`{case.name}`) | {errors['sksundae']}; stepping {errors['stepping']} | "
+            f"{len(outcomes['sksundae'][2])} of {len(oracle_of(case).events)} |")
+
+
+def assert_readme_figures(case: Case, api: str, outcome) -> None:
+    row = readme_rows().get(case.name)
+    if row is None or api == "exact":
+        return
+    printed = printed_error(relative_error(case, *outcome[:2]))
+    cell = (row["stepping"] if api == "stepping" else row["simulate"]).strip()
+    events = f"{len(outcome[2])} of {len(oracle_of(case).events)}"
+    where = f"README.md's accuracy table, {case.name} [{api}] (python tests/oracle_table.py prints the rows)"
+    assert cell == printed, f"{where}: prints {cell}, the run gives {printed}"
+    if api != "stepping":
+        assert f"{row['found']} of {row['expected']}" == events, f"{where}: prints {row['found']} of " \
+                                                                 f"{row['expected']} events, the run gives {events}"
+
+
+def test_the_readme_accuracy_table_names_cases_run_here():
+    """Every row of the table is a case above (so test_family checks its figures), and the table is there."""
+    if not README.is_file():
+        pytest.skip("runs in a source checkout")
+    rows = readme_rows()
+    assert len(rows) >= 5 and set(rows) <= set(BY_NAME), sorted(rows)
+    text = README.read_text(encoding="utf-8")
+    table = text[text.index("| case | max"):].split("\n\n")[0].splitlines()[2:]
+    assert len(table) == len(rows), "a row of the accuracy table is not in the form the test reads"
 
 
 @pytest.mark.parametrize("name", FMU_CASES)
+@pytest.mark.slow
 def test_family_through_fmpy(fmu, name):
     fmpy = pytest.importorskip("fmpy")
     case = BY_NAME[name]
@@ -473,5 +541,6 @@ def test_stiff_contact_after_a_long_fall(api, case):
 @PROPERTY
 @pytest.mark.parametrize("api", APIS)
 @given(case=micro_hops())
+@pytest.mark.slow
 def test_undamped_micro_hops(api, case):
     property_check(case, api)

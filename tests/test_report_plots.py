@@ -108,6 +108,7 @@ def test_work_precision_redraws_from_the_csv(tmp_path):
     assert (tmp_path / "wp.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.slow
 def test_heat_maps_explain_their_white_cells_and_label_legibly():
     pytest.importorskip("pandas")
     pytest.importorskip("pyarrow")

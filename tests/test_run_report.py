@@ -105,6 +105,7 @@ print(json.dumps([[s.first_use_time, s.wall_time] for s in runs]))
 """
 
 
+@pytest.mark.slow
 def test_the_compiled_engines_first_use_is_measured_apart_from_the_run():
     pytest.importorskip("numba")
     done = subprocess.run([sys.executable, "-c", FIRST_USE], capture_output=True, text=True, check=True)

@@ -4,6 +4,7 @@ scheduler and a worker started here as separate processes, a worker killed mid-s
 Everything that starts a cluster runs in a subprocess with a timeout, so that a hang fails the test.
 """
 
+import contextlib
 import json
 import math
 import signal
@@ -85,6 +86,7 @@ def test_import_and_a_cvode_run_load_no_sweep_dependency():
 
 
 # --- one run under its cap --------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_a_timed_out_or_failed_run_is_a_row_and_the_runner_goes_on():
     base = {"key": "", "m": 1.0, "h0": 2.0, "t_end": 8.0, "output_interval": 1e-3, "b": 0.0}
     # Explicit RK45 at rest on an over-damped k = 1e8 N/m spring: millions of steps. A contact of 1e-11 s
@@ -105,9 +107,16 @@ def test_a_timed_out_or_failed_run_is_a_row_and_the_runner_goes_on():
 def local_sweep(tmp_path_factory) -> Path:
     """The small sweep (4 x 3 cells, 2 solvers) on a LocalCluster of 2 workers, through the CLI."""
     directory = tmp_path_factory.mktemp("local")
-    completed = _sweep(*SWEEP, "--workers", "2", "--output-dir", str(directory))
+    with contextlib.ExitStack() as stack:
+        try:  # Dask's default HTTP port taken, as by another cluster on the machine (unless it already is)
+            stack.enter_context(socket.create_server(("", 8787)))
+        except OSError:
+            pass
+        completed = _sweep(*SWEEP, "--workers", "2", "--output-dir", str(directory))
     assert completed.returncode == 0, completed.stderr
     assert "24 runs (24 run now): 24 finished" in completed.stderr
+    assert "already in use" not in completed.stderr
+    assert "\r" not in completed.stderr and "run/s" not in completed.stderr  # no progress bar into a pipe
     return directory
 
 
@@ -126,6 +135,7 @@ def _stop(process: subprocess.Popen) -> None:
         process.wait()
 
 
+@pytest.mark.slow
 def test_every_cell_agrees_with_the_exact_solution_recomputed_here(local_sweep):
     table = _table(local_sweep)
     assert len(table) == 24 and set(table["status"]) == {"finished"}
@@ -149,6 +159,7 @@ def test_every_cell_agrees_with_the_exact_solution_recomputed_here(local_sweep):
     assert all((local_sweep / f"stability_map_{name}.png").stat().st_size > 1000 for name in ("cvode", "article"))
 
 
+@pytest.mark.slow
 def test_the_same_sweep_on_a_scheduler_and_worker_started_here_gives_the_same_results(local_sweep, tmp_path):
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
@@ -194,6 +205,7 @@ if __name__ == "__main__":
 """
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_sweep_only_costs_its_batches(local_sweep, tmp_path):
     script = tmp_path / "kill.py"
     script.write_text(textwrap.dedent(KILL_SCRIPT), encoding="utf-8")
@@ -212,6 +224,7 @@ def test_a_worker_killed_mid_sweep_only_costs_its_batches(local_sweep, tmp_path)
     pd.testing.assert_frame_equal(got, expected[columns])
 
 
+@pytest.mark.slow
 def test_resume_runs_only_what_is_missing_and_nothing_twice(local_sweep, tmp_path):
     from bouncingball.sweep.store import write_part
 
@@ -257,6 +270,7 @@ def test_clearing_removes_the_sweeps_own_leftover_temporaries_and_nothing_else(t
     assert sorted(path.name for path in parts.iterdir()) == [".notes.tmp", "notes.txt"]
 
 
+@pytest.mark.slow
 def test_a_leftover_temporary_part_neither_fails_a_sweep_nor_stops_its_report(tmp_path):
     tiny = ["--k", "1e2:1e3:2", "--zeta", "0.1", "--solvers", "cvode", "--t-end", "0.5", "--batch-size", "1",
             "--time-cap", "30", "--workers", "1", "--output-dir", str(tmp_path)]
@@ -277,6 +291,7 @@ def test_a_leftover_temporary_part_neither_fails_a_sweep_nor_stops_its_report(tm
     assert not parts.exists() and len(_table(tmp_path)) == 2
 
 
+@pytest.mark.slow
 def test_ctrl_c_on_a_sweep_is_one_line_without_worker_tracebacks(tmp_path):
     """Ctrl-C signals the terminal's whole process group; each Dask worker printed its KeyboardInterrupt."""
     import os
@@ -326,6 +341,7 @@ def test_the_map_page_formats_every_constant_from_the_code(tmp_path, monkeypatch
         assert typed not in text, typed
 
 
+@pytest.mark.slow
 def test_the_csv_holds_the_tables_doubles_in_their_shortest_form(local_sweep):
     csv = pd.read_csv(local_sweep / "stability_map.csv", keep_default_na=False, na_values=[""])
     table = _table(local_sweep)

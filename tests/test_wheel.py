@@ -13,6 +13,8 @@ import pytest
 
 from fmu_helpers import exact_at
 
+pytestmark = pytest.mark.slow  # builds the wheel and installs it in a fresh virtual environment
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

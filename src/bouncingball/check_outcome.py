@@ -92,6 +92,9 @@ class CheckResult:
         that would match the file.
     forcing : str
         Where a changing F_ext came from ("" when it was constant: the scene's F_ext).
+    force_unrecorded : bool
+        Neither the file (no F_ext column) nor an input file said what F_ext the master applied: a
+        failed verdict then says how to give an input that drove it.
     """
 
     source: str
@@ -119,6 +122,7 @@ class CheckResult:
     merged_hops: MergedHops | None = None
     first_row: tuple[str, ...] = ()
     forcing: str = ""
+    force_unrecorded: bool = False
 
     @property
     def heights_pass(self) -> bool:
@@ -159,6 +163,9 @@ class CheckResult:
             t, found, exact = self.impact_mismatches[0]
             reasons.append(f"the impacts column is wrong at {len(self.impact_mismatches)} points, first at "
                            f"t = {t!r} s ({found}, exact {exact}){merged}")
+        if self.force_unrecorded:
+            reasons.append("the file has no F_ext column: if an input drove F_ext, give its file with "
+                           "--input-file F.csv (input_file in Python)")
         return "FAIL: " + "; ".join(reasons)
 
     def report(self) -> str:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import difflib
 import os
 import sys
 from collections.abc import Sequence
@@ -114,6 +115,7 @@ def _build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--scaling", action="store_true", help="also time the grid on 1 worker and on as many as "
                                                               "the sweep used, for the doc's scaling line")
     sweep.add_argument("--quick", action="store_true", help="a 4 x 3 grid with a 1 s cap")
+    parser.commands = sub.choices  # each command's parser, to refuse an unknown option in its own words
     return parser
 
 
@@ -281,8 +283,21 @@ def _scenes() -> int:
     return 0
 
 
+def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
+    """The arguments; an unknown option is refused by its command's parser, with the option it may have meant."""
+    parser = _build_parser()
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:
+        command = parser.commands[args.command]
+        known = [option for action in command._actions for option in action.option_strings]
+        meant = [difflib.get_close_matches(word.split("=")[0], known, n=1) for word in unknown if word.startswith("-")]
+        hint = "".join(f" (did you mean {match[0]}?)" for match in meant if match)
+        command.error(f"unrecognized arguments: {' '.join(unknown)}{hint}")
+    return args
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = _build_parser().parse_args(argv)
+    args = _parse(argv)
     try:
         code = _command(args)
         sys.stdout.flush()  # here, where a closed pipe can still be told apart from a failure

@@ -14,7 +14,7 @@ import numpy as np
 
 from . import validation
 from .printed_numbers import parse_number
-from .result_files import BadResultError, ResultFile
+from .result_files import BadResultError, ResultFile, refuse_binary, unreadable
 from .solvers.forcing import ForceTable
 
 
@@ -40,11 +40,12 @@ def read_input_file(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """
     name = str(path)
     try:
+        refuse_binary(path, "FMPy's input file (a CSV: time,F_ext)")
         with open(path, newline="", encoding="utf-8-sig") as file:
             lines = [(number, row) for number, row in enumerate(csv.reader(file, skipinitialspace=True), 1)
                      if any(cell.strip() for cell in row)]
     except (OSError, UnicodeDecodeError, csv.Error) as error:
-        raise BadResultError(f"{name}: cannot be read: {error}") from None
+        raise BadResultError(f"{name}: cannot be read: {unreadable(error)}") from None
     if not lines:
         raise BadResultError(f"{name}: the input file is empty: it needs a header time,F_ext")
     header = [cell.strip() for cell in lines[0][1]]

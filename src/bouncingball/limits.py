@@ -96,7 +96,8 @@ def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: f
     - R <= 1e150 m.
     - (g - F_ext/m)^2 m/k <= B: the oscillator's energy at R, where B = 1e300 min(1, 1/m, k/m) m2/s2
       keeps the speed^2 below 1e300 m2/s2, the energy m v^2 below 1e300 J and the contact's
-      amplitude below 1e150 m. The field named is g, or F_ext if F_ext takes it out of range.
+      amplitude below 1e150 m. m, k and g are named together, with a bound on each that fixes it (g alone
+      where m and k cannot), or F_ext if F_ext takes it out of range.
     - h0's part of the energy below B: (k/m) (h0 - R + d)^2 starting in contact (d the static
       deflection), 2 (g - F_ext/m) (h0 - R) + (k/m) d^2 falling onto the spring; h0 <= 1e300 m.
     - v0^2 plus that below B.
@@ -169,9 +170,8 @@ def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: f
     g_max = math.sqrt(budget * w2)  # (g_eff^2 / w2 <= budget): the energy at R, (k/m) d^2
     if not abs(g_eff) <= g_max:
         rest = f"the energy at R, (g - F_ext/m)^2 m/k = {g_eff * g_eff / w2:.4g} m2/s2, is out of range: {why}"
-        if not ball.g <= g_max:
-            raise ValueError(f"g = {ball.g!r} m/s2 is not allowed for this ball ({about}): it must be <= "
-                             f"{exact(g_max)} m/s2 ({rest})")
+        if F_ext == 0.0 or not ball.g <= g_max:
+            raise ValueError(_weight_out_of_range(ball, F_ext, g_eff, g_max, rest))
         raise ValueError(f"F_ext = {F_ext!r} N is not allowed for this ball ({about}, g = {ball.g:g} m/s2): it must "
                          f"be in [{exact(m * (ball.g - g_max))}, {exact(m * (ball.g + g_max))}] N ({rest})")
     d = g_eff / w2  # the static deflection [m]
@@ -204,6 +204,30 @@ def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: f
                          f"speed^2 or energy m v^2 {SQUARE_LIMIT:g}")
     if output_interval is not None:
         check_output_interval(t_start, t_end, output_interval)
+
+
+def _weight_out_of_range(ball: Ball, F_ext: float, g_eff: float, g_max: float, rest: str) -> str:
+    """m, k and g (with F_ext) that together put the energy at R out of range, and the bound on each that fixes it.
+
+    Each bound keeps the other inputs as they are: |g - F_ext/m| <= g_max; with F_ext = 0, m below the
+    least of the three sides of the energy's bound (per unit mass, in joules, as an amplitude); k above
+    their greatest. A bound the ball's own ranges (k/m, b/(2m)) would refuse is left out.
+    """
+    m, k, b, g = ball.m, ball.k, ball.b, ball.g
+    low, high = max(0.0, F_ext / m - g_max), F_ext / m + g_max
+    fixes = [f"g <= {exact(high)} m/s2" if low == 0.0 else f"g in [{exact(low)}, {exact(high)}] m/s2"]
+    if F_ext == 0.0:
+        m_max = min((SQUARE_LIMIT / g) * (k / g), SCALE_LIMIT * math.sqrt(k) / g, SCALE_LIMIT * k / g)
+        if m_max > 0.0 and k / m_max <= SQUARE_LIMIT and b / (2.0 * m_max) <= SCALE_LIMIT:
+            fixes.append(f"m <= {exact(m_max)} kg")
+    k_min = max(g_eff * g_eff * m / SQUARE_LIMIT, g_eff * g_eff * m * (m / SQUARE_LIMIT), abs(g_eff) * m / SCALE_LIMIT)
+    if k_min / m <= SQUARE_LIMIT:
+        fixes.append(f"k >= {exact(k_min)} N/m")
+    force = f", F_ext = {F_ext!r} N" if F_ext else ""
+    return (f"m = {m!r} kg, k = {k!r} N/m and g = {g!r} m/s2{force} are not allowed together (R = {ball.R:g} m): "
+            f"{rest}; change one: {', '.join(fixes[:-1])} or {fixes[-1]}" if len(fixes) > 1 else
+            f"g = {g!r} m/s2 is not allowed for this ball (m = {m!r} kg, k = {k!r} N/m{force}): it must be "
+            f"{fixes[0][2:]} ({rest})")
 
 
 def _amount(energy: float) -> str:

@@ -19,8 +19,10 @@ FMU's) are ignored. A file whose cells show it was printed with fewer digits tha
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import re
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -39,6 +41,32 @@ _NUMERIC = ("time", "h", "v", "a", "impacts", *PARAMETERS)
 
 class BadResultError(ValueError):
     """A result that cannot be checked: the message names the file, the row or column, and what is wrong."""
+
+
+def refuse_binary(path: str | Path, wanted: str = "the CSV a master wrote (a time and an h column)") -> None:
+    """BadResultError naming what the file is when it is no text (an FMU, a zip archive, a binary file), and wanted.
+
+    A CSV is text: a NUL byte in its first 4 kB, or a zip's signature, says it is something else.
+    """
+    with open(path, "rb") as file:
+        head = file.read(4096)
+    if head.startswith(b"PK\x03\x04"):
+        kind = "a zip archive"
+        with contextlib.suppress(zipfile.BadZipFile, OSError), zipfile.ZipFile(path) as archive:
+            if "modelDescription.xml" in archive.namelist():
+                kind = "an FMU (a zip archive)"
+    elif b"\0" in head:
+        kind = "a binary file"
+    else:
+        return
+    raise BadResultError(f"{path}: it is {kind}, not a CSV file: give {wanted}")
+
+
+def unreadable(error: Exception) -> str:
+    """Why a CSV file cannot be read, in words (a text in another encoding than UTF-8 named as such)."""
+    if isinstance(error, UnicodeDecodeError):
+        return f"it is not UTF-8 text (it holds the byte 0x{error.object[error.start]:02x}): save it as UTF-8"
+    return str(error)
 
 
 @dataclass(frozen=True)
@@ -171,11 +199,12 @@ def read_result_file(path: str | Path, instance: str | None = None) -> ResultFil
     """
     name = str(path)
     try:
+        refuse_binary(path)
         with open(path, newline="", encoding="utf-8-sig") as file:
             reader = csv.reader(file, skipinitialspace=True)
             lines = [(reader.line_num, row) for row in reader if any(cell.strip() for cell in row)]
     except (OSError, UnicodeDecodeError, csv.Error) as error:
-        raise BadResultError(f"{name}: cannot be read: {error}") from None
+        raise BadResultError(f"{name}: cannot be read: {unreadable(error)}") from None
     if lines and len(lines[0][1]) == 1 and lines[0][1][0].strip().lower().startswith("sep="):
         separator = lines[0][1][0].strip()[4:]
         if separator != ",":

@@ -245,7 +245,8 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
                        float(allowance[most]), str(file.printing), float(np.max(allowance - tolerance)),
                        file.instance, file_parameters, merged,
                        _first_row(file, replace(scene, F_ext=float(ForceTable.of(force).at(start_time))
-                                                if forcing else scene.F_ext), tolerance, start_time), forcing)
+                                                if forcing else scene.F_ext), tolerance, start_time), forcing,
+                       file.F_ext is None and input_file is None)
 
 
 def _setting(scene: Scene, name: str) -> float:

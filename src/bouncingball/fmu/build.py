@@ -52,13 +52,18 @@ class FmuBuildError(RuntimeError):
 
 
 def build_fmu(output: str | Path | None = None, fmi_version: int = 2) -> Path:
-    """Build the FMU of FMI version fmi_version (2 or 3) into output [.fmu] (default DEFAULT_OUTPUTS) and return it."""
+    """Build the FMU of FMI version fmi_version (2 or 3) into output [.fmu] (default DEFAULT_OUTPUTS) and return it.
+
+    The default's folder (dist/) is created; an output given in a folder that does not exist is refused, as
+    every other output path is (a typo in a path must not become a new folder).
+    """
     if fmi_version not in DEFAULT_OUTPUTS:
         raise ValueError(f"fmi_version = {fmi_version!r} is not allowed: it must be 2 or 3")
+    make_folders = output is None
     output = Path(output if output is not None else DEFAULT_OUTPUTS[fmi_version])
     if output.suffix != ".fmu":
         raise ValueError(f"output = {str(output)!r} is not allowed: it must end in .fmu")
-    check_output_path("output", output, make_folders=True)
+    check_output_path("output", output, make_folders=make_folders)
     _check_build_host()
     compiler = _compiler()
     library = "pythonfmu" if fmi_version == 2 else "pythonfmu3"
@@ -87,7 +92,8 @@ def build_fmu(output: str | Path | None = None, fmi_version: int = 2) -> Path:
             for name in set(sys.modules) - modules:
                 if name == script.stem or name.split(".")[0] == package.name:
                     del sys.modules[name]
-        output.parent.mkdir(parents=True, exist_ok=True)
+        if make_folders:
+            output.parent.mkdir(parents=True, exist_ok=True)
         with atomic_write(output) as partial:
             _repack(Path(built), loader, partial, fmi_version)
     write_reference_csv(reference_path(output))

@@ -19,6 +19,10 @@ SKSUNDAE_FIRST_USE = 0.43  # s: scikit-sundae's import (it loads SciPy)
 STEP_SAVING = 13.5e-6  # s per CVODE step
 STEPS_PER_PHASE = 46  # CVODE's steps per flight or contact at the default rtol (the article: 1925 in 42 phases)
 _COMPILED_MODULE = __name__.rpartition(".")[0] + ".compiled"
+# How to add numba: the extra of an installed bouncingball; the FMU's copy of the package (named otherwise) runs in
+# a host Python that has no bouncingball to add an extra to, and needs numba alone.
+INSTALL_NUMBA = ("pip install 'bouncingball[fast]'" if __name__.split(".")[0] == "bouncingball"
+                 else "pip install numba, into the Python that runs the FMU")
 _sksundae_steps = 0  # CVODE steps this process ran on scikit-sundae: what engine "auto" paid instead of loading
 
 
@@ -72,7 +76,7 @@ def choose_engine(engine: str = "auto", steps: float | None = None) -> tuple[str
     try:
         from . import compiled
     except ImportError as error:
-        reason = f"numba is not installed ({error}): pip install 'bouncingball[fast]'"
+        reason = f"numba is not installed ({error}): {INSTALL_NUMBA}"
     except Exception as error:  # numba is there but cannot compile the engine (an incompatible release)
         reason = f"numba could not compile the engine ({type(error).__name__}: {error})".splitlines()[0]
     else:

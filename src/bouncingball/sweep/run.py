@@ -34,8 +34,11 @@ def local_cluster(workers: int | None = None):
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
     try:
+        # No dashboard; the scheduler's HTTP server (its health routes) runs anyway, on 8787 unless told: on a
+        # free port, so that a second cluster on the machine does not warn "Port 8787 is already in use".
         return LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                            dashboard_address=None, silence_logs=logging.ERROR)
+                            dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                            silence_logs=logging.ERROR)
     finally:
         if main_thread:
             signal.signal(signal.SIGINT, previous)
@@ -104,7 +107,7 @@ def run_sweep(grid: Grid, client=None, *, output_dir: str | Path | None = None, 
     batch_size : int, optional
         Runs per Dask task; None chooses it from the measured per-task overhead (choose_batch_size).
     progress : bool
-        Show a progress bar on stderr.
+        Show a progress bar on stderr when it is a terminal (never into a file or a pipe).
     on_batch : callable, optional
         Called with each batch's rows as it arrives.
 
@@ -196,7 +199,8 @@ def _run_batches(client, todo: list[dict], size: int, time_cap: float, output_di
                for i, start in enumerate(range(0, len(todo), size))]
     futures = client.map(child.run_batch, batches, time_cap=time_cap, pure=False)
     rows: list[dict] = []
-    with tqdm(total=len(todo), desc="sweep", unit="run", file=sys.stderr, disable=not progress) as bar:
+    shown = progress and sys.stderr.isatty()  # a bar redirected into a file is a mess of \r lines
+    with tqdm(total=len(todo), desc="sweep", unit="run", file=sys.stderr, disable=not shown) as bar:
         for future in as_completed(futures):
             batch = future.result()
             if output_dir is not None:
