@@ -51,6 +51,11 @@ FLIGHT, CONTACT = 0, 1
 IMPACT, DEPARTURE = "impact", "departure"
 
 
+def _exact(x):
+    """x as an mpf: a float taken as its exact binary value, an mpf as it is."""
+    return x if isinstance(x, mp.mpf) else mp.mpf(float(x))
+
+
 class TooManyEvents(RuntimeError):
     """More events before t_end than the oracle was allowed to compute (max_events)."""
 
@@ -198,9 +203,9 @@ class _Contact:
 class Oracle:
     """The solution from (h0, v0) at t_start to t_end [s]: events, rest time and h, v at any time.
 
-    Parameters are floats (taken as exact binary values) of the ball (m, k, b, R, g), the start state
-    and the constant upward force F_ext. Events in (t_start, t_end] are computed; more than max_events
-    raise TooManyEvents.
+    Parameters are floats (taken as exact binary values) of the ball (m, k, b, R, g), the start
+    state (floats, or mpf values kept whole) and the constant upward force F_ext. Events in
+    (t_start, t_end] are computed; more than max_events raise TooManyEvents.
 
     Attributes
     ----------
@@ -217,8 +222,8 @@ class Oracle:
         self.m, self.k, self.b, self.R, self.g, self.F = m, k, b, R, g, F
         self.a = g - F / m  # downward acceleration in flight
         self.contact = _Contact(m, k, b, R, g, F)
-        self.t_start, self.t_end = mp.mpf(float(t_start)), mp.mpf(float(t_end))
-        h, v = mp.mpf(float(h0)), mp.mpf(float(v0))
+        self.t_start, self.t_end = _exact(t_start), _exact(t_end)
+        h, v = _exact(h0), _exact(v0)  # an mpf start (a state carried over from another piece) is kept whole
         if h < R or (h == R and (v < 0 or (v == 0 and self.a > 0))):
             mode = CONTACT
         else:

@@ -7,9 +7,10 @@ import contextlib
 import difflib
 import os
 import sys
+import warnings
 from collections.abc import Sequence
 
-from . import SOLVERS, __version__
+from . import SOLVERS, AccuracyWarning, __version__
 from .output import STANDARD_OUTPUT
 
 EXIT_BAD_INPUT = 2
@@ -173,10 +174,16 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
     if args.solver == "scipy":
         print(f"bouncingball: running the article's SciPy algorithm on {scene.name} (minutes on a stiff scene; "
               "Ctrl-C stops it)", file=sys.stderr)
-    with _progress_bar(options.get("t_end", scene.t_end)) as progress:
+    with _progress_bar(options.get("t_end", scene.t_end)) as progress, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", AccuracyWarning)
         if progress is not None and args.solver in ("cvode", "scipy"):
             options["progress"] = progress
         result = scene.simulate(args.solver, **options)
+    for warning in caught:  # AccuracyWarning as one line; any other as Python shows it
+        if issubclass(warning.category, AccuracyWarning):
+            print(f"bouncingball: warning: {warning.message}", file=sys.stderr)
+        else:
+            warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
     accuracy, exact_on_grid = (None, None) if result.solver == "exact" else accuracy_of_result(result, scene.h0,
                                                                                                scene.v0)
     exact = result if exact_on_grid is None else exact_on_grid.result()
@@ -199,6 +206,8 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
         print(f"  first use   {first_use}")
     if stats.engine:
         print(f"  engine      {stats.engine} ({stats.engine_reason})")
+    if result.error_estimate is not None:
+        print(f"  error estimate             {result.error_estimate:.3e} m (the run's own, without the exact solution)")
     if accuracy is not None:
         print(f"  max |h - h_exact|          {accuracy.max_height_error:.3e} m")
         print(f"  max event time error       {accuracy.max_event_time_error:.3e} s")

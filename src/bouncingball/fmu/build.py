@@ -134,7 +134,7 @@ def write_reference_csv(path: str | Path) -> Path:
     from ..scenes import load_scene
     from ..solvers.exact import ExactSolution
     from ..solvers.result import IMPACT, output_grid
-    from .variables import OUTPUTS
+    from .variables import SOLUTION_OUTPUTS as OUTPUTS
 
     scene = load_scene("article")
     ball = scene.ball

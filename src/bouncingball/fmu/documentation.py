@@ -28,7 +28,7 @@ from ..solvers.result import SimulationResult, SolverStats, output_grid
 from ..validation import exact
 from .host_check import TESTED_PYTHON_HOSTS
 from .slave_base import DEFAULT_ENGINE, BallSlave
-from .variables import EVENT_INDICATOR, FMI3_VARIABLES, MODEL_NAME, OUTPUTS, SMALLEST_POSITIVE, VARIABLES
+from .variables import EVENT_INDICATOR, FMI3_VARIABLES, MODEL_NAME, SMALLEST_POSITIVE, SOLUTION_OUTPUTS, VARIABLES
 
 PLOT_DPI = 80
 # do_step calls to reach one communication point: one, and with early return one more per event inside the step
@@ -303,7 +303,7 @@ def _reference_section() -> str:
     return f"""<h2>Reference result, and how to check a result</h2>
 <p><code>bouncingball build-fmu</code> writes the reference result of the default experiment beside
 the FMU, named after it (<code>{MODEL_NAME}_ref.csv</code> beside <code>{MODEL_NAME}.fmu</code>): the exact
-solution at every communication point, in the columns time, {", ".join(OUTPUTS)}.
+solution at every communication point, in the columns time, {", ".join(SOLUTION_OUTPUTS)}.
 Any master's result, as a CSV with a <code>time</code> and an <code>h</code> column, is judged
 against the exact solution at its own times by</p>
 <pre>pip install bouncingball

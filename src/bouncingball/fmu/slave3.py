@@ -195,6 +195,9 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
     def _impacts(self):
         return self._exchange[3] if self._exchange else super()._impacts()
 
+    def _error_estimate(self):
+        return -1.0 if self._exchange else super()._error_estimate()  # the master integrates: unknown
+
     def _gap(self):
         return self._h() - (self._integrator.ball.R if self._integrator else self._values["R"])
 

@@ -214,6 +214,9 @@ class BallSlave:
     def _impacts(self):
         return 0 if self._integrator is None else self._integrator.impacts
 
+    def _error_estimate(self):
+        return 0.0 if self._integrator is None else self._integrator.error_estimate_before_phase
+
     # --- helpers ----------------------------------------------------------------------------------
     def _ball_and_settings(self, values=None, tolerance=None) -> tuple[Ball, CvodeSettings]:
         """The ball and CVODE settings from values (default: the current ones); ValueError names a bad value."""

@@ -33,7 +33,7 @@ from .layout import (
     X,
 )
 from .phases import FLIGHT, frame
-from .settings import ERROR_WITHIN_PHASE, ESTIMATE_CAP, PROMISE
+from .settings import ERROR_WITHIN_PHASE, ESTIMATE_CAP, ESTIMATE_SAFETY, PROMISE
 
 _EPS = 2.0**-52
 
@@ -68,7 +68,7 @@ def phase_error(parameters, rtol, atol, state):
     else:
         carried = max(hypot(ex0, ev0 / math.sqrt(k / m)), abs(ex))
         own += state[HOP]
-    return ex, ev, carried + own
+    return ex, ev, ESTIMATE_SAFETY * (carried + own)
 
 
 def run_estimate(parameters, rtol, atol, state):

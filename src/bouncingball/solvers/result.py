@@ -135,17 +135,17 @@ class AccuracyWarning(UserWarning):
     """
 
 
-def accuracy_warning(estimate: float, scale: float, since: float) -> AccuracyWarning | None:
-    """The AccuracyWarning for an error estimate [m] at a height scale [m], past the promise from since [s].
+def accuracy_warning(estimate: float, scale: float, since: float, now: float) -> AccuracyWarning | None:
+    """The AccuracyWarning for an error estimate [m] by the time now [s], past the promise from since [s].
 
-    None where the estimate is within the promise.
+    The promise is judged at the height scale [m]. None where the estimate is within the promise.
     """
     if estimate <= PROMISE * scale:
         return None
-    return AccuracyWarning(f"the run's error estimate is {estimate:.2g} m, {estimate / scale:.2g} of its height scale "
-                           f"{scale:.3g} m, past the promise of {PROMISE:g}: the run cannot be trusted from t = "
-                           f"{since:.6g} s on (a small error there grows faster than double precision can follow: "
-                           "an ill-conditioned run)")
+    return AccuracyWarning(f"by t = {now:.6g} s the run's error estimate is {estimate:.2g} m, {estimate / scale:.2g} "
+                           f"of its height scale {scale:.3g} m, past the promise of {PROMISE:g}: the run cannot be "
+                           f"trusted from t = {since:.6g} s on (a small error there grows faster than double "
+                           "precision can follow: an ill-conditioned run)")
 
 
 DEFAULT_OUTPUT_INTERVAL = 1e-3  # s: the article's output grid, every default grid's (simulate, scenes, bench)

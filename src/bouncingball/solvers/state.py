@@ -120,6 +120,14 @@ class IntegratorView:
         return int(self._state[layout.RHS_CALLS] + self._state[layout.NFEV])
 
     @property
+    def error_estimate_before_phase(self) -> float:
+        """The error estimate [m] as of the current phase's start: the last event or change of F_ext.
+
+        An array read, for a caller that asks at every step (error_estimate adds the phase so far).
+        """
+        return float(self._state[layout.ERR_MAX])
+
+    @property
     def steps(self) -> int:
         """CVODE's internal steps so far."""
         return int(self._state[layout.STEPS])
