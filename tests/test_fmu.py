@@ -69,8 +69,10 @@ def test_model_description_has_units_ranges_and_start_values(fmu):
 
     assert md.version == bouncingball.__version__
     assert md.generationTool == f"bouncingball {bouncingball.__version__} (pythonfmu {pythonfmu.__version__})"
-    assert [u.variable.name for u in md.outputs] == ["h", "v", "a", "contact", "contact_force", "impacts"]
-    assert [u.variable.name for u in md.initialUnknowns] == ["a", "contact", "contact_force", "impacts"]
+    assert [u.variable.name for u in md.outputs] == ["h", "v", "a", "contact", "contact_force", "impacts",
+                                                     "error_estimate"]
+    assert [u.variable.name for u in md.initialUnknowns] == ["a", "contact", "contact_force", "impacts",
+                                                             "error_estimate"]
 
 
 def test_fmu_carries_the_package_and_a_linux_binary_only(fmu):

@@ -243,7 +243,7 @@ def test_what_the_fmu_does_not_have_is_refused_not_thrown(unzipped3):
         values = (fmi3Float64 * 3)()
         vrs = (ctypes.c_uint32 * 2)(0, 1)
         refused(ball, lambda: f.fmi3GetFloat64(f.component, vrs, 2, values, 3), "2 value references with 3 values")
-        refused(ball, lambda: f.setFloat64([16], [1.0]), "time cannot be set")
+        refused(ball, lambda: f.setFloat64([ball.reference("time")], [1.0]), "time cannot be set")
         f.exitInitializationMode()
         out["h"] = ball.get("h")[0]
     """.replace("from fmpy.fmi3", "import ctypes\n        from fmpy.fmi3"))

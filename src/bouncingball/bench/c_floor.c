@@ -26,7 +26,7 @@ enum { CV_SUCCESS = 0, CV_ROOT_RETURN = 2, CV_ONE_STEP = 2, NUM_ROOTS = 3, SERIE
 struct floor_settings {
     double m, k, b, R, g, F_ext, h0, v0, t0;
     double rtol, atol; /* atol <= 0: none */
-    double max_step, own_side, hop_resolution, soft_contact_cap, min_phase_scale;
+    double max_step, own_side, hop_resolution, soft_contact_cap, min_phase_scale, error_within_phase, estimate_safety;
     long max_num_steps, max_steps_per_phase;
     int method[2], max_order[2], max_nonlin_iters, max_conv_fails;
 };
@@ -58,6 +58,8 @@ struct run {
     struct points p;
     double t, x, v, load, g_eff, hop;
     double t_low; /* the rounding error of an event time t (machine.later); 0 elsewhere */
+    /* the error estimate (error_estimate.py): the phase's start, the error of (x, v) there, the bound before it */
+    double start_t, start_t_low, start_x, start_v, error_x, error_v, error_bound;
     int mode;
     long steps, rhs_calls;
     char *message;
@@ -134,6 +136,41 @@ static void gap_flow(const struct run *r, int mode, double x0, double v0, double
     p = unit_response(sigma, w2, tau, cc, s);
     *x = x0 * cc + (v0 + sigma * x0) * s - r->g_eff * p;
     *v = v0 * cc - (sigma * v0 + w2 * x0) * s - r->g_eff * s;
+}
+
+/* The phase's flow with no load: the transition matrix's columns (error_estimate.phase_error). */
+static void unit_flow(const struct run *r, int mode, double x0, double v0, double tau, double *x, double *v) {
+    const struct floor_settings *c = r->c;
+    if (mode == FLIGHT) {
+        *x = x0 + tau * v0, *v = v0;
+        return;
+    }
+    double sigma = c->b / (2.0 * c->m), w2 = c->k / c->m, cc, s;
+    basis(sigma, w2, tau, &cc, &s);
+    *x = x0 * cc + (v0 + sigma * x0) * s;
+    *v = v0 * cc - (sigma * v0 + w2 * x0) * s;
+}
+
+/* The phase since (start_*) ends at the run's state: its error carried through the field's jump there
+ * (error_estimate.carry_error), and the next phase starts (length: the phase's length scale). */
+static void carry_error(struct run *r, int mode, double length, double jump) {
+    const struct floor_settings *c = r->c;
+    double tau = (r->t - r->start_t) + (r->t_low - r->start_t_low), x_flow, v_flow, p00, p10, p01, p11;
+    gap_flow(r, mode, r->start_x, r->start_v, tau, &x_flow, &v_flow);
+    unit_flow(r, mode, 1.0, 0.0, tau, &p00, &p10);
+    unit_flow(r, mode, 0.0, 1.0, tau, &p01, &p11);
+    double ex = p00 * r->error_x + p01 * r->error_v + (r->x - x_flow);
+    double ev = p10 * r->error_x + p11 * r->error_v + (r->v - v_flow);
+    double own = c->error_within_phase * c->rtol * length + 8.0 * EPS * (fabs(r->start_x) + length + c->R), carried;
+    if (mode == FLIGHT) {
+        carried = fmax(fabs(r->error_x), fabs(ex));
+    } else {
+        carried = fmax(hypot(r->error_x, r->error_v / sqrt(c->k / c->m)), fabs(ex));
+        own += r->hop;
+    }
+    r->error_bound = fmax(r->error_bound, c->estimate_safety * (carried + own));
+    r->error_x = ex, r->error_v = ev + jump * ex;
+    r->start_t = r->t, r->start_t_low = r->t_low, r->start_x = r->x, r->start_v = r->v;
 }
 
 /* --- the callbacks (compiled.py's _rhs, _roots, _jacobian) ----------------------------------------- */
@@ -376,6 +413,7 @@ static int integrate_phase(struct run *r, double t_end, int *resting, double *ev
     }
     if (!(root || *resting)) ts[last] = t_end;
     r->t = ts[last], r->x = xs[last], r->v = vs[last], r->t_low = root ? t_low : 0.0;
+    if (root) carry_error(r, mode, length, mode == FLIGHT ? -c->b / c->m : c->b / c->m);
     r->steps += last - first;
     r->rhs_calls += rhs_calls;
     if (root) {
@@ -419,7 +457,7 @@ static double now(void) {
  * seconds the wall time spent in here. */
 int c_floor_run(const struct sundials *S, const struct floor_settings *c, const double *grid, long n_grid,
                 double *h, double *v, double *events, long max_events, long *counts, double *seconds,
-                char *message, long message_size) {
+                double *error_estimate, char *message, long message_size) {
     double started = now();
     struct run r;
     memset(&r, 0, sizeof r);
@@ -436,6 +474,7 @@ int c_floor_run(const struct sundials *S, const struct floor_settings *c, const 
         p->max_evaluations = c->max_steps_per_phase;
     }
     r.t = c->t0, r.x = c->h0 - c->R, r.v = c->v0;
+    r.start_t = r.t, r.start_x = r.x, r.start_v = r.v;
     double g_eff = r.g_eff;
     r.mode = (c->h0 < c->R || (c->h0 == c->R && (c->v0 < 0.0 || (c->v0 == 0.0 && g_eff > 0.0)))) ? CONTACT : FLIGHT;
     long n_events = 0;
@@ -458,7 +497,14 @@ int c_floor_run(const struct sundials *S, const struct floor_settings *c, const 
     }
     if (status == 0 && r.t > r.p.t[r.p.n - 1] && record(&r, r.t, r.x, r.v, r.mode) < 0)
         status = fail(&r, -4, "out of memory", r.t);
-    if (status == 0) fill(&r, grid, n_grid, h, v);
+    if (status == 0) {
+        double length, speed;
+        phase_scales(&r, r.mode, r.start_x, r.start_v, &length, &speed);
+        if (c->atol > 0.0 && c->rtol * length > c->atol) length = c->atol / c->rtol;
+        carry_error(&r, r.mode, length, 0.0); /* the last phase, to t_end */
+        fill(&r, grid, n_grid, h, v);
+    }
+    *error_estimate = r.error_bound;
     counts[0] = r.steps, counts[1] = r.rhs_calls, counts[2] = n_events;
     for (int mode = FLIGHT; mode <= CONTACT; mode++) free_solver(S, &r.solvers[mode]);
     free(r.p.t), free(r.p.x), free(r.p.v), free(r.p.mode);

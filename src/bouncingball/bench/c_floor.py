@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import math
 import os
 import shlex
 import shutil
@@ -100,7 +101,7 @@ def build() -> Path:
 class _Settings(ctypes.Structure):
     _fields_ = ([(name, ctypes.c_double) for name in (
         "m", "k", "b", "R", "g", "F_ext", "h0", "v0", "t0", "rtol", "atol", "max_step", "own_side",
-        "hop_resolution", "soft_contact_cap", "min_phase_scale")]
+        "hop_resolution", "soft_contact_cap", "min_phase_scale", "error_within_phase", "estimate_safety")]
         + [("max_num_steps", ctypes.c_long), ("max_steps_per_phase", ctypes.c_long),
            ("method", ctypes.c_int * 2), ("max_order", ctypes.c_int * 2), ("max_nonlin_iters", ctypes.c_int),
            ("max_conv_fails", ctypes.c_int)])
@@ -126,7 +127,8 @@ def _load():
         entry.restype = ctypes.c_int
         entry.argtypes = [ctypes.c_void_p, ctypes.POINTER(_Settings), ctypes.c_void_p, ctypes.c_long,
                           ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long, ctypes.c_void_p,
-                          ctypes.POINTER(ctypes.c_double), ctypes.c_char_p, ctypes.c_long]
+                          ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double), ctypes.c_char_p,
+                          ctypes.c_long]
         _LOADED = (entry, table)
     return _LOADED
 
@@ -152,6 +154,7 @@ class FloorResult:
     steps: int
     rhs_calls: int
     seconds_in_c: float
+    error_estimate: float = math.nan
 
 
 def settings(ball, h0: float, v0: float, t0: float, F_ext: float, rtol: float, atol: float | None,
@@ -168,6 +171,8 @@ def settings(ball, h0: float, v0: float, t0: float, F_ext: float, rtol: float, a
                   own_side=integrator._own_side(Mode.FLIGHT),
                   hop_resolution=solver_settings.HOP_RESOLUTION,
                   soft_contact_cap=phases.SOFT_CONTACT_CAP, min_phase_scale=phases.MIN_PHASE_SCALE,
+                  error_within_phase=solver_settings.ERROR_WITHIN_PHASE,
+                  estimate_safety=solver_settings.ESTIMATE_SAFETY,
                   max_num_steps=integrator._MAX_STEPS_PER_CALL, max_steps_per_phase=integrator.MAX_STEPS_PER_PHASE,
                   max_nonlin_iters=compiled._MAX_NONLIN_ITERS, max_conv_fails=compiled._MAX_CONV_FAILS)
     s.method[:] = codes
@@ -194,15 +199,16 @@ def run(ball, h0: float, v0: float, t_end: float, output_interval: float, F_ext:
     h, v = np.empty_like(grid), np.empty_like(grid)
     events = np.empty((10_000, 3))
     counts = np.zeros(3, dtype=np.int64)  # C longs
-    message, seconds = ctypes.create_string_buffer(512), ctypes.c_double()
+    message, seconds, estimate = ctypes.create_string_buffer(512), ctypes.c_double(), ctypes.c_double()
     c = settings(ball, float(h0), float(v0), 0.0, float(F_ext), settings_.rtol, settings_.atol, settings_.method)
     status = entry(ctypes.byref(table), ctypes.byref(c), grid.ctypes.data, len(grid), h.ctypes.data, v.ctypes.data,
-                   events.ctypes.data, len(events), counts.ctypes.data, ctypes.byref(seconds), message, len(message))
+                   events.ctypes.data, len(events), counts.ctypes.data, ctypes.byref(seconds), ctypes.byref(estimate),
+                   message, len(message))
     if status != 0:
         raise RuntimeError(f"the C floor failed ({status}): {message.value.decode()}")
     found = [Event(float(t), IMPACT if kind == 0.0 else DEPARTURE, float(speed))
              for t, kind, speed in events[:counts[2]]]
-    return FloorResult(grid, h, v, found, int(counts[0]), int(counts[1]), seconds.value)
+    return FloorResult(grid, h, v, found, int(counts[0]), int(counts[1]), seconds.value, estimate.value)
 
 
 if __name__ == "__main__":  # the generated header, for reading
