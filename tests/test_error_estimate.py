@@ -141,3 +141,63 @@ def test_a_well_conditioned_forced_run_does_not_warn(seed):
     result, caught = simulate_quietly(ball, *ILL_START, 3.0, 2e-3, F_ext=ill_table(seed))
     truth = true_error(result, *ILL_START)
     assert caught == [] and truth <= result.error_estimate <= PROMISE * max(float(np.max(np.abs(result.h))), ball.R)
+
+
+def test_check_says_when_the_run_it_judges_is_ill_conditioned(tmp_path):
+    """check judges a master's file against the exact solution (the verdict as ever), and says where the scene
+    itself is ill-conditioned: there no double-precision solution can be trusted, the exact one included."""
+    from bouncingball.scenes import Scene
+    from bouncingball.testing import check_result
+
+    grid = np.round(np.linspace(0.0, 3.0, 1501), 12)
+    table = ill_table(1)  # its steps moved to the grid, it passes the promise late in the run
+    on_grid = ForceTable.of(([0.0, *(grid[np.searchsorted(grid, table.times[1:])])], list(table.values)))
+    scene = Scene("ill", "an ill-conditioned forced run", bb.Ball(**ILL), *ILL_START, 3.0, 2e-3)
+    result, _ = simulate_quietly(scene.ball, *ILL_START, 3.0, 2e-3, F_ext=on_grid)
+    applied = np.array([on_grid.at(t) for t in np.concatenate([[0.0], result.t[:-1]])])  # FMPy's rows: the step's
+    path = tmp_path / "ill.csv"  # as FMPy writes it: each row's F_ext is the one applied over the step to it
+    rows = zip(result.t.tolist(), result.h.tolist(), applied.tolist(), strict=True)
+    path.write_text("time,h,F_ext\n" + "".join(f"{t!r},{h!r},{f!r}\n" for t, h, f in rows))
+    outcome = check_result(path, scene)
+    assert outcome.forcing  # the F_ext column was read as what was applied
+    assert outcome.conditioning.startswith("by t = ") and "cannot be trusted from t = " in outcome.conditioning
+    assert "  ill-conditioned    by t = " in outcome.report()
+    article = bb.simulate(bb.Ball(), 2.0, 0.0, 8.0, 0.01)
+    assert check_result({"time": article.t, "h": article.h}).conditioning == ""
+
+
+def test_the_stepping_api_keeps_the_same_estimate():
+    """BallIntegrator advanced in 1 ms steps: its estimate covers its true error, within the promise."""
+    from bouncingball.solvers.cvode import BallIntegrator
+
+    integrator = BallIntegrator(bb.Ball(), 2.0, 0.0)
+    t = np.linspace(0.0, 8.0, 8001)
+    h = [integrator.h]
+    for time in t[1:]:
+        integrator.advance(time)
+        h.append(integrator.h)
+    truth = float(np.max(np.abs(np.array(h) - oracle_heights(bb.Ball(), 2.0, 0.0, t))))
+    assert truth <= integrator.error_estimate <= PROMISE * 2.0
+    assert integrator.error_estimate_before_phase <= integrator.error_estimate
+
+
+def test_the_fmu_logs_the_accuracy_warning_once_and_every_call_returns_ok(unzipped):
+    """The ill-conditioned forced run through the FMI 2.0 FMU, F_ext set at each communication point: one line
+    with status warning, every call fmi2OK (masters stop at fmi2Warning), the output error_estimate past the
+    promise."""
+    from fmu_helpers import Instance
+
+    table = ill_table(1)  # held over each 2 ms step, as check's test applies it: past the promise late in the run
+    ball = Instance(unzipped)
+    ball.initialize(**ILL, h=ILL_START[0], v=ILL_START[1])
+    statuses = []
+    for i in range(1500):
+        t = i * 2e-3
+        ball.set(F_ext=float(table.at(t)))
+        statuses.append(ball.fmu.fmi2DoStep(ball.fmu.component, t, 2e-3, 1))  # the status itself
+    warned = [message for status, message in ball.log if "cannot be trusted" in message]
+    assert statuses == [0] * 1500 and len(warned) == 1
+    assert all(status == 1 for status, message in ball.log if "cannot be trusted" in message)
+    estimate, h = ball.get("error_estimate", "h")
+    assert estimate > PROMISE * 0.86
+    ball.free()

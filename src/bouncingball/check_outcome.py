@@ -95,6 +95,9 @@ class CheckResult:
     force_unrecorded : bool
         Neither the file (no F_ext column) nor an input file said what F_ext the master applied: a
         failed verdict then says how to give an input that drove it.
+    conditioning : str
+        Where the scene is ill-conditioned (a run of it by CVODE warns that its error estimate passes
+        the promise), that warning; "" where it is not. The verdict does not depend on it.
     """
 
     source: str
@@ -123,6 +126,7 @@ class CheckResult:
     first_row: tuple[str, ...] = ()
     forcing: str = ""
     force_unrecorded: bool = False
+    conditioning: str = ""
 
     @property
     def heights_pass(self) -> bool:
@@ -197,5 +201,7 @@ class CheckResult:
             lines.append(f"  impacts            {self.impacts_found} at the end, exact {self.impacts_exact}; "
                          f"the count is wrong at {len(self.impact_mismatches)} points{merged}:")
             lines += [f"    t = {t!r} s: {found}, exact {exact}" for t, found, exact in self.impact_mismatches[:5]]
+        if self.conditioning:
+            lines.append(f"  ill-conditioned    {self.conditioning}: no master can be trusted there either")
         lines.append(f"  verdict            {self.verdict}")
         return "\n".join(lines)

@@ -22,6 +22,7 @@ impact ending such a hop, or one lower than the check's tolerance, may be missin
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
@@ -246,7 +247,29 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
                        file.instance, file_parameters, merged,
                        _first_row(file, replace(scene, F_ext=float(ForceTable.of(force).at(start_time))
                                                 if forcing else scene.F_ext), tolerance, start_time), forcing,
-                       file.F_ext is None and input_file is None)
+                       file.F_ext is None and input_file is None,
+                       _conditioning(scene, force, start_time, t_last))
+
+
+def _conditioning(scene: Scene, force, start_time: float, t_end: float) -> str:
+    """The AccuracyWarning a CVODE run of the scene gives from start_time to t_end [s] under force, or "" (none).
+
+    The exact solution is evaluated in double precision too: where a run's error estimate passes
+    the promise, small errors grow faster than any double-precision solution can follow.
+    """
+    from .solvers import simulate
+    from .solvers.result import AccuracyWarning
+
+    if not t_end > start_time:
+        return ""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", AccuracyWarning)
+        try:
+            simulate(scene.ball, scene.h0, scene.v0, t_end, (t_end - start_time) / 1000, t_start=start_time,
+                     F_ext=force)
+        except (ValueError, RuntimeError):  # a run that cannot be made: nothing to say about it
+            return ""
+    return next((str(w.message) for w in caught if issubclass(w.category, AccuracyWarning)), "")
 
 
 def _setting(scene: Scene, name: str) -> float:
