@@ -23,11 +23,13 @@ def bounce_period(ball: bb.Ball, h0: float) -> float:
     return 2.0 * fall + (np.pi + 2.0 * np.arcsin(deflection / amplitude)) / omega
 
 
-def assert_within_promise(result, ball: bb.Ball, h0: float, t_end: float) -> float:
+def assert_within_promise(result, ball: bb.Ball, h0: float, t_end: float, estimate_at_least: float = 1.0) -> float:
     truth = undamped_heights(ball.m, ball.k, ball.R, ball.g, h0, result.t)
     scale = max(float(np.max(np.abs(truth))), ball.R)
     error = float(np.max(np.abs(result.h - truth))) / scale
     assert error <= PROMISE
+    # the run knows how right it is (at least estimate_at_least of its true error)
+    assert estimate_at_least * error * scale <= result.error_estimate <= PROMISE * scale
     assert len(result.events) == undamped_event_count(ball.m, ball.k, ball.R, ball.g, h0, t_end)
     speeds = np.abs([e.velocity for e in result.events])  # every bounce at the first impact's speed: energy kept
     assert np.all(speeds == speeds[0])
@@ -41,7 +43,7 @@ def test_the_undamped_scene_keeps_the_promise(engine):
     result = scene.simulate(engine=engine)
     error = assert_within_promise(result, scene.ball, scene.h0, scene.t_end)
     assert error <= 1e-8
-    assert_readme_quotes(f"775 bounces over 1000 s end within {error:.1e} of its 2 m height scale")
+    assert_readme_quotes(f"775 bounces over 1000 s end within {error:.1e} of its 2 m height scale".replace("e-0", "e-"))
 
 
 @pytest.mark.slow
@@ -55,9 +57,13 @@ def test_ten_thousand_and_a_hundred_thousand_undamped_bounces_keep_the_promise(b
     t_end = first_impact_time(2.0, UNDAMPED.R, UNDAMPED.g) + bounces * bounce_period(UNDAMPED, 2.0) - 0.5
     result = bb.simulate(UNDAMPED, 2.0, 0.0, t_end, output_interval, engine="compiled")
     assert sum(e.kind == "impact" for e in result.events) == bounces
-    error = assert_within_promise(result, UNDAMPED, 2.0, t_end)
-    assert_readme_quotes(f"1e4 bounces within {error:.1e}," if bounces == 10_000 else
-                         f"1e5 bounces (1.3e5 s) within {error:.1e} ")
+    # Over 2e5 identical phases the measurement of each phase's own error (the state against its exact flow)
+    # rounds the same way each time, and the estimate falls behind: 0.76 of the true error at 1e5 bounces
+    # (1.9e-7 m against 2.4e-7 m), still more than half of it; 1.3 times it at 1e4.
+    error = assert_within_promise(result, UNDAMPED, 2.0, t_end, 1.0 if bounces == 10_000 else 0.5)
+    figure = f"{error:.1e}".replace("e-0", "e-")
+    assert_readme_quotes(f"1e4 bounces within {figure}," if bounces == 10_000 else
+                         f"1e5 bounces (1.3e5 s) within {figure} ")
 
 
 def test_event_times_carried_with_their_rounding_error_do_not_drift():
