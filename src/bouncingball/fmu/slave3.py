@@ -149,7 +149,8 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
     def update_discrete_states(self):
         """The mode switch: to contact where h - R has turned negative, to flight where it turned positive.
 
-        The states' nominals are those of the new phase (phase_nominals), and a switch says they changed:
+        The states' nominals are those of the new phase (phase_nominals), and every switch says they changed
+        (also where the new ones happen to equal the old):
         h and v do not jump, so their values did not change (the standard forbids saying so), but an
         importer that restarts its integrator only when told (fmusim's model exchange) must restart here,
         where the equations change.
@@ -165,10 +166,10 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
             state[2] = Mode.FLIGHT
         else:
             return DiscreteStatesUpdate()
-        nominals = phase_nominals(self._integrator.ball, h, v, state[2], self._values["F_ext"])
-        changed = nominals != state[4:6]
-        state[4:6] = nominals
-        return DiscreteStatesUpdate(nominalContinuousStatesChanged=changed)
+        state[4:6] = phase_nominals(self._integrator.ball, h, v, state[2], self._values["F_ext"])
+        # Said at every switch, even where the new phase's nominals equal the old ones to the bit (a weightless
+        # ball whose impact speed is 2 R w): the equations changed, and the master must restart there.
+        return DiscreteStatesUpdate(nominalContinuousStatesChanged=True)
 
     # --- outputs: the model exchange state once there is one, else the integrator's -------------------
     def _h(self):
