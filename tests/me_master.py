@@ -65,17 +65,18 @@ def run(unzipped: Path, t_end: float = 8.0, output_interval: float = 0.01, rtol:
     seen = [tuple(nominals)]
     changed_between_events = 0
 
-    def rates(t, y, yp):
+    def at(t, y):  # the FMU at CVODE's time and states
         fmu.setTime(t)
         x[:] = y
         fmu.setContinuousStates(px, n_x)
+
+    def rates(t, y, yp):
+        at(t, y)
         fmu.getContinuousStateDerivatives(pdx, n_x)
         yp[:] = dx
 
     def indicators(t, y, out):
-        fmu.setTime(t)
-        x[:] = y
-        fmu.setContinuousStates(px, n_x)
+        at(t, y)
         fmu.getEventIndicators(pz, n_z)
         out[:] = z
 

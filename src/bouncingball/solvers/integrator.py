@@ -140,7 +140,7 @@ class BallIntegrator(IntegratorView):
         if self._accuracy_warned or not (whole or not np.isnan(self._state[layout.ERR_FROM])):
             return
         warning = accuracy_warning(*error_estimate.run_estimate(self._parameters, self.settings.rtol, self._atol,
-                                                           self._state), self.t)
+                                                           self._state), self.t, self.settings.rtol)
         if warning is not None:
             self._accuracy_warned = True
             warnings.warn(warning, stacklevel=4)

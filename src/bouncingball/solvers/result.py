@@ -11,7 +11,7 @@ import numpy as np
 from ..limits import check_output_interval
 from ..physics import Ball
 from .forcing import ForceTable
-from .settings import PROMISE
+from .settings import DEFAULT_RTOL, PROMISE
 
 
 class EventKind(StrEnum):
@@ -135,17 +135,21 @@ class AccuracyWarning(UserWarning):
     """
 
 
-def accuracy_warning(estimate: float, scale: float, since: float, now: float) -> AccuracyWarning | None:
+def accuracy_warning(estimate: float, scale: float, since: float, now: float,
+                     rtol: float = DEFAULT_RTOL) -> AccuracyWarning | None:
     """The AccuracyWarning for an error estimate [m] by the time now [s], past the promise from since [s].
 
     The promise is judged at the height scale [m]. None where the estimate is within the promise.
     """
     if estimate <= PROMISE * scale:
         return None
+    if rtol > DEFAULT_RTOL:  # a tolerance the user loosened: the promise is made at the defaults
+        cause = f"rtol = {rtol:g} is looser than the default {DEFAULT_RTOL:g}, which the promise is made at"
+    else:
+        cause = "a small error there grows faster than double precision can follow: an ill-conditioned run"
     return AccuracyWarning(f"by t = {now:.6g} s the run's error estimate is {estimate:.2g} m, {estimate / scale:.2g} "
                            f"of its height scale {scale:.3g} m, past the promise of {PROMISE:g}: the run cannot be "
-                           f"trusted from t = {since:.6g} s on (a small error there grows faster than double "
-                           "precision can follow: an ill-conditioned run)")
+                           f"trusted from t = {since:.6g} s on ({cause})")
 
 
 DEFAULT_OUTPUT_INTERVAL = 1e-3  # s: the article's output grid, every default grid's (simulate, scenes, bench)
