@@ -75,17 +75,21 @@ def test_every_built_in_scene_is_within_the_promise_and_says_so_honestly(name):
 # --- random scenes: the statistics the estimate promises -------------------------------------------------
 def random_case(rng: np.random.Generator):
     """A ball, a start and a run of a few bounces: log-uniform mass, stiffness, radius and drop; damping ratio
-    from 0 to 3; sometimes a constant lift or push; sometimes a start in contact."""
+    from 0 to 3, or within 1e-16 .. 1e-6 of critical; sometimes a constant lift or push, sometimes one that lifts
+    a ball off its rest; sometimes a start in contact."""
     m, k, R = 10 ** rng.uniform(-3, 2), 10 ** rng.uniform(2, 9), 10 ** rng.uniform(-3, 0)
-    zeta = rng.choice([0.0, 10 ** rng.uniform(-4, 0), rng.uniform(0.5, 3.0)])
+    near_critical = 1.0 + rng.choice([-1, 1]) * 10 ** rng.uniform(-16, -6)
+    zeta = rng.choice([0.0, 10 ** rng.uniform(-4, 0), rng.uniform(0.5, 3.0), near_critical])
     g = 9.81
     ball = bb.Ball(m=m, k=k, b=2 * zeta * math.sqrt(k * m), R=R, g=g)
-    F_ext = float(rng.choice([0.0, 0.0, rng.uniform(-1.0, 0.9) * m * g]))
-    if rng.uniform() < 0.2:
+    F_ext = float(rng.choice([0.0, 0.0, rng.uniform(-1.0, 0.9) * m * g, rng.uniform(1.0, 2.0) * m * g]))
+    v0 = float(rng.uniform(-1, 1) * math.sqrt(2 * g * R))
+    if F_ext > m * g:  # a lifted rest: from the rest height of its weight alone, at rest
+        h0, v0 = R - m * g / k, 0.0
+    elif rng.uniform() < 0.2:
         h0 = ball.rest_height(F_ext) + rng.uniform(-1, 1) * m * g / k
     else:
         h0 = R + 10 ** rng.uniform(-4, 1) * R
-    v0 = float(rng.uniform(-1, 1) * math.sqrt(2 * g * R))
     fall = math.sqrt(2 * max(h0 - R, R) / g)
     return ball, h0, v0, 6 * fall, 6 * fall / 1000, F_ext
 

@@ -45,7 +45,7 @@ MERGED_HOP_MARGIN = 10.0
 PROMISE = 1e-6
 # CVODE's error inside a phase, where only its end is measured (machine.phase_error): this many rtol the
 # phase's length scale. Measured against the mpmath solution: tests/test_error_estimate.py.
-ERROR_WITHIN_PHASE = 10.0
+ERROR_WITHIN_PHASE = 5.0
 # The bound is first order in the errors (the flows are exact, the events linearised): twice it keeps it above
 # the true error where second-order terms and rounding add to it (tests/test_error_estimate.py).
 ESTIMATE_SAFETY = 2.0
