@@ -43,7 +43,7 @@ MERGED_HOP_MARGIN = 10.0
 # The promise: max |h - h_true| <= PROMISE max(|h|, R) over a run. A run whose error estimate passes it
 # says so (AccuracyWarning).
 PROMISE = 1e-6
-# CVODE's error inside a phase, where only its end is measured (machine.phase_error): this many rtol the
+# CVODE's error inside a phase, where only its end is measured (error_estimate.phase_error): this many rtol the
 # phase's length scale. Measured against the mpmath solution: tests/test_error_estimate.py.
 ERROR_WITHIN_PHASE = 5.0
 # The bound is first order in the errors (the flows are exact, the events linearised): twice it keeps it above

@@ -34,7 +34,7 @@ class RestartPoint:
     rhs_calls: int = 0
     steps: int = 0
     t_low: float = 0.0  # the rounding error of t [s] where it is an event's time (machine.later)
-    # the run's error estimate there (machine.phase_error): the error of (x [m], v [m/s]), the bound on
+    # the run's error estimate there (error_estimate.phase_error): the error of (x [m], v [m/s]), the bound on
     # |h - h_true| [m] before it, the start [s] of the first phase past the promise (None: none), the height scale [m]
     error_x: float = 0.0
     error_v: float = 0.0
