@@ -68,7 +68,9 @@ def phase_error(parameters, rtol, atol, state):
     else:
         carried = max(hypot(ex0, ev0 / math.sqrt(k / m)), abs(ex))
         own += state[HOP]
-    return ex, ev, ESTIMATE_SAFETY * (carried + own)
+    bound = ESTIMATE_SAFETY * (carried + own)
+    # an error grown past double precision (inf, then nan) is no error to drop: it is the run lost
+    return ex, ev, bound if bound < math.inf else math.inf
 
 
 def run_estimate(parameters, rtol, atol, state):
