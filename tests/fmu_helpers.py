@@ -97,6 +97,9 @@ def exact_at(t, ball: Ball | None = None, h0: float = 2.0, v0: float = 0.0, t_st
     return exact.h, exact.v, exact.impacts
 
 
+_PROXIED_CALLBACKS: list = []  # every logger given to FMPy's process-wide proxy, kept for the process
+
+
 class Instance:
     """One FMU instance driven through FMPy's FMU2Slave, keeping every logged (status, message)."""
 
@@ -121,8 +124,11 @@ class Instance:
         callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         # formats the FMU's printf-style messages; FMPy's proxy keeps one logger per process, so the messages
-        # of every instance reach the log of the instance created last
+        # of every instance reach the log of the instance created last, and of any FMU FMPy runs later with its
+        # default callbacks (simulate_fmu): the callbacks must outlive the instance, or a later FMU's log line
+        # calls freed memory (a bench FMU's warning crashed the test process so)
         addLoggerProxy(byref(callbacks))
+        _PROXIED_CALLBACKS.append(callbacks)
         self._callbacks = callbacks
         self.fmu = FMU2Slave(guid=description.guid, unzipDirectory=str(unzipped),
                              modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
