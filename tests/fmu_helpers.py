@@ -97,7 +97,7 @@ def exact_at(t, ball: Ball | None = None, h0: float = 2.0, v0: float = 0.0, t_st
     return exact.h, exact.v, exact.impacts
 
 
-_PROXIED_CALLBACKS: list = []  # every logger given to FMPy's process-wide proxy, kept for the process
+_PROXIED_CALLBACKS: list = []  # the logger FMPy's process-wide proxy calls, kept until another replaces it
 
 
 class Instance:
@@ -128,7 +128,7 @@ class Instance:
         # default callbacks (simulate_fmu): the callbacks must outlive the instance, or a later FMU's log line
         # calls freed memory (a bench FMU's warning crashed the test process so)
         addLoggerProxy(byref(callbacks))
-        _PROXIED_CALLBACKS.append(callbacks)
+        _PROXIED_CALLBACKS[:] = [callbacks]  # the proxy calls only the last: the earlier ones may go
         self._callbacks = callbacks
         self.fmu = FMU2Slave(guid=description.guid, unzipDirectory=str(unzipped),
                              modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
