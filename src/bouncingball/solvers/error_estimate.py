@@ -39,9 +39,10 @@ _EPS = 2.0**-52
 
 
 def phase_error(parameters, rtol, atol, state):
-    """(ex, ev, bound): the run's error of (x [m], v [m/s]) at the state, and a bound on |h - h_true| [m] since.
+    """(ex, ev, bound, height): the run's error of (x [m], v [m/s]) at the state, and bounds since the restart point.
 
-    The bound holds over the phase from the restart point to the state.
+    bound: on |h - h_true| [m] over the phase from the restart point to the state; height: the phase's
+    height scale max(|h|, R) [m] (a flight's apex, or the state's height).
 
     Each phase's flow is exact in closed form and affine in its start state, so its own error is
     measured, not guessed: the state against the exact flow from the phase's start (CVODE's error
@@ -63,14 +64,23 @@ def phase_error(parameters, rtol, atol, state):
     ev = p10 * ex0 + p11 * ev0 + (state[V] - v_flow)
     length, _ = frame(parameters, mode, x0, v0, load, rtol, atol)
     own = ERROR_WITHIN_PHASE * rtol * length + 8.0 * _EPS * (abs(x0) + length + R)
+    height = max(R, abs(R + state[X]))
     if mode == FLIGHT:
         carried = max(abs(ex0), abs(ex))
+        height = max(height, R + length)  # the apex
     else:
         carried = max(hypot(ex0, ev0 / math.sqrt(k / m)), abs(ex))
         own += state[HOP]
     bound = ESTIMATE_SAFETY * (carried + own)
     # an error grown past double precision (inf, then nan) is no error to drop: it is the run lost
-    return ex, ev, bound if bound < math.inf else math.inf
+    return ex, ev, bound if bound < math.inf else math.inf, height
+
+
+def _untrusted_from(estimate, scale, since, phase_start):
+    """since [s], or, where no earlier phase passed the promise and this estimate [m] does at scale [m], phase_start."""
+    if math.isnan(since) and not estimate <= PROMISE * scale:
+        return phase_start
+    return since
 
 
 def run_estimate(parameters, rtol, atol, state):
@@ -79,14 +89,9 @@ def run_estimate(parameters, rtol, atol, state):
     scale: the height scale max(|h|, R) [m]; from: the start of the first phase past PROMISE of it
     (NaN: none).
     """
-    _, _, bound = phase_error(parameters, rtol, atol, state)
-    scale = max(state[SCALE], parameters[3], abs(parameters[3] + state[X]))
-    if int(state[RS_MODE]) == FLIGHT:
-        length, _ = frame(parameters, FLIGHT, state[RS_X], state[RS_V], state[LOAD], rtol, atol)
-        scale = max(scale, parameters[3] + length)
-    estimate, since = max(state[ERR_MAX], bound), state[ERR_FROM]
-    if math.isnan(since) and not estimate <= PROMISE * scale:
-        since = state[RS_T]
+    _, _, bound, height = phase_error(parameters, rtol, atol, state)
+    scale, estimate = max(state[SCALE], height), max(state[ERR_MAX], bound)
+    since = _untrusted_from(estimate, scale, state[ERR_FROM], state[RS_T])
     # past the range of the motion an estimate says nothing more (amplifications of 1e40 were measured)
     return min(estimate, ESTIMATE_CAP * scale), scale, since
 
@@ -101,12 +106,7 @@ def carry_error(parameters, rtol, atol, state, jump):
     event by -dx/v, over which the acceleration differs by the jump of the field, (a+ - a-) = -+ b v / m:
     dv after = dv + jump dx, with no 1/v.
     """
-    ex, ev, bound = phase_error(parameters, rtol, atol, state)
-    mode, length = int(state[RS_MODE]), 0.0
-    if mode == FLIGHT:
-        length, _ = frame(parameters, mode, state[RS_X], state[RS_V], state[LOAD], rtol, atol)
-    state[SCALE] = max(state[SCALE], parameters[3] + length, abs(parameters[3] + state[X]))  # a flight's apex
-    state[ERR_MAX] = max(state[ERR_MAX], bound)
-    if math.isnan(state[ERR_FROM]) and not state[ERR_MAX] <= PROMISE * state[SCALE]:
-        state[ERR_FROM] = state[RS_T]
+    ex, ev, bound, height = phase_error(parameters, rtol, atol, state)
+    state[SCALE], state[ERR_MAX] = max(state[SCALE], height), max(state[ERR_MAX], bound)
+    state[ERR_FROM] = _untrusted_from(state[ERR_MAX], state[SCALE], state[ERR_FROM], state[RS_T])
     state[ERR_X], state[ERR_V] = ex, ev + jump * ex

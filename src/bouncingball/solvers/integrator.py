@@ -137,7 +137,7 @@ class BallIntegrator(IntegratorView):
 
         Checked at the phases' ends (one comparison) or, with whole, over everything integrated so far.
         """
-        if self._accuracy_warned or not (whole or not np.isnan(self._state[layout.ERR_FROM])):
+        if self._accuracy_warned or (not whole and np.isnan(self._state[layout.ERR_FROM])):
             return
         warning = accuracy_warning(*error_estimate.run_estimate(self._parameters, self.settings.rtol, self._atol,
                                                            self._state), self.t, self.settings.rtol)

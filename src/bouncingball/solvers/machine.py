@@ -144,7 +144,6 @@ def closed_form_phase(state, tau, v_event):
     state[PENDING], state[PEND_T], state[PEND_V], state[PEND_T_LOW] = 1.0, t_event, v_event, t_low
 
 
-
 def take_decision(state, answer, tau, v_event):
     """phases.decide_contact's answer for the contact at the state: a rest, a departure after tau, or CVODE."""
     if answer == REST:
