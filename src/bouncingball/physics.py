@@ -205,6 +205,19 @@ def gap_acceleration(x, v, mode, load, m, k, b):
     return (-b * v - k * x - load) / m
 
 
+def conserved_speed(parameters, mode, x_start, v_start):
+    """Whether a phase from the gap x_start [m] at v_start [m/s] in mode ends on R at -v_start exactly.
+
+    It does where it starts on R leaving its own side (up in flight, down in contact) and its exact
+    flow conserves energy (a flight; a contact with b = 0): the phase machine's polish and the exact
+    solver then give the event that speed, not their flows' rounded one, which added up over many
+    bounces to an energy drift. parameters: (m, k, b, R, g).
+    """
+    if x_start != 0.0:
+        return False
+    return v_start > 0.0 if mode == 0 else (v_start < 0.0 and parameters[2] == 0.0)
+
+
 def effective_gravity_value(F_ext, m, g):
     """(m g - F_ext)/m [m/s2]; see Ball.effective_gravity and load_value."""
     return load_value(F_ext, m, g) / m

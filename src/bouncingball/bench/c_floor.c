@@ -329,7 +329,7 @@ static double later(double t, double t_low, double tau, double *low) {
 }
 
 /* The crossing of x = 0 CVODE located at (tau, x, v): Newton on the exact flow (phases.polish_event); the speed
- * -v_start where the phase started on R at (x_start, v_start) and conserves it (phases.conserved_speed). */
+ * -v_start where the phase started on R at (x_start, v_start) and conserves it (physics.conserved_speed). */
 static void polish(const struct run *r, double length, double tau_before, double *tau_root, double x_root,
                    double *v_root, double x_start, double v_start) {
     double tau = 0.0, x = x_root, v = *v_root, v0 = *v_root;

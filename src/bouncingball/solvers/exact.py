@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import limits
-from ..physics import Ball, Mode, contact_gap_flow
+from ..physics import Ball, Mode, conserved_speed, contact_gap_flow
 from ..rounding import later
 from . import forcing
 from .forcing import ForceTable
@@ -213,10 +213,10 @@ def velocity_at_departure(ball: Ball, x0: float, v0: float, tau: float, F_ext: f
 
     A departure crosses R upwards; where the ball barely moves (at R with v0 = -1e-112) the flow can
     round it to a tiny downward speed, and the flight would end at once in an impact at R, and so on
-    for ever. An undamped contact from R leaves at the speed it came with, exactly (energy is
-    conserved; the flow's rounding would otherwise add up over many bounces).
+    for ever. An undamped contact from R leaves at the speed it came with, exactly
+    (physics.conserved_speed).
     """
-    if x0 == 0.0 and v0 < 0.0 and ball.b == 0.0:
+    if conserved_speed(ball.parameters, Mode.CONTACT, x0, v0):
         return -v0
     return max(float(ball.gap_flow(Mode.CONTACT, x0, v0, tau, F_ext)[1]), 0.0)
 

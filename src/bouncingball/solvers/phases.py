@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 
-from ..physics import Ball, gap_acceleration, gap_flow_value, rest_margin_value
+from ..physics import Ball, conserved_speed, gap_acceleration, gap_flow_value, rest_margin_value
 from ..rounding import hypot
 from .exact import time_to_departure, time_to_impact, velocity_at_departure
 from .settings import HOP_RESOLUTION
@@ -169,17 +169,6 @@ def polish_event(parameters, mode, load, length, tau_before, tau_root, x_root, v
     if conserved_speed(parameters, mode, x_start, v_start):
         v_root = -v_start
     return tau_root, (min(v_root, 0.0) if mode == FLIGHT else max(v_root, 0.0))
-
-
-def conserved_speed(parameters, mode, x_start, v_start):
-    """Whether a phase from (x_start, v_start) ends on R at -v_start exactly.
-
-    It does where it starts on R leaving its own side (up in flight, down in contact) and its exact
-    flow conserves energy (a flight; a contact with b = 0).
-    """
-    if x_start != 0.0:
-        return False
-    return v_start > 0.0 if mode == FLIGHT else (v_start < 0.0 and parameters[2] == 0.0)
 
 
 def side_margin(hop, rtol, length):
