@@ -41,7 +41,7 @@ from .scenes import BALL_KEYS, Scene, load_scene
 from .solvers.exact import ExactSolution
 from .solvers.forcing import ForceTable
 from .solvers.result import IMPACT
-from .solvers.settings import DEFAULT_RTOL, merged_hop_limit
+from .solvers.settings import DEFAULT_RTOL, CvodeSettings, merged_hop_limit
 
 __all__ = ["DEFAULT_TOLERANCE", "BadResultError", "CheckResult", "MergedHops", "check_result", "read_result_csv",
            "scene_with_start_values"]
@@ -280,10 +280,13 @@ def _setting(scene: Scene, name: str) -> float:
 
 
 def _solver_settings(values: Mapping[str, float | str]) -> tuple[float, float | None]:
-    """(rtol, atol [m] or None) the FMU runs with for these start values; ValueError names a refused one."""
-    rtol = validation.in_range("rtol", _number("rtol", values.get("rtol", DEFAULT_RTOL)), 0.0, 1.0)
-    atol = validation.non_negative("atol", _number("atol", values.get("atol", 0.0)), "m") or None
-    return rtol, atol
+    """(rtol, atol [m] or None) the FMU runs with for these start values; ValueError names a refused one.
+
+    CvodeSettings checks them, as the FMU does: the same ranges (rtol in [1e-15, 1], atol 0 for none).
+    """
+    settings = CvodeSettings(rtol=_number("rtol", values.get("rtol", DEFAULT_RTOL)),
+                             atol=_number("atol", values.get("atol", 0.0)))
+    return settings.rtol, settings.atol
 
 
 def _refused(scene: Scene, name: str, value: float) -> bool:
