@@ -191,16 +191,23 @@ def test_departure_search_converges_by_newton(monkeypatch):
     from the half-cosine start Newton needs 3 steps and one evaluation that confirms."""
     from bouncingball.solvers import exact
 
-    evaluations = []
-    polish = exact._polish_root
+    evaluations, inside = [], []  # the flow's evaluations per search: counted inside _departure_root
+    flow, search = exact.contact_gap_flow, exact._departure_root
 
-    def counting(f, a, b, *known):
-        calls = []
-        root = polish(lambda x: calls.append(x) or f(x), a, b, *known)
-        evaluations.append(len(calls))
-        return root
+    def counting_flow(*args):
+        if inside:
+            inside[-1] += 1
+        return flow(*args)
 
-    monkeypatch.setattr(exact, "_polish_root", counting)
+    def counting_search(*args):
+        inside.append(0)
+        try:
+            return search(*args)
+        finally:
+            evaluations.append(inside.pop())
+
+    monkeypatch.setattr(exact, "contact_gap_flow", counting_flow)
+    monkeypatch.setattr(exact, "_departure_root", counting_search)
     solution = ExactSolution(Ball(), 2.0, 0.0, 0.0, 8.0)
     assert len(evaluations) == len(solution.events) // 2 + 1  # each departure, and the search that finds none
     assert max(evaluations) <= 5, evaluations

@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import limits
-from ..physics import Ball, Mode, conserved_speed, contact_gap_flow
+from ..physics import Ball, Mode, conserved_speed, contact_gap_flow, load_value
 from ..rounding import later
 from . import forcing
 from .forcing import ForceTable
@@ -74,12 +74,13 @@ class ExactSolution:
                     tau, v_next = time_to_impact(h - R, v, ball.effective_gravity(F_ext))
                     kind, next_mode = IMPACT, Mode.CONTACT
                 else:
-                    tau = time_to_departure(ball, h - R, v, F_ext)
+                    load = load_value(F_ext, ball.m, ball.g)
+                    tau = departure_time(ball.parameters, h - R, v, load)
                     if math.isinf(tau):
                         if last:
                             self.rest_time = t
                         break
-                    v_next = velocity_at_departure(ball, h - R, v, tau, F_ext)
+                    v_next = departure_speed(ball.parameters, h - R, v, tau, load)
                     kind, next_mode = DEPARTURE, Mode.FLIGHT
                 t_event, t_event_low = later(t, t_low, tau)
                 if not t_event <= piece_end:
@@ -143,19 +144,19 @@ def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tupl
     return math.inf, math.nan
 
 
-def time_to_departure(ball: Ball, x0: float, v0: float, F_ext: float = 0.0) -> float:
-    """Time from the gap x0 = h0 - R [m] and v0 [m/s] in contact to the first upward crossing of h = R; inf if none."""
-    sigma, w2 = ball.b / (2.0 * ball.m), ball.k / ball.m
-    d, g_eff = ball.static_deflection(F_ext), ball.effective_gravity(F_ext)
+def departure_time(parameters, x0, v0, load):
+    """Time [s] from the gap x0 = h0 - R [m] and v0 [m/s] in contact to the first upward crossing of h = R; inf if none.
+
+    parameters: (m, k, b, R, g) (Ball.parameters); load: m g - F_ext [N] (physics.load_value). Plain
+    floats, so that the compiled phase machine runs this very search.
+    """
+    m, k, b = parameters[0], parameters[1], parameters[2]
+    sigma, w2 = b / (2.0 * m), k / m
+    d, g_eff = load / k, load / m
     q = sigma * v0 + w2 * x0 + g_eff  # v = v0 C - q S (q = sigma v0 + w2 y0, y0 = x0 + d the deflection from rest)
-
-    def excess(tau: float) -> tuple[float, float]:
-        """h - R [m] and v [m/s] at tau, on the flow written about R (contact_gap_flow)."""
-        return contact_gap_flow(sigma, w2, g_eff, x0, v0, tau)
-
     rising = v0 > 0.0 or (v0 == 0.0 and q < 0.0)
     disc = sigma * sigma - w2
-    guess, at_tau1 = None, None
+    guess, at_a = math.nan, math.nan  # NaN: none known
     if disc < 0.0:
         # Under-damped: extrema every pi/omega; maxima are positive and decay, so the
         # first maximum decides whether the ball ever leaves.
@@ -163,10 +164,7 @@ def time_to_departure(ball: Ball, x0: float, v0: float, F_ext: float = 0.0) -> f
         # The phase angle of the next extremum, in [0, pi], from the quadrant that holds it: atan2(a, b)
         # - pi rounds an extremum just ahead (a minimum at v0 = -1e-38) to pi instead of ~0.
         # (|omega v0|: the sign of a zero, -0.0, would turn atan2's pi into -pi)
-        if rising:
-            tau1 = math.atan2(abs(omega * v0), q) / omega
-        else:
-            tau1 = math.atan2(abs(omega * v0), -q) / omega
+        tau1 = math.atan2(abs(omega * v0), q if rising else -q) / omega
         # Between two extrema v keeps its sign, so the first one is a maximum when the ball starts
         # rising and a minimum when it starts falling. Decided on the direction, never on the
         # value y(tau1): near critical damping that extremum lies many decay times away, and y(tau1)
@@ -174,98 +172,101 @@ def time_to_departure(ball: Ball, x0: float, v0: float, F_ext: float = 0.0) -> f
         if rising:
             a, b = 0.0, tau1
         else:
-            at_tau1 = excess(tau1)[0]
+            at_a = contact_gap_flow(sigma, w2, g_eff, x0, v0, tau1)[0]
             a, b = tau1, tau1 + math.pi / omega
-            at_b = excess(b)[0]
+            at_b = contact_gap_flow(sigma, w2, g_eff, x0, v0, b)[0]
             if at_b <= 0.0:
                 return math.inf
             # Between a minimum and the next maximum y is close to half a cosine: its crossing
             # is Newton's start, a few iterations from the root when the damping is light.
-            half = 0.5 * (at_b - at_tau1)
+            half = 0.5 * (at_b - at_a)
             if half > 0.0:  # else the ball does not move (y constant): Newton starts in the middle
-                cosine = min(1.0, max(-1.0, (0.5 * (at_b + at_tau1)) / half))
+                cosine = min(1.0, max(-1.0, (0.5 * (at_b + at_a)) / half))
                 guess = a + (b - a) * math.acos(cosine) / math.pi
     else:
         # Critically or over-damped: at most one extremum, then a monotone approach to rest.
         mu = math.sqrt(disc)
         tau_ext = _overdamped_extremum(v0, q, mu)
         slow_rate = w2 / (sigma + mu)
-        if rising and tau_ext is not None:
+        if rising and not math.isnan(tau_ext):
             a, b = 0.0, tau_ext
-        elif d < 0.0 and (rising or tau_ext is not None):
+        elif d < 0.0 and (rising or not math.isnan(tau_ext)):
             a = 0.0 if rising else tau_ext
             b = a + 1.0 / slow_rate
+            found = False
             for _ in range(2000):
-                if excess(b)[0] > 0.0:
+                if contact_gap_flow(sigma, w2, g_eff, x0, v0, b)[0] > 0.0:
+                    found = True
                     break
                 b = a + 2.0 * (b - a)
-            else:
+            if not found:
                 return math.inf
         else:
             return math.inf
-    if guess is None and excess(b)[0] <= 0.0:
+    if math.isnan(guess) and contact_gap_flow(sigma, w2, g_eff, x0, v0, b)[0] <= 0.0:
         return math.inf
-    return _polish_root(excess, a, b, guess, at_tau1 if a > 0.0 else None)
+    return _departure_root(sigma, w2, g_eff, x0, v0, a, b, guess, at_a)
 
 
-def velocity_at_departure(ball: Ball, x0: float, v0: float, tau: float, F_ext: float = 0.0) -> float:
-    """v [m/s] where a contact from the gap x0 = h0 - R [m] and v0 ends after tau (time_to_departure): never < 0.
+def departure_speed(parameters, x0, v0, tau, load):
+    """v [m/s] where a contact from the gap x0 = h0 - R [m] and v0 ends after tau (departure_time): never < 0.
 
     A departure crosses R upwards; where the ball barely moves (at R with v0 = -1e-112) the flow can
     round it to a tiny downward speed, and the flight would end at once in an impact at R, and so on
     for ever. An undamped contact from R leaves at the speed it came with, exactly
-    (physics.conserved_speed).
+    (physics.conserved_speed). Arguments as departure_time's.
     """
-    if conserved_speed(ball.parameters, Mode.CONTACT, x0, v0):
+    if conserved_speed(parameters, 1, x0, v0):
         return -v0
-    return max(float(ball.gap_flow(Mode.CONTACT, x0, v0, tau, F_ext)[1]), 0.0)
+    m, k, b = parameters[0], parameters[1], parameters[2]
+    return max(contact_gap_flow(b / (2.0 * m), k / m, load / m, x0, v0, tau)[1], 0.0)
 
 
-def _overdamped_extremum(v0: float, q: float, mu: float) -> float | None:
-    """The one time > 0 where v0 C = q S (critical or over-damped), or None."""
+def _overdamped_extremum(v0, q, mu):
+    """The one time > 0 where v0 C = q S (critical or over-damped), or NaN."""
     if v0 == 0.0:
-        return None
+        return math.nan
     if mu == 0.0:
         tau = v0 / q if q != 0.0 else -1.0
-        return tau if tau > 0.0 else None
+        return tau if tau > 0.0 else math.nan
     denominator = q - v0 * mu
     if denominator == 0.0:
-        return None
+        return math.nan
     x = 2.0 * v0 * mu / denominator
     if not x > 0.0:
-        return None
+        return math.nan
     return math.log1p(x) / (2.0 * mu)
 
 
-def _polish_root(f, a: float, b: float, guess: float | None = None, f_a: float | None = None) -> float:
-    """Root of an increasing f on [a, b] with f(a) <= 0 < f(b); f returns (value, derivative).
+def _departure_root(sigma, w2, g_eff, x0, v0, a, b, guess, at_a):
+    """The root of the gap x(tau) (contact_gap_flow, increasing on [a, b]) with x(a) <= 0 < x(b).
 
-    Newton from guess (default: the middle), safeguarded by bisection of the bracket; f_a is f(a)
-    if the caller knows it.
+    Newton from guess (NaN: the middle), safeguarded by bisection of the bracket; at_a is x(a) if
+    known, else NaN.
     """
-    if (f(a)[0] if f_a is None else f_a) >= 0.0:
+    if (contact_gap_flow(sigma, w2, g_eff, x0, v0, a)[0] if math.isnan(at_a) else at_a) >= 0.0:
         return a
-    x = guess if guess is not None and a < guess < b else 0.5 * (a + b)
+    tau = guess if a < guess < b else 0.5 * (a + b)
     best, best_abs = b, math.inf
     for _ in range(200):
-        fx, dfx = f(x)
-        if abs(fx) < best_abs:
-            best, best_abs = x, abs(fx)
-        if fx == 0.0:
-            return x
-        if fx < 0.0:
-            a = x
+        x, v = contact_gap_flow(sigma, w2, g_eff, x0, v0, tau)
+        if abs(x) < best_abs:
+            best, best_abs = tau, abs(x)
+        if x == 0.0:
+            return tau
+        if x < 0.0:
+            a = tau
         else:
-            b = x
-        step = fx / dfx if dfx > 0.0 else math.inf
+            b = tau
+        step = x / v if v > 0.0 else math.inf
         # Converged when Newton moves by ulps: checked before the bracket test, since such a step
-        # lands on the bracket's end just moved to x, and bisecting from there would take ~50 steps.
-        if abs(step) <= 2.0 * math.ulp(x) or b - a <= 2.0 * math.ulp(b):
+        # lands on the bracket's end just moved to tau, and bisecting from there would take ~50 steps.
+        if abs(step) <= 2.0 * np.spacing(tau) or b - a <= 2.0 * np.spacing(b):
             break
-        x_new = x - step
-        if not a < x_new < b:
-            x_new = 0.5 * (a + b)
-        x = x_new
+        tau_new = tau - step
+        if not a < tau_new < b:
+            tau_new = 0.5 * (a + b)
+        tau = tau_new
     return best
 
 

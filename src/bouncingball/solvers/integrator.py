@@ -4,8 +4,8 @@ Each mode has its own CVODE solver (solvers/stepper.py: either engine), right-ha
 terminal root function (h - R, with direction -1 in flight and +1 in contact). At each root the
 integrator switches mode and re-initialises CVODE at the event, so no step ever straddles the
 discontinuity. The phases are run by the engine's phase machine (solvers/machine.py, its decisions
-in solvers/phases.py); the integrator holds the machine's state, checks what it is given, decides
-the phases the machine hands back, and keeps the restart point that makes a rollback bit for bit.
+in solvers/phases.py); the integrator holds the machine's state, checks what it is given, and keeps
+the restart point that makes a rollback bit for bit.
 
 Each mode has its own CVODE object with three root functions: h - R, terminal, in the mode's
 direction (impact downwards, departure upwards); v, non-terminal, which makes CVODE end a step
@@ -152,7 +152,8 @@ class BallIntegrator(IntegratorView):
         F_ext is taken as held constant from now on.
         """
         x, v = float(self._state[layout.X]), float(self._state[layout.V])
-        if phases.at_rest(self.ball, self.mode, x, v, self._load, self._hop, self.settings.rtol, self._F_ext):
+        if phases.decide_phase(self._parameters, self.mode, x, v, self._load, self._hop,
+                               self.settings.rtol)[0] == phases.REST:
             return self._last_impact_time if self._last_impact_time is not None else self._t_start
         return None
 
@@ -235,18 +236,14 @@ class BallIntegrator(IntegratorView):
             raise ValueError(f"t_target = {t_target!r} s is not allowed: it must be >= the current time {self.t!r} s")
         if t_target > self.resolvable_until:
             check_resolvable(self.ball, t_target)
-        events, n_events = np.empty((4, 3)), 0
-        while True:
-            status, events, n_events = self._machine.advance(
-                self._engine, self._parameters, self.settings.rtol, self._atol, self._state, t_target, stop_at_event,
-                events, n_events, self._scratch)
-            self._cvode_called = True
-            if status == machine.DONE:
-                self._warn_if_untrusted(whole=False)
-                return _events(events, n_events)
-            if status != machine.HANDOFF:
-                raise self._machine_failure(status)
-            self._decide_phase()
+        status, events, n_events = self._machine.advance(
+            self._engine, self._parameters, self.settings.rtol, self._atol, self._state, t_target, stop_at_event,
+            np.empty((4, 3)), 0, self._scratch)
+        self._cvode_called = True
+        if status != machine.DONE:
+            raise self._machine_failure(status)
+        self._warn_if_untrusted(whole=False)
+        return _events(events, n_events)
 
     def integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
         """Integrate through the increasing output times grid (grid[0] = current time).
@@ -276,9 +273,7 @@ class BallIntegrator(IntegratorView):
             self._cvode_called = True
             if status == machine.DONE:
                 break
-            if status == machine.HANDOFF:
-                self._decide_phase()
-            elif status != machine.RETURNED:
+            if status != machine.RETURNED:
                 raise self._machine_failure(status)
         rest = state[[layout.REST_T, layout.REST_X, layout.REST_V]]
         machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0)
@@ -291,12 +286,6 @@ class BallIntegrator(IntegratorView):
             x_out, v_out = np.empty_like(grid), np.empty_like(grid)
             self._machine.fill_grid(self._parameters, self._load, points, n_points, grid, x_out, v_out)
         return self.ball.R + x_out, v_out, _events(events, n_events)
-
-    def _decide_phase(self) -> None:
-        """The contact the machine handed back (phases.UNDECIDED): phases.decide_contact decides it."""
-        x, v = float(self._state[layout.X]), float(self._state[layout.V])
-        machine.take_decision(self._state, *phases.decide_contact(self.ball, x, v, self._load, self._hop,
-                                                                  self.settings.rtol, self._F_ext))
 
     def _machine_failure(self, status: int) -> SolverError:
         state = self._state

@@ -5,8 +5,7 @@ by these names; state.py saves and restores the restart point from it.
 
 The state (T, X = h - R, V, MODE), the phase's constants (LOAD = m g - F_ext, HOP: the hop tolerance),
 the counters (IMPACTS, DEPARTURES, LAST_IMPACT, STEPS, RHS_CALLS). REST_T, REST_X, REST_V: where the
-rest began (REST_T NaN: not at rest). DECIDED: CVODE integrates the phase about to start
-(BallIntegrator decided it after a HANDOFF). NEEDS_INIT: CVODE restarts at the state before its next
+rest began (REST_T NaN: not at rest). NEEDS_INIT: CVODE restarts at the state before its next
 step. SEGMENT: the last step (SEG_*, from start to end, in mode SEG_MODE) is kept for the dense
 output; PENDING: its end is an event (PEND_T, PEND_V) still to take. STEP_*: the last step's end.
 ORIGIN, LENGTH, SPEED: the phase's frame. NFEV: CVODE's right-hand-side calls since its restart.
@@ -19,8 +18,8 @@ before it; ERR_FROM: the start of the first phase whose bound passed the promise
 SCALE: the largest height [m] of the phases so far (max(|h|, R)).
 """
 
-(T, X, V, MODE, LOAD, HOP, IMPACTS, DEPARTURES, LAST_IMPACT, STEPS, RHS_CALLS, DECIDED, REST_T, REST_X, REST_V,
+(T, X, V, MODE, LOAD, HOP, IMPACTS, DEPARTURES, LAST_IMPACT, STEPS, RHS_CALLS, REST_T, REST_X, REST_V,
  NEEDS_INIT, SEGMENT, SEG_MODE, SEG_T0, SEG_X0, SEG_V0, SEG_T1, SEG_X1, SEG_V1, PENDING, PEND_T, PEND_V,
  STEP_T, STEP_X, STEP_V, ORIGIN, LENGTH, SPEED, NFEV, RS_T, RS_X, RS_V, RS_MODE, RS_IMPACTS, RS_DEPARTURES,
  RS_LAST_IMPACT, RS_RHS_CALLS, RS_STEPS, FAIL_T, FAIL_X, FAIL_FLAG, T_LOW, ORIGIN_LOW, PEND_T_LOW, RS_T_LOW,
- ERR_X, ERR_V, ERR_MAX, ERR_FROM, SCALE, STATE_SIZE) = range(56)
+ ERR_X, ERR_V, ERR_MAX, ERR_FROM, SCALE, STATE_SIZE) = range(55)

@@ -13,9 +13,8 @@ The whole integrator state is one array (new_state's; BallIntegrator keeps it). 
 Python over floats and numpy arrays, and calls its engine through the engine_* functions: as written
 here they drive the scikit-sundae engine's solvers (stepper.SksundaePhaseSolver), and it runs
 interpreted; the compiled engine compiles this very source with numba (compiled.py), the engine_*
-bound to its own calls into SUNDIALS, so that no Python runs between phases. Whatever needs a search
-on the exact flow (phases.UNDECIDED) is handed back (HANDOFF) to BallIntegrator, which decides that
-one phase (decide_phase's outcomes) and calls again; so is run_phases every step_budget steps
+bound to its own calls into SUNDIALS, so that no Python runs between phases. The machine decides
+every phase itself (phases.decide_phase); run_phases returns to its caller every step_budget steps
 (RETURNED), for progress and Ctrl-C.
 """
 
@@ -30,7 +29,6 @@ from ..rounding import later
 from .dense_output import step_state
 from .error_estimate import carry_error
 from .layout import (
-    DECIDED,
     DEPARTURES,
     ERR_FROM,
     FAIL_FLAG,
@@ -84,23 +82,21 @@ from .layout import (
     X,
 )
 from .phases import (
+    BY_CVODE,
     CONTACT,
-    DEPARTURE_IN_CLOSED_FORM,
     FLIGHT,
+    IN_CLOSED_FORM,
     REST,
-    UNDECIDED,
-    closed_form,
-    flight_impact,
+    decide_phase,
     frame,
     on_wrong_side,
     polish_event,
-    rest_decision,
     side_margin,
     taylor_step,
 )
 
 # What run_phases returns.
-DONE, HANDOFF, RETURNED, CVODE_FAILED, TOO_MANY_STEPS, STEPPED_OVER = range(6)
+DONE, RETURNED, CVODE_FAILED, TOO_MANY_STEPS, STEPPED_OVER = range(5)
 IMPACT, DEPARTURE = 0, 1  # an event row's kind: (t, kind, v)
 CV_ROOT_RETURN = 2
 STEP_HORIZON = 1.0  # s: how far ahead advance's CVODE steps aim (see advance)
@@ -117,7 +113,7 @@ def new_state():
 def restart_needed(state):
     """CVODE restarts at the current state, which becomes the restart point (the last step and any rest forgotten)."""
     state[RHS_CALLS] += state[NFEV]
-    state[NFEV], state[NEEDS_INIT], state[SEGMENT], state[PENDING], state[DECIDED] = 0.0, 1.0, 0.0, 0.0, 0.0
+    state[NFEV], state[NEEDS_INIT], state[SEGMENT], state[PENDING] = 0.0, 1.0, 0.0, 0.0
     state[REST_T] = math.nan
     state[RS_T], state[RS_X], state[RS_V], state[RS_MODE] = state[T], state[X], state[V], state[MODE]
     state[RS_T_LOW] = state[T_LOW]
@@ -144,30 +140,15 @@ def closed_form_phase(state, tau, v_event):
     state[PENDING], state[PEND_T], state[PEND_V], state[PEND_T_LOW] = 1.0, t_event, v_event, t_low
 
 
-def take_decision(state, answer, tau, v_event):
-    """phases.decide_contact's answer for the contact at the state: a rest, a departure after tau, or CVODE."""
+def _decided_by_cvode(parameters, rtol, state):
+    """Whether CVODE takes the phase starting at the state (phases.decide_phase); else its rest or event is set."""
+    answer, tau, v_event = decide_phase(parameters, int(state[MODE]), state[X], state[V], state[LOAD], state[HOP],
+                                        rtol)
     if answer == REST:
         state[REST_T], state[REST_X], state[REST_V] = state[T], state[X], state[V]
-    elif answer == DEPARTURE_IN_CLOSED_FORM:
+    elif answer == IN_CLOSED_FORM:
         closed_form_phase(state, tau, v_event)
-    else:
-        state[DECIDED] = 1.0
-
-
-def _decisions(parameters, rtol, state):
-    """(rest, closed) at a phase start, phases.rest_decision's and phases.closed_form's, or (0, 0) once DECIDED."""
-    if state[DECIDED] != 0.0:
-        state[DECIDED] = 0.0
-        return 0, 0
-    mode, x, v, load, hop = int(state[MODE]), state[X], state[V], state[LOAD], state[HOP]
-    rest = rest_decision(parameters, mode, x, v, load, hop, rtol)
-    if rest == 1:
-        state[REST_T], state[REST_X], state[REST_V] = state[T], x, v
-    closed = 0 if rest != 0 else closed_form(parameters, mode, x, v, load, hop, rtol)
-    if closed == 1:
-        tau, v_impact = flight_impact(parameters, x, v, load)
-        closed_form_phase(state, tau, v_impact)
-    return rest, closed
+    return answer == BY_CVODE
 
 
 def _finish_by_taylor(parameters, state, t_target):
@@ -194,7 +175,7 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
     parameters: (m, k, b, R, g); atol 0 for none; state: new_state's array after restart_needed,
     updated in place; points (n, 4: t, x, v, mode) and events (n, 3: t, kind, v) hold n_points and
     n_events rows so far and are returned grown where they filled up; scratch (n, 5) is the engine's
-    buffer of step ends. status: DONE at t_end, HANDOFF for a phase BallIntegrator decides, RETURNED
+    buffer of step ends. status: DONE at t_end, RETURNED
     after step_budget steps, or a failure (state[FAIL_T], state[FAIL_X] and state[FAIL_FLAG] say
     where and CVODE's flag).
     """
@@ -221,10 +202,7 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
             return DONE, points, n_points, events, n_events
         if state[STEPS] - steps_at_entry >= step_budget:
             return RETURNED, points, n_points, events, n_events
-        rest, closed = _decisions(parameters, rtol, state)
-        if rest == UNDECIDED or closed == UNDECIDED:
-            return HANDOFF, points, n_points, events, n_events
-        if rest == 0 and closed == 0:
+        if _decided_by_cvode(parameters, rtol, state):
             # Only once the phase is decided: one in closed form may end within these ulps before t_end.
             if _finish_by_taylor(parameters, state, t_end):
                 points, n_points = _record(points, n_points, t_end, state[X], state[V], mode)
@@ -262,12 +240,8 @@ def advance(engine, parameters, rtol, atol, state, t_target, stop_at_event, even
             if stop_at_event:
                 break
             continue
-        if state[NEEDS_INIT] != 0.0 and math.isnan(state[REST_T]):
-            rest, closed = _decisions(parameters, rtol, state)
-            if rest == UNDECIDED or closed == UNDECIDED:
-                return HANDOFF, events, n_events
-            if closed == 1:
-                continue
+        if state[NEEDS_INIT] != 0.0 and math.isnan(state[REST_T]) and not _decided_by_cvode(parameters, rtol, state):
+            continue  # a rest, or a phase in closed form: taken above
         if not math.isnan(state[REST_T]):
             _rest_state(parameters, state, t_target)
             break

@@ -2,26 +2,25 @@
 
 A phase is a flight or a contact integrated by CVODE from its start (an event, a change of F_ext)
 to its end. Around CVODE, these decide how: the scales it integrates relative to (phase_scales),
-whether a contact is a rest (rest_decision, then the rest on the exact flow), whether a phase is
-taken in closed form instead (closed_form), where exactly the event CVODE located lies
+whether CVODE takes it at all (decide_phase: a rest, taken on the exact flow, or a phase in closed
+form instead, its event from the exact flow), where exactly the event CVODE located lies
 (polish_event), and how far a step end may stray to the other side of R before an event was
 missed (side_margin). The arguments are the ball's parameters (m, k, b, R, g) (Ball.parameters),
 the mode (0 flight, 1 contact), the gap x = h - R [m], v [m/s], the load m g - F_ext [N]
 (physics.load_value), the hop tolerance [m] (settings.hop_tolerance) and rtol.
 
 Every function here takes and returns floats only, so solvers/machine.py runs them as they are
-(the scikit-sundae engine) and the compiled engine compiles the very same source with numba. The
-two searches on the exact flow that decide the rare phases (solvers/exact.py: time_to_departure)
-are not compiled: a decision that needs one says so (UNDECIDED), and the interpreted side takes it.
+(the scikit-sundae engine) and the compiled engine compiles the very same source with numba,
+the exact flow's departure search (exact.departure_time) included.
 """
 
 from __future__ import annotations
 
 import math
 
-from ..physics import Ball, conserved_speed, gap_acceleration, gap_flow_value, rest_margin_value
+from ..physics import conserved_speed, gap_acceleration, gap_flow_value, rest_margin_value
 from ..rounding import hypot
-from .exact import time_to_departure, time_to_impact, velocity_at_departure
+from .exact import departure_speed, departure_time, time_to_impact
 from .settings import HOP_RESOLUTION
 
 FLIGHT, CONTACT = 0, 1
@@ -30,10 +29,8 @@ _EPS = 2.0**-52
 # flow: its scaled state would leave the range of double precision.
 MIN_PHASE_SCALE = 1e-200
 SOFT_CONTACT_CAP = 1e3  # a contact's length scale is at most this many max(R, |gap|): see phase_scales
-# rest_decision and closed_form: the answer needs a search on the contact's exact flow (time_to_departure)
-UNDECIDED = -1
-# decide_contact's answers
-REST, DEPARTURE_IN_CLOSED_FORM, BY_CVODE = range(3)
+# decide_phase's answers
+BY_CVODE, REST, IN_CLOSED_FORM = range(3)
 
 
 def phase_scales(parameters, mode, x, v, load):
@@ -88,48 +85,51 @@ def contact_unresolved(parameters, x, v, load, rtol):
     return abs(load / parameters[1]) < HOP_RESOLUTION * rtol * length
 
 
-def rest_decision(parameters, mode, x, v, load, hop, rtol):
-    """1 if a contact can no longer lift the ball more than hop above R (a rest), 0 if it can, or UNDECIDED.
+def decide_phase(parameters, mode, x, v, load, hop, rtol):
+    """How the phase from (x, v) in mode is taken: (answer, tau, v_event).
 
-    The energy bound of Ball.contact_is_permanent proves a rest only once the ball's weight holds
-    it down by more than its motion; a critically or over-damped ball (or one with no weight
-    on the spring) creeps towards its rest height for many spring time constants, which CVODE
-    would crawl through at the spring's time scale (500,000 steps for k/m = 8e12 1/s). Such
-    a contact has at most one extremum, so the exact flow decides at once whether it ever
-    reaches R (UNDECIDED: it is a rest if time_to_departure is infinite); so it does for a
-    contact CVODE cannot resolve (contact_unresolved).
+    BY_CVODE: CVODE integrates it. REST: a contact that can never again lift the ball more than hop
+    above R; the rest is taken on the contact's exact flow. IN_CLOSED_FORM: the phase ends tau [s]
+    later in an event at v_event [m/s], from the mode's exact flow (each mode's flow is exact, so
+    events come out of the right kind at the right times):
+    - a flight whose apex stays within hop of R (a hop merged into the contacts around it would be
+      as right) or below MIN_PHASE_SCALE;
+    - a contact CVODE cannot resolve (contact_unresolved), or one that cannot hold the ball (F_ext
+      lifts more than its weight: the rest height is above R), which always ends but may creep
+      towards a rest height closer to R than CVODE resolves, where h never visibly crosses R (a
+      weightless ball lifted by 1e-6 N stayed at R instead of flying 4.5e-6 m in 3 s); when it never
+      departs, CVODE integrates it.
+    A contact is a rest once the energy bound (physics.rest_margin_value, as Ball.contact_is_permanent)
+    proves it: the ball's weight holds it down by more than its motion. A critically or over-damped
+    ball (or one with no weight on the spring) creeps towards its rest height for many spring time
+    constants, which CVODE would crawl through at the spring's time scale (500,000 steps for k/m =
+    8e12 1/s); such a contact has at most one extremum, so the exact flow's departure search
+    (exact.departure_time) decides at once whether it ever reaches R, and so it does for a contact
+    CVODE cannot resolve.
     """
-    if mode != CONTACT:
-        return 0
-    m, k, b, R, g = parameters
+    if mode == FLIGHT:
+        if x < 0.0 or not load / parameters[0] > 0.0:
+            return BY_CVODE, 0.0, 0.0
+        apex, _ = phase_scales(parameters, FLIGHT, x, v, load)
+        if apex >= max(hop, MIN_PHASE_SCALE):
+            return BY_CVODE, 0.0, 0.0
+        tau, v_impact = flight_impact(parameters, x, v, load)
+        return IN_CLOSED_FORM, tau, v_impact
+    m, k, b = parameters[0], parameters[1], parameters[2]
     d = load / k
     if d > 0.0 and rest_margin_value(x, v, d, hop, k / m) > 0.0:
-        return 1
-    if b / (2.0 * math.sqrt(k * m)) >= 1.0 or d <= 0.0 or contact_unresolved(parameters, x, v, load, rtol):
-        return UNDECIDED
-    return 0
-
-
-def closed_form(parameters, mode, x, v, load, hop, rtol):
-    """Whether CVODE is not to integrate the phase from (x, v): 0 it is, 1 a flight in closed form, or UNDECIDED.
-
-    A flight whose apex stays within hop of R (a hop merged into the contacts around it would be
-    as right) or below MIN_PHASE_SCALE: 1, its impact from flight_impact. A contact CVODE cannot
-    resolve (contact_unresolved), and one that cannot hold the ball (F_ext lifts more than its
-    weight: the rest height is above R), which always ends but may creep towards a rest height
-    closer to R than CVODE resolves, where h never visibly crosses R (a weightless ball lifted by
-    1e-6 N stayed at R instead of flying 4.5e-6 m in 3 s): UNDECIDED, the departure is the exact
-    flow's if it ever comes (time_to_departure), else CVODE integrates. Each mode's flow is exact,
-    so such a phase is taken in closed form: events of the right kind at the right times.
-    """
-    if mode == CONTACT:
-        if load / parameters[1] < 0.0 or contact_unresolved(parameters, x, v, load, rtol):
-            return UNDECIDED
-        return 0
-    if x < 0.0 or not load / parameters[0] > 0.0:
-        return 0
-    apex, _ = phase_scales(parameters, FLIGHT, x, v, load)
-    return 1 if apex < max(hop, MIN_PHASE_SCALE) else 0
+        return REST, 0.0, 0.0
+    unresolved = contact_unresolved(parameters, x, v, load, rtol)
+    rest_by_search = b / (2.0 * math.sqrt(k * m)) >= 1.0 or d <= 0.0 or unresolved
+    departure_in_closed_form = d < 0.0 or unresolved
+    if not (rest_by_search or departure_in_closed_form):
+        return BY_CVODE, 0.0, 0.0
+    tau = departure_time(parameters, x, v, load)
+    if math.isinf(tau):
+        return (REST if rest_by_search else BY_CVODE), 0.0, 0.0
+    if departure_in_closed_form:
+        return IN_CLOSED_FORM, tau, departure_speed(parameters, x, v, tau, load)
+    return BY_CVODE, 0.0, 0.0
 
 
 def flight_impact(parameters, x, v, load):
@@ -213,25 +213,3 @@ def root_values(y0, y1, mode, length, speed, load, own_side, hop, k, m):
     d = load / k
     rest = rest_margin_value(length * y0, speed * y1, d, hop, k / m) if mode == CONTACT and d > 0.0 else -1.0
     return y0 if y0 != 0.0 else own_side, y1 if mode == CONTACT or load != 0.0 else 1.0, rest
-
-
-# --- the decisions that need the search for a departure (interpreted only: never compiled) ----------
-def at_rest(ball: Ball, mode, x, v, load, hop, rtol, F_ext) -> bool:
-    """rest_decision, an UNDECIDED contact a rest if the search finds no departure; F_ext [N] is the load's."""
-    decision = rest_decision(ball.parameters, mode, x, v, load, hop, rtol)
-    return decision == 1 or (decision == UNDECIDED and math.isinf(time_to_departure(ball, x, v, F_ext)))
-
-
-def decide_contact(ball: Ball, x, v, load, hop, rtol, F_ext):
-    """What a contact starting at (x, v) that rest_decision or closed_form left UNDECIDED is; (answer, tau, v).
-
-    REST if it never departs; DEPARTURE_IN_CLOSED_FORM after tau [s] at v [m/s] (time_to_departure,
-    velocity_at_departure) if CVODE cannot resolve it or F_ext lifts the ball; else BY_CVODE.
-    """
-    tau = time_to_departure(ball, x, v, F_ext)
-    departs = not math.isinf(tau)
-    if not departs and rest_decision(ball.parameters, CONTACT, x, v, load, hop, rtol) == UNDECIDED:
-        return REST, 0.0, 0.0
-    if departs and closed_form(ball.parameters, CONTACT, x, v, load, hop, rtol) == UNDECIDED:
-        return DEPARTURE_IN_CLOSED_FORM, tau, velocity_at_departure(ball, x, v, tau, F_ext)
-    return BY_CVODE, 0.0, 0.0
