@@ -5,9 +5,10 @@ more than the ball's equations. Here the right-hand side, the root functions and
 numba ``cfunc`` s compiled from physics.py's own plain-float definitions. The phase machine of a
 grid run (solvers/machine.py, with phases.py's decisions and the grid fill of dense_output.py) is
 compiled from the very source the scikit-sundae engine runs interpreted (``run_phases``,
-``fill_grid``), its engine calls bound to CVODE's here, so no Python runs between phases.
-``PhaseSolver`` offers the calls BallIntegrator makes on a scikit-sundae CVODE object (init_step,
-step; handle for the machine), with the same settings and the same step sequence.
+``advance``, ``fill_grid``), its engine calls (solvers/engine_protocol.py) bound to CVODE's here
+(``_engine_start``, ``_engine_steps``, ``_engine_exceeded``), so no Python runs between phases.
+``PhaseSolver`` is one mode's CVODE, with the same settings and the same step sequence as the
+scikit-sundae engine's; its ``handle`` is what the compiled calls read.
 
 The library is the one in scikit-sundae's wheel, bound in solvers/sundials.py. Every return
 code is checked, and every SUNDIALS object is freed with its solver. C function addresses are passed
@@ -29,7 +30,7 @@ import numpy as np
 from numba import carray, cfunc, njit, types
 
 from .. import physics, rounding
-from . import dense_output, error_estimate, exact, jit, layout, machine, phases
+from . import dense_output, engine_protocol, error_estimate, exact, jit, layout, machine, phases
 from .jit import (
     addresses,
     cache_allowed,
@@ -65,14 +66,15 @@ _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_
 
 
 
-_CACHE = cache_allowed((rounding, physics, phases, layout, error_estimate, machine, dense_output, exact, jit,
+_CACHE = cache_allowed((rounding, physics, phases, layout, error_estimate, engine_protocol, machine, dense_output,
+                        exact, jit,
                         sys.modules[__name__]))
 
 # The C functions the compiled loop calls, by their place in the address array it receives.
 _LOOP_FUNCTIONS = ("CVode", "CVodeGetRootInfo", "CVodeReInit", "CVodeSetStopTime", "CVodeClearStopTime",
                    "CVodeGetNumRhsEvals")
 _CVODE, _ROOT_INFO, _REINIT, _SET_STOP, _CLEAR_STOP, _NUM_RHS = range(len(_LOOP_FUNCTIONS))
-_BUFFER_FULL = machine.BUFFER_FULL
+_BUFFER_FULL = engine_protocol.BUFFER_FULL
 
 
 @njit(cache=_CACHE)
@@ -103,16 +105,7 @@ def _steps(f, memory, vector, state, t_end, out, count, one_step, work):
             return _BUFFER_FULL, count
 
 
-@njit(cache=_CACHE)
-def _finish_phase(f, memory, counter):
-    """Clear the stop time; returns its flag and CVODE's right-hand-side evaluations in counter[0]."""
-    flag = call_i1(f[_CLEAR_STOP], memory)
-    if flag < 0:
-        return flag
-    return call_i2(f[_NUM_RHS], memory, counter.ctypes.data)
-
-
-# --- the phase machine's engine (solvers/machine.py's engine_* calls) ---------------------------------
+# --- the phase machine's engine (solvers/engine_protocol.py's calls) -----------------------------------
 # engine: one row per mode (PhaseSolver.handle()): the addresses of its call table and arrays, its CVODE
 # memory and vector. Integers only, so that a call into the compiled machine unpacks no Python objects.
 _H_CALLS, _H_MEMORY, _H_VECTOR, _H_STATE, _H_PARAMETERS, _H_USER_DATA, _H_WORK, _H_COUNTER, _H_SIZE = range(9)
@@ -144,41 +137,16 @@ def _engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load):
 
 
 @njit(cache=_CACHE)
-def _engine_steps(engine, mode, scratch, points, n_points, t_stop, origin, length, speed):
+def _engine_steps(engine, mode, scratch, t_toward, one_step):
     calls, memory, vector, state, parameters, user_data, work, counter = _unpacked(engine, mode)
-    flag, count = _steps(calls, memory, vector, state, t_stop, scratch, 0, False, work)
-    root, rest = (int(work[1]), int(work[3])) if flag == CV_ROOT_RETURN else (0, 0)
-    while points.shape[0] < n_points + count:
-        points = np.concatenate((points, np.empty_like(points)))
-    extreme = math.inf if mode == 0 else -math.inf
-    for i in range(count):  # as stepper.SksundaePhaseSolver.steps does in numpy
-        x = length * scratch[i, 1]
-        row = points[n_points + i]
-        row[0], row[1], row[2], row[3] = origin + scratch[i, 0], x, speed * scratch[i, 2], mode
-        if i < count - 1 or root == 0:
-            extreme = min(extreme, x) if mode == 0 else max(extreme, x)
-    tau_prior = scratch[count - 2, 0] if count > 1 else math.nan
-    return flag, count, points, scratch[count - 1, 0] if count > 0 else 0.0, tau_prior, root, rest, extreme
-
-
-@njit(cache=_CACHE)
-def _engine_step(engine, mode, scratch, t_toward):
-    calls, memory, vector, state, parameters, user_data, work, counter = _unpacked(engine, mode)
-    flag, count = _steps(calls, memory, vector, state, t_toward, scratch, 0, True, work)
-    if count == 0:  # CVode failed before storing the step: its time is in work[0]
-        scratch[0, 0] = work[0]
-    scratch[0, 3], scratch[0, 4] = (work[1], work[3]) if flag == CV_ROOT_RETURN else (0.0, 0.0)
+    flag, count = _steps(calls, memory, vector, state, t_toward, scratch, 0, one_step, work)
+    gap_root, rest_root = (int(work[1]), int(work[3])) if flag == CV_ROOT_RETURN else (0, 0)
     if flag < 0:
-        return flag, 0
-    nfev = call_i2(calls[_NUM_RHS], memory, counter.ctypes.data)
-    return (nfev, 0) if nfev < 0 else (flag, counter[0])
-
-
-@njit(cache=_CACHE)
-def _engine_finish(engine, mode):
-    calls, memory, vector, state, parameters, user_data, work, counter = _unpacked(engine, mode)
-    flag = _finish_phase(calls, memory, counter)
-    return flag, counter[0]
+        return flag, count, scratch, 0, 0, 0
+    rhs_calls = call_i2(calls[_NUM_RHS], memory, counter.ctypes.data)
+    if rhs_calls < 0:
+        return rhs_calls, 0, scratch, 0, 0, 0
+    return flag, count, scratch, gap_root, rest_root, counter[0]
 
 
 @njit(cache=_CACHE)
@@ -192,9 +160,8 @@ def _engine_exceeded(engine, mode):
 _compiled = compiled_together(
     functions_of(rounding, physics, exact, phases, error_estimate, machine, dense_output),
     {physics.oscillator_basis: physics.oscillator_basis_value, physics.unit_response: physics.unit_response_value,
-     rounding.hypot: rounding.hypot_value, machine.engine_start: _engine_start, machine.engine_steps: _engine_steps,
-     machine.engine_step: _engine_step,
-     machine.engine_finish: _engine_finish, machine.engine_exceeded: _engine_exceeded}, _CACHE)
+     rounding.hypot: rounding.hypot_value, engine_protocol.engine_start: _engine_start,
+     engine_protocol.engine_steps: _engine_steps, engine_protocol.engine_exceeded: _engine_exceeded}, _CACHE)
 run_phases = _compiled[machine.run_phases]
 fill_grid = _compiled[dense_output.fill_grid]
 advance = _compiled[machine.advance]

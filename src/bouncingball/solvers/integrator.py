@@ -116,21 +116,9 @@ class BallIntegrator(IntegratorView):
         # s: the engine's first use in the process (its import, and its first CVODE objects); 0 after
         self.first_use_time = 0.0 if self.engine in loaded else time.perf_counter() - started
         self._parameters, self._atol = ball.parameters, 0.0 if s.atol is None else s.atol
-        self._state, self._scratch = machine.new_state(), np.empty((_SCRATCH_ROWS, 5))
+        self._state, self._scratch = machine.new_state(), np.empty((_SCRATCH_ROWS, 3))
         self.set_state(IntegratorState(t=t0, h=h0, v=v0, mode=ball.initial_mode(h0, v0, F_ext), F_ext=F_ext,
                                        t_start=t0))
-
-    @property
-    def error_estimate(self) -> float:
-        """An estimate of max |h - h_true| [m] over everything integrated so far.
-
-        Each phase's own error is measured against its exact flow (the flow is affine in the start
-        state, in closed form), the error it started with carried by the flow's transition matrix and,
-        at an event, the saltation of the field's jump; see error_estimate.phase_error. It passes 1e-6 of
-        the height scale only where the run is ill-conditioned, and then an AccuracyWarning says from
-        when the run cannot be trusted.
-        """
-        return float(error_estimate.run_estimate(self._parameters, self.settings.rtol, self._atol, self._state)[0])
 
     def _warn_if_untrusted(self, whole: bool) -> None:
         """AccuracyWarning, once, where the estimate passed the promise.

@@ -27,6 +27,7 @@ import numpy as np
 from ..physics import gap_flow_value
 from ..rounding import later
 from .dense_output import step_state
+from .engine_protocol import BUFFER_FULL, engine_exceeded, engine_start, engine_steps
 from .error_estimate import carry_error
 from .layout import (
     DEPARTURES,
@@ -100,7 +101,6 @@ DONE, RETURNED, CVODE_FAILED, TOO_MANY_STEPS, STEPPED_OVER = range(5)
 IMPACT, DEPARTURE = 0, 1  # an event row's kind: (t, kind, v)
 CV_ROOT_RETURN = 2
 STEP_HORIZON = 1.0  # s: how far ahead advance's CVODE steps aim (see advance)
-BUFFER_FULL = 99  # engine_steps: its buffer is full, call it again for the phase's further steps
 
 
 def new_state():
@@ -174,10 +174,9 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
 
     parameters: (m, k, b, R, g); atol 0 for none; state: new_state's array after restart_needed,
     updated in place; points (n, 4: t, x, v, mode) and events (n, 3: t, kind, v) hold n_points and
-    n_events rows so far and are returned grown where they filled up; scratch (n, 5) is the engine's
-    buffer of step ends. status: DONE at t_end, RETURNED
-    after step_budget steps, or a failure (state[FAIL_T], state[FAIL_X] and state[FAIL_FLAG] say
-    where and CVODE's flag).
+    n_events rows so far and are returned grown where they filled up; scratch (n, 3) is the engine's
+    buffer of step ends. status: DONE at t_end, RETURNED after step_budget steps, or a failure
+    (state[FAIL_T], state[FAIL_X] and state[FAIL_FLAG] say where and CVODE's flag).
     """
     m, k, b = parameters[0], parameters[1], parameters[2]
     steps_at_entry = state[STEPS]
@@ -188,8 +187,7 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
         if state[PENDING] != 0.0:  # a phase in closed form: to its event, or on its flow to t_end
             points, n_points = _record(points, n_points, t, state[X], state[V], mode)
             if state[PEND_T] <= t_end:
-                state[T], state[X], state[V], state[T_LOW] = state[PEND_T], 0.0, state[PEND_V], state[PEND_T_LOW]
-                events, n_events = _switch_mode(parameters, rtol, atol, state, events, n_events)
+                events, n_events = _take_event(parameters, rtol, atol, state, events, n_events)
             else:
                 state[X], state[V] = gap_flow_value(mode, state[X], state[V], t_end - t, state[LOAD], m, k, b)
                 state[T], state[T_LOW] = t_end, 0.0
@@ -202,15 +200,25 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
             return DONE, points, n_points, events, n_events
         if state[STEPS] - steps_at_entry >= step_budget:
             return RETURNED, points, n_points, events, n_events
-        if _decided_by_cvode(parameters, rtol, state):
+        if state[NEEDS_INIT] != 0.0:
+            if not _decided_by_cvode(parameters, rtol, state):
+                continue
             # Only once the phase is decided: one in closed form may end within these ulps before t_end.
             if _finish_by_taylor(parameters, state, t_end):
                 points, n_points = _record(points, n_points, t_end, state[X], state[V], mode)
                 return DONE, points, n_points, events, n_events
-            status, points, n_points, events, n_events = _cvode_phase(engine, parameters, rtol, atol, state, t_end,
-                                                                      points, n_points, events, n_events, scratch)
-            if status != DONE:
-                return status, points, n_points, events, n_events
+            points, n_points = _record(points, n_points, t, state[X], state[V], mode)  # as it is, not scaled and back
+        status, rows, count = phase_steps(engine, parameters, rtol, atol, state, t_end, scratch)
+        if status != DONE:
+            return status, points, n_points, events, n_events
+        points = _room(points, n_points + count)
+        points[n_points:n_points + count, :3] = rows[:count, :3]
+        points[n_points:n_points + count, 3] = mode
+        n_points += count
+        if state[PENDING] != 0.0:
+            events, n_events = _take_event(parameters, rtol, atol, state, events, n_events)
+        elif not math.isnan(state[REST_T]) or state[STEP_T] == t_end:
+            state[T], state[X], state[V], state[T_LOW] = state[STEP_T], state[STEP_X], state[STEP_V], 0.0
 
 
 def advance_in_step(parameters, state, t_target):
@@ -235,8 +243,7 @@ def advance(engine, parameters, rtol, atol, state, t_target, stop_at_event, even
         if advance_in_step(parameters, state, t_target):
             break
         if state[PENDING] != 0.0:  # the kept step ends at an event before t_target
-            state[T], state[X], state[V], state[T_LOW] = state[PEND_T], 0.0, state[PEND_V], state[PEND_T_LOW]
-            events, n_events = _switch_mode(parameters, rtol, atol, state, events, n_events)
+            events, n_events = _take_event(parameters, rtol, atol, state, events, n_events)
             if stop_at_event:
                 break
             continue
@@ -247,104 +254,81 @@ def advance(engine, parameters, rtol, atol, state, t_target, stop_at_event, even
             break
         if _finish_by_taylor(parameters, state, t_target):
             break
-        status = _one_step(engine, parameters, rtol, atol, state, scratch)
+        status, _, _ = phase_steps(engine, parameters, rtol, atol, state, math.inf, scratch)
         if status != DONE:
             return status, events, n_events
     return DONE, events, n_events
 
 
-def _one_step(engine, parameters, rtol, atol, state, scratch):
-    """One CVODE step from the last one's end (CVODE restarted first if needed), kept as the last step."""
+def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
+    """CVODE's next steps in the phase at the state, both drivers' one phase routine; (status, rows, count).
+
+    Where the phase starts (NEEDS_INIT), CVODE restarts in its frame (phases.frame), from the state.
+    t_stop: the stop time [s] of a grid run, whose steps run to it or to the phase's terminal root
+    (or until the engine's buffer is full: call again); inf for advance, which takes one step aimed
+    STEP_HORIZON past the last step's start. rows[:count]: the step ends (t, x, v), each an ulp-true
+    time; the last one is the state's last step (STEP_*; SEG_* from the one before, for the dense
+    output); a terminal root's is polished onto R and kept PENDING (the event to take), a rest root's
+    starts the rest (REST_*). status: DONE, or a failure (FAIL_*): CVODE's, or STEPPED_OVER where a
+    step end lies on the other side of R beyond side_margin (an event stepped over).
+    """
     mode, load, hop = int(state[MODE]), state[LOAD], state[HOP]
+    one_step = math.isinf(t_stop)
     if state[NEEDS_INIT] != 0.0:
         length, speed = frame(parameters, mode, state[X], state[V], load, rtol, atol)
         state[ORIGIN], state[LENGTH], state[SPEED], state[ORIGIN_LOW] = state[T], length, speed, state[T_LOW]
-        flag = engine_start(engine, mode, math.inf, state[X] / length, state[V] / speed, length, speed, hop, load)
+        flag = engine_start(engine, mode, t_stop - state[T], state[X] / length, state[V] / speed, length, speed, hop,
+                            load)
         if flag < 0:
             state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = state[T], state[X], flag
-            return CVODE_FAILED
+            return CVODE_FAILED, scratch, 0
         state[NEEDS_INIT] = 0.0
         state[STEP_T], state[STEP_X], state[STEP_V] = state[T], state[X], state[V]
     origin, length, speed = state[ORIGIN], state[LENGTH], state[SPEED]
     tau_before = state[STEP_T] - origin
-    flag, nfev = engine_step(engine, mode, scratch, tau_before + STEP_HORIZON)
-    tau = scratch[0, 0]
-    if flag < 0:
-        state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = origin + tau, state[X], flag
-        return TOO_MANY_STEPS if engine_exceeded(engine, mode) else CVODE_FAILED
-    state[NFEV] = nfev
-    x, v = length * scratch[0, 1], speed * scratch[0, 2]
-    if flag == CV_ROOT_RETURN:
-        if scratch[0, 3] != 0.0:
-            tau, v = polish_event(parameters, mode, load, length, tau_before, tau, x, v, state[RS_X], state[RS_V])
-            x = 0.0
-            state[PENDING], state[PEND_V] = 1.0, v
-            state[PEND_T], state[PEND_T_LOW] = later(origin, state[ORIGIN_LOW], tau)
-        elif scratch[0, 4] != 0.0:
-            state[REST_T], state[REST_X], state[REST_V] = origin + tau, x, v
-    else:
-        state[STEPS] += 1.0
-    if state[PENDING] == 0.0 and on_wrong_side(mode, x, side_margin(hop, rtol, length)):
-        state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = origin + tau, x, 0.0
-        return STEPPED_OVER
+    flag, count, rows, gap_root, rest_root, rhs_calls = engine_steps(
+        engine, mode, scratch, tau_before + STEP_HORIZON if one_step else t_stop - origin, one_step)
+    if flag < 0:  # a grid run's phase is reported at its start, where its state is, whichever engine ran it
+        state[FAIL_T] = (origin + rows[count - 1, 0] if count > 0 else state[STEP_T]) if one_step else origin
+        state[FAIL_X], state[FAIL_FLAG] = state[STEP_X] if one_step else state[X], flag
+        return TOO_MANY_STEPS if engine_exceeded(engine, mode) else CVODE_FAILED, rows, 0
+    state[NFEV] = rhs_calls
+    last = count - 1
+    if gap_root != 0:
+        tau, v = polish_event(parameters, mode, load, length, rows[last - 1, 0] if count > 1 else tau_before,
+                              rows[last, 0], length * rows[last, 1], speed * rows[last, 2], state[RS_X], state[RS_V])
+        state[PENDING], state[PEND_V] = 1.0, v
+        state[PEND_T], state[PEND_T_LOW] = later(origin, state[ORIGIN_LOW], tau)
+    rows[:count, 0] += origin
+    rows[:count, 1] *= length
+    rows[:count, 2] *= speed
+    if gap_root != 0:
+        rows[last, 0], rows[last, 1], rows[last, 2] = state[PEND_T], 0.0, state[PEND_V]
+    elif flag != CV_ROOT_RETURN and not one_step and flag != BUFFER_FULL:
+        rows[last, 0] = t_stop  # CVODE stopped at t_stop - origin, which may round off t_stop
+    checked = count - 1 if gap_root != 0 else count  # the event's row is on R, polished
+    if checked > 0:
+        extreme = rows[:checked, 1].min() if mode == FLIGHT else rows[:checked, 1].max()
+        if on_wrong_side(mode, extreme, side_margin(hop, rtol, length)):
+            state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = rows[checked - 1, 0], extreme, 0.0
+            return STEPPED_OVER, rows, 0
+    # A root of the extremum function alone ends no CVODE step (one_step returns at it): not counted.
+    state[STEPS] += count - 1 if flag == CV_ROOT_RETURN and gap_root == 0 and rest_root == 0 else count
     state[SEGMENT], state[SEG_MODE] = 1.0, mode
-    state[SEG_T0], state[SEG_X0], state[SEG_V0] = state[STEP_T], state[STEP_X], state[STEP_V]
-    state[SEG_T1], state[SEG_X1], state[SEG_V1] = origin + tau, x, v
-    state[STEP_T], state[STEP_X], state[STEP_V] = origin + tau, x, v
-    return DONE
+    if count > 1:
+        state[SEG_T0], state[SEG_X0], state[SEG_V0] = rows[last - 1, 0], rows[last - 1, 1], rows[last - 1, 2]
+    else:
+        state[SEG_T0], state[SEG_X0], state[SEG_V0] = state[STEP_T], state[STEP_X], state[STEP_V]
+    state[SEG_T1], state[SEG_X1], state[SEG_V1] = rows[last, 0], rows[last, 1], rows[last, 2]
+    state[STEP_T], state[STEP_X], state[STEP_V] = rows[last, 0], rows[last, 1], rows[last, 2]
+    if rest_root != 0:
+        state[REST_T], state[REST_X], state[REST_V] = rows[last, 0], rows[last, 1], rows[last, 2]
+    return DONE, rows, count
 
 
-def _cvode_phase(engine, parameters, rtol, atol, state, t_end, points, n_points, events, n_events, scratch):
-    """One phase by CVODE from the state to its terminal root or t_end; DONE or a failure, as run_phases."""
-    origin, x, v, mode, load, hop = state[T], state[X], state[V], int(state[MODE]), state[LOAD], state[HOP]
-    x_start, v_start, origin_low, t_low = x, v, state[T_LOW], 0.0
-    length, speed = frame(parameters, mode, x, v, load, rtol, atol)
-    margin = side_margin(hop, rtol, length)
-    points, n_points = _record(points, n_points, origin, x, v, mode)  # as it is, not scaled and back
-    t_stop, steps_at_start = t_end - origin, state[STEPS]
-    flag = engine_start(engine, mode, t_stop, x / length, v / speed, length, speed, hop, load)
-    tau_before, root, rest = 0.0, 0, 0
-    while flag >= 0:
-        flag, count, points, tau, tau_prior, root, rest, extreme = engine_steps(
-            engine, mode, scratch, points, n_points, t_stop, origin, length, speed)
-        if count == 0 or flag < 0:  # a failed phase keeps none of its steps, whichever engine ran it
-            break
-        last = n_points + count - 1
-        if root != 0:
-            tau, v = polish_event(parameters, mode, load, length, tau_prior if count > 1 else tau_before, tau,
-                                  points[last, 1], points[last, 2], x_start, v_start)
-            points[last, 0], t_low = later(origin, origin_low, tau)
-            points[last, 1], points[last, 2] = 0.0, v
-        elif flag != CV_ROOT_RETURN and flag != BUFFER_FULL:
-            points[last, 0] = t_end  # CVODE stopped at t_end - origin, which may round off t_end
-        if on_wrong_side(mode, extreme, margin):
-            state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = points[last - (root != 0), 0], extreme, 0.0
-            return STEPPED_OVER, points, n_points, events, n_events
-        n_points += count
-        state[STEPS] += count
-        tau_before = tau
-        if flag != BUFFER_FULL:
-            break
-    if flag < 0:  # reported at the phase's start, where its state is
-        state[STEPS] = steps_at_start
-        state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = origin, state[X], flag
-        return TOO_MANY_STEPS if engine_exceeded(engine, mode) else CVODE_FAILED, points, n_points, events, n_events
-    finished, rhs_calls = engine_finish(engine, mode)
-    if finished < 0:
-        state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = origin + tau_before, state[X], finished
-        return CVODE_FAILED, points, n_points, events, n_events
-    state[RHS_CALLS] += rhs_calls
-    state[T], state[X], state[V] = points[n_points - 1, 0], points[n_points - 1, 1], points[n_points - 1, 2]
-    state[T_LOW] = t_low if root != 0 else 0.0
-    if root != 0:
-        events, n_events = _switch_mode(parameters, rtol, atol, state, events, n_events)
-    elif rest != 0:
-        state[REST_T], state[REST_X], state[REST_V] = state[T], state[X], state[V]
-    return DONE, points, n_points, events, n_events
-
-
-def _switch_mode(parameters, rtol, atol, state, events, n_events):
-    """The event at the state: the mode switches, the phase ends (phase_ends); (events, n_events) with its row."""
+def _take_event(parameters, rtol, atol, state, events, n_events):
+    """The PENDING event: the state moves there, the mode switches, the phase ends; (events, n_events) with its row."""
+    state[T], state[X], state[V], state[T_LOW] = state[PEND_T], 0.0, state[PEND_V], state[PEND_T_LOW]
     if n_events == events.shape[0]:
         events = _grown(events)
     kind = IMPACT if int(state[MODE]) == FLIGHT else DEPARTURE
@@ -378,42 +362,3 @@ def _grown(rows):
 
 def _ulp(a):
     return np.spacing(a)
-
-
-# --- the engine, as run interpreted: the scikit-sundae engine's two solvers (stepper.SksundaePhaseSolver) ---
-def engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load):
-    """Restart the mode's CVODE at 0 from (y0, y1) in the frame (length, speed), hop and load set; a flag.
-
-    t_stop: where engine_steps is to stop (a stop time), or inf for engine_step's steps.
-    """
-    return engine[mode].start(t_stop, y0, y1, length, speed, hop, load)
-
-
-def engine_step(engine, mode, scratch, t_toward):
-    """One CVODE step toward t_toward into scratch's first row (tau, y0, y1, gap root, rest root); (flag, nfev).
-
-    tau is set on a failure too; nfev: CVODE's right-hand-side evaluations since its restart.
-    """
-    return engine[mode].step_once(scratch, t_toward)
-
-
-def engine_steps(engine, mode, scratch, points, n_points, t_stop, origin, length, speed):
-    """CVODE's step ends after the phase's start, appended to points from n_points as rows (t, x, v, mode).
-
-    Returns (flag, count, points, tau, tau_prior, gap root, rest root, extreme): CVODE's flag (a root,
-    t_stop reached, a failure) or BUFFER_FULL (call again for more; scratch is the engine's buffer),
-    the rows appended, points (grown if it had to), CVODE's times of the last two rows (tau_prior NaN
-    if one), the last root's information, and the extreme gap of the rows on the side an unseen event
-    would leave (the smallest in flight, the largest in contact), the polished root's row left out.
-    """
-    return engine[mode].steps(points, n_points, t_stop, origin, length, speed, mode)
-
-
-def engine_finish(engine, mode):
-    """The phase is over: (flag, CVODE's right-hand-side evaluations in it)."""
-    return engine[mode].finish()
-
-
-def engine_exceeded(engine, mode):
-    """Whether the last failure was the phase taking more steps than allowed."""
-    return engine[mode].exceeded

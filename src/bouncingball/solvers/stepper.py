@@ -7,8 +7,8 @@ written) that drives the two modes' solvers through ``handle()``:
 
 - ``bind(ball)``: the ball whose equations it integrates (a pooled solver serves many balls);
 - ``handle()``: what the engine's machine calls it through (for scikit-sundae, the solver itself,
-  whose start, steps, step_once, finish and exceeded are the machine's engine_* calls; for the
-  compiled engine a row of integers, the addresses its compiled calls read);
+  whose start, steps and exceeded are the calls of solvers/engine_protocol.py; for the compiled
+  engine a row of integers, the addresses its compiled calls read);
 - ``message(flag)`` and the ``log`` of SUNDIALS' warnings (solvers/sundials_log.py).
 
 Creating a CVODE object and its warnings file costs more than integrating a whole phase (~0.1 ms
@@ -148,53 +148,36 @@ class SksundaePhaseSolver:
         except _TooManyEvaluations as stop:
             return self._exceeded(float(stop.args[0]))
 
-    # --- the phase machine's engine calls (solvers/machine.py: engine_start, engine_steps, engine_finish) ---
+    # --- the phase machine's engine calls (solvers/engine_protocol.py) ---------------------------------
     def start(self, t_stop: float, y0: float, y1: float, length: float, speed: float, hop: float,
               load: float) -> int:
-        """Take the phase's frame; restart CVODE at 0 from (y0, y1) for step_once, or in steps() to solve to t_stop."""
+        """Take the phase's frame; restart CVODE at 0 from (y0, y1) for one-step calls, or in steps() to t_stop."""
         self.set_frame(length, speed, hop)
-        self._constants, self._start = (load, self._m, self._k, self._b), (t_stop, y0, y1)
+        self._constants, self._start = (load, self._m, self._k, self._b), (y0, y1)
         if t_stop == math.inf:
             with self.log.capturing():
                 self.init_step(0.0, np.array([y0, y1]))
         return 0
 
-    def step_once(self, scratch: np.ndarray, t_toward: float) -> tuple[int, int]:
-        """One step into scratch's first row (tau, y0, y1, gap root, rest root); (flag, nfev)."""
-        result = self.result = self.step(t_toward)
-        scratch[0, 0] = float(np.atleast_1d(result.t)[-1])
+    def steps(self, scratch: np.ndarray, t_toward: float, one_step: bool):
+        """One step (step) or the phase solved to t_toward (solve): engine_protocol.engine_steps."""
+        if one_step:
+            result = self.result = self.step(t_toward)
+            rows = scratch
+            rows[0, 0] = float(np.atleast_1d(result.t)[-1])
+            if result.status >= 0:
+                rows[0, 1], rows[0, 2] = result.y[0], result.y[1]
+        else:
+            with self.log.capturing():
+                result = self.result = self.solve(np.array([0.0, t_toward]), np.array(self._start))
+            if result.status < 0:
+                return result.status, 0, scratch, 0, 0, 0
+            rows = np.column_stack((result.t[1:], result.y[1:, 0], result.y[1:, 1]))
         if result.status < 0:
-            return result.status, 0
-        scratch[0, 1], scratch[0, 2] = result.y[0], result.y[1]
-        roots = self.roots_found() if result.status == CV_ROOT_RETURN else (0, 0, 0)
-        scratch[0, 3], scratch[0, 4] = roots[0], roots[2]
-        return result.status, int(result.nfev)
-
-    def steps(self, points: np.ndarray, n_points: int, t_stop: float, origin: float, length: float, speed: float,
-              mode: int):
-        """The phase solved to t_stop or its terminal root, its step ends appended to points (machine.engine_steps)."""
-        with self.log.capturing():
-            result = self.result = self.solve(np.array([0.0, t_stop]), np.array(self._start[1:]))
-        if result.status < 0:
-            return result.status, 0, points, 0.0, math.nan, 0, 0, 0.0
-        taus, count = result.t[1:], len(result.t) - 1
-        points = machine._room(points, n_points + count)
-        rows = points[n_points:n_points + count]
-        rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = (origin + taus, length * result.y[1:, 0],
-                                                          speed * result.y[1:, 1], mode)
-        flag, root, rest = CV_TSTOP_RETURN, 0, 0
-        if result.status == CV_ROOT_RETURN:
-            flag, (root, _, rest) = CV_ROOT_RETURN, self.roots_found()
-        checked = rows[:count - 1 if root else count, 1]  # the root's row is polished, not checked
-        extreme = math.inf if mode == 0 else -math.inf
-        if len(checked):
-            extreme = float(checked.min() if mode == 0 else checked.max())
-        tau_prior = float(taus[-2]) if count > 1 else math.nan
-        return flag, count, points, float(taus[-1]), tau_prior, root, rest, extreme
-
-    def finish(self) -> tuple[int, int]:
-        """The phase's end: (0, its right-hand-side evaluations)."""
-        return 0, int(self.result.nfev)
+            return result.status, 1, rows, 0, 0, 0
+        flag = result.status if one_step or result.status == CV_ROOT_RETURN else CV_TSTOP_RETURN
+        gap_root, _, rest_root = self.roots_found() if flag == CV_ROOT_RETURN else (0, 0, 0)
+        return flag, len(rows) if not one_step else 1, rows, gap_root, rest_root, int(result.nfev)
 
     def handle(self) -> SksundaePhaseSolver:
         """What the interpreted phase machine calls: the solver itself."""
