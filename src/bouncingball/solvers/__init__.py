@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import inspect
 
 from .. import limits, validation
@@ -105,12 +106,18 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     else:
         from .exact import simulate_exact as run
     # A solver's options are the keywords its simulate function takes beyond the common ones.
-    allowed = [name for name in inspect.signature(run).parameters if name not in _COMMON_PARAMETERS]
+    allowed = _options_of(run)
     unknown = sorted(set(options) - set(allowed))
     if unknown:
         raise ValueError(f"option {unknown[0]} = {options[unknown[0]]!r} is not allowed for solver "
                          f"'{solver}': it takes {', '.join(allowed) or 'no options'}")
     return run(ball, h0, v0, t_end, output_interval, t_start=t_start, F_ext=F_ext, **options)
+
+
+@functools.cache
+def _options_of(run) -> list[str]:
+    """The keywords a solver's simulate function takes beyond the common ones: its options."""
+    return [name for name in inspect.signature(run).parameters if name not in _COMMON_PARAMETERS]
 
 
 __all__ = ["ARTICLE_LABEL", "ForceTable", "SOLVERS", "Event", "SimulationResult", "SolverStats", "simulate"]

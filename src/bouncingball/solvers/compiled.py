@@ -166,6 +166,7 @@ run_phases = _compiled[machine.run_phases]
 fill_grid = _compiled[dense_output.fill_grid]
 advance = _compiled[machine.advance]
 advance_in_step = _compiled[machine.advance_in_step]
+phase_ends, run_estimate = _compiled[machine.phase_ends], _compiled[error_estimate.run_estimate]
 _scaled_rates, _root_values = _compiled[phases.scaled_rates], _compiled[phases.root_values]
 _scaled_jacobian = _compiled[phases.scaled_jacobian]
 
@@ -318,12 +319,12 @@ class PhaseSolver:
         if not self._handles:
             with self.log.capturing():
                 self._setup(0.0, (0.0, 0.0))
-        row = np.zeros(_H_SIZE, dtype=np.intp)
-        row[[_H_CALLS, _H_MEMORY, _H_VECTOR, _H_STATE, _H_PARAMETERS, _H_USER_DATA, _H_WORK, _H_COUNTER]] = (
-            self._calls.ctypes.data, self._memory, self._handles["vector"], self._state.ctypes.data,
-            self.parameters.ctypes.data, self._user_data.ctypes.data, self._work.ctypes.data,
-            self._counter.ctypes.data)
-        return row
+            self._row = row = np.zeros(_H_SIZE, dtype=np.intp)  # the addresses hold until close
+            row[[_H_CALLS, _H_MEMORY, _H_VECTOR, _H_STATE, _H_PARAMETERS, _H_USER_DATA, _H_WORK, _H_COUNTER]] = (
+                self._calls.ctypes.data, self._memory, self._handles["vector"], self._state.ctypes.data,
+                self.parameters.ctypes.data, self._user_data.ctypes.data, self._work.ctypes.data,
+                self._counter.ctypes.data)
+        return self._row
 
     def message(self, flag: int) -> str:
         """CVODE's flag in words."""

@@ -32,16 +32,26 @@ def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
     digits of a deflection that h = R + x rounds away. Floats, or arrays with one step per element;
     t0 <= t <= t1. A step of zero length gives its start.
     """
-    m, k, b = parameters[0], parameters[1], parameters[2]
+    dt, dx, dv = step_mismatch(parameters, load, mode, t0, x0, v0, t1, x1, v1)
+    return blended_state(parameters, load, mode, t0, x0, v0, dt, dx, dv, t)
+
+
+def step_mismatch(parameters, load, mode, t0, x0, v0, t1, x1, v1):
+    """(dt, dx, dv): the step's length [s], and how far its end lies from the mode's flow from its start [m, m/s]."""
     dt = t1 - t0
-    x_end, v_end = gap_flow_value(mode, x0, v0, dt, load, m, k, b)
+    x_end, v_end = gap_flow_value(mode, x0, v0, dt, load, parameters[0], parameters[1], parameters[2])
+    return dt, x1 - x_end, v1 - v_end
+
+
+def blended_state(parameters, load, mode, t0, x0, v0, dt, dx, dv, t):
+    """The flow from the step's start at t, plus the share (t - t0) / dt of its end's mismatch (step_mismatch)."""
     tau = t - t0
     if isinstance(dt, float):
         s = tau / dt if dt > 0.0 else 0.0
     else:
         s = tau / np.where(dt > 0.0, dt, np.inf)
-    x, v = gap_flow_value(mode, x0, v0, tau, load, m, k, b)
-    return x + s * (x1 - x_end), v + s * (v1 - v_end)
+    x, v = gap_flow_value(mode, x0, v0, tau, load, parameters[0], parameters[1], parameters[2])
+    return x + s * dx, v + s * dv
 
 
 def interpolate(parameters, load: float, points: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -64,11 +74,17 @@ def interpolate(parameters, load: float, points: np.ndarray, t: np.ndarray) -> t
 
 
 def fill_grid(parameters, load, points, n_points, t, x, v):
-    """interpolate, one grid time after the other (x and v filled in place): the compiled engine's grid fill."""
-    i = 0
+    """interpolate, one grid time after the other (x and v filled in place): the compiled engine's grid fill.
+
+    Each step's mismatch is computed once, for all the grid times inside it.
+    """
+    i, step = 0, -1
+    mode, t0, x0, v0, dt, dx, dv = 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     for n in range(t.shape[0]):
         while i < n_points - 2 and points[i + 1, 0] <= t[n]:
             i += 1
-        x[n], v[n] = step_state(parameters, load, int(points[i, 3]), points[i, 0], points[i, 1], points[i, 2],
-                                points[i + 1, 0], points[i + 1, 1], points[i + 1, 2], t[n])
-
+        if i != step:
+            step, mode, t0, x0, v0 = i, int(points[i, 3]), points[i, 0], points[i, 1], points[i, 2]
+            dt, dx, dv = step_mismatch(parameters, load, mode, t0, x0, v0, points[i + 1, 0], points[i + 1, 1],
+                                       points[i + 1, 2])
+        x[n], v[n] = blended_state(parameters, load, mode, t0, x0, v0, dt, dx, dv, t[n])

@@ -30,7 +30,7 @@ import numpy as np
 from .. import limits, validation
 from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode
-from . import engines, error_estimate, layout, machine, phases, stepper
+from . import engines, layout, machine, phases, stepper
 from . import state as state_checks
 from .dense_output import interpolate
 from .engines import choose_engine
@@ -127,7 +127,7 @@ class BallIntegrator(IntegratorView):
         """
         if self._accuracy_warned or (not whole and np.isnan(self._state[layout.ERR_FROM])):
             return
-        warning = accuracy_warning(*error_estimate.run_estimate(self._parameters, self.settings.rtol, self._atol,
+        warning = accuracy_warning(*self._machine.run_estimate(self._parameters, self.settings.rtol, self._atol,
                                                            self._state), self.t, self.settings.rtol)
         if warning is not None:
             self._accuracy_warned = True
@@ -248,7 +248,7 @@ class BallIntegrator(IntegratorView):
     def _integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
         t_end, state = float(grid[-1]), self._state
         check_resolvable(self.ball, t_end)
-        machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0)
+        self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0)
         points, events = np.empty((256, 4)), np.empty((16, 3))
         points[0] = state[layout.T], state[layout.X], state[layout.V], state[layout.MODE]
         n_points, n_events = 1, 0
@@ -264,7 +264,7 @@ class BallIntegrator(IntegratorView):
             if status != machine.RETURNED:
                 raise self._machine_failure(status)
         rest = state[[layout.REST_T, layout.REST_X, layout.REST_V]]
-        machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0)
+        self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0)
         state[[layout.REST_T, layout.REST_X, layout.REST_V]] = rest  # a rest goes on
         self._warn_if_untrusted(whole=True)
         points = points[:n_points]
@@ -314,4 +314,4 @@ def _root_directions(mode: Mode) -> list[int]:
 def _events(rows: np.ndarray, count: int) -> list[Event]:
     """The machine's event rows (t, kind, v) as Events."""
     kinds = (IMPACT, DEPARTURE)
-    return [Event(float(t), kinds[int(kind)], float(v)) for t, kind, v in rows[:count]]
+    return [Event(t, kinds[int(kind)], v) for t, kind, v in rows[:count].tolist()]  # tolist: Python floats

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from .. import limits, validation
 from ..physics import Ball, Mode, gap_acceleration, load_value
-from . import error_estimate, layout, machine
+from . import layout, machine
 from .phases import frame, on_wrong_side, side_margin
 from .settings import CvodeSettings, hop_tolerance
 
@@ -109,7 +109,7 @@ class IntegratorView:
         the height scale only where the run is ill-conditioned, and then an AccuracyWarning says from
         when the run cannot be trusted.
         """
-        return float(error_estimate.run_estimate(self.ball.parameters, self.settings.rtol, self._atol, self._state)[0])
+        return float(self._machine.run_estimate(self.ball.parameters, self.settings.rtol, self._atol, self._state)[0])
 
     @property
     def mode(self) -> Mode:
@@ -156,7 +156,7 @@ class IntegratorView:
             # the range double precision resolves from the current state (simulate checks it from the start)
             limits.check_scene(self.ball, self.h, self.v, value, self.t)
             # the phase at the old load ends here: its error carried into the next one
-            machine.phase_ends(self.ball.parameters, self.settings.rtol, self._atol, self._state, 0.0)
+            self._machine.phase_ends(self.ball.parameters, self.settings.rtol, self._atol, self._state, 0.0)
             self._F_ext = value
             self._sync_F_ext()
 
