@@ -1,0 +1,98 @@
+"""The phase machine's state array (solvers/layout.py): its slots are distinct, and what each holds makes sense.
+
+A slot written under a wrong name (a segment's start where its end belongs, a count into a time) breaks one
+of the relations below between the named slots, which hold after every call of either driver, in either
+engine, whatever the targets.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+import bouncingball as bb
+from bouncingball.solvers import layout
+from bouncingball.solvers.integrator import BallIntegrator
+from bouncingball.solvers.settings import CvodeSettings, hop_tolerance
+
+SLOTS = {name: value for name, value in vars(layout).items() if name.isupper() and name != "STATE_SIZE"}
+COUNTS = ("IMPACTS", "DEPARTURES", "STEPS", "RHS_CALLS", "NFEV", "RS_IMPACTS", "RS_DEPARTURES", "RS_STEPS",
+          "RS_RHS_CALLS")
+
+
+def test_every_slot_has_one_name_and_every_name_one_slot():
+    assert sorted(SLOTS.values()) == list(range(layout.STATE_SIZE))
+
+
+def relations_broken(state: np.ndarray, ball: bb.Ball, rtol: float) -> list[str]:
+    """The relations between named slots that the state breaks (an empty list: none)."""
+    s = {name: float(state[index]) for name, index in SLOTS.items()}
+    broken = []
+
+    def need(condition: bool, what: str) -> None:
+        if not condition:
+            broken.append(f"{what}: " + ", ".join(f"{k}={v!r}" for k, v in s.items() if k in what))
+
+    need(s["MODE"] in (0.0, 1.0) and s["RS_MODE"] in (0.0, 1.0) and s["SEG_MODE"] in (0.0, 1.0),
+         "MODE RS_MODE SEG_MODE")
+    for name in COUNTS:
+        need(s[name] >= 0.0 and s[name] == math.floor(s[name]), name)
+    for name in ("IMPACTS", "DEPARTURES", "STEPS", "RHS_CALLS"):
+        need(s["RS_" + name] <= s[name], f"RS_{name} {name}")
+    need(s["DEPARTURES"] <= s["IMPACTS"] <= s["DEPARTURES"] + 1.0, "DEPARTURES IMPACTS")  # from a drop
+    need(s["MODE"] == s["IMPACTS"] - s["DEPARTURES"], "MODE IMPACTS DEPARTURES")
+    need(s["RS_T"] <= s["T"], "RS_T T")
+    need(math.isnan(s["LAST_IMPACT"]) or s["RS_LAST_IMPACT"] <= s["LAST_IMPACT"] <= s["T"], "LAST_IMPACT RS_T")
+    for time, low in (("T", "T_LOW"), ("RS_T", "RS_T_LOW"), ("ORIGIN", "ORIGIN_LOW"), ("PEND_T", "PEND_T_LOW")):
+        need(abs(s[low]) <= np.spacing(abs(s[time])), f"{time} {low}")
+    if s["NEEDS_INIT"] == 0.0:  # CVODE runs the phase from ORIGIN in the frame (LENGTH, SPEED)
+        need(s["RS_T"] <= s["ORIGIN"] <= s["STEP_T"] and s["LENGTH"] > 0.0 and s["SPEED"] > 0.0,
+             "RS_T ORIGIN STEP_T LENGTH SPEED")
+    if s["SEGMENT"] != 0.0:  # the kept last step holds the current time
+        need(s["SEG_T0"] <= s["T"] <= s["SEG_T1"], "SEG_T0 T SEG_T1")
+        need(s["SEG_MODE"] == s["MODE"] or s["T"] == s["SEG_T1"], "SEG_MODE MODE")
+        if s["NEEDS_INIT"] == 0.0:  # a CVODE step's: its end is the last step end
+            need((s["STEP_T"], s["STEP_X"], s["STEP_V"]) == (s["SEG_T1"], s["SEG_X1"], s["SEG_V1"]),
+                 "STEP_T STEP_X STEP_V SEG_T1 SEG_X1 SEG_V1")
+    if s["PENDING"] != 0.0:  # an event ahead, on R, leaving the mode's side
+        need(s["T"] <= s["PEND_T"] and (s["PEND_V"] <= 0.0 if s["MODE"] == 0.0 else s["PEND_V"] >= 0.0),
+             "T PEND_T PEND_V MODE")
+    if not math.isnan(s["REST_T"]):
+        need(s["MODE"] == 1.0 and s["REST_T"] <= s["T"] and s["REST_X"] < 0.0, "MODE REST_T REST_X T")
+    margin = max(hop_tolerance(ball, rtol, None, 0.0), 1e3 * rtol * ball.R)
+    need(s["X"] >= -margin if s["MODE"] == 0.0 else s["X"] <= margin, "X MODE")
+    # SCALE: set where the first phase ends (0 before)
+    need(s["ERR_MAX"] >= 0.0 and s["ERR_X"] == s["ERR_X"] and (s["SCALE"] == 0.0 or s["SCALE"] >= ball.R),
+         "ERR_MAX ERR_X SCALE")
+    need(s["LOAD"] == ball.m * ball.g and s["HOP"] == hop_tolerance(ball, rtol, None, 0.0), "LOAD HOP")
+    return broken
+
+
+@pytest.mark.parametrize("engine", ["sksundae", "compiled"])
+def test_the_slots_hold_what_their_names_say_after_every_call(engine):
+    ball, rtol = bb.Ball(), 1e-10
+    integrator = BallIntegrator(ball, 2.0, 0.0, settings=CvodeSettings(rtol=rtol, engine=engine))
+    targets = np.cumsum(np.random.default_rng(1).uniform(1e-5, 2e-2, 400))
+    checked = 0
+    for number, target in enumerate(targets[targets < 3.0]):
+        integrator.advance(float(target), stop_at_event=number % 3 == 0)
+        assert relations_broken(integrator._state, ball, rtol) == [], (engine, integrator.t)
+        checked += 1
+    integrator.integrate_grid(np.linspace(integrator.t, integrator.t + 2.0, 201))
+    assert relations_broken(integrator._state, ball, rtol) == []
+    assert integrator.impacts >= 5 and checked > 200  # events on the way (the article: 6 impacts by 5 s)
+
+
+def test_a_wrong_slot_is_caught():
+    """The check itself: a segment whose ends are swapped, and a count written into a time, are each found."""
+    ball, rtol = bb.Ball(), 1e-10
+    integrator = BallIntegrator(ball, 2.0, 0.0, settings=CvodeSettings(rtol=rtol, engine="sksundae"))
+    integrator.advance(0.7)
+    state = integrator._state.copy()
+    assert relations_broken(state, ball, rtol) == []
+    swapped = state.copy()
+    swapped[layout.SEG_T0], swapped[layout.SEG_T1] = state[layout.SEG_T1], state[layout.SEG_T0]
+    assert relations_broken(swapped, ball, rtol) != []
+    miswritten = state.copy()
+    miswritten[layout.LAST_IMPACT] = state[layout.IMPACTS] + 5.0  # a count where a time belongs
+    assert relations_broken(miswritten, ball, rtol) != []
