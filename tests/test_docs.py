@@ -4,9 +4,14 @@ import ast
 import doctest
 import importlib
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pytest
+
+import bouncingball as bb
+from bouncingball.solvers.exact import ExactSolution
 
 ROOT = Path(__file__).resolve().parents[1]
 # The public API: numpydoc docstrings (ruff checks them, pyproject.toml), and their examples run here.
@@ -113,3 +118,123 @@ def test_the_python_hosts_the_docs_name_are_those_tested():
         text = (ROOT / document).read_text(encoding="utf-8")
         assert all(version in text for version in TESTED_PYTHON_HOSTS), document
     assert "Python of the version the FMU was built with, with numpy" not in (ROOT / "README.md").read_text()
+
+
+# --- docs/fmu.md: the FMU's own figures, computed by the code that makes them -------------------------------
+# The FMU's co-simulation is its slave's do_step (fmu/slave_base.py): documentation.py drives it in-process, as a
+# master does, for the FMU's own page, and so do these tests. A master's integrator (model exchange) and the masters
+# that cannot be installed here (OMSimulator, fmusim) are dated measurements on the page, said so there.
+FMU_PAGE = ROOT / "docs" / "fmu.md"
+
+
+def _figure(value: float, digits: int = 2) -> str:
+    """value as docs/fmu.md prints it: digits significant, an exponent without padding (1.1e-10, 6.2e-2)."""
+    mantissa, exponent = f"{value:.{digits - 1}e}".split("e")
+    return f"{mantissa}e{int(exponent)}"
+
+
+@dataclass
+class _SlaveRun:
+    t: np.ndarray  # the rows a master records: each communication point, and each early return's time
+    max_error: float  # max |h - h_exact| over the rows
+    impacts: int
+    exact_impacts: int
+    error_estimate: float
+    early_returns: list[float]
+    exact_event_times: list[float]
+    h: np.ndarray
+
+
+def _slave_run(step: float, tolerance: float | None = None, stop_at_event: bool = False, **start_values) -> _SlaveRun:
+    """The article through the FMU's slave, one do_step per communication step (and one more per early return)."""
+    from bouncingball.fmu.documentation import _Host
+    from bouncingball.scenes import load_scene
+    from bouncingball.solvers.result import output_grid
+
+    scene = load_scene("article")
+    slave = _Host(stop_at_event)
+    for name, value in start_values.items():
+        slave.setters[name](value)
+    slave.setup_experiment(0.0, scene.t_end, tolerance)
+    slave.exit_initialization_mode()
+    rows, early_returns = [], []
+    for target in output_grid(0.0, scene.t_end, step):
+        while (now := slave._integrator.t) < target:
+            assert slave.do_step(now, target - now), slave.errors()
+            if slave._integrator.t < target:
+                early_returns.append(slave._integrator.t)
+            rows.append((slave._integrator.t, slave.getters["h"](), slave.getters["impacts"]()))
+        if not rows or rows[-1][0] != target:
+            rows.append((target, slave.getters["h"](), slave.getters["impacts"]()))
+    assert slave.errors() == []
+    t, h, impacts = (np.array(column) for column in zip(*rows, strict=True))
+    ball = bb.Ball(**{name: value for name, value in start_values.items() if name in ("m", "k", "b", "R", "g")})
+    exact = ExactSolution(ball, scene.h0, scene.v0, 0.0, scene.t_end)
+    return _SlaveRun(t, float(np.max(np.abs(h - exact.state(t)[0]))), int(impacts[-1]),
+                     sum(event.kind == "impact" for event in exact.events), slave.getters["error_estimate"](),
+                     early_returns, [event.time for event in exact.events], h)
+
+
+def _page_text() -> str:
+    return " ".join(FMU_PAGE.read_text(encoding="utf-8").split())
+
+
+@pytest.mark.slow
+def test_the_fmu_pages_accuracy_figures_are_the_slaves():
+    """Each figure of the FMU's co-simulation that docs/fmu.md quotes, computed by the slave's do_step again."""
+    if not FMU_PAGE.is_file():
+        pytest.skip("runs in a source checkout")
+    at_10ms = _slave_run(0.01)
+    told_1e_4, told_1e_13, told_1e_14 = (_slave_run(0.01, tolerance) for tolerance in (1e-4, 1e-13, 1e-14))
+    as_rtol_1e_4, as_rtol_1e_3 = (_slave_run(0.01, rtol=rtol) for rtol in (1e-4, 1e-3))
+    moon = _slave_run(0.01, g=1.62)
+    early = _slave_run(0.01, stop_at_event=True)
+    defaults = _slave_run(0.001)
+    tight = [_slave_run(step, 1e-12, rtol=1e-11, atol=1e-14) for step in (0.001, 0.01)]
+    assert told_1e_4.max_error == at_10ms.max_error  # a looser master tolerance leaves rtol as it was
+    assert all(run.impacts == run.exact_impacts == 21 for run in (at_10ms, told_1e_13, told_1e_14, early, defaults))
+    assert len(early.early_returns) == len(early.exact_event_times)
+    event_time_error = max(abs(a - b) for a, b in zip(early.early_returns, early.exact_event_times, strict=True))
+    ours, with_early_return = _figure(at_10ms.max_error), _figure(early.max_error)
+    text = _page_text()
+    quotes = [
+        # the master's tolerance
+        f"a tolerance of 1e-4 used as rtol put the height {_figure(as_rtol_1e_4.max_error)} m off the exact "
+        f"solution, and 1e-3 put it {_figure(as_rtol_1e_3.max_error)} m off with {as_rtol_1e_3.impacts} of "
+        f"{as_rtol_1e_3.exact_impacts} impacts; kept at rtol 1e-12 both are {ours} m off with 21 impacts",
+        f"A tighter one (1e-13: {_figure(told_1e_13.max_error)} m)",
+        # how far from the truth, at the defaults (1 ms)
+        f"it ends at {_figure(defaults.error_estimate)} m, against a true error of {_figure(defaults.max_error)} m",
+        # the masters
+        f"| nothing | {ours} m, 21/21; with `relative_tolerance=1e-4`: the same",
+        f"| nothing | {ours} m without and with early return, 21/21 ({len(early.early_returns)} early returns) |",
+        f"{ours} m, 21/21 at 1e-4 (the looser tolerance logged with status warning); "
+        f"{_figure(told_1e_14.max_error)} m at 1e-14, which tightens rtol",
+        f"every call OK; {ours} m without and with early return, 21/21 |",
+        f"were {ours} m and {_figure(moon.max_error)} m from the exact solution at every step, with 21 and "
+        f"{moon.impacts} impacts, as exact",
+        # the tests' tighter settings
+        f"within {_figure(tight[0].max_error)} m of the exact solution at every point at 1 ms and "
+        f"{_figure(tight[1].max_error)} m at 10 ms, with 21 of 21 impacts",
+        # FMI 3.0
+        f"over the 8 s, all {len(early.early_returns)} within {_figure(event_time_error)} s",
+        f"| {ours} m, 21/21 impacts | co-simulation {ours} m, 21/21 impacts, without or with early "
+        f"return ({len(early.early_returns)} early returns, {len(at_10ms.t)} + {len(early.early_returns)} rows)",
+        f"| this FMU, co-simulation (its own CVODE, events inside the step) | {ours} m | 21 | within "
+        f"{_figure(event_time_error)} s (early return) |",
+        f"(PASS, {with_early_return} m at 10 ms)",
+    ]
+    assert with_early_return == ours  # the page gives one figure "without and with early return"
+    assert len(early.t) == len(at_10ms.t) + len(early.early_returns)
+    missing = [quote for quote in quotes if quote not in text]
+    assert missing == [], "docs/fmu.md quotes other figures than the slave computes now:\n" + "\n".join(missing)
+
+
+def test_the_fmu_pages_answer_does_not_depend_on_the_communication_step():
+    """docs/fmu.md: runs at 0.5 s, 0.1 s, 10 ms and 1 ms give bit-identical heights at their common times."""
+    assert "runs at 0.5 s, 0.1 s, 10 ms and 1 ms give bit-identical heights at their common times" in _page_text()
+    runs = [_slave_run(step) for step in (0.5, 0.1, 0.01, 0.001)]
+    for run in runs[1:]:
+        at_common = [int(np.argmin(np.abs(run.t - t))) for t in runs[0].t]
+        assert np.allclose(run.t[at_common], runs[0].t, rtol=0.0, atol=1e-12)
+        assert np.array_equal(run.h[at_common], runs[0].h)
