@@ -238,3 +238,31 @@ def test_the_fmu_pages_answer_does_not_depend_on_the_communication_step():
         at_common = [int(np.argmin(np.abs(run.t - t))) for t in runs[0].t]
         assert np.allclose(run.t[at_common], runs[0].t, rtol=0.0, atol=1e-12)
         assert np.array_equal(run.h[at_common], runs[0].h)
+
+
+@pytest.mark.slow
+def test_the_validate_sample_on_the_fmu_page_is_what_validate_computes():
+    """docs/fmu.md's `bouncingball validate` sample: its accuracy columns are the runs' (its wall times one machine's).
+
+    The FMU row is the slave's do_step at the scene's communication step, which FMPy calls; the others are the
+    runs validate makes itself.
+    """
+    from bouncingball.accuracy import accuracy_of_result
+    from bouncingball.fmu.validate import CVODE_LABEL
+    from bouncingball.scenes import load_scene
+    from bouncingball.solvers import ARTICLE_LABEL
+
+    if not FMU_PAGE.is_file():
+        pytest.skip("runs in a source checkout")
+    sample = FMU_PAGE.read_text(encoding="utf-8").split("## Validate", 1)[1].split("```", 2)[1]
+    printed = {line[:33].strip(): line[33:].split()[:4] for line in sample.splitlines()[4:8]}
+    scene = load_scene("article")
+    fmu = _slave_run(scene.output_interval)
+    runs = {label: accuracy_of_result(scene.simulate(solver), scene.h0, scene.v0)[0]
+            for label, solver in ((CVODE_LABEL, "cvode"), (ARTICLE_LABEL, "scipy"), ("exact", "exact"))}
+    assert fmu.impacts == fmu.exact_impacts  # so the FMU's events, derived from its impacts, are the exact ones
+    events = str(len(fmu.exact_event_times))
+    expected = {"FMU (FMPy)": [f"{fmu.max_error:.3e}", "n/a", events, events]}
+    expected.update({label: [f"{a.max_height_error:.3e}", f"{a.max_event_time_error:.3e}", str(a.events_found),
+                             str(a.events_exact)] for label, a in runs.items()})
+    assert printed == expected
