@@ -266,3 +266,67 @@ def test_the_validate_sample_on_the_fmu_page_is_what_validate_computes():
     expected.update({label: [f"{a.max_height_error:.3e}", f"{a.max_event_time_error:.3e}", str(a.events_found),
                              str(a.events_exact)] for label, a in runs.items()})
     assert printed == expected
+
+
+def _range_of(variable) -> str | set[str]:
+    """A variable's range as the page writes it: FMI's inclusive min of the smallest double is "> 0"."""
+    from bouncingball.fmu.variables import SMALLEST_POSITIVE
+    from bouncingball.solvers.settings import ENGINES, METHODS
+
+    if variable.name in ("method", "engine"):
+        return set(METHODS if variable.name == "method" else ENGINES)
+    if variable.max is not None:
+        return f"[{variable.min:g}, {variable.max:g}]"
+    if variable.min is None:
+        return ""
+    return "> 0" if variable.min == SMALLEST_POSITIVE else f">= {variable.min:g}"
+
+
+def test_the_fmu_pages_variable_table_is_the_fmus():
+    """docs/fmu.md's Variables table: each variable of variables.VARIABLES, in order, with its causality, type, unit,
+    the slave's start value and the range the model description declares."""
+    from bouncingball.fmu.documentation import _Host
+    from bouncingball.fmu.variables import VARIABLES
+
+    section = FMU_PAGE.read_text(encoding="utf-8").split("## Variables", 1)[1].split("\n\n", 2)[1]
+    rows = [[cell.strip() for cell in re.split(r"(?<!\\)\|", line.strip()[1:-1])] for line in section.splitlines()[2:]]
+    slave = _Host(stop_at_event=False)
+    assert [row[0] for row in rows] == [f"`{variable.name}`" for variable in VARIABLES]
+    for (name, causality, unit, start, value_range, _), variable in zip(rows, VARIABLES, strict=True):
+        kind = "" if variable.type == "Real" else f", {variable.type}"
+        initial = " (initial exact)" if variable.initial == "exact" else ""
+        discrete = " (discrete)" if variable.causality == "output" and variable.variability == "discrete" \
+            and variable.type == "Real" else ""
+        assert causality == f"{variable.causality}{initial}{discrete}{kind}", name
+        assert unit == variable.unit, name
+        if variable.causality != "output" or variable.initial == "exact":
+            value = slave.getters[variable.name]()
+            assert (start == value) if isinstance(value, str) else (float(start) == value), name
+        else:
+            assert start == "", name
+        expected = _range_of(variable)
+        assert (set(value_range.split(", ")) if isinstance(expected, set) else value_range) == expected, name
+
+
+def test_the_fmu_pages_constants_are_the_codes():
+    """The DefaultExperiment, FMI's smallest min, the state's format and the check's tolerance, as the code has them."""
+    from bouncingball.fmu.slave3 import phase_nominals
+    from bouncingball.fmu.slave_base import STATE_FORMAT
+    from bouncingball.fmu.variables import SMALLEST_POSITIVE
+    from bouncingball.physics import Mode
+    from bouncingball.scenes import load_scene
+    from bouncingball.solvers.settings import CvodeSettings
+    from bouncingball.testing import DEFAULT_TOLERANCE
+
+    article, rtol = load_scene("article"), CvodeSettings().rtol
+    flight = phase_nominals(article.ball, article.h0, article.v0, Mode.FLIGHT, 0.0)
+    contact = phase_nominals(article.ball, article.ball.R, -flight[1], Mode.CONTACT, 0.0)
+    text = _page_text()
+    for quote in (f'so "> 0" is written `min="{SMALLEST_POSITIVE!r}"`',
+                  f"The DefaultExperiment is the article scene: 0 to {article.t_end:g} s, step "
+                  f"{article.output_interval * 1e3:g} ms, tolerance {rtol:g} (the default `rtol`)",
+                  f'one byte (the state machine\'s state) and JSON (`"format": "{STATE_FORMAT}"`)',
+                  f"more than the default tolerance of {_figure(DEFAULT_TOLERANCE, 1)} m",
+                  f"(from {article.h0:g} m: {flight[0]:g} m and {flight[1]:.3g} m/s)",
+                  f"(the first contact: {_figure(contact[0])} m and {contact[1]:.2g} m/s)"):
+        assert quote in text, quote
