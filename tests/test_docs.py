@@ -12,6 +12,7 @@ import pytest
 
 import bouncingball as bb
 from bouncingball.solvers.exact import ExactSolution
+from fmu_helpers import FMU_PAGE, assert_fmu_page_quotes, page_figure
 
 ROOT = Path(__file__).resolve().parents[1]
 # The public API: numpydoc docstrings (ruff checks them, pyproject.toml), and their examples run here.
@@ -80,7 +81,7 @@ def _page_text_literals(path: Path) -> list[tuple[int, str]]:
 
 
 @pytest.mark.parametrize("module", PAGE_WRITERS)
-def test_generated_pages_type_no_figure(module):
+def test_generated_pages_type_nopage_figure(module):
     """No "~4 us", "about 4 evaluations" or "R = 0.06 m" typed into a page: measured, or formatted from the code."""
     path = ROOT / "src" / "bouncingball" / module
     typed = [(line, text) for line, text in _page_text_literals(path)
@@ -124,15 +125,6 @@ def test_the_python_hosts_the_docs_name_are_those_tested():
 # The FMU's co-simulation is its slave's do_step (fmu/slave_base.py): documentation.py drives it in-process, as a
 # master does, for the FMU's own page, and so do these tests. A master's integrator (model exchange) and the masters
 # that cannot be installed here (OMSimulator, fmusim) are dated measurements on the page, said so there.
-FMU_PAGE = ROOT / "docs" / "fmu.md"
-
-
-def _figure(value: float, digits: int = 2) -> str:
-    """value as docs/fmu.md prints it: digits significant, an exponent without padding (1.1e-10, 6.2e-2)."""
-    mantissa, exponent = f"{value:.{digits - 1}e}".split("e")
-    return f"{mantissa}e{int(exponent)}"
-
-
 @dataclass
 class _SlaveRun:
     t: np.ndarray  # the rows a master records: each communication point, and each early return's time
@@ -175,15 +167,9 @@ def _slave_run(step: float, tolerance: float | None = None, stop_at_event: bool 
                      early_returns, [event.time for event in exact.events], h)
 
 
-def _page_text() -> str:
-    return " ".join(FMU_PAGE.read_text(encoding="utf-8").split())
-
-
 @pytest.mark.slow
 def test_the_fmu_pages_accuracy_figures_are_the_slaves():
     """Each figure of the FMU's co-simulation that docs/fmu.md quotes, computed by the slave's do_step again."""
-    if not FMU_PAGE.is_file():
-        pytest.skip("runs in a source checkout")
     at_10ms = _slave_run(0.01)
     told_1e_4, told_1e_13, told_1e_14 = (_slave_run(0.01, tolerance) for tolerance in (1e-4, 1e-13, 1e-14))
     as_rtol_1e_4, as_rtol_1e_3 = (_slave_run(0.01, rtol=rtol) for rtol in (1e-4, 1e-3))
@@ -195,44 +181,43 @@ def test_the_fmu_pages_accuracy_figures_are_the_slaves():
     assert all(run.impacts == run.exact_impacts == 21 for run in (at_10ms, told_1e_13, told_1e_14, early, defaults))
     assert len(early.early_returns) == len(early.exact_event_times)
     event_time_error = max(abs(a - b) for a, b in zip(early.early_returns, early.exact_event_times, strict=True))
-    ours, with_early_return = _figure(at_10ms.max_error), _figure(early.max_error)
-    text = _page_text()
+    ours, with_early_return = page_figure(at_10ms.max_error), page_figure(early.max_error)
     quotes = [
         # the master's tolerance
-        f"a tolerance of 1e-4 used as rtol put the height {_figure(as_rtol_1e_4.max_error)} m off the exact "
-        f"solution, and 1e-3 put it {_figure(as_rtol_1e_3.max_error)} m off with {as_rtol_1e_3.impacts} of "
+        f"a tolerance of 1e-4 used as rtol put the height {page_figure(as_rtol_1e_4.max_error)} m off the exact "
+        f"solution, and 1e-3 put it {page_figure(as_rtol_1e_3.max_error)} m off with {as_rtol_1e_3.impacts} of "
         f"{as_rtol_1e_3.exact_impacts} impacts; kept at rtol 1e-12 both are {ours} m off with 21 impacts",
-        f"A tighter one (1e-13: {_figure(told_1e_13.max_error)} m)",
+        f"A tighter one (1e-13: {page_figure(told_1e_13.max_error)} m)",
         # how far from the truth, at the defaults (1 ms)
-        f"it ends at {_figure(defaults.error_estimate)} m, against a true error of {_figure(defaults.max_error)} m",
+        f"it ends at {page_figure(defaults.error_estimate)} m, against a true error of "
+        f"{page_figure(defaults.max_error)} m",
         # the masters
         f"| nothing | {ours} m, 21/21; with `relative_tolerance=1e-4`: the same",
         f"| nothing | {ours} m without and with early return, 21/21 ({len(early.early_returns)} early returns) |",
         f"{ours} m, 21/21 at 1e-4 (the looser tolerance logged with status warning); "
-        f"{_figure(told_1e_14.max_error)} m at 1e-14, which tightens rtol",
+        f"{page_figure(told_1e_14.max_error)} m at 1e-14, which tightens rtol",
         f"every call OK; {ours} m without and with early return, 21/21 |",
-        f"were {ours} m and {_figure(moon.max_error)} m from the exact solution at every step, with 21 and "
+        f"were {ours} m and {page_figure(moon.max_error)} m from the exact solution at every step, with 21 and "
         f"{moon.impacts} impacts, as exact",
         # the tests' tighter settings
-        f"within {_figure(tight[0].max_error)} m of the exact solution at every point at 1 ms and "
-        f"{_figure(tight[1].max_error)} m at 10 ms, with 21 of 21 impacts",
+        f"within {page_figure(tight[0].max_error)} m of the exact solution at every point at 1 ms and "
+        f"{page_figure(tight[1].max_error)} m at 10 ms, with 21 of 21 impacts",
         # FMI 3.0
-        f"over the 8 s, all {len(early.early_returns)} within {_figure(event_time_error)} s",
+        f"over the 8 s, all {len(early.early_returns)} within {page_figure(event_time_error)} s",
         f"| {ours} m, 21/21 impacts | co-simulation {ours} m, 21/21 impacts, without or with early "
         f"return ({len(early.early_returns)} early returns, {len(at_10ms.t)} + {len(early.early_returns)} rows)",
         f"| this FMU, co-simulation (its own CVODE, events inside the step) | {ours} m | 21 | within "
-        f"{_figure(event_time_error)} s (early return) |",
+        f"{page_figure(event_time_error)} s (early return) |",
         f"(PASS, {with_early_return} m at 10 ms)",
     ]
     assert with_early_return == ours  # the page gives one figure "without and with early return"
     assert len(early.t) == len(at_10ms.t) + len(early.early_returns)
-    missing = [quote for quote in quotes if quote not in text]
-    assert missing == [], "docs/fmu.md quotes other figures than the slave computes now:\n" + "\n".join(missing)
+    assert_fmu_page_quotes(*quotes)
 
 
 def test_the_fmu_pages_answer_does_not_depend_on_the_communication_step():
     """docs/fmu.md: runs at 0.5 s, 0.1 s, 10 ms and 1 ms give bit-identical heights at their common times."""
-    assert "runs at 0.5 s, 0.1 s, 10 ms and 1 ms give bit-identical heights at their common times" in _page_text()
+    assert_fmu_page_quotes("runs at 0.5 s, 0.1 s, 10 ms and 1 ms give bit-identical heights at their common times")
     runs = [_slave_run(step) for step in (0.5, 0.1, 0.01, 0.001)]
     for run in runs[1:]:
         at_common = [int(np.argmin(np.abs(run.t - t))) for t in runs[0].t]
@@ -321,12 +306,10 @@ def test_the_fmu_pages_constants_are_the_codes():
     article, rtol = load_scene("article"), CvodeSettings().rtol
     flight = phase_nominals(article.ball, article.h0, article.v0, Mode.FLIGHT, 0.0)
     contact = phase_nominals(article.ball, article.ball.R, -flight[1], Mode.CONTACT, 0.0)
-    text = _page_text()
-    for quote in (f'so "> 0" is written `min="{SMALLEST_POSITIVE!r}"`',
-                  f"The DefaultExperiment is the article scene: 0 to {article.t_end:g} s, step "
-                  f"{article.output_interval * 1e3:g} ms, tolerance {rtol:g} (the default `rtol`)",
-                  f'one byte (the state machine\'s state) and JSON (`"format": "{STATE_FORMAT}"`)',
-                  f"more than the default tolerance of {_figure(DEFAULT_TOLERANCE, 1)} m",
-                  f"(from {article.h0:g} m: {flight[0]:g} m and {flight[1]:.3g} m/s)",
-                  f"(the first contact: {_figure(contact[0])} m and {contact[1]:.2g} m/s)"):
-        assert quote in text, quote
+    assert_fmu_page_quotes(f'so "> 0" is written `min="{SMALLEST_POSITIVE!r}"`',
+                           f"The DefaultExperiment is the article scene: 0 to {article.t_end:g} s, step "
+                           f"{article.output_interval * 1e3:g} ms, tolerance {rtol:g} (the default `rtol`)",
+                           f'one byte (the state machine\'s state) and JSON (`"format": "{STATE_FORMAT}"`)',
+                           f"more than the default tolerance of {page_figure(DEFAULT_TOLERANCE, 1)} m",
+                           f"(from {article.h0:g} m: {flight[0]:g} m and {flight[1]:.3g} m/s)",
+                           f"(the first contact: {page_figure(contact[0])} m and {contact[1]:.2g} m/s)")
