@@ -15,6 +15,26 @@ from bouncingball.physics import Ball
 TIGHT = {"rtol": 1e-11, "atol": 1e-14}  # the tolerances the issue's accuracy numbers are measured at
 
 
+FMU_PAGE = Path(__file__).resolve().parents[1] / "docs" / "fmu.md"
+
+
+def page_figure(value: float, digits: int = 2) -> str:
+    """value as docs/fmu.md prints it: digits significant, an exponent without padding (1.1e-10, 6.2e-2)."""
+    mantissa, exponent = f"{value:.{digits - 1}e}".split("e")
+    return f"{mantissa}e{int(exponent)}"
+
+
+def assert_fmu_page_quotes(*quotes: str) -> None:
+    """docs/fmu.md (its whitespace as one space) holds each quote: a figure computed by the test that calls this."""
+    import pytest
+
+    if not FMU_PAGE.is_file():
+        pytest.skip("docs/fmu.md is in a source checkout")
+    text = " ".join(FMU_PAGE.read_text(encoding="utf-8").split())
+    missing = [quote for quote in quotes if quote not in text]
+    assert missing == [], "docs/fmu.md quotes other figures than the code computes now:\n" + "\n".join(missing)
+
+
 C_MASTER = Path(__file__).parent / "c_master" / "fmi2_master.c"
 C_MASTER3 = Path(__file__).parent / "c_master" / "fmi3_master.c"
 

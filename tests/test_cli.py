@@ -302,19 +302,37 @@ def test_a_missing_extra_names_the_pip_install_that_adds_it(tmp_path):
     assert "fmpy" in line and "pip install 'bouncingball[fmu]'" in line
 
 
+def _read_until(stream, text: str, timeout: float) -> str:
+    """What a child process wrote to stream (a pipe) up to and including text; fails after timeout seconds."""
+    import selectors
+
+    seen = b""
+    with selectors.DefaultSelector() as selector:
+        selector.register(stream, selectors.EVENT_READ)
+        deadline = time.monotonic() + timeout
+        while text.encode() not in seen:
+            left = deadline - time.monotonic()
+            assert left > 0 and selector.select(left), f"no {text!r} within {timeout} s; seen {seen!r}"
+            data = os.read(stream.fileno(), 65536)
+            assert data, f"the stream closed before {text!r}; seen {seen!r}"
+            seen += data
+    return seen.decode()
+
+
 @pytest.mark.slow
 def test_ctrl_c_is_one_line_and_exit_code_130():
     import signal
-    import time
 
     process = subprocess.Popen([sys.executable, "-m", "bouncingball.cli", "run", "undamped", "--solver", "scipy"],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        time.sleep(3.0)  # well inside the run: the article's algorithm takes minutes on 1000 s of bouncing
+        # said on stderr as the run starts; the article's algorithm then takes minutes on 1000 s of bouncing
+        started = _read_until(process.stderr, "Ctrl-C stops it)\n", timeout=120)
         process.send_signal(signal.SIGINT)
         out, err = process.communicate(timeout=60)
     finally:
         process.kill()
+    err = started + err
     assert process.returncode == 130, err
     assert err.strip().splitlines()[-1] == "bouncingball: interrupted" and "Traceback" not in err
 

@@ -4,9 +4,15 @@ import ast
 import doctest
 import importlib
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pytest
+
+import bouncingball as bb
+from bouncingball.solvers.exact import ExactSolution
+from fmu_helpers import FMU_PAGE, assert_fmu_page_quotes, page_figure
 
 ROOT = Path(__file__).resolve().parents[1]
 # The public API: numpydoc docstrings (ruff checks them, pyproject.toml), and their examples run here.
@@ -75,7 +81,7 @@ def _page_text_literals(path: Path) -> list[tuple[int, str]]:
 
 
 @pytest.mark.parametrize("module", PAGE_WRITERS)
-def test_generated_pages_type_no_figure(module):
+def test_generated_pages_type_nopage_figure(module):
     """No "~4 us", "about 4 evaluations" or "R = 0.06 m" typed into a page: measured, or formatted from the code."""
     path = ROOT / "src" / "bouncingball" / module
     typed = [(line, text) for line, text in _page_text_literals(path)
@@ -113,3 +119,197 @@ def test_the_python_hosts_the_docs_name_are_those_tested():
         text = (ROOT / document).read_text(encoding="utf-8")
         assert all(version in text for version in TESTED_PYTHON_HOSTS), document
     assert "Python of the version the FMU was built with, with numpy" not in (ROOT / "README.md").read_text()
+
+
+# --- docs/fmu.md: the FMU's own figures, computed by the code that makes them -------------------------------
+# The FMU's co-simulation is its slave's do_step (fmu/slave_base.py): documentation.py drives it in-process, as a
+# master does, for the FMU's own page, and so do these tests. A master's integrator (model exchange) and the masters
+# that cannot be installed here (OMSimulator, fmusim) are dated measurements on the page, said so there.
+@dataclass
+class _SlaveRun:
+    t: np.ndarray  # the rows a master records: each communication point, and each early return's time
+    max_error: float  # max |h - h_exact| over the rows
+    impacts: int
+    exact_impacts: int
+    error_estimate: float
+    early_returns: list[float]
+    exact_event_times: list[float]
+    h: np.ndarray
+
+
+def _slave_run(step: float, tolerance: float | None = None, stop_at_event: bool = False, **start_values) -> _SlaveRun:
+    """The article through the FMU's slave, one do_step per communication step (and one more per early return)."""
+    from bouncingball.fmu.documentation import _Host
+    from bouncingball.scenes import load_scene
+    from bouncingball.solvers.result import output_grid
+
+    scene = load_scene("article")
+    slave = _Host(stop_at_event)
+    for name, value in start_values.items():
+        slave.setters[name](value)
+    slave.setup_experiment(0.0, scene.t_end, tolerance)
+    slave.exit_initialization_mode()
+    rows, early_returns = [], []
+    for target in output_grid(0.0, scene.t_end, step):
+        while (now := slave._integrator.t) < target:
+            assert slave.do_step(now, target - now), slave.errors()
+            if slave._integrator.t < target:
+                early_returns.append(slave._integrator.t)
+            rows.append((slave._integrator.t, slave.getters["h"](), slave.getters["impacts"]()))
+        if not rows or rows[-1][0] != target:
+            rows.append((target, slave.getters["h"](), slave.getters["impacts"]()))
+    assert slave.errors() == []
+    t, h, impacts = (np.array(column) for column in zip(*rows, strict=True))
+    ball = bb.Ball(**{name: value for name, value in start_values.items() if name in ("m", "k", "b", "R", "g")})
+    exact = ExactSolution(ball, scene.h0, scene.v0, 0.0, scene.t_end)
+    return _SlaveRun(t, float(np.max(np.abs(h - exact.state(t)[0]))), int(impacts[-1]),
+                     sum(event.kind == "impact" for event in exact.events), slave.getters["error_estimate"](),
+                     early_returns, [event.time for event in exact.events], h)
+
+
+@pytest.mark.slow
+def test_the_fmu_pages_accuracy_figures_are_the_slaves():
+    """Each figure of the FMU's co-simulation that docs/fmu.md quotes, computed by the slave's do_step again."""
+    at_10ms = _slave_run(0.01)
+    told_1e_4, told_1e_13, told_1e_14 = (_slave_run(0.01, tolerance) for tolerance in (1e-4, 1e-13, 1e-14))
+    as_rtol_1e_4, as_rtol_1e_3 = (_slave_run(0.01, rtol=rtol) for rtol in (1e-4, 1e-3))
+    moon = _slave_run(0.01, g=1.62)
+    early = _slave_run(0.01, stop_at_event=True)
+    defaults = _slave_run(0.001)
+    tight = [_slave_run(step, 1e-12, rtol=1e-11, atol=1e-14) for step in (0.001, 0.01)]
+    assert told_1e_4.max_error == at_10ms.max_error  # a looser master tolerance leaves rtol as it was
+    assert all(run.impacts == run.exact_impacts == 21 for run in (at_10ms, told_1e_13, told_1e_14, early, defaults))
+    assert len(early.early_returns) == len(early.exact_event_times)
+    event_time_error = max(abs(a - b) for a, b in zip(early.early_returns, early.exact_event_times, strict=True))
+    ours, with_early_return = page_figure(at_10ms.max_error), page_figure(early.max_error)
+    quotes = [
+        # the master's tolerance
+        f"a tolerance of 1e-4 used as rtol put the height {page_figure(as_rtol_1e_4.max_error)} m off the exact "
+        f"solution, and 1e-3 put it {page_figure(as_rtol_1e_3.max_error)} m off with {as_rtol_1e_3.impacts} of "
+        f"{as_rtol_1e_3.exact_impacts} impacts; kept at rtol 1e-12 both are {ours} m off with 21 impacts",
+        f"A tighter one (1e-13: {page_figure(told_1e_13.max_error)} m)",
+        # how far from the truth, at the defaults (1 ms)
+        f"it ends at {page_figure(defaults.error_estimate)} m, against a true error of "
+        f"{page_figure(defaults.max_error)} m",
+        # the masters
+        f"| nothing | {ours} m, 21/21; with `relative_tolerance=1e-4`: the same",
+        f"| nothing | {ours} m without and with early return, 21/21 ({len(early.early_returns)} early returns) |",
+        f"{ours} m, 21/21 at 1e-4 (the looser tolerance logged with status warning); "
+        f"{page_figure(told_1e_14.max_error)} m at 1e-14, which tightens rtol",
+        f"every call OK; {ours} m without and with early return, 21/21 |",
+        f"were {ours} m and {page_figure(moon.max_error)} m from the exact solution at every step, with 21 and "
+        f"{moon.impacts} impacts, as exact",
+        # the tests' tighter settings
+        f"within {page_figure(tight[0].max_error)} m of the exact solution at every point at 1 ms and "
+        f"{page_figure(tight[1].max_error)} m at 10 ms, with 21 of 21 impacts",
+        # FMI 3.0
+        f"over the 8 s, all {len(early.early_returns)} within {page_figure(event_time_error)} s",
+        f"| {ours} m, 21/21 impacts | co-simulation {ours} m, 21/21 impacts, without or with early "
+        f"return ({len(early.early_returns)} early returns, {len(at_10ms.t)} + {len(early.early_returns)} rows)",
+        f"| this FMU, co-simulation (its own CVODE, events inside the step) | {ours} m | 21 | within "
+        f"{page_figure(event_time_error)} s (early return) |",
+        f"(PASS, {with_early_return} m at 10 ms)",
+    ]
+    assert with_early_return == ours  # the page gives one figure "without and with early return"
+    assert len(early.t) == len(at_10ms.t) + len(early.early_returns)
+    assert_fmu_page_quotes(*quotes)
+
+
+def test_the_fmu_pages_answer_does_not_depend_on_the_communication_step():
+    """docs/fmu.md: runs at 0.5 s, 0.1 s, 10 ms and 1 ms give bit-identical heights at their common times."""
+    assert_fmu_page_quotes("runs at 0.5 s, 0.1 s, 10 ms and 1 ms give bit-identical heights at their common times")
+    runs = [_slave_run(step) for step in (0.5, 0.1, 0.01, 0.001)]
+    for run in runs[1:]:
+        at_common = [int(np.argmin(np.abs(run.t - t))) for t in runs[0].t]
+        assert np.allclose(run.t[at_common], runs[0].t, rtol=0.0, atol=1e-12)
+        assert np.array_equal(run.h[at_common], runs[0].h)
+
+
+@pytest.mark.slow
+def test_the_validate_sample_on_the_fmu_page_is_what_validate_computes():
+    """docs/fmu.md's `bouncingball validate` sample: its accuracy columns are the runs' (its wall times one machine's).
+
+    The FMU row is the slave's do_step at the scene's communication step, which FMPy calls; the others are the
+    runs validate makes itself.
+    """
+    from bouncingball.accuracy import accuracy_of_result
+    from bouncingball.fmu.validate import CVODE_LABEL
+    from bouncingball.scenes import load_scene
+    from bouncingball.solvers import ARTICLE_LABEL
+
+    if not FMU_PAGE.is_file():
+        pytest.skip("runs in a source checkout")
+    sample = FMU_PAGE.read_text(encoding="utf-8").split("## Validate", 1)[1].split("```", 2)[1]
+    printed = {line[:33].strip(): line[33:].split()[:4] for line in sample.splitlines()[4:8]}
+    scene = load_scene("article")
+    fmu = _slave_run(scene.output_interval)
+    runs = {label: accuracy_of_result(scene.simulate(solver), scene.h0, scene.v0)[0]
+            for label, solver in ((CVODE_LABEL, "cvode"), (ARTICLE_LABEL, "scipy"), ("exact", "exact"))}
+    assert fmu.impacts == fmu.exact_impacts  # so the FMU's events, derived from its impacts, are the exact ones
+    events = str(len(fmu.exact_event_times))
+    expected = {"FMU (FMPy)": [f"{fmu.max_error:.3e}", "n/a", events, events]}
+    expected.update({label: [f"{a.max_height_error:.3e}", f"{a.max_event_time_error:.3e}", str(a.events_found),
+                             str(a.events_exact)] for label, a in runs.items()})
+    assert printed == expected
+
+
+def _range_of(variable) -> str | set[str]:
+    """A variable's range as the page writes it: FMI's inclusive min of the smallest double is "> 0"."""
+    from bouncingball.fmu.variables import SMALLEST_POSITIVE
+    from bouncingball.solvers.settings import ENGINES, METHODS
+
+    if variable.name in ("method", "engine"):
+        return set(METHODS if variable.name == "method" else ENGINES)
+    if variable.max is not None:
+        return f"[{variable.min:g}, {variable.max:g}]"
+    if variable.min is None:
+        return ""
+    return "> 0" if variable.min == SMALLEST_POSITIVE else f">= {variable.min:g}"
+
+
+def test_the_fmu_pages_variable_table_is_the_fmus():
+    """docs/fmu.md's Variables table: each variable of variables.VARIABLES, in order, with its causality, type, unit,
+    the slave's start value and the range the model description declares."""
+    from bouncingball.fmu.documentation import _Host
+    from bouncingball.fmu.variables import VARIABLES
+
+    section = FMU_PAGE.read_text(encoding="utf-8").split("## Variables", 1)[1].split("\n\n", 2)[1]
+    rows = [[cell.strip() for cell in re.split(r"(?<!\\)\|", line.strip()[1:-1])] for line in section.splitlines()[2:]]
+    slave = _Host(stop_at_event=False)
+    assert [row[0] for row in rows] == [f"`{variable.name}`" for variable in VARIABLES]
+    for (name, causality, unit, start, value_range, _), variable in zip(rows, VARIABLES, strict=True):
+        kind = "" if variable.type == "Real" else f", {variable.type}"
+        initial = " (initial exact)" if variable.initial == "exact" else ""
+        discrete = " (discrete)" if variable.causality == "output" and variable.variability == "discrete" \
+            and variable.type == "Real" else ""
+        assert causality == f"{variable.causality}{initial}{discrete}{kind}", name
+        assert unit == variable.unit, name
+        if variable.causality != "output" or variable.initial == "exact":
+            value = slave.getters[variable.name]()
+            assert (start == value) if isinstance(value, str) else (float(start) == value), name
+        else:
+            assert start == "", name
+        expected = _range_of(variable)
+        assert (set(value_range.split(", ")) if isinstance(expected, set) else value_range) == expected, name
+
+
+def test_the_fmu_pages_constants_are_the_codes():
+    """The DefaultExperiment, FMI's smallest min, the state's format and the check's tolerance, as the code has them."""
+    from bouncingball.fmu.slave3 import phase_nominals
+    from bouncingball.fmu.slave_base import STATE_FORMAT
+    from bouncingball.fmu.variables import SMALLEST_POSITIVE
+    from bouncingball.physics import Mode
+    from bouncingball.scenes import load_scene
+    from bouncingball.solvers.settings import CvodeSettings
+    from bouncingball.testing import DEFAULT_TOLERANCE
+
+    article, rtol = load_scene("article"), CvodeSettings().rtol
+    flight = phase_nominals(article.ball, article.h0, article.v0, Mode.FLIGHT, 0.0)
+    contact = phase_nominals(article.ball, article.ball.R, -flight[1], Mode.CONTACT, 0.0)
+    assert_fmu_page_quotes(f'so "> 0" is written `min="{SMALLEST_POSITIVE!r}"`',
+                           f"The DefaultExperiment is the article scene: 0 to {article.t_end:g} s, step "
+                           f"{article.output_interval * 1e3:g} ms, tolerance {rtol:g} (the default `rtol`)",
+                           f'one byte (the state machine\'s state) and JSON (`"format": "{STATE_FORMAT}"`)',
+                           f"more than the default tolerance of {page_figure(DEFAULT_TOLERANCE, 1)} m",
+                           f"(from {article.h0:g} m: {flight[0]:g} m and {flight[1]:.3g} m/s)",
+                           f"(the first contact: {page_figure(contact[0])} m and {contact[1]:.2g} m/s)")

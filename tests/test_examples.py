@@ -15,7 +15,7 @@ import pytest
 
 from bouncingball.physics import Ball, oscillator_basis
 from bouncingball.solvers.exact import ExactSolution
-from fmu_helpers import exact_at
+from fmu_helpers import assert_fmu_page_quotes, exact_at
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 BIN = Path(sys.executable).parent
@@ -210,6 +210,32 @@ def test_cosim_levitation3(tmp_path):
             assert all(row[1] == row[2] and row[3] == 14 for row in table), table
         else:  # 4 impacts and 4 departures under the controller's force, each updating F_ext at the event
             assert all(row[3] == 8 and row[2] <= row[1] for row in table), table
+    _the_fmu_page_quotes_these_rows(rows)
+
+
+def _the_fmu_page_quotes_these_rows(rows):
+    """docs/fmu.md's table of this example: each row it shows is a row printed here, to the digits it shows."""
+    page = Path(__file__).resolve().parents[1] / "docs" / "fmu.md"
+    if not page.is_file():
+        pytest.skip("runs in a source checkout")
+    text = page.read_text(encoding="utf-8").split("**Early return in a coupled system.**", 1)[1]
+    quoted = re.findall(rf"^\| (?:(levitation|catch)[^|]*)?\| ({NUMBER}) (s|ms) \| ({NUMBER}) m \| ({NUMBER}) m "
+                        rf"\| (\d+) \|$", text, re.M)
+    printed = {(case, float(step)): [float(x) for x in row] for case, step, *row in rows}
+    assert len(quoted) >= 5
+    case = None
+    for name, step, unit, fmi2, fmi3, returns in quoted:
+        case = name or case
+        dt = float(step) * (1e-3 if unit == "ms" else 1.0)
+        [row] = [row for (printed_case, printed_step), row in printed.items()
+                 if printed_case == case and abs(printed_step - dt) < 0.01 * dt]  # 7.8 ms for 2^-7 s
+        for figure, value in ((fmi2, row[0]), (fmi3, row[1])):
+            digits = len(figure.split("e")[0].replace(".", "").lstrip("0"))
+            assert float(figure) == float(f"{value:.{digits - 1}e}"), (case, step, figure, value)
+        assert int(returns) == row[2], (case, step)
+    gain = {step: 100.0 * (1.0 - row[1] / row[0]) for (case, step), row in printed.items() if case == "catch"}
+    assert_fmu_page_quotes(f"helps most at long steps ({gain[0.125]:.0f} % at 0.125 s) and little at short ones "
+                           f"({gain[2.0**-7]:.1f} % at 7.8 ms)")
 
 
 @pytest.mark.slow

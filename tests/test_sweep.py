@@ -302,8 +302,9 @@ def test_ctrl_c_on_a_sweep_is_one_line_without_worker_tracebacks(tmp_path):
                                text=True, start_new_session=True)
     try:
         deadline = time.monotonic() + 120
-        while not list((tmp_path / "sweep_parts").glob("*.parquet")) and time.monotonic() < deadline:
-            time.sleep(0.2)  # until the workers have finished a batch: the sweep is under way
+        while not list((tmp_path / "sweep_parts").glob("*.parquet")):  # a batch done: the sweep is under way
+            assert time.monotonic() < deadline and process.poll() is None, "no batch written in 120 s"
+            time.sleep(0.2)  # the polling interval, not a wait for something to happen
         os.killpg(process.pid, signal.SIGINT)
         _, err = process.communicate(timeout=120)
     finally:

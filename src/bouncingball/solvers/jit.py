@@ -7,6 +7,42 @@ machine) as they are, so one source runs interpreted in one engine and compiled 
 ``addresses`` read pointers from integers), so that no process-specific constant is baked into
 the code and it can be cached on disk.
 
+The rules for the source compiled together
+------------------------------------------
+compiled.py gives ``compiled_together`` every function of the modules it lists
+(``functions_of(rounding, physics, exact, phases, error_estimate, machine, dense_output)``). numba
+compiles, at their first call, those that the compiled entry points reach (the functions compiled.py
+keeps compiled copies of: run_phases, fill_grid, advance, advance_in_step and the callbacks'
+scaled_rates, root_values, scaled_jacobian), from the very source the scikit-sundae engine runs
+interpreted. A function so reached:
+
+1. Calls another compiled function by its bare name, defined in its own module or imported with
+   ``from .x import name``. ``compiled_together`` re-binds bare global names only: a call written
+   ``physics.gap_flow_value(...)`` reaches the plain Python function through the module, and numba
+   fails to type it, far from its cause.
+2. Reads as globals only those functions, numbers (int, float, bool) and tuples of them, the modules
+   ``math`` and ``numpy`` (the functions numba supports) and the builtins numba supports (abs, min,
+   max, float, int, range, ...). numba freezes a global number into the code it compiles: changing
+   it at run time (a monkeypatch) reaches the interpreted engine, not the compiled one.
+3. Takes and returns floats, ints, bools, tuples of them and numpy arrays: no Python object (a Ball,
+   a Mode, a settings dataclass); the ball travels as the tuple (m, k, b, R, g). The one exception
+   is the module ``math`` or ``numpy`` as an argument (``xp``), for code written once for floats and
+   arrays; an argument's attributes are an array's (shape, ctypes, ...) or that module's functions.
+4. Uses nothing numba cannot compile: no keyword-only or variadic parameters (``*args``,
+   ``**kwargs``), no nested function, lambda or class, no try, with, yield, global or f-string. A
+   function that needs one for the interpreted engine (the float-or-array dispatch of
+   physics.unit_response) has a plain-float stand-in in ``compiled_together``'s ``bound``
+   (physics.unit_response_value), and the compiled code calls that.
+5. Lives in a source the cache digest covers, as does every constant it reads: a new compiled module,
+   or one whose constants the compiled code imports (layout.py's indices, settings.py's tolerances),
+   goes into compiled.py's ``cache_allowed(...)`` too, or a change to it leaves numba's disk cache
+   with the old code.
+
+Functions of those modules that no entry point reaches (exact.simulate_exact, dense_output.interpolate)
+run interpreted only; rule 1 holds for them too, so that reaching one later does not break it.
+tests/test_jit_rules.py reads the functions compiled.py gives ``compiled_together`` and checks
+these rules on their syntax trees.
+
 Import this module only to compile: it imports numba.
 """
 
