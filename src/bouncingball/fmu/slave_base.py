@@ -109,15 +109,16 @@ class BallSlave:
             self._error(f"{self.CALLS['step']} before initialisation (or after a failed one)")
             return False
         try:
-            t = integrator.t
+            t, target = integrator.t, current_time + step_size
             # A master's own rounding of the communication points is tolerated, a jump is not.
-            if not abs(current_time - t) <= 1e-9 * max(1.0, abs(t)):
+            if current_time != t and not abs(current_time - t) <= 1e-9 * max(1.0, abs(t)):
                 raise ValueError(f"currentCommunicationPoint = {current_time!r} s is not allowed: "
                                  f"the FMU is at t = {t!r} s")
-            if not (step_size >= 0.0 and math.isfinite(current_time + step_size)):
+            if not (step_size >= 0.0 and math.isfinite(target)):
                 raise ValueError(f"communicationStepSize = {step_size!r} s is not allowed: it must be >= 0 and "
                                  "end the step at a finite time")
-            target = max(current_time + step_size, t)
+            if target < t:  # a current time rounded below t, and a step shorter than that rounding
+                target = t
             if integrator.advance_within_step(target):  # most short steps: arithmetic that cannot warn
                 return True
             with _caught_warnings() as caught:

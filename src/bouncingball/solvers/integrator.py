@@ -21,6 +21,7 @@ mode.
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from collections.abc import Callable
@@ -104,7 +105,7 @@ class BallIntegrator(IntegratorView):
         limits.check_cvode_settings(ball, h0, s.atol, s.max_step, t0)
         self.resolvable_until = resolvable_until(ball)
         check_resolvable(ball, t0)
-        self._cvode_called, self._accuracy_warned = False, False
+        self._unreported, self._accuracy_warned = (), False  # _unreported: the SUNDIALS logs to read next
         loaded, started = engines.loaded(), time.perf_counter()
         self.engine, self.engine_reason = choose_engine(s.engine, expected_steps)
         self._solvers = {mode: stepper.acquire(self.engine, ball, mode, self.methods[mode], s.rtol, s.max_step,
@@ -113,10 +114,12 @@ class BallIntegrator(IntegratorView):
                          for mode in Mode}
         self._machine = stepper.phase_machine(self.engine)
         self._engine = self._machine.engine([self._solvers[mode] for mode in Mode])
+        self._logs = tuple(self._solvers[mode].log for mode in Mode)  # indexed by the mode's value
         # s: the engine's first use in the process (its import, and its first CVODE objects); 0 after
         self.first_use_time = 0.0 if self.engine in loaded else time.perf_counter() - started
         self._parameters, self._atol = ball.parameters, 0.0 if s.atol is None else s.atol
         self._state, self._scratch = machine.new_state(), np.empty((_SCRATCH_ROWS, 3))
+        self._event_rows = np.empty((4, 3))  # advance's events (t, kind, v); the machine grows a copy if need be
         self.set_state(IntegratorState(t=t0, h=h0, v=v0, mode=ball.initial_mode(h0, v0, F_ext), F_ext=F_ext,
                                        t_start=t0))
 
@@ -125,7 +128,7 @@ class BallIntegrator(IntegratorView):
 
         Checked at the phases' ends (one comparison) or, with whole, over everything integrated so far.
         """
-        if self._accuracy_warned or (not whole and np.isnan(self._state[layout.ERR_FROM])):
+        if self._accuracy_warned or (not whole and math.isnan(self._state[layout.ERR_FROM])):
             return
         warning = accuracy_warning(*self._machine.run_estimate(self._parameters, self.settings.rtol, self._atol,
                                                            self._state), self.t, self.settings.rtol)
@@ -226,8 +229,10 @@ class BallIntegrator(IntegratorView):
             check_resolvable(self.ball, t_target)
         status, events, n_events = self._machine.advance(
             self._engine, self._parameters, self.settings.rtol, self._atol, self._state, t_target, stop_at_event,
-            np.empty((4, 3)), 0, self._scratch)
-        self._cvode_called = True
+            self._event_rows, 0, self._scratch)
+        # Without an event the mode never changed: its solver alone ran (one file to read, not two).
+        ran = self._logs if n_events or status != machine.DONE else (self._logs[int(self._state[layout.MODE])],)
+        self._unreported = ran
         if status != machine.DONE:
             raise self._machine_failure(status)
         self._warn_if_untrusted(whole=False)
@@ -258,7 +263,7 @@ class BallIntegrator(IntegratorView):
             status, points, n_points, events, n_events = self._machine.run_phases(
                 self._engine, self._parameters, self.settings.rtol, self._atol, state, t_end, points, n_points,
                 events, n_events, self._scratch, PROGRESS_STEPS)
-            self._cvode_called = True
+            self._unreported = self._logs
             if status == machine.DONE:
                 break
             if status != machine.RETURNED:
@@ -292,10 +297,9 @@ class BallIntegrator(IntegratorView):
                            f"{message}")
 
     def _report_sundials_warnings(self) -> None:
-        if self._cvode_called:
-            self._cvode_called = False
-            for solver in self._solvers.values():
-                solver.log.report(stacklevel=4)
+        logs, self._unreported = self._unreported, ()
+        for log in logs:
+            log.report(stacklevel=4)
 
 
 # x = h - R is exactly 0 where a phase starts (at each event). CVODE takes a root function that
@@ -313,5 +317,7 @@ def _root_directions(mode: Mode) -> list[int]:
 
 def _events(rows: np.ndarray, count: int) -> list[Event]:
     """The machine's event rows (t, kind, v) as Events."""
+    if count == 0:  # most of an FMU's advances
+        return []
     kinds = (IMPACT, DEPARTURE)
     return [Event(t, kinds[int(kind)], v) for t, kind, v in rows[:count].tolist()]  # tolist: Python floats
