@@ -158,3 +158,14 @@ def test_set_state_takes_back_every_state_of_a_run():
         fresh = BallIntegrator(Ball(b=30.0), 0.5, 0.0)
         fresh.set_state(saved)
         assert fresh.get_state() == saved
+
+
+@pytest.mark.parametrize("simulate_on_grid", ["simulate_cvode", "simulate_exact"])
+def test_the_solvers_own_entry_points_refuse_an_end_before_the_start_by_name(simulate_on_grid):
+    """bouncingball.simulate checks t_end first; its solvers' functions, called directly, are refused alike."""
+    from bouncingball.solvers import cvode, exact
+
+    function = {"simulate_cvode": cvode.simulate_cvode, "simulate_exact": exact.simulate_exact}[simulate_on_grid]
+    with pytest.raises(ValueError, match=r"^t_end = 0.0 s is not allowed: it must be >= t_start = 1.0 s$"):
+        function(Ball(), 2.0, 0.0, 0.0, 1e-3, t_start=1.0)
+    assert len(function(Ball(), 2.0, 0.0, 1.0, 1e-3, t_start=1.0).t) == 1  # an empty span: its one point

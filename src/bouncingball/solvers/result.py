@@ -159,9 +159,11 @@ MAX_OUTPUT_POINTS = 50_000_000  # 1.2 GB of t, h and v: more would exhaust a wor
 def output_grid(t_start: float, t_end: float, output_interval: float) -> np.ndarray:
     """t_start, t_start + dt, ... and t_end exactly as the last point: strictly increasing times.
 
-    ValueError beyond MAX_OUTPUT_POINTS, or for an output_interval below a few ulps of the times
-    (limits.check_output_interval), which double precision cannot tell apart.
+    ValueError for t_end before t_start, beyond MAX_OUTPUT_POINTS, or for an output_interval below a few
+    ulps of the times (limits.check_output_interval), which double precision cannot tell apart.
     """
+    if not t_end >= t_start:  # NaN too
+        raise ValueError(f"t_end = {t_end!r} s is not allowed: it must be >= t_start = {t_start!r} s")
     check_output_interval(t_start, t_end, output_interval)
     n = math.floor((t_end - t_start) / output_interval * (1.0 + 1e-12))
     if n + 1 > MAX_OUTPUT_POINTS:
