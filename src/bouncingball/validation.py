@@ -8,6 +8,8 @@ from collections.abc import Iterable
 
 
 def _as_float(name: str, value: object) -> float:
+    if type(value) is float:  # most values: no isinstance against the numbers ABCs (slow), nothing to convert
+        return value
     # bool is an int to Python and TOML's true would pass as 1; text ("1e4" in quotes) is not a number either.
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ValueError(f"{name} = {shown(value)} is not allowed: it must be a number")
