@@ -113,6 +113,9 @@ def test_advance_refuses_a_target_that_is_not_a_number_by_name(target):
         integrator.advance(target)
     with pytest.raises(ValueError, match=r"^t_target = "):
         integrator.advance_within_step(target)
+    if target is not None:  # t_from None: from t, wherever it is
+        with pytest.raises(ValueError, match=r"^t_from = .* is not allowed: it must be a"):
+            integrator.advance_within_step(0.1, target)
     assert integrator.t == 0.0 and integrator.advance(0.5) == []
 
 

@@ -413,3 +413,28 @@ def test_a_state_its_restart_point_does_not_lead_to_continues_from_the_state():
     exact = ExactSolution(Ball(), 1.5, 0.0, 0.3, 2.0)
     assert abs(integrator.h - exact.state([2.0])[0][0]) <= 1e-8
     assert integrator.impacts == sum(e.kind == "impact" for e in exact.events)
+
+
+@pytest.mark.parametrize("engine", ["sksundae", "compiled"])
+def test_a_step_within_the_last_one_is_taken_only_from_the_time_the_caller_names(engine):
+    """advance_within_step(t_target, t_from): nothing unless t_from is t exactly; then what advance(t_target) gives,
+    bit for bit, on the exact solution."""
+    from fmu_helpers import exact_at
+
+    settings = CvodeSettings(engine=engine)
+    integrator, twin = (BallIntegrator(Ball(), 2.0, 0.0, settings=settings) for _ in range(2))
+    integrator.advance(0.3)
+    twin.advance(0.3)
+    t = integrator.t
+    target = t + 1e-4  # the ball falls freely from 0.3 to 0.63 s: one CVODE step holds it
+    for wrong in (math.nextafter(t, 0.0), math.nextafter(t, 1.0), 0.29, math.nan):
+        assert integrator.advance_within_step(target, wrong) is False
+        assert (integrator.t, integrator.h, integrator.v) == (twin.t, twin.h, twin.v)
+    assert integrator.advance_within_step(target, t) is True
+    twin.advance(target)
+    assert (integrator.t, integrator.h, integrator.v) == (target, twin.h, twin.v)
+    h_exact, _, _ = exact_at([target])
+    assert abs(integrator.h - h_exact[0]) < 1e-9
+    later = target + 1e-4
+    assert integrator.advance_within_step(later, target) is True  # from where it now is
+    assert integrator.advance_within_step(target, later) is False and integrator.t == later  # back in time: never

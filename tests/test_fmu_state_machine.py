@@ -227,7 +227,8 @@ def test_sundials_warnings_reach_the_master_log_and_a_late_start_raises_none(unz
             return original(self, t_target)
 
         cvode.BallIntegrator.advance = advance
-        cvode.BallIntegrator.advance_within_step = lambda self, t_target: False  # every step through advance
+        # every step through advance
+        cvode.BallIntegrator.advance_within_step = lambda self, t_target, t_from=None: False
         for i in range(10, 20):
             f.doStep(1e6 + 0.1 * i, 0.1)
         warnings = [message for status, message in ball.log if status == 1]

@@ -109,7 +109,11 @@ class BallSlave:
             self._error(f"{self.CALLS['step']} before initialisation (or after a failed one)")
             return False
         try:
-            t, target = integrator.t, current_time + step_size
+            target = current_time + step_size
+            # Most short steps, at the FMU's own time exactly: arithmetic that cannot warn.
+            if integrator.advance_within_step(target, current_time):
+                return True
+            t = integrator.t
             # A master's own rounding of the communication points is tolerated, a jump is not.
             if current_time != t and not abs(current_time - t) <= 1e-9 * max(1.0, abs(t)):
                 raise ValueError(f"currentCommunicationPoint = {current_time!r} s is not allowed: "
@@ -119,7 +123,7 @@ class BallSlave:
                                  "end the step at a finite time")
             if target < t:  # a current time rounded below t, and a step shorter than that rounding
                 target = t
-            if integrator.advance_within_step(target):  # most short steps: arithmetic that cannot warn
+            if integrator.advance_within_step(target, t):  # a master's rounded current time: the same arithmetic
                 return True
             with _caught_warnings() as caught:
                 if self.STOP_AT_EVENT:

@@ -205,22 +205,28 @@ class BallIntegrator(IntegratorView):
         """
         if type(t_target) is not float:  # None, text, an int beyond 1e308: named
             t_target = validation.finite("t_target", t_target, "s")
-        if self._machine.advance_in_step(self._parameters, self._state, t_target):
+        if self._machine.advance_in_step(self._parameters, self._state, float(self._state[layout.T]), t_target):
             return []
         try:
             return self._advance(t_target, stop_at_event)
         finally:
             self._report_sundials_warnings()
 
-    def advance_within_step(self, t_target: float) -> bool:
+    def advance_within_step(self, t_target: float, t_from: float | None = None) -> bool:
         """Advance to t_target [s] if it lies inside CVODE's last step, after t; whether it did.
 
         Read off the step's dense output as advance() reads it (advance asks this first): no CVODE
-        call, nothing that can fail or warn. Most of an FMU's short steps end there.
+        call, nothing that can fail or warn. Most of an FMU's short steps end there. t_from, if
+        given: the time [s] the caller holds the integrator to be at (an FMU's communication point);
+        unless it is t exactly, nothing is done (False), and the caller checks it as it will.
         """
         if type(t_target) is not float:
             t_target = validation.finite("t_target", t_target, "s")
-        return self._machine.advance_in_step(self._parameters, self._state, t_target)
+        if t_from is None:
+            t_from = float(self._state[layout.T])
+        elif type(t_from) is not float:
+            t_from = validation.finite("t_from", t_from, "s")
+        return self._machine.advance_in_step(self._parameters, self._state, t_from, t_target)
 
     def _advance(self, t_target: float, stop_at_event: bool = False) -> list[Event]:
         if not t_target >= self._state[layout.T]:

@@ -221,9 +221,12 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
             state[T], state[X], state[V], state[T_LOW] = state[STEP_T], state[STEP_X], state[STEP_V], 0.0
 
 
-def advance_in_step(parameters, state, t_target):
-    """Whether t_target lies in the kept last step, after t: then the state there, off its dense output."""
-    if not (state[SEGMENT] != 0.0 and state[T] < t_target <= state[SEG_T1]):
+def advance_in_step(parameters, state, t_from, t_target):
+    """Whether the state is at t_from and t_target lies in its kept last step, after it: then the state there.
+
+    The state at t_target is read off the step's dense output.
+    """
+    if not (state[SEGMENT] != 0.0 and state[T] == t_from and t_from < t_target <= state[SEG_T1]):
         return False
     state[X], state[V] = step_state(parameters, state[LOAD], int(state[SEG_MODE]), state[SEG_T0], state[SEG_X0],
                                     state[SEG_V0], state[SEG_T1], state[SEG_X1], state[SEG_V1], t_target)
@@ -240,7 +243,7 @@ def advance(engine, parameters, rtol, atol, state, t_target, stop_at_event, even
     run_phases (scratch: at least one row); state[T] <= t_target.
     """
     while state[T] < t_target:
-        if advance_in_step(parameters, state, t_target):
+        if advance_in_step(parameters, state, state[T], t_target):
             break
         if state[PENDING] != 0.0:  # the kept step ends at an event before t_target
             events, n_events = _take_event(parameters, rtol, atol, state, events, n_events)
