@@ -120,8 +120,8 @@ class BallIntegrator(IntegratorView):
         self._parameters, self._atol = ball.parameters, 0.0 if s.atol is None else s.atol
         self._state, self._scratch = machine.new_state(), np.empty((_SCRATCH_ROWS, 3))
         self._event_rows = np.empty((4, 3))  # advance's events (t, kind, v); the machine grows a copy if need be
-        self.set_state(IntegratorState(t=t0, h=h0, v=v0, mode=ball.initial_mode(h0, v0, F_ext), F_ext=F_ext,
-                                       t_start=t0))
+        # What set_state would check of this state, check_scene did; its mode is the start's by construction.
+        self._restart_at((t0, h0 - ball.R, v0, ball.initial_mode(h0, v0, F_ext)), F_ext, (0, 0, None, 0, 0), t0)
 
     def _warn_if_untrusted(self, whole: bool) -> None:
         """AccuracyWarning, once, where the estimate passed the promise.
