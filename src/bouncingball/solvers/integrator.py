@@ -31,7 +31,7 @@ import numpy as np
 from .. import limits, validation
 from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode
-from . import engines, layout, machine, phases, stepper
+from . import engines, layout, machine, stepper
 from . import state as state_checks
 from .dense_output import interpolate
 from .engines import choose_engine
@@ -135,18 +135,6 @@ class BallIntegrator(IntegratorView):
         if warning is not None:
             self._accuracy_warned = True
             warnings.warn(warning, stacklevel=4)
-
-    @property
-    def rest_time(self) -> float | None:
-        """Start of the current contact if it can never again lift the ball above R + hop_tolerance, else None.
-
-        F_ext is taken as held constant from now on.
-        """
-        x, v = float(self._state[layout.X]), float(self._state[layout.V])
-        if phases.decide_phase(self._parameters, self.mode, x, v, self._load, self._hop,
-                               self.settings.rtol)[0] == phases.REST:
-            return self._last_impact_time if self._last_impact_time is not None else self._t_start
-        return None
 
     # --- state ---------------------------------------------------------------------------------
     def set_state(self, state: IntegratorState) -> None:

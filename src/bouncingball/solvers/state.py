@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from .. import limits, validation
 from ..physics import Ball, Mode, gap_acceleration, load_value
 from . import layout, machine
-from .phases import frame, on_wrong_side, side_margin
+from .phases import REST, decide_phase, frame, on_wrong_side, side_margin
 from .settings import CvodeSettings, hop_tolerance
 
 
@@ -172,6 +172,17 @@ class IntegratorView:
         """Force of the ground on the ball [N] at t, positive upwards; zero in flight."""
         x, v = float(self._state[layout.X]), float(self._state[layout.V])
         return 0.0 if self.mode == Mode.FLIGHT else -self.ball.k * x - self.ball.b * v
+
+    @property
+    def rest_time(self) -> float | None:
+        """Start of the current contact if it can never again lift the ball above R + hop_tolerance, else None.
+
+        F_ext is taken as held constant from now on.
+        """
+        x, v = float(self._state[layout.X]), float(self._state[layout.V])
+        if decide_phase(self._parameters, self.mode, x, v, self._load, self._hop, self.settings.rtol)[0] == REST:
+            return self._last_impact_time if self._last_impact_time is not None else self._t_start
+        return None
 
     @property
     def _last_impact_time(self) -> float | None:
