@@ -114,17 +114,18 @@ class BallSlave:
             if integrator.advance_within_step(target, current_time):
                 return True
             t = integrator.t
+            rounded = current_time != t
             # A master's own rounding of the communication points is tolerated, a jump is not.
-            if current_time != t and not abs(current_time - t) <= 1e-9 * max(1.0, abs(t)):
+            if rounded and not abs(current_time - t) <= 1e-9 * max(1.0, abs(t)):
                 raise ValueError(f"currentCommunicationPoint = {current_time!r} s is not allowed: "
                                  f"the FMU is at t = {t!r} s")
             if not (step_size >= 0.0 and math.isfinite(target)):
                 raise ValueError(f"communicationStepSize = {step_size!r} s is not allowed: it must be >= 0 and "
                                  "end the step at a finite time")
-            if target < t:  # a current time rounded below t, and a step shorter than that rounding
-                target = t
-            if integrator.advance_within_step(target, t):  # a master's rounded current time: the same arithmetic
-                return True
+            if rounded:  # the same arithmetic from the FMU's own time
+                target = max(target, t)  # a current time rounded below t, and a step shorter than that rounding
+                if integrator.advance_within_step(target, t):
+                    return True
             with _caught_warnings() as caught:
                 if self.STOP_AT_EVENT:
                     integrator.advance(target, stop_at_event=True)
