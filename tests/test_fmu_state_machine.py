@@ -12,6 +12,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 TESTS = Path(__file__).parent
@@ -374,3 +375,37 @@ def test_a_state_whose_mode_contradicts_its_height_is_refused_and_the_instance_g
         assert abs(f.getReal([vr])[0] - exact_at([1.0])[0][0]) < 1e-8
         ball.free()
     """))
+
+
+def test_a_masters_rounded_communication_points_are_taken_and_a_jump_is_refused():
+    """Master A passes the FMU's own times (t += h); master B computes i * h, which differs from the FMU's t by
+    rounding at many steps: B is never refused, and its heights are A's to rounding and the exact solution's."""
+    from bouncingball.fmu.slave import BouncingBall
+    from fmu_helpers import exact_at
+
+    def started(engine):
+        slave = BouncingBall(instance_name=f"ball {engine}", resources=None)
+        slave._values["engine"] = engine
+        slave.setup_experiment(0.0)
+        slave.enter_initialization_mode()
+        slave.exit_initialization_mode()
+        return slave
+
+    h = 0.1 / 3.0  # not a binary fraction: i * h and the sum of the steps part by an ulp here and there
+    for engine in ("sksundae", "compiled"):
+        a, b = started(engine), started(engine)
+        t_a, rounded, heights_a, heights_b = 0.0, 0, [], []
+        for i in range(240):  # 8 s
+            assert a.do_step(t_a, h) and b.do_step(i * h, h)
+            t_a += h
+            rounded += b._integrator.t != (i + 1) * h
+            heights_a.append(a._integrator.h)
+            heights_b.append(b._integrator.h)
+        assert rounded > 20  # the rounded path was taken
+        heights_a, heights_b = np.array(heights_a), np.array(heights_b)
+        assert np.max(np.abs(heights_b - heights_a)) < 1e-12
+        h_exact, _, _ = exact_at(h * np.arange(1, 241))
+        assert np.max(np.abs(heights_b - h_exact)) < 1e-9
+        before = b._integrator.h
+        assert not b.do_step(240 * h + 1e-6, h)  # a jump of 1 us: refused, nothing changed
+        assert b._integrator.h == before and b.do_step(240 * h, h)
