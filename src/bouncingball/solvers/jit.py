@@ -73,14 +73,21 @@ ENGINE_SOURCES = ("rounding.py", "physics.py", "solvers/settings.py", "solvers/p
 
 
 def engine_sources() -> list[str]:
-    """The files of this package's copy that numba compiles the compiled engine from (ENGINE_SOURCES)."""
+    """The files numba compiles the compiled engine from (ENGINE_SOURCES): an imported module's own file (in an FMU,
+    maybe that of a copy the master deleted since), else the one in this module's copy of the package."""
     package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    return [os.path.join(package, *relative.split("/")) for relative in ENGINE_SOURCES]
+    root = __name__.split(".")[0]
+    files = []
+    for relative in ENGINE_SOURCES:
+        module = sys.modules.get(".".join((root, *relative.removesuffix(".py").split("/"))))
+        files.append(getattr(module, "__file__", None) or os.path.join(package, *relative.split("/")))
+    return files
 
 
 def sources_digest(files) -> str:
-    """The SHA-256 of the files' contents, in their order: what the compiled code's disk cache is keyed by."""
-    digest = hashlib.sha256()
+    """The SHA-256 of the files' contents, in their order, and of the package's name (the compiled code names its
+    modules): what the compiled code's disk cache is keyed by."""
+    digest = hashlib.sha256(__name__.split(".")[0].encode() + b"\0")
     for file in files:
         with open(file, "rb") as source:
             digest.update(source.read())
