@@ -45,6 +45,7 @@ class BallSlave:
     STATUS = None  # the library's status enumeration (ok, warning, error members)
     CALLS = {"setup": "fmi2SetupExperiment", "step": "fmi2DoStep", "set_state": "fmi2SetFMUstate"}
     STOP_AT_EVENT = False  # True: do_step returns at the first impact or departure inside the step
+    STEPPED, REFUSED = True, False  # what do_step returns: the step taken, or refused (an error logged)
 
     author = "bouncingball"
     description = ("A ball with compliant contact (spring k, damper b) over rigid ground, integrated by "
@@ -109,7 +110,7 @@ class BallSlave:
         integrator = self._integrator
         if integrator is None:
             self._error(f"{self.CALLS['step']} before initialisation (or after a failed one)")
-            return False
+            return self.REFUSED
         try:
             t = integrator.t
             # A master's own rounding of the communication points is tolerated, a jump is not.
@@ -121,7 +122,7 @@ class BallSlave:
                                  "end the step at a finite time")
             target = max(current_time + step_size, t)
             if integrator.advance_within_step(target):  # most short steps: arithmetic that cannot warn
-                return True
+                return self.STEPPED
             with _caught_warnings() as caught:
                 if self.STOP_AT_EVENT:
                     integrator.advance(target, stop_at_event=True)
@@ -131,8 +132,8 @@ class BallSlave:
                 self.log(str(warning.message), self.STATUS.warning)
         except (ValueError, SolverError) as error:
             self._error(error)
-            return False
-        return True
+            return self.REFUSED
+        return self.STEPPED
 
     # --- FMU state: everything needed to continue exactly, in this or a fresh instance ------------
     def _get_fmu_state(self):
