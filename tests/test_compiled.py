@@ -437,7 +437,7 @@ def _compiled_run_of_a_copy(package: Path) -> dict:
                                text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(package.parent),
                                                                     "NUMBA_CACHE_DIR": str(package.parent / "cache")})
     assert completed.returncode == 0, completed.stderr
-    report = json.loads(completed.stdout)
+    report = {**json.loads(completed.stdout), "stderr": completed.stderr}
     # whatever numba compiled or read, the engine answers: the first impact of a drop from 2 m at rest
     assert report["impact"] == pytest.approx(math.sqrt(2.0 * (2.0 - ARTICLE.R) / ARTICLE.g), abs=1e-10)
     return report
@@ -456,13 +456,17 @@ def test_a_change_to_a_compiled_source_recompiles_the_code_numbas_disk_cache_hel
     shutil.copytree(Path(bb.__file__).parent, package, ignore=shutil.ignore_patterns("__pycache__"))
     first = _compiled_run_of_a_copy(package)  # compiles and caches
     assert first["machine_misses"] > 0 and first["machine_hits"] == 0 and first["rhs_hits"] == 0
+    # said on stderr before it compiled (the Python API's say), not again once cached
+    assert first["stderr"].startswith("bouncingball: numba compiles the compiled engine for this host, once (about "
+                                      "11 s; no code compiled from these sources yet), into "), first["stderr"]
     again = _compiled_run_of_a_copy(package)
     assert again["machine_hits"] > 0 and again["machine_misses"] == 0 and again["rhs_hits"] == 1  # the cache works
+    assert again["stderr"] == ""
     changed = package / source
     with changed.open("a") as file:
         file.write("\n\ndef _appended_by_a_test(x):\n    return 2.0 * x\n")
     after = _compiled_run_of_a_copy(package)
-    assert after["machine_misses"] > 0 and after["machine_hits"] == 0
+    assert after["machine_misses"] > 0 and after["machine_hits"] == 0 and "numba compiles" in after["stderr"]
     if callbacks_too:  # the right-hand side inlines physics.py's equations, not the machine
         assert after["rhs_hits"] == 0
     assert after["impact"] == first["impact"]  # the change is harmless: the code compiled anew is the same
