@@ -40,7 +40,7 @@ def compile_cache(package: Path, into: Path) -> Path | None:
 
     Returns the folder of numba's cache files, or None where the engine cannot be compiled here
     (no numba, or a SUNDIALS the engine cannot bind): the FMU then ships none, and compiles where it
-    runs.
+    runs. The latter, with numba installed, is said on stderr with the reason.
     """
     if importlib.util.find_spec("numba") is None:
         return None
@@ -49,6 +49,9 @@ def compile_cache(package: Path, into: Path) -> Path | None:
                                capture_output=True, text=True, check=False)
     folders = sorted((into / "bouncingball").glob("numba-*"))
     if completed.returncode != 0 or len(folders) != 1:
+        why = (completed.stderr.strip().splitlines() or [f"exit status {completed.returncode}"])[-1]
+        print(f"bouncingball: the FMU ships no cache of its compiled engine, which could not be compiled here ({why}):"
+              " it compiles at its first use where it runs", file=sys.stderr)
         return None
     return folders[0]
 
