@@ -165,10 +165,14 @@ def test_the_bench_package_imports_nothing_heavy():
 @pytest.mark.slow
 def test_fmu_steps_table_has_every_case_and_the_first_uses(markdown):
     section = markdown.split("### Per doStep, call by call")[1].split("## Stiff scenes")[0]
-    for slave in ("empty pythonfmu slave", "FMU, engine sksundae", "FMU, engine compiled"):
+    for slave in ("empty pythonfmu slave", r"FMU, default engine \(auto\)", "FMU, engine sksundae",
+                  "FMU, engine compiled"):
         for state in ("no", "yes"):
             assert re.search(rf"^\| {slave} \| {state} \| \d+\.\d \| \d+\.\d \| \d+\.\d\d \|  \|$", section, re.M), (
-                slave, state)
+                slave, state)  # the mean and the median doStep, the mean against the empty slave's
+    for slave in ("empty pythonfmu3 slave", r"FMI 3.0 FMU, default engine \(auto\)",
+                  r"FMI 3.0 FMU, default engine \(auto\), early return"):
+        assert re.search(rf"^\| {slave} \| no \| \d+\.\d \| \d+\.\d \| \d+\.\d\d \|  \|$", section, re.M), slave
     for engine in ("sksundae", "compiled"):
         for cache in ("cold", "warm"):
             assert re.search(rf"^\| {engine} \| {cache} \| \d+\.\d\d \|  \|$", section, re.M), (engine, cache)

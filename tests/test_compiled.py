@@ -434,9 +434,10 @@ def _compiled_run_of_a_copy(package: Path) -> dict:
     import json
 
     completed = subprocess.run([sys.executable, "-c", _CACHE_REPORT], cwd=package.parent, capture_output=True,
-                               text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(package.parent)})
+                               text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(package.parent),
+                                                                    "NUMBA_CACHE_DIR": str(package.parent / "cache")})
     assert completed.returncode == 0, completed.stderr
-    report = json.loads(completed.stdout)
+    report = {**json.loads(completed.stdout), "stderr": completed.stderr}
     # whatever numba compiled or read, the engine answers: the first impact of a drop from 2 m at rest
     assert report["impact"] == pytest.approx(math.sqrt(2.0 * (2.0 - ARTICLE.R) / ARTICLE.g), abs=1e-10)
     return report
@@ -455,13 +456,17 @@ def test_a_change_to_a_compiled_source_recompiles_the_code_numbas_disk_cache_hel
     shutil.copytree(Path(bb.__file__).parent, package, ignore=shutil.ignore_patterns("__pycache__"))
     first = _compiled_run_of_a_copy(package)  # compiles and caches
     assert first["machine_misses"] > 0 and first["machine_hits"] == 0 and first["rhs_hits"] == 0
+    # said on stderr before it compiled (the Python API's say), not again once cached
+    assert first["stderr"].startswith("bouncingball: numba compiles the compiled engine for this host, once (about "
+                                      "11 s; no code compiled from these sources yet), into "), first["stderr"]
     again = _compiled_run_of_a_copy(package)
     assert again["machine_hits"] > 0 and again["machine_misses"] == 0 and again["rhs_hits"] == 1  # the cache works
+    assert again["stderr"] == ""
     changed = package / source
     with changed.open("a") as file:
         file.write("\n\ndef _appended_by_a_test(x):\n    return 2.0 * x\n")
     after = _compiled_run_of_a_copy(package)
-    assert after["machine_misses"] > 0 and after["machine_hits"] == 0
+    assert after["machine_misses"] > 0 and after["machine_hits"] == 0 and "numba compiles" in after["stderr"]
     if callbacks_too:  # the right-hand side inlines physics.py's equations, not the machine
         assert after["rhs_hits"] == 0
     assert after["impact"] == first["impact"]  # the change is harmless: the code compiled anew is the same
@@ -525,44 +530,73 @@ def test_both_engines_report_a_failed_phase_alike(monkeypatch):
     assert outcomes[0] == outcomes[1] and 0 < outcomes[0][1] < 150 and outcomes[0][2] > 0.0
 
 
-def test_numbas_cache_folder_is_found_through_its_private_locators():
-    """jit.cache_folder is the one use of numba's private CacheImpl._locator_classes: this fails on an upgrade that
-    removes it, instead of the compiled engine silently compiling afresh in every process."""
+def test_numbas_private_api_that_jit_uses_is_still_there():
+    """jit's one block of numba's private API (its cache's locator classes, _CacheLocator, the index files' format, the
+    host's key): this fails on an upgrade that changes it, instead of the compiled engine silently compiling afresh in
+    every process."""
+    import numba
     from numba.core.caching import CacheImpl
 
-    from bouncingball.solvers import jit, machine
+    from bouncingball.solvers import jit
 
-    assert CacheImpl._locator_classes
-    folder = Path(jit.cache_folder(machine.__file__))
-    assert folder.name == "__pycache__" and folder.parent == Path(machine.__file__).parent
+    # compiled.py's import put it before numba's own (each copy of the package in the process, an FMU's, puts its own)
+    assert CacheImpl._locator_classes.index(jit._digest_locator()) < CacheImpl._locator_classes.index(
+        numba.core.caching.InTreeCacheLocator)
+    folder = jit.cache_folder(jit.sources_digest(jit.engine_sources()))
+    assert compiled.run_phases.stats.cache_path == folder
+    triple, cpu, features = jit._host_key()
+    assert triple.startswith("x86_64") and cpu and features.startswith(("+", "-"))
+    bb.simulate(bb.Ball(), 2.0, 0.0, 0.1, 1e-3, engine="compiled")  # run_phases compiled or read, so indexed
+    [index] = Path(folder).glob("machine.run_phases-*.nbi")
+    version, stamp, keys = jit._index(str(index))
+    assert (version, stamp) == (numba.__version__, jit.sources_digest(jit.engine_sources()))
+    assert (triple, cpu, features) in [key[1] for key in keys]
+    assert jit.cache_misfit(folder, stamp) is None
 
 
-def test_the_cache_digest_is_written_whole_under_a_lock_by_processes_importing_at_once(tmp_path):
-    """Four processes find the digest stale at once (Dask's workers importing): each takes the lock in turn, one
-    removes the stale code and writes the digest; none leaks a file handle (-X dev makes that a ResourceWarning,
-    here an error) or leaves a temporary file."""
-    import shutil
+def test_a_cache_compiled_elsewhere_is_named_for_what_does_not_fit(tmp_path):
+    """The code in a cache folder runs here only if numba, the sources and the CPU are this host's: a cache that
+    differs in one says which (what the FMU logs before numba compiles)."""
+    import pickle
 
-    source = tmp_path / "a_module.py"
-    source.write_text("def f(x):\n    return x + 1.0\n")
+    from bouncingball.solvers import jit
+
+    digest = jit.sources_digest(jit.engine_sources())
+    host = jit._host_key()
+    assert jit.cache_misfit(str(tmp_path), digest) == "no code compiled from these sources yet"
+    index = tmp_path / "machine.run_phases-1.py311.nbi"
+    for version, stamp, key, why in [
+            ("0.1.0", digest, host, "its code was compiled by numba 0.1.0, this is numba "),
+            (jit.numba.__version__, "other", host, "its code was compiled from other sources"),
+            (jit.numba.__version__, digest, (host[0], "a486", host[2]), "its code was compiled for the CPU a486, ")]:
+        with index.open("wb") as file:
+            pickle.dump(version, file)
+            file.write(pickle.dumps((stamp, {((), key, ("", "")): "x.1.nbc"})))
+        assert jit.cache_misfit(str(tmp_path), digest).startswith(why)
+
+
+def test_the_cache_is_taken_whole_under_a_lock_by_processes_importing_at_once(tmp_path):
+    """Four processes find the cache folder empty at once (Dask's workers importing) and a shipped cache that fits:
+    each takes the lock in turn, one copies the shipped code in, and none compiles, announces a compile, leaks a file
+    handle (-X dev makes that a ResourceWarning, here an error) or leaves a temporary file."""
+    from bouncingball.solvers import jit
+
+    bb.simulate(bb.Ball(), 2.0, 0.0, 0.1, 1e-3, engine="compiled")  # the user-wide cache holds this run's code
+    shipped = Path(jit.cache_folder(jit.sources_digest(jit.engine_sources())))
     code = textwrap.dedent(f"""
-        import sys
-        sys.path.insert(0, {str(tmp_path)!r})
-        import a_module
+        import bouncingball as bb
         from bouncingball.solvers import jit
-        print(all(jit.cache_allowed([a_module]) for _ in range(50)))
+        with jit.first_use({str(shipped)!r}, lambda message: print("said", message)):
+            result = bb.simulate(bb.Ball(), 2.0, 0.0, 0.1, 1e-3, engine="compiled")
+        from bouncingball.solvers import compiled
+        print(sum(compiled.run_phases.stats.cache_misses.values()), compiled._rhs.cache_hits)
     """)
-    folder = tmp_path / "__pycache__"
-    folder.mkdir()
-    (folder / "a_module.sources-sha256").write_text("stale")
-    (folder / "a_module.f-1.py311.nbi").write_text("stale code")
-    processes = [subprocess.Popen([sys.executable, "-X", "dev", "-W", "error::ResourceWarning", "-c", code],
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    processes = [subprocess.Popen([sys.executable, "-X", "dev", "-W", "error::ResourceWarning", "-c", code], env=env,
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(4)]
-    outputs = [process.communicate(timeout=120) for process in processes]
-    assert [out.strip() for out, _ in outputs] == ["True"] * 4, [err for _, err in outputs]
-    import hashlib
-
-    assert (folder / "a_module.sources-sha256").read_text() == hashlib.sha256(source.read_bytes()).hexdigest()
-    assert sorted(path.name for path in folder.iterdir()) == ["a_module.sources-sha256",
-                                                              "a_module.sources-sha256.lock"]
-    shutil.rmtree(folder)
+    outputs = [process.communicate(timeout=300) for process in processes]
+    assert [out.strip() for out, _ in outputs] == ["0 1"] * 4, [err for _, err in outputs]
+    [folder] = (tmp_path / "bouncingball").iterdir()
+    assert folder.name == shipped.name
+    assert sorted(path.name for path in folder.iterdir()) == sorted(["lock", *(path.name for path in
+                                                                               shipped.glob("*.nb[ci]"))])

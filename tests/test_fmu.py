@@ -52,7 +52,7 @@ def test_model_description_has_units_ranges_and_start_values(fmu):
     assert float(variables["F_ext"].start) == 0.0
     assert (float(variables["rtol"].start), float(variables["atol"].start), variables["method"].start) == (
         settings.rtol, 0.0, "auto")  # atol 0: no absolute bound (settings.atol None)
-    assert variables["engine"].start == "sksundae"  # not "auto": numba's first use in a process costs seconds
+    assert variables["engine"].start == "auto"  # the compiled engine where numba is installed, its code shipped
     assert float(variables["m"].min) == SMALLEST_POSITIVE and float(variables["rtol"].max) == 1.0
     assert float(variables["b"].min) == 0.0 and float(variables["g"].min) == 0.0
 
@@ -544,3 +544,19 @@ def test_the_scene_to_start_value_mapping_covers_the_fmus_start_values():
     assert values["h"] == scene.h0 == 2.0 and values["v"] == scene.v0 == -1.0 and values["g"] == 0.0
     moved = scene_with_start_values("article", values)
     assert (moved.ball, moved.h0, moved.v0, moved.F_ext) == (scene.ball, scene.h0, scene.v0, scene.F_ext)
+
+
+def test_a_build_host_that_cannot_compile_the_engine_ships_no_cache_and_says_why(tmp_path, capsys):
+    """The FMU is still built, with no cache of its compiled engine; stderr says why (the compiling process's last
+    line) and what follows: the engine compiles at its first use where the FMU runs."""
+    pytest.importorskip("numba", reason="without numba the build compiles nothing, and says nothing")
+    from bouncingball.fmu import engine_cache
+
+    package = tmp_path / "bouncingball_fmu_broken"
+    package.mkdir()
+    (package / "__init__.py").write_text('raise ImportError("no engine on this host")\n')
+    assert engine_cache.compile_cache(package, tmp_path / "cache") is None
+    assert engine_cache.shipped_files(None) == []
+    assert capsys.readouterr().err == ("bouncingball: the FMU ships no cache of its compiled engine, which could not "
+                                       "be compiled here (ImportError: no engine on this host): it compiles at its "
+                                       "first use where it runs\n")

@@ -197,9 +197,12 @@ def test_compiled_engine_without_numba_gives_fmi2Error_with_the_reason(unzipped,
 def test_auto_engine_without_numba_runs_on_sksundae(unzipped, numba_hidden, tmp_path):
     run_python("""
         ball = Instance(sys.argv[1])
+        ball.fmu.setDebugLogging(True, [])  # messages of status OK are logged only then
         ball.initialize(engine="auto", **TIGHT)
         rows = ball.step_to(2.0, 1e-3)
-        assert ball.log == [], ball.log  # silently: no warning, no error
+        [(status, message)] = ball.log  # said once, with status OK: not a warning that stops a strict master
+        assert status == 0 and message.startswith("engine auto runs scikit-sundae's: compiled engine unavailable: "
+                                                   "numba is not installed"), ball.log
         assert not [name for name in sys.modules if name.endswith(".solvers.compiled")]
         ball.free()
         np.save(sys.argv[2], np.array([(row[0], row[5]) for row in rows]))
@@ -208,3 +211,70 @@ def test_auto_engine_without_numba_runs_on_sksundae(unzipped, numba_hidden, tmp_
     h, _, impacts = exact_at(np.arange(1, 2001) * 1e-3)
     assert np.max(np.abs(run[:, 0] - h)) < EXACT
     np.testing.assert_array_equal(run[:, 1], impacts)
+
+
+# --- the first use of the compiled engine: numba's cache shipped in the FMU --------------------------------------
+# A first 1 s run of the FMU just unzipped, in a fresh process and a user-wide cache of its own: what numba read from
+# its cache and compiled (every compiled function of the FMU's copy of the package), and the FMU's log in order.
+_FIRST_RUN = """
+    import json, sys
+    from fmpy import extract, simulate_fmu
+    log = []
+    def logger(*arguments):
+        log.append(arguments[-1].decode("utf-8"))
+    result = simulate_fmu(extract(sys.argv[1], sys.argv[2]), stop_time=1.0, output_interval=1e-3, logger=logger,
+                          debug_logging=True)  # messages of status OK are logged only then
+    [compiled] = [module for name, module in sys.modules.items() if name.endswith(".solvers.compiled")]
+    dispatchers = [value for value in vars(compiled).values() if hasattr(value, "stats")]
+    dispatchers += list(compiled._compiled.values())
+    print(json.dumps({"log": log, "h": float(result["h"][-1]),
+                      "hits": sum(sum(d.stats.cache_hits.values()) for d in dispatchers) + compiled._rhs.cache_hits,
+                      "misses": sum(sum(d.stats.cache_misses.values()) for d in dispatchers)}))
+"""
+
+
+def _first_run(fmu: Path, folder: Path, cache: Path) -> dict:
+    import json
+
+    completed = subprocess.run([sys.executable, "-c", textwrap.dedent(_FIRST_RUN), str(fmu), str(folder)],
+                               capture_output=True, text=True, timeout=300, check=False,
+                               env={**os.environ, "NUMBA_CACHE_DIR": str(cache)})
+    assert completed.returncode == 0, completed.stderr
+    report = json.loads(completed.stdout.splitlines()[-1])
+    h, _, _ = exact_at(np.array([1.0]))
+    assert abs(report["h"] - h[0]) < 1e-6  # whichever way the engine came, it answers (the FMU's rtol)
+    return report
+
+
+def test_the_fmus_first_use_of_the_compiled_engine_reads_the_cache_it_ships(fmu, tmp_path):
+    """A fresh unzip in a fresh process on a host with no cache: engine auto runs the compiled engine, every function
+    read from the FMU's own cache, none compiled, nothing said."""
+    report = _first_run(fmu, tmp_path / "unzipped", tmp_path / "cache")
+    assert report["misses"] == 0 and report["hits"] > 0, report
+    assert report["log"] == [], report["log"]
+
+
+def test_a_shipped_cache_that_does_not_fit_is_compiled_once_and_said_first(fmu, tmp_path):
+    """The FMU's cache compiled by another numba (its index files' version changed): numba compiles, said in the
+    FMU's log as its first message; the code is then kept in the user-wide cache, which the next process reads."""
+    import pickle
+    import zipfile
+
+    changed = tmp_path / "other_numba.fmu"
+    with zipfile.ZipFile(fmu) as source, zipfile.ZipFile(changed, "w") as target:
+        indexes = 0
+        for info in source.infolist():
+            data = source.read(info)
+            if info.filename.endswith(".nbi"):
+                version = pickle.loads(data)
+                data = pickle.dumps("0.1.0") + data[len(pickle.dumps(version)):]
+                indexes += 1
+            target.writestr(info, data)
+    assert indexes > 10
+    first = _first_run(changed, tmp_path / "first", tmp_path / "cache")
+    assert first["misses"] > 0, first
+    assert len(first["log"]) == 1 and first["log"][0].startswith(
+        "numba compiles the compiled engine for this host, once (about 11 s; the cache shipped with it does not fit "
+        "(its code was compiled by numba 0.1.0, this is numba "), first["log"]
+    again = _first_run(changed, tmp_path / "again", tmp_path / "cache")
+    assert again["misses"] == 0 and again["hits"] > 0 and again["log"] == [], again

@@ -2,13 +2,15 @@
 
 The FMU rows of the work-precision sweep time whole `simulate_fmu` runs, which also instantiate the
 FMU and read every output at every step. Here a fresh Python process drives each FMU through FMPy's
-FMU2Slave and times the doStep calls alone: the empty pythonfmu slave (the floor any pythonfmu slave
-pays), the ball with engine sksundae and with engine compiled, each also with fmi2GetFMUstate taken
-before every step (what a master that may reject steps does). Each case runs once untimed (the engine's
-first use), then `repeats` times round-robin over the cases. The first use (from loading the FMU's
-binary to the end of the first doStep) is timed apart, each in its own fresh process: "cold" on a
-folder just unzipped (as FMPy's simulate_fmu unzips every run: numba's disk cache, keyed by the source
-file's path, is then empty), "warm" on the same folder a second time.
+FMU2Slave and times each doStep call: the empty pythonfmu slave (the floor any pythonfmu slave pays),
+the ball as build-fmu makes it (its default engine, auto), with engine sksundae and with engine
+compiled, each also with fmi2GetFMUstate taken before every step (what a master that may reject steps
+does; timed with its doStep). Each case runs once untimed (the engine's first use), then `repeats`
+times round-robin over the cases; each run gives the mean and the median of its calls. The first use
+(from loading the FMU's binary to the end of the first doStep) is timed apart, each in its own fresh
+process, with a user-wide numba cache of its own: "cold" on a folder just unzipped, the cache empty
+(the compiled engine's code then comes from the FMU's shipped cache), "warm" on the same folder a
+second time.
 
 The FMI 3.0 FMU is stepped the same way through FMU3Slave, against an empty pythonfmu3 slave: without
 early return, and with early return allowed and event mode used (its doSteps then include one per
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import statistics
 import subprocess
 import sys
@@ -29,6 +32,7 @@ from pathlib import Path
 from .runners import FmuPaths
 
 ENGINES = ("sksundae", "compiled")
+DEFAULT = "auto"  # the ball FMU at its default engine, as build-fmu makes it
 EMPTY = "empty pythonfmu slave"
 EMPTY3 = "empty pythonfmu3 slave"
 FMI3 = "FMI 3.0"  # the FMI 3.0 FMU's cases: (FMI3, False) without early return, (FMI3, True) with it and event mode
@@ -36,7 +40,7 @@ CHILD_TIMEOUT = 600.0  # s
 RESULT_MARKER = "BOUNCINGBALL_BENCH_RESULT "
 
 CHILD = r'''
-import json, sys, time
+import json, statistics, sys, time
 from ctypes import byref
 
 from fmpy import read_model_description
@@ -102,14 +106,17 @@ def start(folder, engine, name, early_return=False):
 
 
 def steps(fmu, step, n, take_state):
-    """n doSteps of step [s]; with take_state, fmi2GetFMUstate before each (the previous one freed)."""
+    """n doSteps of step [s], each timed; with take_state, fmi2GetFMUstate before each (the previous one freed).
+    Returns {"mean": the calls' total / n, "median": the median call}."""
     state = None
     t = 0.0
-    started = time.perf_counter()
+    clock, calls = time.perf_counter, []
     if getattr(fmu, "fmi3", False):  # FMI 3.0: an early return is followed by event mode, then the step's rest
         i = 1
         while i <= n:
+            started = clock()
             needed, _, early, reached = fmu.doStep(t, i * step - t)
+            calls.append(clock() - started)
             if early:
                 t = reached
                 if needed:
@@ -118,18 +125,19 @@ def steps(fmu, step, n, take_state):
                     fmu.enterStepMode()
             else:
                 t, i = i * step, i + 1
-        return time.perf_counter() - started
+        return {"mean": sum(calls) / n, "median": statistics.median(calls)}
     for i in range(1, n + 1):
+        started = clock()
         if take_state:
             if state is not None:
                 fmu.freeFMUstate(state)
             state = fmu.getFMUstate()
         fmu.doStep(t, i * step - t)
+        calls.append(clock() - started)
         t = i * step
-    elapsed = time.perf_counter() - started
     if state is not None:
         fmu.freeFMUstate(state)
-    return elapsed
+    return {"mean": sum(calls) / n, "median": statistics.median(calls)}
 
 
 try:
@@ -146,11 +154,11 @@ try:
         for repeat in range(1 + job["repeats"]):  # repeat 0: each engine's first use, untimed
             for case in cases:
                 fmu = start(case["folder"], case["engine"], case["key"], case.get("early_return", False))
-                elapsed = steps(fmu, job["step"], n, case["take_state"])
+                per_call = steps(fmu, job["step"], n, case["take_state"])
                 fmu.terminate()
                 fmu.freeInstance()
                 if repeat:
-                    times[case["key"]].append(elapsed / n)
+                    times[case["key"]].append(per_call)
         result = {"times": times}
 except FMICallException as error:
     result = {"error": "; ".join(errors) or str(error)}
@@ -160,18 +168,26 @@ print(sys.argv[2] + json.dumps(result))  # RESULT_MARKER
 
 @dataclass(frozen=True)
 class StepCost:
-    """One case: slave (EMPTY, EMPTY3, FMI3 or the engine's name), whether a state is taken at every step, seconds
-    per doStep (per communication step with early return: the FMI 3.0 FMU, early return allowed and event mode)."""
+    """One case: slave (EMPTY, EMPTY3, FMI3, DEFAULT or the engine's name), whether a state is taken at every step,
+    seconds per doStep (per communication step with early return: the FMI 3.0 FMU, early return allowed and event
+    mode): each timed repeat's mean and median call."""
 
     slave: str
     take_state: bool
-    times: tuple[float, ...] = ()  # per doStep [s], one per timed repeat
+    times: tuple[float, ...] = ()  # the mean doStep [s], one per timed repeat
     note: str = ""
     early_return: bool = False
+    medians: tuple[float, ...] = ()  # the median doStep [s], one per timed repeat
+
+    @property
+    def mean(self) -> float:
+        """The median over the repeats of their mean doStep [s]: what a run of many doSteps pays per step."""
+        return statistics.median(self.times) if self.times else math.nan
 
     @property
     def median(self) -> float:
-        return statistics.median(self.times) if self.times else math.nan
+        """The median over the repeats of their median doStep [s]: a typical call, its rare slow ones left out."""
+        return statistics.median(self.medians) if self.medians else math.nan
 
 
 @dataclass(frozen=True)
@@ -194,7 +210,7 @@ class FmuStepCosts:
     note: str = ""  # why nothing ran
 
     def per_step(self, slave: str, take_state: bool = False) -> float:
-        found = [c.median for c in self.costs if (c.slave, c.take_state) == (slave, take_state)]
+        found = [c.mean for c in self.costs if (c.slave, c.take_state) == (slave, take_state)]
         return found[0] if found else math.nan
 
     def first(self, engine: str, cache: str) -> float:
@@ -208,9 +224,11 @@ class FmuStepCosts:
         return extra / saved if saved > 0.0 else math.nan
 
 
-def _run_child(job: dict) -> dict:
+def _run_child(job: dict, cache: str) -> dict:
+    """The CHILD's result for job, run with the user-wide numba cache cache (NUMBA_CACHE_DIR)."""
     completed = subprocess.run([sys.executable, "-c", CHILD, json.dumps(job), RESULT_MARKER], capture_output=True,
-                               text=True, timeout=CHILD_TIMEOUT, check=False)
+                               text=True, timeout=CHILD_TIMEOUT, check=False,
+                               env={**os.environ, "NUMBA_CACHE_DIR": cache})
     lines = [line for line in completed.stdout.splitlines() if line.startswith(RESULT_MARKER)]
     if completed.returncode != 0 or not lines:
         tail = (completed.stderr.strip().splitlines() or [f"exit status {completed.returncode}"])[-1]
@@ -240,26 +258,35 @@ def measure(fmus: FmuPaths, step: float, t_end: float, repeats: int) -> FmuStepC
 
     unavailable = {"sksundae": "", "compiled": _engine_unavailable()}
     with tempfile.TemporaryDirectory(prefix="bouncingball_fmu_steps_") as temp:
+        cache = str(Path(temp) / "numba")
         for engine in ENGINES:
             folder = str(extract(str(fmus.ball_fmu), str(Path(temp) / engine)))
-            for cache in ("cold", "warm"):  # the same folder: the second process finds numba's cache of the first
+            for state in ("cold", "warm"):  # the same folder and cache: the second process finds the first's
                 if unavailable[engine]:
-                    result.first_use.append(FirstUse(engine, cache, note=unavailable[engine]))
+                    result.first_use.append(FirstUse(engine, state, note=unavailable[engine]))
                     continue
-                found = _run_child({"mode": "first use", "folder": folder, "engine": engine, "step": step})
-                result.first_use.append(FirstUse(engine, cache, found.get("seconds", math.nan),
+                found = _run_child({"mode": "first use", "folder": folder, "engine": engine, "step": step}, cache)
+                result.first_use.append(FirstUse(engine, state, found.get("seconds", math.nan),
                                                  found.get("error", "")))
+        cases = _cases(fmus)
+        runnable = [case for case in cases if not unavailable.get(case["slave"])]
+        found = _run_child({"mode": "steps", "cases": runnable, "n": n, "step": step, "repeats": repeats}, cache)
+    for case in cases:
+        note = unavailable.get(case["slave"]) or found.get("error", "")
+        per_call = () if note else found["times"][case["key"]]
+        result.costs.append(StepCost(case["slave"], case["take_state"], tuple(c["mean"] for c in per_call), note,
+                                     case.get("early_return", False), tuple(c["median"] for c in per_call)))
+    return result
+
+
+def _cases(fmus: FmuPaths) -> list[dict]:
+    """The CHILD's step cases: each FMU at each engine and state, the FMI 3.0 FMU at its default engine."""
     cases = [{"key": f"{slave}|{take_state}", "slave": slave, "take_state": take_state,
-              "folder": str(fmus.empty if slave == EMPTY else fmus.ball), "engine": None if slave == EMPTY else slave}
-             for slave in (EMPTY, *ENGINES) for take_state in (False, True)]
+              "folder": str(fmus.empty if slave == EMPTY else fmus.ball),
+              "engine": None if slave in (EMPTY, DEFAULT) else slave}
+             for slave in (EMPTY, DEFAULT, *ENGINES) for take_state in (False, True)]
     if fmus.ball3 is not None and fmus.empty3 is not None:
         cases.append({"key": EMPTY3, "slave": EMPTY3, "take_state": False, "folder": str(fmus.empty3), "engine": None})
         cases += [{"key": f"{FMI3}|{early}", "slave": FMI3, "take_state": False, "early_return": early,
                    "folder": str(fmus.ball3), "engine": None} for early in (False, True)]
-    runnable = [case for case in cases if not unavailable.get(case["slave"])]
-    found = _run_child({"mode": "steps", "cases": runnable, "n": n, "step": step, "repeats": repeats})
-    for case in cases:
-        note = unavailable.get(case["slave"]) or found.get("error", "")
-        times = () if note else tuple(found["times"][case["key"]])
-        result.costs.append(StepCost(case["slave"], case["take_state"], times, note, case.get("early_return", False)))
-    return result
+    return cases

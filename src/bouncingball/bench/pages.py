@@ -12,7 +12,7 @@ from ..solvers import ARTICLE_SETTINGS
 from . import engine_choice
 from .environment import environment_lines
 from .floor import FloorStudy
-from .fmu_steps import EMPTY, EMPTY3, ENGINES, FMI3, FmuStepCosts
+from .fmu_steps import DEFAULT, EMPTY, EMPTY3, ENGINES, FMI3, FmuStepCosts
 from .stability import COST_CHUNKS, EXTRA_SCENES, STIFF_REPEATS, CostPerEvent, Outcome, stability_solvers
 from .targets import MATCHED_ERRORS, all_targets, fmu_step_costs, per_step
 from .text import events_text, ms, num, rtol_text, table
@@ -204,9 +204,11 @@ def _fmu_steps_section(costs: FmuStepCosts) -> list[str]:
         "### Per doStep, call by call, and the first use of each engine",
         "",
         f"Each FMU driven through FMPy's `FMU2Slave` in a fresh process, the article at the FMU's defaults, "
-        f"{costs.steps} doSteps of {costs.step * 1e3:g} ms: only the doStep calls are timed (median and min of "
-        f"{costs.repeats} runs after an untimed one, round-robin over the cases), neither the instantiation nor "
-        "any output reading. With a state: `fmi2GetFMUstate` before every doStep (the previous state freed), as a "
+        f"{costs.steps} doSteps of {costs.step * 1e3:g} ms: each doStep call is timed, neither the instantiation "
+        f"nor any output reading; the mean and the median call of each of {costs.repeats} runs after an untimed "
+        "one (round-robin over the cases), their medians over the runs. The FMUs as build-fmu makes them, at "
+        "their default engine (auto), and at each engine. With a state: `fmi2GetFMUstate` before every doStep "
+        "(the previous state freed, timed with it), as a "
         "master that may reject steps does. The FMI 3.0 FMU through `FMU3Slave` against an empty pythonfmu3 slave, "
         "with early return allowed (and event mode at each early return) or not; with early return, per "
         "communication step, its doSteps at the events included.",
@@ -217,21 +219,23 @@ def _fmu_steps_section(costs: FmuStepCosts) -> list[str]:
     floor = {take: costs.per_step(EMPTY, take) for take in (False, True)}
     rows = []
     for cost in costs.costs:
-        median = cost.median
+        mean = cost.mean
         # the FMI 3.0 FMU against the empty pythonfmu3 slave, the rest against the empty pythonfmu slave
         empty = costs.per_step(EMPTY3) if cost.slave in (EMPTY3, FMI3) else floor[cost.take_state]
-        name = {EMPTY: EMPTY, EMPTY3: EMPTY3, FMI3: "FMI 3.0 FMU, engine sksundae" + (
-            ", early return" if cost.early_return else "")}.get(cost.slave, f"FMU, engine {cost.slave}")
-        rows.append([name, "yes" if cost.take_state else "no", _us(median), _us(min(cost.times)) if cost.times else "",
-                     "" if math.isnan(median) else f"{median / empty:.2f}", cost.note])
-    header = ["slave", "state at every step", "per doStep [us]", "min [us]", "x empty slave (same state, FMI version)",
-              "note"]
+        name = {EMPTY: EMPTY, EMPTY3: EMPTY3, DEFAULT: f"FMU, default engine ({DEFAULT})",
+                FMI3: f"FMI 3.0 FMU, default engine ({DEFAULT})" + (", early return" if cost.early_return else "")
+                }.get(cost.slave, f"FMU, engine {cost.slave}")
+        rows.append([name, "yes" if cost.take_state else "no", _us(mean), _us(cost.median),
+                     "" if math.isnan(mean) else f"{mean / empty:.2f}", cost.note])
+    header = ["slave", "state at every step", "mean doStep [us]", "median doStep [us]",
+              "mean x empty slave's (same state, FMI version)", "note"]
     lines += table(header, rows)
     lines += [
         "",
         "First use: from loading the FMU's binary to the end of its first doStep, each in a fresh process; "
-        "cold: a folder just unzipped (as `simulate_fmu` unzips every run), so numba's disk cache is empty; "
-        "warm: the same folder a second time.",
+        "cold: a folder just unzipped (as `simulate_fmu` unzips every run) and an empty user-wide numba cache, so "
+        "the compiled engine's code comes from the cache the FMU ships; warm: the same folder and cache a second "
+        "time.",
         "",
         *table(["engine", "numba cache", "first use [s]", "note"],
                [[f.engine, f.cache, "" if math.isnan(f.seconds) else f"{f.seconds:.2f}", f.note]
@@ -244,7 +248,7 @@ def _fmu_steps_section(costs: FmuStepCosts) -> list[str]:
     else:
         lines.append("Engine compiled pays back its longer first use after " + " and ".join(
             f"{n:,.0f} doSteps ({cache} cache)" for cache, n in even.items() if not math.isnan(n))
-            + f", from the medians above ({', '.join(ENGINES)} without a state).")
+            + f", from the means above ({', '.join(ENGINES)} without a state).")
     return lines
 
 

@@ -7,7 +7,8 @@ two different builds can run in one process. pythonfmu's modelDescription.xml ha
 min/max, InitialUnknowns or DefaultExperiment; build_fmu() adds them from variables.VARIABLES. Its
 Linux binary cannot run in a master without Python and cannot return fmi2Error; build_fmu()
 compiles bouncingball_fmu_loader.c, which fixes both, and puts it in front of pythonfmu's binary
-(docs/fmu.md explains why and what it costs). Everything it needs ships in the wheel.
+(docs/fmu.md explains why and what it costs). It compiles the compiled engine of the package's copy
+once and ships numba's cache of it (engine_cache.py). Everything it needs ships in the wheel.
 
 The FMI 3.0 FMU (fmi_version=3) is built the same way from the same script, package and variable
 table, with pythonfmu3 and bouncingball_fmu3_loader.c; build3 holds what differs.
@@ -31,6 +32,7 @@ from pathlib import Path
 
 from ..output import atomic_write, check_output_path
 from .documentation import index_html
+from .engine_cache import compile_cache, shipped_files
 from .host_check import check_source
 from .variables import MODEL_NAME, UNITS, VARIABLES
 
@@ -92,10 +94,11 @@ def build_fmu(output: str | Path | None = None, fmi_version: int = 2) -> Path:
             for name in set(sys.modules) - modules:
                 if name == script.stem or name.split(".")[0] == package.name:
                     del sys.modules[name]
+        cache = shipped_files(compile_cache(package, temp / "numba"))
         if make_folders:
             output.parent.mkdir(parents=True, exist_ok=True)
         with atomic_write(output) as partial:
-            _repack(Path(built), loader, partial, fmi_version)
+            _repack(Path(built), loader, partial, fmi_version, cache)
     write_reference_csv(reference_path(output))
     return output
 
@@ -299,8 +302,9 @@ def shared_libpython() -> Path | None:
     return path if path.is_file() else None
 
 
-def _repack(built: Path, loader: Path, target: Path, fmi_version: int = 2) -> None:
-    """Copy pythonfmu's FMU with the completed XML, our binary in front of pythonfmu's, Linux only."""
+def _repack(built: Path, loader: Path, target: Path, fmi_version: int = 2, extra=()) -> None:
+    """Copy pythonfmu's FMU with the completed XML, our binary in front of pythonfmu's, Linux only, and the files
+    extra names ((file, its name in the FMU): the compiled engine's cache)."""
     binaries = f"binaries/{PLATFORM if fmi_version == 2 else 'x86_64-linux'}/"
     if fmi_version == 3:
         from .build3 import complete_model_description as complete
@@ -319,6 +323,8 @@ def _repack(built: Path, loader: Path, target: Path, fmi_version: int = 2) -> No
             elif not info.filename.startswith("binaries/"):  # other platforms' binaries lack the fix
                 fmu.writestr(info, source.read(info))
         fmu.write(loader, f"{binaries}{MODEL_NAME}.so")
+        for path, name in extra:
+            fmu.write(path, name)
 
 
 def complete_model_description(xml: bytes) -> bytes:

@@ -74,6 +74,7 @@ class DefaultRun:
     accuracy: Accuracy
     max_velocity_error: float
     calls: int  # do_step calls (more than the communication points with early return)
+    engine: str  # the engine that ran (DEFAULT_ENGINE "auto": the compiled one where numba is installed)
 
 
 def default_run(stop_at_event: bool = False) -> DefaultRun:
@@ -101,7 +102,8 @@ def default_run(stop_at_event: bool = False) -> DefaultRun:
         raise RuntimeError(f"the FMU's default experiment logged errors: {slave.errors()}")
     on_grid = exact_on_grid(t, scene.ball, scene.h0, scene.v0, scene.F_ext)
     accuracy = accuracy_of(on_grid, h, impacts=int(impacts[-1]))
-    return DefaultRun(t, h, v, impacts, on_grid, accuracy, float(np.max(np.abs(v - on_grid.v))), calls)
+    return DefaultRun(t, h, v, impacts, on_grid, accuracy, float(np.max(np.abs(v - on_grid.v))), calls,
+                      slave._integrator.engine)
 
 
 def refusal(stop_at_event: bool = False) -> str:
@@ -235,7 +237,7 @@ def _accuracy_section(run: DefaultRun, api: str, fmi3: bool) -> str:
     return f"""<h2>Accuracy</h2>
 <p>Measured when this FMU was built: its default experiment (start values above) run through the
 FMU's own co-simulation step with the default settings (rtol = {_default_rtol()}, engine
-{DEFAULT_ENGINE}), {how} to {len(run.t)} communication points,
+{DEFAULT_ENGINE}, which ran the {run.engine} engine at build), {how} to {len(run.t)} communication points,
 compared with the exact piecewise-analytic solution at the same times:</p>
 <table>
 <tr><td>max |h - h_exact|</td><td>{accuracy.max_height_error:.2e} m (at t = {run.t[worst]:.6g} s)</td></tr>

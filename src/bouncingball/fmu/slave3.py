@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from pythonfmu3 import Boolean, Float64, Fmi3Slave, Int32, String
+from pythonfmu3 import Boolean, Float64, Fmi3Slave, Fmi3StepResult, Int32, String
 from pythonfmu3.enums import Fmi3Causality, Fmi3Initial, Fmi3Status, Fmi3Variability
 from pythonfmu3.modelexchange import ModelExchange
 
@@ -29,6 +29,7 @@ from .variables import EVENT_INDICATOR, FMI3_VARIABLES, VARIABLES
 SCRIPT_NAMESPACES: list[dict] = []
 TYPES = {"Real": Float64, "Integer": Int32, "Boolean": Boolean, "String": String}
 REFERENCES = {variable.name: i for i, variable in enumerate(VARIABLES + FMI3_VARIABLES)}
+_TIME_ONLY = [REFERENCES["time"]]
 
 
 def phase_nominals(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> list[float]:
@@ -69,14 +70,16 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
     STATUS = Fmi3Status
     CALLS = {"setup": "fmi3EnterInitializationMode", "step": "fmi3DoStep", "set_state": "fmi3SetFMUState"}
     STOP_AT_EVENT = True
+    # Made once: pythonfmu3's binary reads status and terminateSimulation off what do_step returns, and off a bool
+    # each is an attribute lookup that fails (an AttributeError raised and cleared) on every doStep.
+    STEPPED, REFUSED = Fmi3StepResult(Fmi3Status.ok), Fmi3StepResult(Fmi3Status.discard)
 
     def __init__(self, **kwargs):
         self.time = 0.0
         self._exchange: list | None = None  # model exchange (_model_exchange) once a call of it came
         super().__init__(**kwargs)
         self.author, self.description = BallSlave.author, BallSlave.description  # pythonfmu3 resets them
-        getters = {"time": lambda: self._integrator.t if self._exchange is None and self._integrator else self.time,
-                   "der(h)": self._v, "der(v)": self._a, "gap": self._gap}
+        getters = {"time": self._time, "der(h)": self._v, "der(v)": self._a, "gap": self._gap}
         for variable in FMI3_VARIABLES:
             self._register(variable, getters[variable.name],
                            lambda value, name=variable.name: self._error(f"{name} cannot be set"))
@@ -88,6 +91,16 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
             variability=Fmi3Variability[variable.variability], description=variable.description,
             initial=Fmi3Initial[variable.initial] if variable.initial else None, getter=getter, setter=setter,
             **extra), has_event_indicator=variable.name == EVENT_INDICATOR)
+
+    def _time(self):
+        return self._integrator.t if self._exchange is None and self._integrator else self.time
+
+    def get_float64(self, vrs):
+        # The binary reads time alone after every doStep (bouncingball_fmu3_loader.c's slave_time): without
+        # pythonfmu3's loop over the variables, each checked for its type and dimensions.
+        if vrs == _TIME_ONLY:
+            return [self._time()]
+        return super().get_float64(vrs)
 
     def set_time(self, time):
         """Before initialisation the start time (fmi3EnterInitializationMode's, from the binary); after, ME time."""

@@ -28,13 +28,12 @@ from ..scenes import BALL_KEYS, SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
 from ..solvers.settings import MIN_RTOL, RTOL_RANGE_WHY
 from ..solvers.sundials_log import SundialsWarning
+from .engine_cache import first_use
 from .variables import SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES
 
 # 6: the restart time's rounding error, model exchange's nominals (5: with the restart point)
 STATE_FORMAT = "bouncingball-fmu-state-6"
-# Not "auto" as in process: the FMU's copy of the package is unzipped afresh by most masters, so numba's cache
-# (keyed by the source's path) is cold in each new process, and the compiled engine's first use costs seconds.
-DEFAULT_ENGINE = "sksundae"
+DEFAULT_ENGINE = "auto"  # the compiled engine where numba is installed, loaded from the cache the FMU ships
 SETTABLE_AFTER_INITIALISATION = ("F_ext",)
 # Outputs the slave computes: a master may set the start values of h and v (initial="exact"), not these.
 COMPUTED_OUTPUTS = tuple(v.name for v in VARIABLES if v.causality == "output" and v.initial != "exact")
@@ -46,6 +45,7 @@ class BallSlave:
     STATUS = None  # the library's status enumeration (ok, warning, error members)
     CALLS = {"setup": "fmi2SetupExperiment", "step": "fmi2DoStep", "set_state": "fmi2SetFMUstate"}
     STOP_AT_EVENT = False  # True: do_step returns at the first impact or departure inside the step
+    STEPPED, REFUSED = True, False  # what do_step returns: the step taken, or refused (an error logged)
 
     author = "bouncingball"
     description = ("A ball with compliant contact (spring k, damper b) over rigid ground, integrated by "
@@ -59,6 +59,7 @@ class BallSlave:
             sys.path.remove(resources)
         if resources is not None:
             _search_package_in(resources)
+        self._resources = resources
         # The values set by the master: parameters, start values of h and v, and the input F_ext. The
         # defaults are the article's; they are not read from the package's data files, because a master
         # (FMPy) may delete the unzipped FMU whose modules this process keeps using.
@@ -99,6 +100,8 @@ class BallSlave:
                                    max(stop_time, integrator.t))
             self._integrator = integrator
             self._tell_tolerance(integrator.settings.rtol)
+            if self._values["engine"] == "auto" and integrator.engine != "compiled":
+                self.log(f"engine auto runs scikit-sundae's: {integrator.engine_reason}", self.STATUS.ok)
         except (ValueError, ImportError) as error:  # ImportError: the compiled engine cannot run here, and why
             self._error(error)
 
@@ -107,12 +110,12 @@ class BallSlave:
         integrator = self._integrator
         if integrator is None:
             self._error(f"{self.CALLS['step']} before initialisation (or after a failed one)")
-            return False
+            return self.REFUSED
         try:
             target = current_time + step_size
             # Most short steps, at the FMU's own time exactly: arithmetic that cannot warn.
             if integrator.advance_within_step(target, current_time):
-                return True
+                return self.STEPPED
             t = integrator.t
             rounded = current_time != t
             # A master's own rounding of the communication points is tolerated, a jump is not.
@@ -125,7 +128,7 @@ class BallSlave:
             if rounded:  # the same arithmetic from the FMU's own time
                 target = max(target, t)  # a current time rounded below t, and a step shorter than that rounding
                 if integrator.advance_within_step(target, t):
-                    return True
+                    return self.STEPPED
             with _caught_warnings() as caught:
                 if self.STOP_AT_EVENT:
                     integrator.advance(target, stop_at_event=True)
@@ -135,8 +138,8 @@ class BallSlave:
                 self.log(str(warning.message), self.STATUS.warning)
         except (ValueError, SolverError) as error:
             self._error(error)
-            return False
-        return True
+            return self.REFUSED
+        return self.STEPPED
 
     # --- FMU state: everything needed to continue exactly, in this or a fresh instance ------------
     def _get_fmu_state(self):
@@ -164,7 +167,9 @@ class BallSlave:
             if saved is not None:
                 integrator = self._integrator
                 if integrator is None or (integrator.ball, integrator.settings) != (ball, settings):
-                    integrator = BallIntegrator(ball, values["h"], values["v"], start_time, values["F_ext"], settings)
+                    with self._engine_first_use(settings.engine):
+                        integrator = BallIntegrator(ball, values["h"], values["v"], start_time, values["F_ext"],
+                                                    settings)
                 t, h, v, F_ext = (validation.finite(f"state {name}", saved[name], unit)
                                   for name, unit in (("t", "s"), ("h", "m"), ("v", "m/s"), ("F_ext", "N")))
                 limits.check_scene(ball, h, v, F_ext, t)
@@ -260,7 +265,15 @@ class BallSlave:
             settings = replace(settings, engine=engine)
         values = self._values
         h, v = validation.finite("h", values["h"], "m"), validation.finite("v", values["v"], "m/s")
-        return BallIntegrator(ball, h, v, self._start_time, values["F_ext"], settings)
+        with self._engine_first_use(settings.engine):
+            return BallIntegrator(ball, h, v, self._start_time, values["F_ext"], settings)
+
+    def _engine_first_use(self, engine: str):
+        """Around an integrator's making on engine: the compiled engine's code from the FMU's cache, or numba's
+        compile said in the log before it starts (nothing to do for scikit-sundae's engine)."""
+        if engine == "sksundae":
+            return contextlib.nullcontext()
+        return first_use(self._resources, lambda message: self.log(message, self.STATUS.ok))
 
     def _preview(self) -> BallIntegrator | None:
         """Before initialisation, outputs are those of the start state (None if a value is invalid)."""

@@ -23,14 +23,13 @@ from __future__ import annotations
 
 import ctypes
 import math
-import sys
 import weakref
 
 import numpy as np
 from numba import carray, cfunc, njit, types
 
 from .. import physics, rounding
-from . import dense_output, engine_protocol, error_estimate, exact, jit, layout, machine, phases
+from . import dense_output, engine_protocol, error_estimate, exact, machine, phases
 from .jit import (
     addresses,
     cache_allowed,
@@ -41,6 +40,7 @@ from .jit import (
     call_p1,
     compiled_together,
     doubles,
+    engine_sources,
     functions_of,
 )
 from .sundials import EngineUnavailable, library, unavailable_reason
@@ -66,9 +66,7 @@ _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_
 
 
 
-_CACHE = cache_allowed((rounding, physics, phases, layout, error_estimate, engine_protocol, machine, dense_output,
-                        exact, jit,
-                        sys.modules[__name__]))
+_CACHE = cache_allowed(engine_sources())
 
 # The C functions the compiled loop calls, by their place in the address array it receives.
 _LOOP_FUNCTIONS = ("CVode", "CVodeGetRootInfo", "CVodeReInit", "CVodeSetStopTime", "CVodeClearStopTime",

@@ -2,7 +2,8 @@
 
 ``compiled_together`` compiles plain-Python functions of floats and arrays (physics, the phase
 machine) as they are, so one source runs interpreted in one engine and compiled in the other;
-``cache_allowed`` keeps numba's disk cache true to every source the compiled code inlines; the
+``cache_allowed`` keeps numba's disk cache true to every source the compiled code inlines, in a folder
+named after their contents (so a copy of the package elsewhere, an FMU's, finds it too); the
 ``call_*`` intrinsics call a C function whose address is a run-time integer (``doubles`` and
 ``addresses`` read pointers from integers), so that no process-specific constant is baked into
 the code and it can be cached on disk.
@@ -35,8 +36,7 @@ interpreted. A function so reached:
    (physics.unit_response_value), and the compiled code calls that.
 5. Lives in a source the cache digest covers, as does every constant it reads: a new compiled module,
    or one whose constants the compiled code imports (layout.py's indices, settings.py's tolerances),
-   goes into compiled.py's ``cache_allowed(...)`` too, or a change to it leaves numba's disk cache
-   with the old code.
+   goes into ``ENGINE_SOURCES`` too, or a change to it leaves numba's disk cache with the old code.
 
 Functions of those modules that no entry point reaches (exact.simulate_exact, dense_output.interpolate)
 run interpreted only; rule 1 holds for them too, so that reaching one later does not break it.
@@ -48,77 +48,216 @@ Import this module only to compile: it imports numba.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
+import functools
 import glob
 import hashlib
 import os
+import pickle
+import shutil
+import sys
+from collections.abc import Callable
 from types import FunctionType
 
+import numba
 from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
+# Every source the compiled code is compiled from, relative to the package: the modules whose functions
+# compiled.py gives compiled_together, those whose constants they read (rule 5), jit.py and compiled.py.
+ENGINE_SOURCES = ("rounding.py", "physics.py", "solvers/settings.py", "solvers/phases.py", "solvers/layout.py",
+                  "solvers/error_estimate.py", "solvers/engine_protocol.py", "solvers/machine.py",
+                  "solvers/dense_output.py", "solvers/exact.py", "solvers/jit.py", "solvers/compiled.py")
 
-def cache_allowed(modules) -> bool:
-    """Whether numba may cache the code compiled from modules on disk, after dropping code a changed source outdated.
 
-    numba keys each cached function by its own source file alone, but compiled code inlines the
-    functions it calls from other files: after a change to physics.py alone it loaded this module's
-    old code (the compiled engine ran the previous right-hand side, found by the engines
-    disagreeing). So one digest of every source compiled here (this module, physics.py and the
-    phase machine's modules) is kept beside the cache, and all their cached code is removed when
-    it differs. Where a source is gone (an FMU's copy of the package, whose unzipped folder the
-    master deleted after the process imported it), or the cache cannot be found through numba's
-    locators, nothing is cached: it compiles afresh. Processes importing at once (Dask's workers)
-    take turns: the check, the removal and the new digest happen under one lock file, and the
-    digest is written whole (a temporary file renamed) or not at all.
-    """
-    files = [module.__file__ for module in modules]
-    if not all(os.path.isfile(file) for file in files):
-        return False
-    digest = hashlib.sha256()
+def engine_sources() -> list[str]:
+    """The files numba compiles the compiled engine from (ENGINE_SOURCES): an imported module's own file (in an FMU,
+    maybe that of a copy the master deleted since), else the one in this module's copy of the package."""
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    root = __name__.split(".")[0]
+    files = []
+    for relative in ENGINE_SOURCES:
+        module = sys.modules.get(".".join((root, *relative.removesuffix(".py").split("/"))))
+        files.append(getattr(module, "__file__", None) or os.path.join(package, *relative.split("/")))
+    return files
+
+
+def sources_digest(files) -> str:
+    """The SHA-256 of the files' contents, in their order, and of the package's name (the compiled code names its
+    modules): what the compiled code's disk cache is keyed by."""
+    digest = hashlib.sha256(__name__.split(".")[0].encode() + b"\0")
     for file in files:
         with open(file, "rb") as source:
             digest.update(source.read())
+    return digest.hexdigest()
+
+
+def user_cache_root() -> str:
+    """The user-wide folder of the compiled code's caches: $NUMBA_CACHE_DIR/bouncingball if set, else
+    $XDG_CACHE_HOME/bouncingball (default ~/.cache/bouncingball), one sub-folder numba-<digest> per set of sources."""
+    told = os.environ.get("NUMBA_CACHE_DIR")
+    if told:
+        return os.path.join(told, "bouncingball")
+    return os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"),
+                        "bouncingball")
+
+
+def cache_folder(digest: str) -> str:
+    """The folder holding the code compiled from the sources of this digest, in the user-wide cache."""
+    return os.path.join(user_cache_root(), f"numba-{digest[:24]}")
+
+
+def say_on_stderr(message: str) -> None:
+    print(f"bouncingball: {message}", file=sys.stderr, flush=True)
+
+
+# What cache_allowed says before numba compiles, and the cache it may take the code from instead (an FMU's):
+# set by first_use around the compiled engine's import.
+_say: Callable[[str], None] = say_on_stderr
+_shipped: str | None = None
+
+
+@contextlib.contextmanager
+def first_use(shipped: str | None, say: Callable[[str], None]):
+    """Within: cache_allowed takes a cache that fits this host from folder shipped, and says through say that numba
+    compiles (before it does) where neither the user-wide cache nor shipped holds code for this host."""
+    global _say, _shipped
+    saved = _say, _shipped
+    _say, _shipped = say, shipped
     try:
-        folders = [cache_folder(file) for file in files]
-        stem = os.path.splitext(os.path.basename(files[-1]))[0]
-        stamp = os.path.join(folders[-1], f"{stem}.sources-sha256")
-        os.makedirs(folders[-1], exist_ok=True)
-        with open(stamp + ".lock", "a") as lock:
+        yield
+    finally:
+        _say, _shipped = saved
+
+
+def cache_allowed(files) -> bool:
+    """Whether numba may cache the code compiled from files on disk; it then reads and writes it in cache_folder.
+
+    numba keys each cached function by its own source file's path and time alone, but compiled code
+    inlines the functions it calls from other files: after a change to physics.py alone it loaded
+    compiled.py's old code (the engines then disagreed). And the FMU's copy of the package, unzipped
+    into a new folder by most masters, found no cache at all. So the code compiled from files is
+    kept in one folder named after the digest of all their contents (a change to any is a new
+    folder), wherever the files are. Where that folder holds no code for this host's numba and CPU,
+    it is first taken from the shipped cache (first_use) if that fits, else numba compiles, said
+    through first_use's say before it does. Where a file is gone (the master deleted the unzipped
+    FMU after the process imported it) or the folder cannot be written, nothing is cached.
+    Processes importing at once (Dask's workers) take turns under one lock file, and every file is
+    written whole (a temporary file renamed) or not at all.
+    """
+    if not all(os.path.isfile(file) for file in files):
+        return False
+    digest = sources_digest(files)
+    folder = cache_folder(digest)
+    try:
+        os.makedirs(folder, exist_ok=True)
+        with open(os.path.join(folder, "lock"), "a") as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
-            if _read(stamp) != digest.hexdigest():
-                for file, folder in zip(files, folders, strict=True):
-                    stem = os.path.splitext(os.path.basename(file))[0]
-                    for stale in glob.glob(os.path.join(folder, f"{stem}.*.nb[ic]")):
-                        os.remove(stale)
-                written = f"{stamp}.{os.getpid()}"
-                with open(written, "w") as out:
-                    out.write(digest.hexdigest())
-                os.replace(written, stamp)
+            misfit = cache_misfit(folder, digest)
+            if misfit is not None and _shipped is not None:
+                unfit = cache_misfit(_shipped, digest)
+                if unfit is None:
+                    _copy_cache(_shipped, folder)
+                    misfit = None
+                else:
+                    misfit = f"the cache shipped with it does not fit ({unfit})"
+            if misfit is not None:
+                _say(f"numba compiles the compiled engine for this host, once (about 11 s; {misfit}), into {folder}")
+        _use_folder(files, folder, digest)
     except Exception:  # a numba without these internals, or a cache folder we cannot write
         return False
     return True
 
 
-def cache_folder(file: str) -> str:
-    """The folder numba caches the functions of the source file in, as numba itself finds it.
+def _copy_cache(source: str, folder: str) -> None:
+    for path in sorted(glob.glob(os.path.join(source, "*.nb[ci]")), key=lambda p: p.endswith(".nbi")):
+        written = os.path.join(folder, f".{os.path.basename(path)}.{os.getpid()}")
+        shutil.copyfile(path, written)
+        os.replace(written, os.path.join(folder, os.path.basename(path)))
 
-    The one use of numba's private API (numba.core.caching.CacheImpl._locator_classes, numba 0.59 to
-    0.61 at least): tests/test_compiled.py fails loudly if an upgrade removes or changes it.
-    """
+
+def cache_misfit(folder: str, digest: str) -> str | None:
+    """Why the code cached in folder cannot run here (none, another numba, CPU or set of sources); None if it can."""
+    indexes = glob.glob(os.path.join(folder, "*.nbi"))
+    if not indexes:
+        return "no code compiled from these sources yet"
+    host = _host_key()
+    for path in indexes:
+        version, stamp, keys = _index(path)
+        if version != numba.__version__:
+            return f"its code was compiled by numba {version}, this is numba {numba.__version__}"
+        if stamp != digest:
+            return "its code was compiled from other sources"
+        if not any(key[1] == host for key in keys):
+            built = sorted({key[1][1] for key in keys})
+            return f"its code was compiled for the CPU {', '.join(built)}, this is {host[1]}"
+    return None
+
+
+# --- numba's private API: its cache's locators and index (numba 0.59 to 0.68 at least) ------------------
+# tests/test_compiled.py (test_numbas_private_api_that_jit_uses_is_still_there) fails loudly on an upgrade that
+# changes any of it, instead of the compiled engine silently compiling afresh in every process.
+def _use_folder(files, folder: str, digest: str) -> None:
+    """numba caches the functions of files in folder, their freshness the digest (not each file's path and time)."""
     from numba.core.caching import CacheImpl
 
-    locators = (cls.from_function(cache_allowed, file) for cls in CacheImpl._locator_classes)
-    return next(locator for locator in locators if locator is not None).get_cache_path()
+    locator = _digest_locator()
+    for file in files:
+        locator.folders[os.path.realpath(file)] = (folder, digest)
+    if locator not in CacheImpl._locator_classes:
+        CacheImpl._locator_classes.insert(0, locator)
 
 
-def _read(path: str) -> str | None:
-    try:
-        with open(path) as file:
-            return file.read()
-    except OSError:
-        return None
+def _host_key() -> tuple:
+    """numba's key of the code this host runs: (LLVM's target triple, the CPU's name, its features)."""
+    from numba.core.registry import cpu_target
+
+    return cpu_target.target_context.codegen().magic_tuple()
+
+
+def _index(path: str) -> tuple:
+    """(numba's version, the source stamp, the keys of the overloads) of one of numba's index files (.nbi)."""
+    with open(path, "rb") as file:
+        version = pickle.load(file)
+        if version != numba.__version__:
+            return version, None, ()
+        stamp, overloads = pickle.loads(file.read())
+    return version, stamp, tuple(overloads)
+
+
+@functools.cache
+def _digest_locator():
+    from numba.core.caching import _CacheLocator
+
+    class DigestLocator(_CacheLocator):
+        folders: dict = {}  # the real path of a source: (its cache folder, the digest of the sources)
+
+        def __init__(self, folder: str, digest: str, line: int):
+            self._folder, self._digest, self._line = folder, digest, line
+
+        def ensure_cache_path(self):
+            os.makedirs(self._folder, exist_ok=True)
+
+        def get_cache_path(self):
+            return self._folder
+
+        def get_source_stamp(self):
+            return self._digest
+
+        def get_disambiguator(self):
+            return str(self._line)
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            found = cls.folders.get(os.path.realpath(py_file))
+            return None if found is None else cls(*found, py_func.__code__.co_firstlineno)
+
+    return DigestLocator
+
+
+# --- end of numba's private API ----------------------------------------------------------------------
 
 
 def functions_of(*modules) -> tuple:
