@@ -52,9 +52,8 @@ def scipy(method: str) -> Solver:
 
 
 def fmu(comm_step: float, engine: str = "sksundae") -> Solver:
-    """The FMU with its parameter engine; the label names the engine unless it is the FMU's default."""
-    suffix = "" if engine == "sksundae" else f" ({engine})"
-    return Solver(f"FMU via FMPy{suffix}, {comm_step * 1e3:g} ms", "fmu", comm_step=comm_step, engine=engine)
+    """The FMU with its parameter engine, which the label names."""
+    return Solver(f"FMU via FMPy ({engine}), {comm_step * 1e3:g} ms", "fmu", comm_step=comm_step, engine=engine)
 
 
 def empty_slave(comm_step: float) -> Solver:

@@ -181,10 +181,16 @@ def per_step(point: Point | None) -> float:
 
 
 def target_fmu(points: list[Point]) -> Target:
-    """(c): the FMU's doStep at 1 ms against the empty slave's, at the swept tolerance nearest the FMU's default."""
+    """(c): the FMU's doStep at 1 ms against the empty slave's, at the swept tolerance nearest the FMU's default.
+
+    The FMU at its default engine, auto: the compiled engine where it ran here, else scikit-sundae's.
+    """
     goal = f"the FMU through FMPy at a {GRID} step: time per doStep <= {FMU_FLOOR_RATIO:g}x the empty pythonfmu slave's"
+    ran = {fmu.solver.engine for fmu, _ in fmu_step_costs(points)
+           if fmu.solver.comm_step == DENSE and fmu.status == "ok"}
+    engine, other = ("compiled", "sksundae") if "compiled" in ran else ("sksundae", "compiled")
     candidates = [(fmu, empty) for fmu, empty in fmu_step_costs(points)
-                  if fmu.solver.comm_step == DENSE and fmu.status == "ok" and fmu.solver.engine == "sksundae"]
+                  if fmu.solver.comm_step == DENSE and fmu.status == "ok" and fmu.solver.engine == engine]
     if not candidates:
         return Target("c", goal, False, "the FMU did not run: " + "; ".join(
             {p.note for p, _ in fmu_step_costs(points) if p.note}))
@@ -195,18 +201,21 @@ def target_fmu(points: list[Point]) -> Target:
     ours, floor = per_step(fmu), per_step(empty)
     ratio = ours / floor
     met = ratio <= FMU_FLOOR_RATIO
-    measured = (f"at rtol {rtol_text(fmu.rtol)}: FMU {ours * 1e6:.1f} us per doStep, empty slave {floor * 1e6:.1f} us, "
-                f"ratio {ratio:.2f} (medians of whole runs / {fmu.steps} steps, instantiation included; from min "
-                f"times {fmu.minimum / empty.minimum:.2f}).")
-    compiled = [f for f, _ in fmu_step_costs(points) if f.solver.label == runners.fmu(DENSE, "compiled").label
-                and f.rtol == fmu.rtol and f.status == "ok"]
-    if compiled:
-        measured += (f" With engine compiled: {per_step(compiled[0]) * 1e6:.1f} us per doStep, ratio "
-                     f"{per_step(compiled[0]) / floor:.2f} (its first use in the process is not in these runs).")
-    if not met:
+    measured = (f"at rtol {rtol_text(fmu.rtol)}: FMU at its default engine (auto, here {engine}) {ours * 1e6:.1f} us "
+                f"per doStep, empty slave {floor * 1e6:.1f} us, ratio {ratio:.2f} (medians of whole runs / {fmu.steps} "
+                f"steps, instantiation included; from min times {fmu.minimum / empty.minimum:.2f}).")
+    others = [f for f, _ in fmu_step_costs(points) if f.solver.label == runners.fmu(DENSE, other).label
+              and f.rtol == fmu.rtol and f.status == "ok"]
+    if others:
+        measured += (f" With engine {other}: {per_step(others[0]) * 1e6:.1f} us per doStep, ratio "
+                     f"{per_step(others[0]) / floor:.2f}.")
+    if not met and engine == "sksundae":
         measured += (f" Reason: on top of the floor each doStep runs one CVODE advance (BallIntegrator.advance: "
                      "a scikit-sundae step() call and the Python right-hand-side calls of the internal steps in "
                      f"it), {(ours - floor) * 1e6:.1f} us here against the floor's {floor * 1e6:.1f} us.")
+    elif not met:
+        measured += (f" Reason: {(ours - floor) * 1e6:.1f} us of Python a doStep on top of the floor (the slave's "
+                     "checks, the integrator's wrapper, numba's entry): the call-by-call table below splits it.")
     return Target("c", goal, met, measured)
 
 
