@@ -49,7 +49,8 @@ def _label(point: Point) -> str:
     """The solver's name within its family (the family's heading says the rest)."""
     solver = point.solver
     if solver.kind == "fmu":
-        return f"{solver.comm_step * 1e3:g} ms steps" + (", compiled engine" if solver.engine == "compiled" else "")
+        engine = "compiled engine (the default)" if solver.engine == "compiled" else "scikit-sundae engine"
+        return f"{solver.comm_step * 1e3:g} ms steps, {engine}"
     if solver.kind == "empty":
         return f"empty pythonfmu slave, {solver.comm_step * 1e3:g} ms steps"
     return solver.label.removeprefix("solve_ivp ").removeprefix("CVODE ")
