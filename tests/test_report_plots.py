@@ -48,9 +48,10 @@ def test_work_precision_groups_the_fmu_series_and_names_the_reference_lines():
     assert headings == [heading for heading, _ in plots.FAMILIES]
     fmu_labels = sorted({p.solver.label for p in points if p.solver.kind == "fmu"})
     start = texts.index("the FMU through FMPy")
-    assert len(fmu_labels) == 4 and texts[start + 1:start + 5] == ["1 ms steps", "10 ms steps",
-                                                                   "1 ms steps, compiled engine",
-                                                                   "10 ms steps, compiled engine"]
+    assert len(fmu_labels) == 4 and texts[start + 1:start + 5] == ["1 ms steps, scikit-sundae engine",
+                                                                   "10 ms steps, scikit-sundae engine",
+                                                                   "1 ms steps, compiled engine (the default)",
+                                                                   "10 ms steps, compiled engine (the default)"]
     for ax in fig.axes:
         levels = [line.get_ydata()[0] for line in ax.get_lines() if line.get_linestyle() == "--"
                   and len(set(line.get_ydata())) == 1 and line.get_xdata()[0] == 0]
