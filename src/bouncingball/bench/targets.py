@@ -186,11 +186,11 @@ def target_fmu(points: list[Point]) -> Target:
     The FMU at its default engine, auto: the compiled engine where it ran here, else scikit-sundae's.
     """
     goal = f"the FMU through FMPy at a {GRID} step: time per doStep <= {FMU_FLOOR_RATIO:g}x the empty pythonfmu slave's"
-    ran = {fmu.solver.engine for fmu, _ in fmu_step_costs(points)
-           if fmu.solver.comm_step == DENSE and fmu.status == "ok"}
-    engine, other = ("compiled", "sksundae") if "compiled" in ran else ("sksundae", "compiled")
-    candidates = [(fmu, empty) for fmu, empty in fmu_step_costs(points)
-                  if fmu.solver.comm_step == DENSE and fmu.status == "ok" and fmu.solver.engine == engine]
+    runs = [(fmu, empty) for fmu, empty in fmu_step_costs(points)
+            if fmu.solver.comm_step == DENSE and fmu.status == "ok"]
+    ran_compiled = any(fmu.solver.engine == "compiled" for fmu, _ in runs)
+    engine, other = ("compiled", "sksundae") if ran_compiled else ("sksundae", "compiled")
+    candidates = [(fmu, empty) for fmu, empty in runs if fmu.solver.engine == engine]
     if not candidates:
         return Target("c", goal, False, "the FMU did not run: " + "; ".join(
             {p.note for p, _ in fmu_step_costs(points) if p.note}))
@@ -204,8 +204,7 @@ def target_fmu(points: list[Point]) -> Target:
     measured = (f"at rtol {rtol_text(fmu.rtol)}: FMU at its default engine (auto, here {engine}) {ours * 1e6:.1f} us "
                 f"per doStep, empty slave {floor * 1e6:.1f} us, ratio {ratio:.2f} (medians of whole runs / {fmu.steps} "
                 f"steps, instantiation included; from min times {fmu.minimum / empty.minimum:.2f}).")
-    others = [f for f, _ in fmu_step_costs(points) if f.solver.label == runners.fmu(DENSE, other).label
-              and f.rtol == fmu.rtol and f.status == "ok"]
+    others = [f for f, _ in runs if f.solver.engine == other and f.rtol == fmu.rtol]
     if others:
         measured += (f" With engine {other}: {per_step(others[0]) * 1e6:.1f} us per doStep, ratio "
                      f"{per_step(others[0]) / floor:.2f}.")

@@ -227,8 +227,8 @@ class BallIntegrator(IntegratorView):
             self._engine, self._parameters, self.settings.rtol, self._atol, self._state, t_target, stop_at_event,
             self._event_rows, 0, self._scratch)
         # Without an event the mode never changed: its solver alone ran (one file to read, not two).
-        ran = self._logs if n_events or status != machine.DONE else (self._logs[int(self._state[layout.MODE])],)
-        self._unreported = ran
+        self._unreported = (self._logs if n_events or status != machine.DONE
+                            else (self._logs[int(self._state[layout.MODE])],))
         if status != machine.DONE:
             raise self._machine_failure(status)
         self._warn_if_untrusted(whole=False)
