@@ -10,6 +10,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from contextlib import contextmanager
 from pathlib import Path
 
 from ..capped import close_all
@@ -22,6 +23,7 @@ TYPICAL_RUN_TIME = 0.03  # s
 OVERHEAD_SHARE = 0.05  # Dask's per-task overhead at most this share of a batch's work
 BATCHES_PER_SLOT = 4  # at least this many batches per worker thread, so that slow cells spread out
 OVERHEAD_TASKS = 200
+POLL_INTERVAL = 0.05  # s between looks for finished batches: how long Ctrl-C may wait to be taken
 
 
 def local_cluster(workers: int | None = None):
@@ -42,6 +44,34 @@ def local_cluster(workers: int | None = None):
     finally:
         if main_thread:
             signal.signal(signal.SIGINT, previous)
+
+
+class HideDaskSyncCancelBug(logging.Filter):
+    """Drop the NameError that distributed's sync() logs when Ctrl-C comes before its coroutine has started.
+
+    distributed.utils.sync answers a KeyboardInterrupt by scheduling cancel() on the event loop, which
+    reads its future before the coroutine has assigned it (distributed 2026.8): tornado then logs a
+    NameError traceback after the user's Ctrl-C. The interrupt itself is raised as it should be.
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        """False for that NameError's record (dropped), True for every other record."""
+        error = record.exc_info[1] if record.exc_info else None
+        if not isinstance(error, NameError) or "'future'" not in str(error):
+            return True
+        frame = error.__traceback__
+        while frame is not None and frame.tb_next is not None:
+            frame = frame.tb_next
+        code = frame.tb_frame.f_code if frame is not None else None
+        return not (code is not None and code.co_name == "cancel"
+                    and code.co_filename.endswith(os.path.join("distributed", "utils.py")))
+
+
+def hide_dask_sync_cancel_bug() -> None:
+    """Install HideDaskSyncCancelBug on tornado's callback logger, once per process."""
+    logger = logging.getLogger("tornado.application")
+    if not any(isinstance(installed, HideDaskSyncCancelBug) for installed in logger.filters):
+        logger.addFilter(HideDaskSyncCancelBug())
 
 
 def measure_overhead(client, tasks: int = OVERHEAD_TASKS) -> float:
@@ -142,6 +172,7 @@ def run_sweep(grid: Grid, client=None, *, output_dir: str | Path | None = None, 
         else:
             store.clear(output_dir)
     finished = set() if done is None else set(done["key"])
+    hide_dask_sync_cancel_bug()
     todo = [run for run in runs if run["key"] not in finished]
     cluster = None
     if client is None:
@@ -190,6 +221,26 @@ def check_settings(time_cap: float, workers: int | None, batch_size: int | None)
             raise ValueError(f"{name} = {value!r} is not allowed: it must be an integer >= 1")
 
 
+@contextmanager
+def _ctrl_c_between_results():
+    """Hold Ctrl-C while batches run; yield an Event set by it, for the loop to raise KeyboardInterrupt itself.
+
+    A KeyboardInterrupt raised inside Dask's client code leaves its requests half done, and it logs them as
+    errors while the cluster closes. Python's default handler only: a caller's own handler, or SIGINT
+    ignored, stays as it is (and off the main thread nothing is installed).
+    """
+    interrupted = threading.Event()
+    installed = (threading.current_thread() is threading.main_thread()
+                 and signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+    if installed:
+        signal.signal(signal.SIGINT, lambda signum, frame: interrupted.set())
+    try:
+        yield interrupted
+    finally:
+        if installed:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 def _run_batches(client, todo: list[dict], size: int, time_cap: float, output_dir, progress: bool,
                  on_batch) -> list[dict]:
     from distributed import as_completed
@@ -198,15 +249,23 @@ def _run_batches(client, todo: list[dict], size: int, time_cap: float, output_di
     batches = [[{**run, "batch": i} for run in todo[start:start + size]]
                for i, start in enumerate(range(0, len(todo), size))]
     futures = client.map(child.run_batch, batches, time_cap=time_cap, pure=False)
+    pending = as_completed(futures)
     rows: list[dict] = []
     shown = progress and sys.stderr.isatty()  # a bar redirected into a file is a mess of \r lines
-    with tqdm(total=len(todo), desc="sweep", unit="run", file=sys.stderr, disable=not shown) as bar:
-        for future in as_completed(futures):
-            batch = future.result()
-            if output_dir is not None:
-                store.write_part(output_dir, batch)
-            rows += batch
-            bar.update(len(batch))
-            if on_batch is not None:
-                on_batch(batch)
+    with tqdm(total=len(todo), desc="sweep", unit="run", file=sys.stderr, disable=not shown) as bar, \
+            _ctrl_c_between_results() as interrupted:
+        while not pending.is_empty():
+            done = pending.next_batch(block=False)
+            if not done:
+                time.sleep(POLL_INTERVAL)
+            for future in done:
+                batch = future.result()
+                if output_dir is not None:
+                    store.write_part(output_dir, batch)
+                rows += batch
+                bar.update(len(batch))
+                if on_batch is not None:
+                    on_batch(batch)
+            if interrupted.is_set():
+                raise KeyboardInterrupt
     return rows
