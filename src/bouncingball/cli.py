@@ -190,8 +190,9 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
 
     ball = scene.ball
     print(f"scene {scene.name}: {scene.description}")
-    print(f"  ball        m = {ball.m:g} kg, k = {ball.k:g} N/m, b = {ball.b:g} N s/m, R = {ball.R:g} m, "
-          f"g = {ball.g:g} m/s2")
+    law = (f"rigid contact, e = {ball.e:g}, v_min = {ball.v_min:g} m/s" if ball.rigid
+           else f"k = {ball.k:g} N/m, b = {ball.b:g} N s/m")
+    print(f"  ball        m = {ball.m:g} kg, {law}, R = {ball.R:g} m, g = {ball.g:g} m/s2")
     print(f"  start       h0 = {scene.h0:.15g} m, v0 = {scene.v0:g} m/s; {result.t[0]:g} to {result.t[-1]:g} s, "
           f"output every {result.t[1] - result.t[0]:g} s")
     settings = ", ".join(f"{key} {value}" for key, value in result.options.items())

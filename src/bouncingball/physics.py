@@ -17,10 +17,15 @@ from .rounding import product_error
 
 
 class Mode(enum.IntEnum):
-    """The discrete phase, held between events."""
+    """The discrete phase, held between events. Under the rigid law, CONTACT is the ball resting on R."""
 
     FLIGHT = 0
     CONTACT = 1
+
+
+# The contact laws (Ball.contact) and the codes the phase machine knows them by (Ball.parameters).
+CONTACT_LAWS = ("linear", "rigid")
+LINEAR, RIGID = 0, 1
 
 
 @dataclass(frozen=True)
@@ -30,6 +35,13 @@ class Ball:
     The defaults are the reference article's. In flight (h > R) h' = v, v' = -g + F_ext / m; in
     contact m v' = -b v + k (R - h) - m g + F_ext. Contact starts when h crosses R going down and
     ends when it crosses R going up; the mode is held between those events.
+
+    With contact = "rigid" the ball does not deform (k and b play no part): at each impact on R its
+    velocity reverses, v+ = -e v-. With v_min = 0 a ball with e < 1 makes infinitely many ever smaller
+    bounces before it rests on R at the Zeno time t_k + 2 v_k / (g (1 - e)) after a bounce leaving at v_k
+    [m/s] (the bounces lower than about 1e-12 R are summed as the geometric series they are). With
+    v_min > 0 it stops on R at the first bounce that would leave slower than v_min (the Modelica
+    Association's Reference-FMUs BouncingBall). A ball resting on R leaves it when F_ext exceeds m g.
 
     Parameters
     ----------
@@ -43,6 +55,12 @@ class Ball:
         Radius [m], finite and > 0: the height of the centre at which contact starts.
     g : float
         Gravitational acceleration [m/s2], finite and >= 0.
+    contact : str
+        The contact law: "linear" (the spring-damper, the default) or "rigid".
+    e : float
+        The rigid law's coefficient of restitution, in [0, 1] (ignored by "linear").
+    v_min : float
+        The rigid law's speed [m/s] below which a bounce ends on R, finite and >= 0 (ignored by "linear").
 
     Raises
     ------
@@ -66,6 +84,9 @@ class Ball:
     b: float = 10.0
     R: float = 0.06
     g: float = 9.81
+    contact: str = "linear"
+    e: float = 0.7
+    v_min: float = 0.0
 
     def __post_init__(self) -> None:
         """Check every parameter before the ball exists."""
@@ -74,12 +95,23 @@ class Ball:
         object.__setattr__(self, "b", validation.non_negative("b", self.b, "N s/m"))
         object.__setattr__(self, "R", validation.positive("R", self.R, "m"))
         object.__setattr__(self, "g", validation.non_negative("g", self.g, "m/s2"))
+        object.__setattr__(self, "contact", validation.choice("contact", self.contact, CONTACT_LAWS))
+        object.__setattr__(self, "e", validation.in_closed_range("e", self.e, 0.0, 1.0))
+        object.__setattr__(self, "v_min", validation.non_negative("v_min", self.v_min, "m/s"))
 
     # --- derived quantities -------------------------------------------------------------
     @property
-    def parameters(self) -> tuple[float, float, float, float, float]:
-        """(m, k, b, R, g): the ball as plain floats, as the phase machine (solvers/phases.py) takes it."""
-        return self.m, self.k, self.b, self.R, self.g
+    def rigid(self) -> bool:
+        """Whether the contact law is the rigid one (an instantaneous impact)."""
+        return self.contact == "rigid"
+
+    @property
+    def parameters(self) -> tuple[float, float, float, float, float, float, float, float]:
+        """(m, k, b, R, g, law, e, v_min): the ball as plain floats, as the phase machine (solvers/phases.py) takes it.
+
+        law: LINEAR (0) or RIGID (1), the code of the contact law.
+        """
+        return self.m, self.k, self.b, self.R, self.g, float(RIGID if self.rigid else LINEAR), self.e, self.v_min
 
     @property
     def natural_frequency(self) -> float:
@@ -109,12 +141,14 @@ class Ball:
 
     # --- equations of motion ---------------------------------------------------------------
     def acceleration(self, h: float, v: float, mode: Mode, F_ext: float = 0.0) -> float:
-        """dv/dt [m/s2] in the given mode."""
+        """dv/dt [m/s2] in the given mode (0 for a rigid ball resting on R)."""
+        if self.rigid and mode == Mode.CONTACT:
+            return 0.0
         return mode_acceleration(h, v, mode, F_ext, self.m, self.k, self.b, self.R, self.g)
 
     def jacobian(self, mode: Mode) -> np.ndarray:
         """d(h', v')/d(h, v): constant in each mode."""
-        if mode == Mode.FLIGHT:
+        if mode == Mode.FLIGHT or self.rigid:
             return np.array([[0.0, 1.0], [0.0, 0.0]])
         return np.array([[0.0, 1.0], [-self.k / self.m, -self.b / self.m]])
 
@@ -122,7 +156,8 @@ class Ball:
         """The exact state (h [m], v [m/s]) a time tau [s] after (h0, v0), the mode and F_ext held.
 
         Both modes are linear with constant coefficients: a parabola in flight, a damped
-        oscillator about the rest height in contact. Arrays allowed (broadcast); tau may be < 0.
+        oscillator about the rest height in contact (a rigid ball resting on R stays there). Arrays allowed
+        (broadcast); tau may be < 0.
         """
         x, v = self.gap_flow(mode, h0 - self.R, v0, tau, F_ext)
         return self.R + x, v
@@ -133,15 +168,18 @@ class Ball:
         The gap carries digits that h = R + x rounds away (a deflection of a few ulps of R); the
         integrator and the event searches work in it.
         """
-        return gap_flow_value(mode, x0, v0, tau, load_value(F_ext, self.m, self.g), self.m, self.k, self.b)
+        return law_flow_value(self.parameters, mode, x0, v0, tau, load_value(F_ext, self.m, self.g))
 
-    def contact_force(self, h: float, v: float, mode: Mode) -> float:
+    def contact_force(self, h: float, v: float, mode: Mode, F_ext: float = 0.0) -> float:
         """Force of the ground on the ball [N], positive upwards; zero in flight.
 
-        As published, the damper can pull (negative force) just before departure.
+        As published, the damper can pull (negative force) just before departure. A rigid ball resting
+        on R carries its load m g - F_ext.
         """
         if mode == Mode.FLIGHT:
             return 0.0
+        if self.rigid:
+            return max(load_value(F_ext, self.m, self.g), 0.0)
         return self.k * (self.R - h) - self.b * v
 
     def energy(self, h, v, F_ext: float = 0.0):
@@ -160,10 +198,17 @@ class Ball:
         return h - self.R
 
     def initial_mode(self, h0: float, v0: float, F_ext: float = 0.0) -> Mode:
-        """The mode a ball starts in: contact below R, or at R when it is about to move down."""
+        """The mode a ball starts in: contact below R, or at R when it is about to move down.
+
+        A rigid ball cannot start below R (ValueError, naming h0), and at R moving down it starts in
+        flight, its impact the first event; at R at rest with a load on the ground it rests there.
+        """
+        if self.rigid and h0 < self.R:
+            raise ValueError(f"h0 = {validation.shown(h0)} m is not allowed: under the rigid contact law it must be "
+                             f">= R = {validation.shown(self.R)} m (the ball cannot start inside the ground)")
         if h0 < self.R:
             return Mode.CONTACT
-        if h0 == self.R and (v0 < 0.0 or (v0 == 0.0 and self.effective_gravity(F_ext) > 0.0)):
+        if h0 == self.R and ((v0 < 0.0 and not self.rigid) or (v0 == 0.0 and self.effective_gravity(F_ext) > 0.0)):
             return Mode.CONTACT
         return Mode.FLIGHT
 
@@ -205,13 +250,46 @@ def gap_acceleration(x, v, mode, load, m, k, b):
     return (-b * v - k * x - load) / m
 
 
+def law_flow_value(parameters, mode, x0, v0, tau, load):
+    """gap_flow_value under the ball's contact law (parameters: Ball.parameters): a rigid ball in contact rests.
+
+    Under the rigid law the contact mode is the ball resting on R, where it stays (x0, v0 = 0, 0).
+    """
+    if mode == 1 and parameters[5] == RIGID:
+        return x0 + 0.0 * tau, v0 + 0.0 * tau
+    return gap_flow_value(mode, x0, v0, tau, load, parameters[0], parameters[1], parameters[2])
+
+
+# Under the rigid law with v_min = 0, the bounces after one whose apex is below ZENO_APEX R are summed as
+# the geometric series they are: their heights are below any resolution, their count without end.
+ZENO_APEX = 2.0**-40
+
+
+def rigid_rebound(parameters, v_impact, load):
+    """(v_after [m/s], zeno [s]): the rigid law's bounce after an impact at v_impact < 0 on R (Ball.parameters).
+
+    v_after = -e v_impact, or 0 where the ball stays on R: below v_min, or where the bounces from
+    there rise less than ZENO_APEX R (e < 1, a load on the ground). Their infinitely many impacts then
+    take zeno = 2 v / (g_eff (1 - e)) [s] in all (v = -e v_impact, g_eff = load / m), after which the
+    ball rests on R: the Zeno time is the impact's time + zeno. zeno is 0 where none are summed.
+    """
+    R, e, v_min = parameters[3], parameters[6], parameters[7]
+    v_after = -e * v_impact
+    if v_after < v_min:
+        return 0.0, 0.0
+    g_eff = load / parameters[0]
+    if g_eff > 0.0 and e < 1.0 and v_after * v_after <= 2.0 * g_eff * (ZENO_APEX * R):
+        return 0.0, 2.0 * v_after / (g_eff * (1.0 - e))
+    return v_after, 0.0
+
+
 def conserved_speed(parameters, mode, x_start, v_start):
     """Whether a phase from the gap x_start [m] at v_start [m/s] in mode ends on R at -v_start exactly.
 
     It does where it starts on R leaving its own side (up in flight, down in contact) and its exact
     flow conserves energy (a flight; a contact with b = 0): the phase machine's polish and the exact
     solver then give the event that speed, not their flows' rounded one, which added up over many
-    bounces to an energy drift. parameters: (m, k, b, R, g).
+    bounces to an energy drift. parameters: Ball.parameters.
     """
     if x_start != 0.0:
         return False

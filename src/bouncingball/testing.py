@@ -37,7 +37,7 @@ from .input_files import applied_force
 from .physics import Ball, Mode
 from .printed_numbers import Printing
 from .result_files import BadResultError, FileParameter, ResultFile, read_result_csv, read_result_file
-from .scenes import BALL_KEYS, Scene, load_scene
+from .scenes import BALL_KEYS, Scene, fmu_scene, load_scene
 from .solvers.exact import ExactSolution
 from .solvers.forcing import ForceTable
 from .solvers.result import IMPACT
@@ -87,6 +87,7 @@ def scene_with_start_values(scene: Scene | str | Path = "article",
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
+    fmu_scene(scene)
     values = {SCENE_FIELD_OF_START_VALUE[name]: value for name, value in start_values_of(scene).items()}
     for name, value in (start_values or {}).items():
         if name in SOLVER_SETTINGS:
@@ -175,6 +176,7 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
     values = dict(start_values or {})
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
+    fmu_scene(scene)
     taken, defaults = [], []
     for name, parameter in file.parameters.items():
         where = f"{source}: row {parameter.row}, column {parameter.column!r}"

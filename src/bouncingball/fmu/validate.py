@@ -15,7 +15,7 @@ import numpy as np
 
 from ..accuracy import Accuracy, accuracy_of, accuracy_of_result, exact_on_grid, impact_counts
 from ..capped import FINISHED, Capped, run_capped
-from ..scenes import Scene, load_scene
+from ..scenes import Scene, fmu_scene, load_scene
 from ..solvers import ARTICLE_LABEL
 from .variables import start_values_of
 
@@ -101,7 +101,7 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
         raise ValueError(f"fmi_version = {fmi_version!r} is not allowed: it must be 2 or 3")
     skip = {validation.choice("--skip", stage, STAGES) for stage in skip}
     time_cap = validation.positive("--time-cap", time_cap, "s")
-    scene = load_scene(scene_name)
+    scene = fmu_scene(load_scene(scene_name))
     default = DEFAULT_OUTPUTS[fmi_version]
     fmu = Path(fmu) if fmu is not None else default
     if "fmu" not in skip:

@@ -22,13 +22,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..physics import gap_flow_value
+from ..physics import law_flow_value
 
 
 def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
     """The gap x = h - R [m] and v [m/s] at t on the step from (t0, x0, v0) to (t1, x1, v1) in mode.
 
-    parameters: the ball's (m, k, b, R, g); load: m g - F_ext [N]. In the gap, which carries the
+    parameters: Ball.parameters; load: m g - F_ext [N]. In the gap, which carries the
     digits of a deflection that h = R + x rounds away. Floats, or arrays with one step per element;
     t0 <= t <= t1. A step of zero length gives its start.
     """
@@ -39,7 +39,7 @@ def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
 def step_mismatch(parameters, load, mode, t0, x0, v0, t1, x1, v1):
     """(dt, dx, dv): the step's length [s], and how far its end lies from the mode's flow from its start [m, m/s]."""
     dt = t1 - t0
-    x_end, v_end = gap_flow_value(mode, x0, v0, dt, load, parameters[0], parameters[1], parameters[2])
+    x_end, v_end = law_flow_value(parameters, mode, x0, v0, dt, load)
     return dt, x1 - x_end, v1 - v_end
 
 
@@ -50,7 +50,7 @@ def blended_state(parameters, load, mode, t0, x0, v0, dt, dx, dv, t):
         s = tau / dt if dt > 0.0 else 0.0
     else:
         s = tau / np.where(dt > 0.0, dt, np.inf)
-    x, v = gap_flow_value(mode, x0, v0, tau, load, parameters[0], parameters[1], parameters[2])
+    x, v = law_flow_value(parameters, mode, x0, v0, tau, load)
     return x + s * dx, v + s * dv
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from ..physics import gap_flow_value
+from ..physics import law_flow_value
 from ..rounding import hypot
 from .layout import (
     ERR_FROM,
@@ -53,13 +53,13 @@ def phase_error(parameters, rtol, atol, state):
     counted as ERROR_WITHIN_PHASE rtol its length scale; and the hop tolerance in contact, the hops
     it may merge.
     """
-    m, k, b, R = parameters[0], parameters[1], parameters[2], parameters[3]
+    m, k, R = parameters[0], parameters[1], parameters[3]
     mode, load = int(state[RS_MODE]), state[LOAD]
     x0, v0, ex0, ev0 = state[RS_X], state[RS_V], state[ERR_X], state[ERR_V]
     tau = (state[T] - state[RS_T]) + (state[T_LOW] - state[RS_T_LOW])
-    x_flow, v_flow = gap_flow_value(mode, x0, v0, tau, load, m, k, b)
-    p00, p10 = gap_flow_value(mode, 1.0, 0.0, tau, 0.0, m, k, b)
-    p01, p11 = gap_flow_value(mode, 0.0, 1.0, tau, 0.0, m, k, b)
+    x_flow, v_flow = law_flow_value(parameters, mode, x0, v0, tau, load)
+    p00, p10 = law_flow_value(parameters, mode, 1.0, 0.0, tau, 0.0)
+    p01, p11 = law_flow_value(parameters, mode, 0.0, 1.0, tau, 0.0)
     ex = p00 * ex0 + p01 * ev0 + (state[X] - x_flow)
     ev = p10 * ex0 + p11 * ev0 + (state[V] - v_flow)
     length, _ = frame(parameters, mode, x0, v0, load, rtol, atol)
@@ -96,17 +96,19 @@ def run_estimate(parameters, rtol, atol, state):
     return min(estimate, ESTIMATE_CAP * scale), scale, since
 
 
-def carry_error(parameters, rtol, atol, state, jump):
+def carry_error(parameters, rtol, atol, state, jump, reflection):
     """The phase from the restart point ends at the state: its error is carried to the state, the next start.
 
-    The error (phase_error) is carried through the field's jump there, jump [1/s] (-b/m at an
-    impact, b/m at a departure, 0 where it does not); ERR_MAX, ERR_FROM and SCALE take the phase in.
+    The error (phase_error) is carried through the saltation matrix there, [[reflection, 0], [jump,
+    reflection]]; ERR_MAX, ERR_FROM and SCALE take the phase in.
 
-    The jump is the saltation matrix's: a perturbation dx of the state before the event moves the
-    event by -dx/v, over which the acceleration differs by the jump of the field, (a+ - a-) = -+ b v / m:
-    dv after = dv + jump dx, with no 1/v.
+    A compliant contact's event keeps the state (reflection 1) and jumps the field: a perturbation dx
+    of the state before the event moves the event by -dx/v, over which the acceleration differs by
+    (a+ - a-) = -+ b v / m, so jump = -+ b / m [1/s] (0 where the field does not jump): dv after = dv
+    + jump dx, with no 1/v. A rigid impact reverses the velocity, v+ = -e v-: reflection -e and jump
+    -(1 + e) g_eff / v- (physics.rigid_rebound's caller), or both 0 where the ball stays on R.
     """
     ex, ev, bound, height = phase_error(parameters, rtol, atol, state)
     state[SCALE], state[ERR_MAX] = max(state[SCALE], height), max(state[ERR_MAX], bound)
     state[ERR_FROM] = _untrusted_from(state[ERR_MAX], state[SCALE], state[ERR_FROM], state[RS_T])
-    state[ERR_X], state[ERR_V] = ex, ev + jump * ex
+    state[ERR_X], state[ERR_V] = reflection * ex, reflection * ev + jump * ex

@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import limits
-from ..physics import Ball, Mode, conserved_speed, contact_gap_flow, load_value
+from ..physics import RIGID, Ball, Mode, conserved_speed, contact_gap_flow, load_value, rigid_rebound
 from ..rounding import later
 from . import forcing
 from .forcing import ForceTable
@@ -57,6 +57,7 @@ class ExactSolution:
         constant_pieces = forcing.pieces(self.F_ext, self.t_start, self.t_end)
         for number, (t, piece_end, F_ext) in enumerate(constant_pieces):
             last, t_low = number == len(constant_pieces) - 1, 0.0  # t_low: t's rounding error (rounding.later)
+            zeno_end = -math.inf  # where a rigid ball's bounces summed in this piece end (physics.rigid_rebound)
             if number == 0:
                 mode = ball.initial_mode(h, v, F_ext)
             else:  # a change of F_ext: the state where the previous phase has it, the mode held
@@ -78,7 +79,7 @@ class ExactSolution:
                     tau = departure_time(ball.parameters, h - R, v, load)
                     if math.isinf(tau):
                         if last:
-                            self.rest_time = t
+                            self.rest_time = max(t, zeno_end)
                         break
                     v_next = departure_speed(ball.parameters, h - R, v, tau, load)
                     kind, next_mode = DEPARTURE, Mode.FLIGHT
@@ -87,6 +88,10 @@ class ExactSolution:
                     break
                 t, t_low, h, v, mode = t_event, t_event_low, R, v_next, next_mode
                 self.events.append(Event(t, kind, v))
+                if kind == IMPACT and ball.rigid:  # the bounce: on in flight, or the ball stays on R
+                    v, zeno = rigid_rebound(ball.parameters, v, load_value(F_ext, ball.m, ball.g))
+                    mode = Mode.FLIGHT if v > 0.0 else Mode.CONTACT
+                    zeno_end = later(t, t_low, zeno)[0] if zeno > 0.0 else zeno_end
 
     # --- evaluation ---------------------------------------------------------------------------
     def state(self, t) -> tuple[np.ndarray, np.ndarray]:
@@ -147,9 +152,12 @@ def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tupl
 def departure_time(parameters, x0, v0, load):
     """Time [s] from the gap x0 = h0 - R [m] and v0 [m/s] in contact to the first upward crossing of h = R; inf if none.
 
-    parameters: (m, k, b, R, g) (Ball.parameters); load: m g - F_ext [N] (physics.load_value). Plain
-    floats, so that the compiled phase machine runs this very search.
+    parameters: Ball.parameters; load: m g - F_ext [N] (physics.load_value). Plain floats, so that the
+    compiled phase machine runs this very search. A rigid ball resting on R leaves it at once where
+    F_ext lifts it (load < 0), else never.
     """
+    if parameters[5] == RIGID:
+        return math.inf if load >= 0.0 else 0.0
     m, k, b = parameters[0], parameters[1], parameters[2]
     sigma, w2 = b / (2.0 * m), k / m
     d, g_eff = load / k, load / m
@@ -218,6 +226,8 @@ def departure_speed(parameters, x0, v0, tau, load):
     """
     if conserved_speed(parameters, 1, x0, v0):
         return -v0
+    if parameters[5] == RIGID:
+        return max(v0, 0.0)
     m, k, b = parameters[0], parameters[1], parameters[2]
     return max(contact_gap_flow(b / (2.0 * m), k / m, load / m, x0, v0, tau)[1], 0.0)
 

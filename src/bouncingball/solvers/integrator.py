@@ -167,7 +167,7 @@ class BallIntegrator(IntegratorView):
             # of an earlier target reached): CVODE would continue another trajectory, so it restarts at
             # the state itself, which continues within the tolerance, with the error carried to t (the
             # restart point's alone left out the phase from it to t: 0.37 of the estimate, in a flight).
-            self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, reached, 0.0)
+            self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, reached, 0.0, 1.0)
             self._restart_at((t, x, v, mode), F_ext, counts, t_start, errors=self._errors())
             return
         # The counters as they were: CVODE's step history is the original's.
@@ -249,7 +249,7 @@ class BallIntegrator(IntegratorView):
     def _integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
         t_end, state = float(grid[-1]), self._state
         check_resolvable(self.ball, t_end)
-        self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0)
+        self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0, 1.0)
         points, events = np.empty((256, 4)), np.empty((16, 3))
         points[0] = state[layout.T], state[layout.X], state[layout.V], state[layout.MODE]
         n_points, n_events = 1, 0
@@ -265,7 +265,7 @@ class BallIntegrator(IntegratorView):
             if status != machine.RETURNED:
                 raise self._machine_failure(status)
         rest = state[[layout.REST_T, layout.REST_X, layout.REST_V]]
-        self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0)
+        self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0, 1.0)
         state[[layout.REST_T, layout.REST_X, layout.REST_V]] = rest  # a rest goes on
         self._warn_if_untrusted(whole=True)
         points = points[:n_points]

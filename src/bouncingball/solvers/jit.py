@@ -26,7 +26,7 @@ interpreted. A function so reached:
    max, float, int, range, ...). numba freezes a global number into the code it compiles: changing
    it at run time (a monkeypatch) reaches the interpreted engine, not the compiled one.
 3. Takes and returns floats, ints, bools, tuples of them and numpy arrays: no Python object (a Ball,
-   a Mode, a settings dataclass); the ball travels as the tuple (m, k, b, R, g). The one exception
+   a Mode, a settings dataclass); the ball travels as the tuple Ball.parameters. The one exception
    is the module ``math`` or ``numpy`` as an argument (``xp``), for code written once for floats and
    arrays; an argument's attributes are an array's (shape, ctypes, ...) or that module's functions.
 4. Uses nothing numba cannot compile: no keyword-only or variadic parameters (``*args``,

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from ..physics import gap_flow_value
+from ..physics import RIGID, law_flow_value, rigid_rebound
 from ..rounding import later
 from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, engine_exceeded, engine_start, engine_steps
@@ -122,12 +122,13 @@ def restart_needed(state):
     state[RS_RHS_CALLS], state[RS_STEPS] = state[RHS_CALLS], state[STEPS]
 
 
-def phase_ends(parameters, rtol, atol, state, jump):
+def phase_ends(parameters, rtol, atol, state, jump, reflection):
     """The phase from the restart point ends at the state: its error is carried, and CVODE restarts there.
 
-    error_estimate.carry_error, with jump [1/s] the field's there; then restart_needed.
+    error_estimate.carry_error, with its saltation matrix's jump [1/s] and reflection there (0.0 and 1.0
+    where the state and the field go on unchanged); then restart_needed.
     """
-    carry_error(parameters, rtol, atol, state, jump)
+    carry_error(parameters, rtol, atol, state, jump, reflection)
     restart_needed(state)
 
 
@@ -163,8 +164,8 @@ def _finish_by_taylor(parameters, state, t_target):
 
 def _rest_state(parameters, state, t):
     """The state at t on the rest that began at REST_*, on the contact's exact flow."""
-    state[X], state[V] = gap_flow_value(CONTACT, state[REST_X], state[REST_V], t - state[REST_T], state[LOAD],
-                                        parameters[0], parameters[1], parameters[2])
+    state[X], state[V] = law_flow_value(parameters, CONTACT, state[REST_X], state[REST_V], t - state[REST_T],
+                                        state[LOAD])
     state[T], state[T_LOW] = t, 0.0
 
 
@@ -172,13 +173,12 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
                step_budget):
     """Integrate from the state to t_end phase by phase; (status, points, n_points, events, n_events).
 
-    parameters: (m, k, b, R, g); atol 0 for none; state: new_state's array after restart_needed,
+    parameters: Ball.parameters; atol 0 for none; state: new_state's array after restart_needed,
     updated in place; points (n, 4: t, x, v, mode) and events (n, 3: t, kind, v) hold n_points and
     n_events rows so far and are returned grown where they filled up; scratch (n, 3) is the engine's
     buffer of step ends. status: DONE at t_end, RETURNED after step_budget steps, or a failure
     (state[FAIL_T], state[FAIL_X] and state[FAIL_FLAG] say where and CVODE's flag).
     """
-    m, k, b = parameters[0], parameters[1], parameters[2]
     steps_at_entry = state[STEPS]
     while True:
         t, mode = state[T], int(state[MODE])
@@ -189,7 +189,7 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
             if state[PEND_T] <= t_end:
                 events, n_events = _take_event(parameters, rtol, atol, state, events, n_events)
             else:
-                state[X], state[V] = gap_flow_value(mode, state[X], state[V], t_end - t, state[LOAD], m, k, b)
+                state[X], state[V] = law_flow_value(parameters, mode, state[X], state[V], t_end - t, state[LOAD])
                 state[T], state[T_LOW] = t_end, 0.0
             points, n_points = _record(points, n_points, state[T], state[X], state[V], mode)
             continue
@@ -336,13 +336,34 @@ def _take_event(parameters, rtol, atol, state, events, n_events):
         events = _grown(events)
     kind = IMPACT if int(state[MODE]) == FLIGHT else DEPARTURE
     events[n_events, 0], events[n_events, 1], events[n_events, 2] = state[T], kind, state[V]
+    if kind == IMPACT and parameters[5] == RIGID:
+        _bounce(parameters, rtol, atol, state)
+        return events, n_events + 1
     damping = parameters[2] / parameters[0]
     if kind == IMPACT:
         state[MODE], state[IMPACTS], state[LAST_IMPACT] = CONTACT, state[IMPACTS] + 1.0, state[T]
     else:
         state[MODE], state[DEPARTURES] = FLIGHT, state[DEPARTURES] + 1.0
-    phase_ends(parameters, rtol, atol, state, -damping if kind == IMPACT else damping)
+    phase_ends(parameters, rtol, atol, state, -damping if kind == IMPACT else damping, 1.0)
     return events, n_events + 1
+
+
+def _bounce(parameters, rtol, atol, state):
+    """A rigid impact at the state (on R, at v < 0): the ball flies on at -e v, or stays on R (physics.rigid_rebound).
+
+    Where it stays after bounces summed as their series, its rest starts at the Zeno time, after the
+    state's time; between them the ball is taken on R (the bounces there are lower than ZENO_APEX R).
+    """
+    v_impact = state[V]
+    v_after, zeno = rigid_rebound(parameters, v_impact, state[LOAD])
+    e = parameters[6] if v_after > 0.0 else 0.0  # on R at rest no error of x or v is left
+    jump = -(1.0 + e) * (state[LOAD] / parameters[0]) / v_impact if v_after > 0.0 else 0.0
+    carry_error(parameters, rtol, atol, state, jump, -e)  # the error of the state before the impact
+    state[IMPACTS], state[LAST_IMPACT], state[V] = state[IMPACTS] + 1.0, state[T], v_after
+    state[MODE] = FLIGHT if v_after > 0.0 else CONTACT
+    restart_needed(state)
+    if zeno > 0.0:
+        state[REST_T], state[REST_X], state[REST_V] = later(state[T], state[T_LOW], zeno)[0], 0.0, 0.0
 
 
 def _record(points, n_points, t, x, v, mode):

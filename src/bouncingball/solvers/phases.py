@@ -5,8 +5,8 @@ to its end. Around CVODE, these decide how: the scales it integrates relative to
 whether CVODE takes it at all (decide_phase: a rest, taken on the exact flow, or a phase in closed
 form instead, its event from the exact flow), where exactly the event CVODE located lies
 (polish_event), and how far a step end may stray to the other side of R before an event was
-missed (side_margin). The arguments are the ball's parameters (m, k, b, R, g) (Ball.parameters),
-the mode (0 flight, 1 contact), the gap x = h - R [m], v [m/s], the load m g - F_ext [N]
+missed (side_margin). The arguments are the ball's parameters (Ball.parameters: m, k, b, R, g, the
+contact law's code, e, v_min), the mode (0 flight, 1 contact), the gap x = h - R [m], v [m/s], the load m g - F_ext [N]
 (physics.load_value), the hop tolerance [m] (settings.hop_tolerance) and rtol.
 
 Every function here takes and returns floats only, so solvers/machine.py runs them as they are
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 
-from ..physics import conserved_speed, gap_acceleration, gap_flow_value, rest_margin_value
+from ..physics import RIGID, conserved_speed, gap_acceleration, gap_flow_value, rest_margin_value
 from ..rounding import hypot
 from .exact import departure_speed, departure_time, time_to_impact
 from .settings import HOP_RESOLUTION
@@ -41,9 +41,12 @@ def phase_scales(parameters, mode, x, v, load):
     CVODE integrates x / length and v / speed, so its error is rtol times the phase's own size: a
     1.6e-9 m hop or a contact deflecting the ball by 1e-9 R after a 100 m fall are resolved as well
     as the article's bounce.
-    A flight that never comes down is scaled by its height (at least R).
+    A flight that never comes down is scaled by its height (at least R). A rigid ball resting on R
+    (its contact) is scaled by R, at rest.
     """
-    m, k, b, R, g = parameters
+    m, k, R = parameters[0], parameters[1], parameters[3]
+    if mode != FLIGHT and parameters[5] == RIGID:
+        return R, 0.0
     if mode == FLIGHT:
         g_eff = load / m
         if g_eff > 0.0:
@@ -115,6 +118,10 @@ def decide_phase(parameters, mode, x, v, load, hop, rtol):
             return BY_CVODE, 0.0, 0.0
         tau, v_impact = flight_impact(parameters, x, v, load)
         return IN_CLOSED_FORM, tau, v_impact
+    if parameters[5] == RIGID:  # a rigid ball resting on R: it stays, or F_ext lifts it at once
+        tau = departure_time(parameters, x, v, load)
+        return (REST, 0.0, 0.0) if math.isinf(tau) else (IN_CLOSED_FORM, tau, departure_speed(parameters, x, v, tau,
+                                                                                                  load))
     m, k, b = parameters[0], parameters[1], parameters[2]
     d = load / k
     if d > 0.0 and rest_margin_value(x, v, d, hop, k / m) > 0.0:
@@ -154,7 +161,7 @@ def polish_event(parameters, mode, load, length, tau_before, tau_root, x_root, v
     not CVODE's: each bounce's small error would otherwise add up to an energy drift, and the drift
     to an error of the bounces' times growing with the square of their count.
     """
-    m, k, b, R, g = parameters
+    m, k, b = parameters[0], parameters[1], parameters[2]
     tau, x, v = 0.0, x_root, v_root
     for _ in range(8):
         if x == 0.0 or v == 0.0:
@@ -186,7 +193,7 @@ def on_wrong_side(mode, x, margin):
 
 def taylor_step(parameters, mode, x, v, load, dt):
     """(x, v) after dt [s] by a second-order Taylor step: where dt is a few ulps of t, too short for CVODE."""
-    m, k, b, R, g = parameters
+    m, k, b = parameters[0], parameters[1], parameters[2]
     a = gap_acceleration(x, v, mode, load, m, k, b)
     return x + dt * (v + 0.5 * dt * a), v + dt * a
 

@@ -99,10 +99,11 @@ def hop_tolerance(ball: Ball, rtol: float = DEFAULT_RTOL, atol: float | None = D
     deflection d, so a hop rising less than HOP_RESOLUTION rtol d above R cannot be told from that
     error: a contact that cannot lift the ball higher is taken as a rest, and a flight lower than
     that is taken in closed form. An undamped contact never comes to rest (its energy is kept), and
-    neither does a lifted one (d <= 0): there the rule is 0, every hop is integrated.
+    neither does a lifted one (d <= 0): there the rule is 0, every hop is integrated. A rigid ball has
+    no contact to merge a hop into: 0 (its bounces too low to tell are summed, physics.rigid_rebound).
     """
     d = ball.static_deflection(F_ext)
-    if ball.b == 0.0 or not d > 0.0:
+    if ball.rigid or ball.b == 0.0 or not d > 0.0:
         return 0.0
     tolerance = HOP_RESOLUTION * rtol * d
     return tolerance if atol is None else min(tolerance, HOP_RESOLUTION * atol)

@@ -156,7 +156,7 @@ class IntegratorView:
             # the range double precision resolves from the current state (simulate checks it from the start)
             limits.check_scene(self.ball, self.h, self.v, value, self.t)
             # the phase at the old load ends here: its error carried into the next one
-            self._machine.phase_ends(self.ball.parameters, self.settings.rtol, self._atol, self._state, 0.0)
+            self._machine.phase_ends(self.ball.parameters, self.settings.rtol, self._atol, self._state, 0.0, 1.0)
             self._F_ext = value
             self._sync_F_ext()
 
@@ -171,18 +171,23 @@ class IntegratorView:
     def contact_force(self) -> float:
         """Force of the ground on the ball [N] at t, positive upwards; zero in flight."""
         x, v = float(self._state[layout.X]), float(self._state[layout.V])
+        if self.ball.rigid:
+            return self.ball.contact_force(self.ball.R + x, v, self.mode, self._F_ext)
         return 0.0 if self.mode == Mode.FLIGHT else -self.ball.k * x - self.ball.b * v
 
     @property
     def rest_time(self) -> float | None:
         """Start of the current contact if it can never again lift the ball above R + hop_tolerance, else None.
 
-        F_ext is taken as held constant from now on.
+        F_ext is taken as held constant from now on. A rigid ball's rest starts at the Zeno time where
+        its last bounces were summed (physics.rigid_rebound).
         """
         x, v = float(self._state[layout.X]), float(self._state[layout.V])
-        if decide_phase(self._parameters, self.mode, x, v, self._load, self._hop, self.settings.rtol)[0] == REST:
-            return self._last_impact_time if self._last_impact_time is not None else self._t_start
-        return None
+        if decide_phase(self._parameters, self.mode, x, v, self._load, self._hop, self.settings.rtol)[0] != REST:
+            return None
+        start = self._last_impact_time if self._last_impact_time is not None else self._t_start
+        rest = float(self._state[layout.REST_T])
+        return max(start, rest) if self.ball.rigid and not math.isnan(rest) else start
 
     @property
     def _last_impact_time(self) -> float | None:
