@@ -6,8 +6,8 @@ whether CVODE takes it at all (decide_phase: a rest, taken on the exact flow, or
 form instead, its event from the exact flow), where exactly the event CVODE located lies
 (polish_event), and how far a step end may stray to the other side of R before an event was
 missed (side_margin). The arguments are the ball's parameters (Ball.parameters: m, k, b, R, g, the
-contact law's code, e, v_min), the mode (0 flight, 1 contact), the gap x = h - R [m], v [m/s], the load m g - F_ext [N]
-(physics.load_value), the hop tolerance [m] (settings.hop_tolerance) and rtol.
+contact law's code, e, v_min), the mode (0 flight, 1 contact), the gap x = h - R [m], v [m/s], the
+load m g - F_ext [N] (physics.load_value), the hop tolerance [m] (settings.hop_tolerance) and rtol.
 
 Every function here takes and returns floats only, so solvers/machine.py runs them as they are
 (the scikit-sundae engine) and the compiled engine compiles the very same source with numba,
