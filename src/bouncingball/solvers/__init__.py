@@ -99,9 +99,6 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     if solver == "cvode":
         from .cvode import simulate_cvode as run
     elif solver == "scipy":
-        if ball.contact != "linear":  # its terminal events switch between the linear law's two modes
-            raise ValueError(f"solver = 'scipy' is not allowed with contact = {ball.contact!r}: the reference "
-                             "article's algorithm models the linear contact law only; use cvode or exact")
         try:
             from .scipy_ref import simulate_scipy as run
         except ImportError as error:  # scipy is an optional extra

@@ -28,8 +28,11 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     piece of constant force (solve_ivp restarts at each change, the state continuous, the mode held).
     A run that reports more than max_events events stops there
     (explicit methods chatter through false events on stiff scenes). progress: called with the time
-    reached [s] at each restart, for a progress display.
+    reached [s] at each restart, for a progress display. The linear contact law only (ValueError else).
     """
+    if ball.contact != "linear":  # its terminal events switch between the linear law's two modes
+        raise ValueError(f"solver = 'scipy' is not allowed with contact = {ball.contact!r}: the reference "
+                         "article's algorithm models the linear contact law only; use cvode or exact")
     method = validation.choice("method", method, METHODS)
     rtol = validation.in_range("rtol", rtol, 0.0, 1.0)
     atol = validation.positive("atol", atol)
