@@ -364,17 +364,18 @@ if sys.argv[1] == "hidden":
     run.hide_dask_sync_cancel_bug()
 runner = LoopRunner(asynchronous=False)
 runner.start()
-runner.loop.add_callback(time.sleep, 0.5)  # the loop busy: sync()'s coroutine has not started at Ctrl-C
+runner.loop.add_callback(time.sleep, 2.0)  # the loop busy: sync()'s coroutine has not started at Ctrl-C
 threading.Timer(0.1, os.kill, (os.getpid(), signal.SIGINT)).start()
 try:
     sync(runner.loop, asyncio.sleep, 0)
 except KeyboardInterrupt:
     print("interrupted")
-time.sleep(0.6)  # the loop runs sync()'s cancel
+time.sleep(2.5)  # the loop runs sync()'s cancel
 runner.stop()
 """
 
 
+@pytest.mark.slow
 def test_ctrl_c_inside_dask_sync_logs_no_name_error_with_the_filter():
     """distributed's sync() logs a NameError when Ctrl-C comes before its coroutine starts; the filter drops it."""
     def run(mode):
