@@ -141,9 +141,13 @@ class Ball:
 
     # --- equations of motion ---------------------------------------------------------------
     def acceleration(self, h: float, v: float, mode: Mode, F_ext: float = 0.0) -> float:
-        """dv/dt [m/s2] in the given mode (0 for a rigid ball resting on R)."""
+        """dv/dt [m/s2] in the given mode.
+
+        A rigid ball resting on R: 0 while the ground carries its load, (F_ext - m g)/m where F_ext lifts it
+        (contact_force is then 0).
+        """
         if self.rigid and mode == Mode.CONTACT:
-            return 0.0
+            return max(-load_value(F_ext, self.m, self.g), 0.0) / self.m
         return mode_acceleration(h, v, mode, F_ext, self.m, self.k, self.b, self.R, self.g)
 
     def jacobian(self, mode: Mode) -> np.ndarray:
@@ -273,12 +277,17 @@ def rigid_rebound(parameters, v_impact, load):
     take zeno = 2 v / (g_eff (1 - e)) [s] in all (v = -e v_impact, g_eff = load / m), after which the
     ball rests on R: the Zeno time is the impact's time + zeno. zeno is 0 where none are summed.
     """
-    R, e, v_min = parameters[3], parameters[6], parameters[7]
+    return rigid_rebound_above(parameters, v_impact, load, ZENO_APEX * parameters[3])
+
+
+def rigid_rebound_above(parameters, v_impact, load, apex_floor):
+    """rigid_rebound, with the bounces that rise less than apex_floor [m] (rather than ZENO_APEX R) summed."""
+    e, v_min = parameters[6], parameters[7]
     v_after = -e * v_impact
     if v_after < v_min:
         return 0.0, 0.0
     g_eff = load / parameters[0]
-    if g_eff > 0.0 and e < 1.0 and v_after * v_after <= 2.0 * g_eff * (ZENO_APEX * R):
+    if g_eff > 0.0 and e < 1.0 and v_after * v_after <= 2.0 * g_eff * apex_floor:
         return 0.0, 2.0 * v_after / (g_eff * (1.0 - e))
     return v_after, 0.0
 

@@ -164,6 +164,8 @@ class IntegratorView:
     def acceleration(self) -> float:
         """dv/dt [m/s2] at t in the current mode."""
         ball, state = self.ball, self._state
+        if ball.rigid:
+            return ball.acceleration(ball.R + float(state[layout.X]), float(state[layout.V]), self.mode, self._F_ext)
         return gap_acceleration(float(state[layout.X]), float(state[layout.V]), self.mode, self._load, ball.m,
                                 ball.k, ball.b)
 
