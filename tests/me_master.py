@@ -6,7 +6,8 @@ its event indicators as root functions, absolute tolerances the states' nominals
 tolerance, read once at the start. At a root it enters event mode, iterates fmi3UpdateDiscreteStates
 and re-initialises CVODE only where the FMU reported valuesOfContinuousStatesChanged or
 nominalsOfContinuousStatesChanged; otherwise CVODE carries on from its own internal step, past the
-root, as such a master does. `restart="always"` re-initialises after every event instead (as FMPy does).
+root, as such a master does. After each step without a root it calls fmi3CompletedIntegratorStep, and
+enters event mode where the FMU asks for it. `restart="always"` re-initialises after every event instead (as FMPy does).
 
     python tests/me_master.py UNZIPPED_FMU [RTOL] [always]   prints t, h, impacts at the last point
 """
@@ -33,10 +34,11 @@ class MasterRun:
     nominals: list[tuple[float, ...]] = field(default_factory=list)  # at the start and after each event
     nominals_changed_between_events: int = 0  # steps after which the nominals differed without an event
     log: list[tuple[int, str]] = field(default_factory=list)
+    step_events: int = 0  # events the FMU asked for in fmi3CompletedIntegratorStep
 
 
 def run(unzipped: Path, t_end: float = 8.0, output_interval: float = 0.01, rtol: float = 1e-8,
-        restart: str = "when told", start_values: dict[str, float] | None = None) -> MasterRun:
+        restart: str = "when told", start_values: dict[str, float | str] | None = None) -> MasterRun:
     """Simulate the unzipped FMI 3.0 FMU in model exchange to t_end; restart "when told" or "always"."""
     from fmpy import read_model_description
     from fmpy.fmi3 import FMU3Model
@@ -54,7 +56,10 @@ def run(unzipped: Path, t_end: float = 8.0, output_interval: float = 0.01, rtol:
     px, pdx, pz, pn = (a.ctypes.data_as(pointer) for a in (x, dx, z, nominals))
 
     for name, value in (start_values or {}).items():
-        fmu.setFloat64([references[name]], [value])
+        if isinstance(value, str):
+            fmu.setString([references[name]], [value])
+        else:
+            fmu.setFloat64([references[name]], [value])
     fmu.enterInitializationMode(tolerance=rtol, startTime=0.0, stopTime=t_end)
     fmu.exitInitializationMode()
     update_discrete_states(fmu)
@@ -85,7 +90,7 @@ def run(unzipped: Path, t_end: float = 8.0, output_interval: float = 0.01, rtol:
     solver.init_step(0.0, x.copy())
     grid = np.linspace(0.0, t_end, round(t_end / output_interval) + 1)
     outputs = [references["h"], references["impacts"]]
-    rows, events, restarts, t = [], [], 0, 0.0
+    rows, events, restarts, t, step_events = [], [], 0, 0.0, 0
 
     def record():
         rows.append((fmu.getFloat64([outputs[0]])[0], fmu.getInt32([outputs[1]])[0]))
@@ -100,10 +105,12 @@ def run(unzipped: Path, t_end: float = 8.0, output_interval: float = 0.01, rtol:
             fmu.setTime(t)
             fmu.setContinuousStates(px, n_x)
             if result.status != 2:  # 2: CVODE returned at a root
-                fmu.completedIntegratorStep(noSetFMUStatePriorToCurrentPoint=True)
-                fmu.getNominalsOfContinuousStates(pn, n_x)
-                changed_between_events += tuple(nominals) != seen[-1]
-                continue
+                step_event, _ = fmu.completedIntegratorStep(noSetFMUStatePriorToCurrentPoint=True)
+                if not step_event:  # the FMU asks for event mode where the step went past an event unseen
+                    fmu.getNominalsOfContinuousStates(pn, n_x)
+                    changed_between_events += tuple(nominals) != seen[-1]
+                    continue
+                step_events += 1
             fmu.enterEventMode()
             values_changed, nominals_changed = update_discrete_states(fmu)
             fmu.enterContinuousTimeMode()
@@ -118,7 +125,7 @@ def run(unzipped: Path, t_end: float = 8.0, output_interval: float = 0.01, rtol:
     fmu.terminate()
     fmu.freeInstance()
     h, impacts = (np.array(column) for column in zip(*rows, strict=True))
-    return MasterRun(grid, h, impacts, restarts, events, seen, changed_between_events, log)
+    return MasterRun(grid, h, impacts, restarts, events, seen, changed_between_events, log, step_events)
 
 
 def update_discrete_states(fmu) -> tuple[bool, bool]:

@@ -255,11 +255,11 @@ def test_the_validate_sample_on_the_fmu_page_is_what_validate_computes():
 
 def _range_of(variable) -> str | set[str]:
     """A variable's range as the page writes it: FMI's inclusive min of the smallest double is "> 0"."""
-    from bouncingball.fmu.variables import SMALLEST_POSITIVE
+    from bouncingball.fmu.variables import FMU_CONTACT_LAWS, SMALLEST_POSITIVE
     from bouncingball.solvers.settings import ENGINES, METHODS
 
-    if variable.name in ("method", "engine"):
-        return set(METHODS if variable.name == "method" else ENGINES)
+    if variable.name in ("method", "engine", "contact_law"):
+        return set({"method": METHODS, "engine": ENGINES, "contact_law": FMU_CONTACT_LAWS}[variable.name])
     if variable.max is not None:
         return f"[{variable.min:g}, {variable.max:g}]"
     if variable.min is None:

@@ -142,16 +142,21 @@ def test_a_scene_file_chooses_the_rigid_law_and_run_reports_its_bounces(tmp_path
     assert f"at rest from t = {float(truth.rest_time):.12g} s" in out
 
 
-def test_the_fmu_checks_refuse_a_rigid_scene_by_name(tmp_path):
-    """The FMU has the linear law only: judging a master's file against a rigid scene is refused before any work."""
+def test_check_judges_a_file_against_a_rigid_scene_file(tmp_path):
+    """A CSV of the truth's heights passes against the rigid scene file, and fails against its linear twin."""
     from bouncingball.testing import check_result
 
     scene = tmp_path / "reference.toml"
     scene.write_text(REFERENCE_SCENE)
+    t = (np.arange(3001) * 1e-3).tolist()
+    h = RigidTruth(R, G, 0.7, 0.1, 1.06, 0.0, 3.0).heights(t)
     result = tmp_path / "result.csv"
-    result.write_text('"time","h"\n0.0,1.06\n0.001,1.0599951\n')
-    with pytest.raises(ValueError, match="has contact = 'rigid': the FMU models the linear contact law only"):
-        check_result(result, scene)
+    result.write_text('"time","h"\n' + "".join(f"{ti!r},{hi!r}\n" for ti, hi in zip(t, h, strict=True)))
+    passed = check_result(result, scene)
+    assert passed.passed and passed.max_height_error <= 1e-12
+    linear = tmp_path / "linear.toml"
+    linear.write_text(REFERENCE_SCENE.replace('contact = "rigid"\n', ""))
+    assert not check_result(result, linear).passed
 
 
 def test_the_article_algorithm_refuses_the_rigid_law_by_name():

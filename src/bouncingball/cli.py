@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import difflib
 import os
 import sys
@@ -12,6 +13,7 @@ from collections.abc import Sequence
 
 from . import SOLVERS, AccuracyWarning, __version__
 from .output import STANDARD_OUTPUT
+from .physics import CONTACT_LAWS
 
 EXIT_BAD_INPUT = 2
 EXIT_SOLVER_FAILED = 1
@@ -43,6 +45,12 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--max-step", type=float, help="maximum step size [s] (0: unbounded)")
     run.add_argument("--engine", help="cvode: auto (default), compiled (needs numba: pip install "
                                       "'bouncingball[fast]') or sksundae")
+    run.add_argument("--contact", metavar="LAW", help=f"the contact law: {' or '.join(CONTACT_LAWS)} (default: the "
+                     "scene's; see the README's Contact laws)")
+    run.add_argument("--e", type=float, help="the rigid law's coefficient of restitution, in [0, 1] (default: the "
+                     "scene's, 0.7)")
+    run.add_argument("--v-min", type=float, help="the rigid law's speed [m/s] below which a bounce ends on the ground "
+                     "(default: the scene's, 0)")
     run.add_argument("--t-end", type=float, help="end time [s] (default: the scene's)")
     run.add_argument("--output-interval", type=float, help="output interval [s] (default: the scene's)")
     run.add_argument("--output", metavar="CSV", help="write time,h,v to this file (-: to stdout, the summary then "
@@ -154,10 +162,13 @@ def _check_outputs(args: argparse.Namespace) -> None:
 def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
     from .accuracy import accuracy_of_result
     from .output import print_solution_csv, write_events_csv, write_solution_csv
-    from .run_report import first_use_note, plural
+    from .run_report import first_use_note, plural, restitution_line
     from .scenes import load_scene
 
     scene = load_scene(args.scene)
+    law = {name: getattr(args, name) for name in ("contact", "e", "v_min") if getattr(args, name) is not None}
+    if law:
+        scene = dataclasses.replace(scene, ball=dataclasses.replace(scene.ball, **law))
     _check_outputs(args)
     plot_range = None
     if args.plot_range is not None:
@@ -198,6 +209,9 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
     settings = ", ".join(f"{key} {value}" for key, value in result.options.items())
     print(f"  solver      {result.solver}" + (f" ({settings})" if settings else ""))
     _print_events(result, exact, exact_on_grid)
+    restitution = restitution_line(result.events, ball)
+    if restitution:
+        print(f"  restitution {restitution}")
     print(f"  final state h = {result.h[-1]:.12g} m, v = {result.v[-1]:.6g} m/s at t = {result.t[-1]:g} s")
     stats = result.stats
     first_use = first_use_note(stats.first_use_time, stats.engine)

@@ -44,6 +44,31 @@ def event_lines(events: list[Event], shown: int = EVENTS_SHOWN) -> list[str]:
             + [line(len(events) - shown + i + 1, e) for i, e in enumerate(events[-shown:])])
 
 
+def restitution_line(events: list[Event], ball) -> str:
+    """Each bounce's coefficient of restitution, departure over impact speed (first and last EVENTS_SHOWN), or "".
+
+    Under the rigid law it is the law's e at every impact (a bounce that would leave slower than v_min,
+    or below the Zeno resolution, ends on R instead).
+
+    Examples
+    --------
+    >>> from bouncingball import Ball, simulate
+    >>> restitution_line(simulate(Ball(), 2.0, 0.0, 1.0).events, Ball())
+    'departure over impact speed: 0.851 (1 bounce)'
+    """
+    if ball.rigid:
+        impacts = sum(event.kind == "impact" for event in events)
+        return f"e = {ball.e:g} at each impact (the rigid law's), {plural(impacts, 'impact')}" if impacts else ""
+    ratios = [after.velocity / -before.velocity for before, after in zip(events, events[1:], strict=False)
+              if before.kind == "impact" and after.kind == "departure"]
+    if not ratios:
+        return ""
+    shown = [f"{ratio:.3g}" for ratio in ratios]
+    if len(shown) > 2 * EVENTS_SHOWN + 1:
+        shown = [*shown[:EVENTS_SHOWN], "...", *shown[-EVENTS_SHOWN:]]
+    return f"departure over impact speed: {', '.join(shown)} ({plural(len(ratios), 'bounce')})"
+
+
 def hop_limit(result: SimulationResult) -> float:
     """The highest hop [m] the result's solver may merge into the contact: cvode.merged_hop_limit; 0 for the others.
 

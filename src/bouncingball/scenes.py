@@ -12,7 +12,7 @@ from .physics import Ball
 from .solvers.result import DEFAULT_OUTPUT_INTERVAL
 
 BALL_KEYS = ("m", "k", "b", "R", "g")  # the ball's parameters that the FMU shares
-LAW_KEYS = ("contact", "e", "v_min")  # the contact law's (physics.Ball), which the FMU does not have yet
+LAW_KEYS = ("contact", "e", "v_min")  # the contact law's (physics.Ball); the FMU calls contact contact_law
 SCENE_DEFAULTS = {"h0": 2.0, "v0": 0.0, "t_end": 8.0, "output_interval": DEFAULT_OUTPUT_INTERVAL, "F_ext": 0.0}
 ALLOWED_KEYS = ("description", *BALL_KEYS, *LAW_KEYS, *SCENE_DEFAULTS)
 REST = "rest"
@@ -68,14 +68,6 @@ def scene_from_mapping(name: str, values: dict) -> Scene:
     limits.check_scene(ball, h0, v0, F_ext, 0.0, t_end, output_interval)
     return Scene(name=name, description=str(values.get("description", "")), ball=ball, h0=h0, v0=v0, t_end=t_end,
                  output_interval=output_interval, F_ext=F_ext)
-
-
-def fmu_scene(scene: Scene) -> Scene:
-    """The scene, if the FMU can run it: ValueError, naming the law, for a scene of another contact law than linear."""
-    if scene.ball.contact != "linear":
-        raise ValueError(f"scene {scene.name!r} has contact = {scene.ball.contact!r}: the FMU models the linear "
-                         "contact law only; run the scene with `bouncingball run`")
-    return scene
 
 
 def load_scene(name_or_path: str | Path) -> Scene:

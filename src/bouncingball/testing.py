@@ -32,12 +32,20 @@ import numpy as np
 from . import validation
 from .accuracy import event_hops, impact_counts
 from .check_outcome import CheckResult, MergedHops
-from .fmu.variables import SCENE_FIELD_OF_START_VALUE, VARIABLES, start_values_of
+from .fmu.variables import (
+    SCENE_FIELD_OF_START_VALUE,
+    SCENE_OWN_FIELDS,
+    TEXT_START_VALUES,
+    VARIABLES,
+    ball_fields_of,
+    fmu_scene,
+    start_values_of,
+)
 from .input_files import applied_force
 from .physics import Ball, Mode
 from .printed_numbers import Printing
 from .result_files import BadResultError, FileParameter, ResultFile, read_result_csv, read_result_file
-from .scenes import BALL_KEYS, Scene, fmu_scene, load_scene
+from .scenes import BALL_KEYS, Scene, load_scene
 from .solvers.exact import ExactSolution
 from .solvers.forcing import ForceTable
 from .solvers.result import IMPACT
@@ -51,14 +59,15 @@ IMPACT_TIE = 1e-6  # s: a point this close to an impact may count it or not
 START_SLACK = 1e-9  # relative: how far the first row's v and a may be from the start state's before it is said
 # The FMU's start values that set up the run, by the scene field each one sets; the others (rtol,
 # atol, method, engine) are solver settings, which the exact solution has no use for.
-SOLVER_SETTINGS = tuple(v.name for v in VARIABLES if v.causality == "parameter" and v.name not in BALL_KEYS)
+SOLVER_SETTINGS = tuple(v.name for v in VARIABLES
+                        if v.causality == "parameter" and v.name not in SCENE_FIELD_OF_START_VALUE)
 
 
 def scene_with_start_values(scene: Scene | str | Path = "article",
                             start_values: Mapping[str, float | str] | None = None) -> Scene:
     """The scene a master ran, given the start values it set on the FMU.
 
-    The FMU's parameters m, k, b, R, g set the ball, the start values of h and v the initial
+    The FMU's parameters m, k, b, R, g, contact_law, e and v_min set the ball, the start values of h and v the initial
     state, and F_ext (held constant) the external force; rtol, atol, method and engine are accepted and
     ignored (they do not change the exact solution).
 
@@ -96,14 +105,17 @@ def scene_with_start_values(scene: Scene | str | Path = "article",
             allowed = ", ".join((*SCENE_FIELD_OF_START_VALUE, *SOLVER_SETTINGS))
             raise ValueError(f"start value {name!r} is not allowed: the FMU's settable variables are {allowed}")
         field = SCENE_FIELD_OF_START_VALUE[name]
+        if name in TEXT_START_VALUES:
+            values[field] = str(value)
+            continue
         try:
             values[field] = float(value)
         except (TypeError, ValueError):
             raise ValueError(f"start value {name} = {value!r} is not allowed: it must be a number") from None
-    ball = Ball(**{key: values[key] for key in BALL_KEYS})
-    return replace(scene, ball=ball, h0=validation.finite("h", values["h0"], "m"),
-                   v0=validation.finite("v", values["v0"], "m/s"),
-                   F_ext=validation.finite("F_ext", values["F_ext"], "N"))
+    ball = Ball(**ball_fields_of({name: values[field] for name, field in SCENE_FIELD_OF_START_VALUE.items()}))
+    return fmu_scene(replace(scene, ball=ball, h0=validation.finite("h", values["h0"], "m"),
+                             v0=validation.finite("v", values["v0"], "m/s"),
+                             F_ext=validation.finite("F_ext", values["F_ext"], "N")))
 
 
 def check_result(result, scene: Scene | str | Path = "article", start_values: Mapping[str, float | str] | None = None,
@@ -276,8 +288,9 @@ def _conditioning(scene: Scene, force, start_time: float, t_end: float) -> str:
 
 def _setting(scene: Scene, name: str) -> float:
     """The value a run of scene has for the FMU's parameter name (rtol and atol: the FMU's defaults)."""
-    if name in BALL_KEYS:
-        return getattr(scene.ball, name)
+    field = SCENE_FIELD_OF_START_VALUE.get(name)
+    if field is not None and field not in SCENE_OWN_FIELDS:
+        return getattr(scene.ball, field)
     return {"F_ext": scene.F_ext, "rtol": DEFAULT_RTOL, "atol": 0.0}[name]
 
 

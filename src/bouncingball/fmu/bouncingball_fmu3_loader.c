@@ -25,7 +25,8 @@
  *      result as the master passed it: every output is set here first.
  * Built by bouncingball.fmu.build with the macros of bouncingball_fmu_python.h and
  * -DBB_VARIABLE_TYPES="RRI..." (the type of each value reference, FMI 3.0's variables included),
- * -DBB_TIME_REFERENCE=<value reference of time>, -DBB_STATES=2 and -DBB_EVENT_INDICATORS=1.
+ * -DBB_TIME_REFERENCE=<value reference of time>, -DBB_CONTACT_REFERENCE=<value reference of contact>,
+ * -DBB_STATES=2 and -DBB_EVENT_INDICATORS=1.
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
@@ -41,8 +42,9 @@
 
 #include "fmi3Functions.h"
 
-#if !defined(BB_VARIABLE_TYPES) || !defined(BB_TIME_REFERENCE) || !defined(BB_STATES) || !defined(BB_EVENT_INDICATORS)
-#error "define BB_VARIABLE_TYPES, BB_TIME_REFERENCE, BB_STATES and BB_EVENT_INDICATORS"
+#if !defined(BB_VARIABLE_TYPES) || !defined(BB_TIME_REFERENCE) || !defined(BB_CONTACT_REFERENCE) || \
+    !defined(BB_STATES) || !defined(BB_EVENT_INDICATORS) || BB_EVENT_INDICATORS != 1
+#error "define BB_VARIABLE_TYPES, BB_TIME_REFERENCE, BB_CONTACT_REFERENCE, BB_STATES and BB_EVENT_INDICATORS (1)"
 #endif
 
 /* pythonfmu3's functions that are forwarded, loaded once per process (bouncingball_fmu_python.h) */
@@ -710,6 +712,22 @@ fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventI
                  BB_EVENT_INDICATORS);
 }
 
+/* Whether the state the master's integrator reached contradicts the mode: an impact or departure it stepped
+ * over without seeing the event indicator change sign (a bounce shorter than its step). The event indicator
+ * is >= 0 out of contact and <= 0 in it (the rigid law's rest: F_ext/m - g), so its sign against the output
+ * contact tells; the FMU then asks for event mode, where the switch is made. */
+static int missed_event(Instance *c)
+{
+    const fmi3ValueReference contact_reference = BB_CONTACT_REFERENCE;
+    fmi3Boolean contact = fmi3False;
+    fmi3Float64 indicator = 0.0;
+    if (finish(c, inner.GetBoolean(c->inner, &contact_reference, 1, &contact, 1)) > fmi3Warning ||
+        finish(c, inner.GetEventIndicators(c->inner, &indicator, 1)) > fmi3Warning) {
+        return 0;
+    }
+    return contact ? indicator > 0.0 : indicator < 0.0;
+}
+
 fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
                                        fmi3Boolean *enterEventMode, fmi3Boolean *terminateSimulation)
 {
@@ -718,5 +736,10 @@ fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetF
         say(c_, fmi3Error, "fmi3CompletedIntegratorStep: an output argument is NULL");
         return fmi3Error;
     }
-    CALL_TO(c_->state, CompletedIntegratorStep, noSetFMUStatePriorToCurrentPoint, enterEventMode, terminateSimulation);
+    fmi3Status status = finish(c_, inner.CompletedIntegratorStep(c_->inner, noSetFMUStatePriorToCurrentPoint,
+                                                                 enterEventMode, terminateSimulation));
+    if (status <= fmi3Warning && !*enterEventMode && missed_event(c_)) {
+        *enterEventMode = fmi3True;
+    }
+    return finish(c_, status);
 }

@@ -289,6 +289,7 @@ def _fmi3_flags() -> list[str]:
     variables = VARIABLES + FMI3_VARIABLES
     names = [variable.name for variable in variables]
     return [*_variable_flags(variables), f"-DBB_TIME_REFERENCE={names.index('time')}",
+            f"-DBB_CONTACT_REFERENCE={names.index('contact')}",
             f"-DBB_STATES={sum(bool(variable.derivative) for variable in variables)}",
             f"-DBB_EVENT_INDICATORS={names.count(EVENT_INDICATOR)}"]
 

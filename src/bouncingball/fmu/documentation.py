@@ -167,7 +167,14 @@ contact, and the ground pushes it back through a spring of stiffness k and a dam
 k (R - h) - b v in contact and 0 in flight. A contact that can no longer lift the ball above R ends
 at rest, at h = R - (m g - F_ext)/k ({ball.rest_height():.15g} m with the start values below).
 The output <code>impacts</code> counts the impacts since the start, <code>contact</code> is true in
-contact.</p>"""
+contact.</p>
+<p>That is <code>contact_law</code> = linear, the default. With <code>contact_law</code> = rigid the ball
+does not deform (k and b play no part): at each impact on h = R its velocity reverses, v+ = -e v-. A
+bounce that would leave slower than <code>v_min</code> ends at rest on R; with <code>v_min</code> = 0
+the infinitely many bounces before the Zeno time are summed exactly in co-simulation. A resting ball
+leaves R when F_ext exceeds m g. In model exchange an impact is a jump of the state
+(valuesOfContinuousStatesChanged), and a bounce lower than the master can follow (100 rtol R) ends at
+rest.</p>"""
 
 
 def _variables_section(root: ET.Element, fmi3: bool) -> str:

@@ -24,15 +24,15 @@ from dataclasses import fields, replace
 
 from .. import limits, validation
 from ..physics import Ball, Mode
-from ..scenes import BALL_KEYS, SCENE_DEFAULTS
+from ..scenes import SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
 from ..solvers.settings import MIN_RTOL, RTOL_RANGE_WHY
 from ..solvers.sundials_log import SundialsWarning
 from .engine_cache import first_use
-from .variables import SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES
+from .variables import FMU_CONTACT_LAWS, SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES, ball_fields_of
 
-# 6: the restart time's rounding error, model exchange's nominals (5: with the restart point)
-STATE_FORMAT = "bouncingball-fmu-state-6"
+# 7: the contact law's parameters; 6: the restart time's rounding error, model exchange's nominals; 5: the restart point
+STATE_FORMAT = "bouncingball-fmu-state-7"
 DEFAULT_ENGINE = "auto"  # the compiled engine where numba is installed, loaded from the cache the FMU ships
 SETTABLE_AFTER_INITIALISATION = ("F_ext",)
 # Outputs the slave computes: a master may set the start values of h and v (initial="exact"), not these.
@@ -233,7 +233,8 @@ class BallSlave:
         """The ball and CVODE settings from values (default: the current ones); ValueError names a bad value."""
         if values is None:
             values, tolerance = self._values, self._tolerance
-        ball = Ball(**{key: values[key] for key in BALL_KEYS})
+        validation.choice("contact_law", values["contact_law"], FMU_CONTACT_LAWS)
+        ball = Ball(**ball_fields_of(values))
         rtol = values["rtol"]
         if tolerance is not None:  # the master's tolerance may tighten rtol, never loosen it
             rtol = min(CvodeSettings(rtol=rtol).rtol, validation.in_closed_range(

@@ -15,9 +15,9 @@ import numpy as np
 
 from ..accuracy import Accuracy, accuracy_of, accuracy_of_result, exact_on_grid, impact_counts
 from ..capped import FINISHED, Capped, run_capped
-from ..scenes import Scene, fmu_scene, load_scene
+from ..scenes import Scene, load_scene
 from ..solvers import ARTICLE_LABEL
-from .variables import start_values_of
+from .variables import fmu_scene, start_values_of
 
 CVODE_LABEL = "CVODE (in-process)"
 NAME_WIDTH = 31
@@ -102,6 +102,10 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
     skip = {validation.choice("--skip", stage, STAGES) for stage in skip}
     time_cap = validation.positive("--time-cap", time_cap, "s")
     scene = fmu_scene(load_scene(scene_name))
+    if scene.ball.contact != "linear" and "scipy" not in skip:
+        skip.add("scipy")
+        progress("the article's SciPy algorithm is not run: it models the linear contact law, not "
+                 f"{scene.ball.contact}")
     default = DEFAULT_OUTPUTS[fmi_version]
     fmu = Path(fmu) if fmu is not None else default
     if "fmu" not in skip:

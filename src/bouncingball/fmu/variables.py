@@ -54,9 +54,11 @@ VARIABLES = (
     FmuVariable("v", "Real", "output", "continuous", "vertical velocity dh/dt, upwards positive; its start "
                 "value is the initial velocity", "m/s", initial="exact"),
     FmuVariable("a", "Real", "output", "continuous", "vertical acceleration dv/dt", "m/s2"),
-    FmuVariable("contact", "Boolean", "output", "discrete", "true while the ball touches the ground"),
+    FmuVariable("contact", "Boolean", "output", "discrete", "true while the ball touches the ground (contact_law "
+                "rigid: while it rests on it)"),
     FmuVariable("contact_force", "Real", "output", "continuous", "force of the ground on the ball, upwards "
-                "positive (the damper can pull just before departure)", "N"),
+                "positive (contact_law linear: the damper can pull just before departure; rigid: the load of a "
+                "ball resting on the ground, 0 otherwise: an impact's impulse is not a force)", "N"),
     FmuVariable("impacts", "Integer", "output", "discrete", "number of impacts since the start", min=0),
     FmuVariable("F_ext", "Real", "input", "continuous", "external vertical force on the ball, upwards "
                 "positive, held constant over each communication step", "N"),
@@ -77,6 +79,15 @@ VARIABLES = (
                 "from the run's own errors carried by its sensitivity, as of the last impact, departure or change "
                 "of F_ext; above 1e-6 of the height scale the log says from when the run cannot be trusted; -1 in "
                 "model exchange (the master integrates)", "m"),
+    # After the seed's variables, so that theirs keep their value references.
+    FmuVariable("contact_law", "String", "parameter", "fixed", "the contact law: linear (the spring k and damper "
+                "b, the default) or rigid (an instantaneous impact on h = R with restitution e; k and b play no "
+                "part)"),
+    FmuVariable("e", "Real", "parameter", "fixed", "contact_law rigid: coefficient of restitution, v+ = -e v- at "
+                "each impact, in [0, 1]", min=0.0, max=1.0),
+    FmuVariable("v_min", "Real", "parameter", "fixed", "contact_law rigid: a bounce that would leave slower "
+                "than v_min ends at rest on the ground (>= 0; 0: every bounce, the infinitely many before the Zeno "
+                "time summed exactly)", "m/s", 0.0),
 )
 
 
@@ -87,14 +98,33 @@ SOLUTION_OUTPUTS = tuple(name for name in OUTPUTS if name != "error_estimate")
 # A scene and the FMU's start values, name by name: the ball's parameters under their own names, the
 # scene's start state and force as h, v and F_ext. The one mapping of the slave's defaults, validate,
 # the bench and `check` (testing.scene_with_start_values).
-SCENE_FIELD_OF_START_VALUE = {"m": "m", "k": "k", "b": "b", "R": "R", "g": "g", "h": "h0", "v": "v0", "F_ext": "F_ext"}
-SCENE_OWN_FIELDS = ("h0", "v0", "F_ext")  # the others are the ball's
+# The contact laws (physics.CONTACT_LAWS) the FMU runs, in co-simulation and in model exchange (slave3's events).
+FMU_CONTACT_LAWS = ("linear", "rigid")
+
+SCENE_FIELD_OF_START_VALUE = {"m": "m", "k": "k", "b": "b", "R": "R", "g": "g", "contact_law": "contact", "e": "e",
+                              "v_min": "v_min", "h": "h0", "v": "v0", "F_ext": "F_ext"}
+SCENE_OWN_FIELDS = ("h0", "v0", "F_ext")  # the others are the ball's (physics.Ball's fields)
+TEXT_START_VALUES = ("contact_law",)  # the others are numbers
 
 
-def start_values_of(scene) -> dict[str, float]:
+def start_values_of(scene) -> dict[str, float | str]:
     """The FMU's start values that run scene (a scenes.Scene), by SCENE_FIELD_OF_START_VALUE."""
     return {name: getattr(scene if field in SCENE_OWN_FIELDS else scene.ball, field)
             for name, field in SCENE_FIELD_OF_START_VALUE.items()}
+
+
+def fmu_scene(scene):
+    """The scene (a scenes.Scene), if the FMU runs its contact law (FMU_CONTACT_LAWS); else ValueError naming it."""
+    if scene.ball.contact not in FMU_CONTACT_LAWS:
+        raise ValueError(f"scene {scene.name!r} has contact = {scene.ball.contact!r}: the FMU models the contact laws "
+                         f"{', '.join(FMU_CONTACT_LAWS)}; run the scene with `bouncingball run`")
+    return scene
+
+
+def ball_fields_of(start_values) -> dict[str, float | str]:
+    """physics.Ball's keyword arguments from the FMU's start values (a mapping that has all of them)."""
+    return {field: start_values[name] for name, field in SCENE_FIELD_OF_START_VALUE.items()
+            if field not in SCENE_OWN_FIELDS}
 
 # FMI 3.0 only, after the shared table, so that every variable above keeps its value reference: the
 # independent variable, the derivatives of the continuous states h and v (model exchange), and the

@@ -1,0 +1,164 @@
+"""The FMU under contact_law = rigid, against the rigid law's independent mpmath truth (tests/rigid_truth.py).
+
+FMI 2.0 and 3.0 co-simulation run the FMU's own CVODE through the phase machine: held to 1e-9 m, every
+impact time to 1e-11 s. FMI 3.0 model exchange is integrated by the master: held to what the master's
+tolerance allows, with each impact a state jump (valuesOfContinuousStatesChanged), no fall through the
+ground where the master's integrator steps over a bounce, and the Reference-FMUs' ball (h0 = 1 m above
+the ground, e = 0.7) with and without their v_min.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rigid_truth import RigidTruth
+
+sys.path.insert(0, str(Path(__file__).parent))
+from me_master import run as run_me_master  # noqa: E402
+
+fmpy = pytest.importorskip("fmpy")
+
+R, G = 0.06, 9.81
+T_END = 4.0
+HEIGHT_TOLERANCE = 1e-9  # m
+EVENT_TOLERANCE = 1e-11  # s
+# (e, v_min, drop above R [m]): the Reference-FMUs' ball ideal and with their v_min; a livelier one
+CASES = [(0.7, 0.0, 1.0), (0.7, 0.1, 1.0), (0.9, 0.5, 2.0)]
+
+
+def _start_values(e, v_min, drop, engine="sksundae"):
+    return {"contact_law": "rigid", "e": e, "v_min": v_min, "h": R + drop, "engine": engine}
+
+
+def _simulate(fmu, start_values, **options):
+    return fmpy.simulate_fmu(str(fmu), start_values=start_values, stop_time=T_END, output_interval=1e-3,
+                             output=["h", "v", "impacts", "contact", "a", "contact_force"], **options)
+
+
+def _assert_follows_truth(result, truth, height_tolerance, time_slack=1e-9):
+    error = np.max(np.abs(result["h"] - np.array(truth.heights(result["time"]))))
+    assert error <= height_tolerance, error
+    impacts, truth_impacts = int(result["impacts"][-1]), [v for t, v in truth.impacts if t <= T_END]
+    assert 0 < impacts <= len(truth_impacts)
+    # the bounces not taken one by one are summed: each lower than the heights' tolerance
+    assert all(float(v) ** 2 / (2 * G) <= height_tolerance for v in truth_impacts[impacts:])
+    rest = float(truth.rest_time) if truth.rest_time is not None and truth.rest_time <= T_END else np.inf
+    resting = result["time"] >= rest + time_slack
+    assert np.all(result["contact"][resting])
+    # on R from the last impact counted: the bounces after it (summed) stay within the tolerance of R
+    last_impact = float(truth.impacts[impacts - 1][0])
+    assert not np.any(result["contact"][result["time"] < last_impact - time_slack])
+    assert np.all(result["h"][resting] == R) and np.all(result["v"][resting] == 0.0)
+    assert np.all(result["a"][resting] == 0.0) and np.all(result["contact_force"][resting] == G)  # m = 1 kg
+    return error
+
+
+@pytest.mark.parametrize("engine", ["sksundae", "compiled"])
+@pytest.mark.parametrize("e, v_min, drop", CASES)
+def test_fmi2_co_simulation_follows_the_rigid_truth(fmu, e, v_min, drop, engine):
+    truth = RigidTruth(R, G, e, v_min, R + drop, 0.0, T_END)
+    _assert_follows_truth(_simulate(fmu, _start_values(e, v_min, drop, engine)), truth, HEIGHT_TOLERANCE)
+
+
+@pytest.mark.parametrize("e, v_min, drop", CASES)
+def test_fmi3_co_simulation_returns_early_at_each_impact_of_the_rigid_truth(fmu3, e, v_min, drop):
+    truth = RigidTruth(R, G, e, v_min, R + drop, 0.0, T_END)
+    result = _simulate(fmu3, _start_values(e, v_min, drop), early_return_allowed=True)
+    _assert_follows_truth(result, truth, HEIGHT_TOLERANCE)
+    # the early returns are the rows off the 1 ms grid: each at an impact of the truth, in order
+    t = result["time"]
+    early = t[np.abs(t * 1e3 - np.round(t * 1e3)) > 1e-6]
+    impacts = [float(time) for time, _ in truth.impacts[:int(result["impacts"][-1])]]
+    assert len(np.unique(early)) == len(impacts)
+    assert len(early) >= 3
+    assert np.max(np.abs(np.unique(early) - impacts[:len(np.unique(early))])) <= EVENT_TOLERANCE
+
+
+@pytest.mark.parametrize("restart", ["when told", "always"])
+@pytest.mark.parametrize("v_min", [0.0, 0.1])
+@pytest.mark.parametrize("rtol, tolerance", [(1e-4, 2e-3), (1e-6, 3e-5), (1e-8, 5e-7), (1e-10, 5e-9)])
+def test_model_exchange_jumps_at_each_impact_and_never_falls_through(unzipped3, rtol, tolerance, v_min, restart):
+    """The model-exchange master at its tolerance: heights within what it resolves, and the ball ends on R.
+
+    At rtol 1e-4 and 1e-6 with v_min = 0 the master's CVODE steps over a bounce too low for it: the FMU
+    asks for event mode in fmi3CompletedIntegratorStep, where it takes the ball as resting. Without that
+    the ball fell through the ground (10 m below it at 4 s) with every status OK.
+    """
+    truth = RigidTruth(R, G, 0.7, v_min, R + 1.0, 0.0, T_END)
+    run = run_me_master(unzipped3, t_end=T_END, output_interval=1e-3, rtol=rtol, restart=restart,
+                        start_values={"contact_law": "rigid", "e": 0.7, "v_min": v_min, "h": R + 1.0})
+    error = np.max(np.abs(run.h - np.array(truth.heights(run.t))))
+    assert error <= tolerance, error
+    assert run.h[-1] == R and 0 < run.impacts[-1] <= len(truth.impacts)
+    if v_min > 0.0:
+        assert run.impacts[-1] == len(truth.impacts) == 11
+    jumps = [values_changed for _, values_changed, _ in run.events]
+    assert sum(jumps) >= run.impacts[-1] - run.step_events  # every impact the master located is a state jump
+    assert all(nominals for _, values, nominals in run.events if values)
+
+
+def test_fmpy_model_exchange_follows_the_rigid_truth_to_its_tolerance(fmu3):
+    truth = RigidTruth(R, G, 0.7, 0.0, R + 1.0, 0.0, T_END)
+    result = _simulate(fmu3, _start_values(0.7, 0.0, 1.0), fmi_type="ModelExchange", solver="CVode",
+                       relative_tolerance=1e-8)
+    _assert_follows_truth(result, truth, 5e-7, time_slack=1e-3)  # the master locates the low bounces' impacts
+
+
+def test_fmpy_model_exchange_lifts_a_resting_rigid_ball_when_f_ext_exceeds_its_weight(fmu3):
+    """On R at rest until 0.5 s, then F_ext = 2 m g: the ball rises at g from 0.5 s (its indicator F_ext/m - g)."""
+    signal = np.array([(0.0, 0.0), (0.5, 0.0), (0.5, 2.0 * G)], dtype=[("time", float), ("F_ext", float)])
+    result = fmpy.simulate_fmu(str(fmu3), start_values=_start_values(0.7, 0.0, 0.0), stop_time=1.0,
+                               output_interval=1e-3, input=signal, output=["h", "contact"],
+                               fmi_type="ModelExchange", solver="CVode", relative_tolerance=1e-10)
+    rising = np.clip(result["time"] - 0.5, 0.0, None)
+    assert np.max(np.abs(result["h"] - (R + 0.5 * G * rising**2))) <= 1e-8
+    assert np.all(result["contact"][result["time"] < 0.5]) and not np.any(result["contact"][result["time"] > 0.51])
+
+
+@pytest.mark.parametrize("name, value, message", [
+    ("contact_law", "soft", "contact_law = 'soft' is not allowed: it must be one of linear, rigid"),
+    ("e", 1.5, "e = 1.5 is not allowed: it must be in [0, 1]"),
+    ("v_min", -0.1, "v_min = -0.1 m/s is not allowed: it must be finite and >= 0"),
+])
+def test_a_bad_contact_law_parameter_is_refused_at_initialisation_naming_it(fmu, name, value, message):
+    messages = []
+    with pytest.raises(Exception, match="fmi2ExitInitializationMode"):
+        fmpy.simulate_fmu(str(fmu), start_values={"contact_law": "rigid", name: value}, stop_time=0.1,
+                          logger=lambda *args: messages.append(args[-1].decode()), debug_logging=True)
+    assert any(message in line for line in messages), messages
+
+
+def test_check_judges_a_rigid_run_by_its_start_values(fmu):
+    """`check` takes contact_law, e and v_min as start values: the rigid run passes, judged as linear it fails."""
+    from bouncingball.testing import check_result
+
+    values = _start_values(0.7, 0.1, 1.0)
+    result = _simulate(fmu, values)
+    columns = {"time": result["time"], "h": result["h"], "impacts": result["impacts"]}
+    passed = check_result(columns, "article", values)
+    assert passed.passed and passed.impacts_found == passed.impacts_exact == 11
+    assert passed.max_height_error <= HEIGHT_TOLERANCE
+    as_linear = check_result(columns, "article", {"h": R + 1.0})
+    assert not as_linear.passed and as_linear.max_height_error > 0.1
+
+
+def test_run_takes_the_contact_law_from_the_command_line_and_reports_restitution(capsys):
+    """`run --contact rigid --e 0.8`; the linear law's first bounce against the damped oscillator's restitution."""
+    import math
+
+    from bouncingball.cli import main
+
+    assert main(["run", "--contact", "rigid", "--e", "0.8", "--v-min", "0.1", "--t-end", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "rigid contact, e = 0.8, v_min = 0.1 m/s" in out and "restitution e = 0.8 at each impact" in out
+    assert main(["run", "--t-end", "1"]) == 0
+    line = next(line for line in capsys.readouterr().out.splitlines() if "restitution" in line)
+    first = float(line.split(": ")[1].split()[0].rstrip(","))
+    zeta = 10.0 / (2.0 * math.sqrt(1e4))  # the article's ball; gravity changes it by about g / (w v) = 1.6 %
+    assert first == pytest.approx(math.exp(-zeta * math.pi / math.sqrt(1.0 - zeta**2)), rel=0.02)
+    assert main(["run", "--contact", "soft"]) == 2
+    assert "contact = 'soft' is not allowed: it must be one of linear, rigid" in capsys.readouterr().err
