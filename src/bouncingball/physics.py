@@ -17,15 +17,20 @@ from .rounding import product_error
 
 
 class Mode(enum.IntEnum):
-    """The discrete phase, held between events. Under the rigid law, CONTACT is the ball resting on R."""
+    """The discrete phase, held between events. Under the rigid law, CONTACT is the ball resting on R.
+
+    FREE is the no-pull law's second sub-mode below R (CONTACT its pressed one): the contact force
+    would pull, so there is none, and the ball moves on its flight's parabola below R.
+    """
 
     FLIGHT = 0
     CONTACT = 1
+    FREE = 2
 
 
 # The contact laws (Ball.contact) and the codes the phase machine knows them by (Ball.parameters).
-CONTACT_LAWS = ("linear", "rigid")
-LINEAR, RIGID = 0, 1
+CONTACT_LAWS = ("linear", "rigid", "linear-no-pull")
+LINEAR, RIGID, NO_PULL = 0, 1, 2
 
 
 @dataclass(frozen=True)
@@ -43,6 +48,12 @@ class Ball:
     v_min > 0 it stops on R at the first bounce that would leave slower than v_min (the Modelica
     Association's Reference-FMUs BouncingBall). A ball resting on R leaves it when F_ext exceeds m g.
 
+    With contact = "linear-no-pull" the ground never pulls: below R its force is max(0, k (R - h) - b v)
+    (Modelica's ElastoGap). Below R the ball is pressed (Mode.CONTACT: the linear law's spring-damper)
+    while that force is positive, and free (Mode.FREE: the flight's parabola below R) where it would
+    pull; it switches where k (R - h) - b v crosses 0 (a release going free, an engagement pressed again),
+    and a free ball reaching R flies on (a departure). With b = 0 it is the linear law.
+
     Parameters
     ----------
     m : float
@@ -56,7 +67,8 @@ class Ball:
     g : float
         Gravitational acceleration [m/s2], finite and >= 0.
     contact : str
-        The contact law: "linear" (the spring-damper, the default) or "rigid".
+        The contact law: "linear" (the spring-damper, the default), "rigid" or "linear-no-pull" (the
+        spring-damper whose force never pulls).
     e : float
         The rigid law's coefficient of restitution, in [0, 1] (ignored by "linear").
     v_min : float
@@ -106,12 +118,19 @@ class Ball:
         return self.contact == "rigid"
 
     @property
+    def no_pull(self) -> bool:
+        """Whether the contact law is the no-pull one (the spring-damper's force clipped at 0)."""
+        return self.contact == "linear-no-pull"
+
+    @property
     def parameters(self) -> tuple[float, float, float, float, float, float, float, float]:
         """(m, k, b, R, g, law, e, v_min): the ball as plain floats, as the phase machine (solvers/phases.py) takes it.
 
-        law: LINEAR (0) or RIGID (1), the code of the contact law.
+        law: LINEAR (0), RIGID (1) or NO_PULL (2), the code of the contact law. A no-pull ball with b = 0
+        is the linear law's (its force k (R - h) never pulls below R), and has its code: the same run.
         """
-        return self.m, self.k, self.b, self.R, self.g, float(RIGID if self.rigid else LINEAR), self.e, self.v_min
+        law = RIGID if self.rigid else (NO_PULL if self.no_pull and self.b > 0.0 else LINEAR)
+        return self.m, self.k, self.b, self.R, self.g, float(law), self.e, self.v_min
 
     @property
     def natural_frequency(self) -> float:
@@ -148,18 +167,20 @@ class Ball:
         """
         if self.rigid and mode == Mode.CONTACT:
             return max(-load_value(F_ext, self.m, self.g), 0.0) / self.m
+        if self.no_pull and mode == Mode.CONTACT:  # the force clipped at 0, as a state off its sub-mode would have it
+            return (max(self.contact_force(h, v, mode), 0.0) - load_value(F_ext, self.m, self.g)) / self.m
         return mode_acceleration(h, v, mode, F_ext, self.m, self.k, self.b, self.R, self.g)
 
     def jacobian(self, mode: Mode) -> np.ndarray:
         """d(h', v')/d(h, v): constant in each mode."""
-        if mode == Mode.FLIGHT or self.rigid:
+        if mode != Mode.CONTACT or self.rigid:
             return np.array([[0.0, 1.0], [0.0, 0.0]])
         return np.array([[0.0, 1.0], [-self.k / self.m, -self.b / self.m]])
 
     def flow(self, mode: Mode, h0, v0, tau, F_ext: float = 0.0):
         """The exact state (h [m], v [m/s]) a time tau [s] after (h0, v0), the mode and F_ext held.
 
-        Both modes are linear with constant coefficients: a parabola in flight, a damped
+        Both modes are linear with constant coefficients: a parabola in flight (and free below R), a damped
         oscillator about the rest height in contact (a rigid ball resting on R stays there). Arrays allowed
         (broadcast); tau may be < 0.
         """
@@ -178,12 +199,15 @@ class Ball:
         """Force of the ground on the ball [N], positive upwards; zero in flight.
 
         As published, the damper can pull (negative force) just before departure. A rigid ball resting
-        on R carries its load m g - F_ext.
+        on R carries its load m g - F_ext. Under the no-pull law the force is max(0, k (R - h) - b v), and
+        0 in the free sub-mode.
         """
-        if mode == Mode.FLIGHT:
+        if mode != Mode.CONTACT:
             return 0.0
         if self.rigid:
             return max(load_value(F_ext, self.m, self.g), 0.0)
+        if self.no_pull:
+            return max(self.k * (self.R - h) - self.b * v, 0.0)
         return self.k * (self.R - h) - self.b * v
 
     def energy(self, h, v, F_ext: float = 0.0):
@@ -211,10 +235,19 @@ class Ball:
             raise ValueError(f"h0 = {validation.shown(h0)} m is not allowed: under the rigid contact law it must be "
                              f">= R = {validation.shown(self.R)} m (the ball cannot start inside the ground)")
         if h0 < self.R:
-            return Mode.CONTACT
+            return Mode.FREE if self._free_below_R(h0, v0, F_ext) else Mode.CONTACT
         if h0 == self.R and ((v0 < 0.0 and not self.rigid) or (v0 == 0.0 and self.effective_gravity(F_ext) > 0.0)):
             return Mode.CONTACT
         return Mode.FLIGHT
+
+    def _free_below_R(self, h0: float, v0: float, F_ext: float) -> bool:
+        """Under the no-pull law, whether a ball below R starts free: its force would pull, or is 0 and turning so."""
+        parameters = self.parameters
+        if parameters[5] != NO_PULL:
+            return False
+        load = load_value(F_ext, self.m, self.g)
+        z, rate = pressed_gap(parameters, h0 - self.R, v0, load)
+        return z > 0.0 or (z == 0.0 and rate > 0.0)
 
     def contact_is_permanent(self, h: float, v: float, F_ext: float = 0.0, hop_tolerance: float = 0.0) -> bool:
         """True if a ball in contact at (h, v) can never again fly higher than hop_tolerance [m] above R.
@@ -230,9 +263,10 @@ class Ball:
         height, never grows (b >= 0); so y stays within the amplitude A, A^2 = y^2 + v^2/w^2.
         Reaching R (y = d, the static deflection) takes A > d, and the ball leaves at most at
         v^2 = w^2 (A^2 - d^2) to fly v^2 / 2 g_eff = (A^2 - d^2) / 2d above R (g_eff = w^2 d > 0).
-        It only grows in contact, so it is a root function for the start of a rest.
+        It only grows in contact, so it is a root function for the start of a rest. Under the no-pull law
+        the margin is no_pull_rest_margin_value's (the force can never again reach 0).
         """
-        return rest_margin_value(h - self.R, v, self.static_deflection(F_ext), hop_tolerance, self.k / self.m)
+        return law_rest_margin(self.parameters, h - self.R, v, self.static_deflection(F_ext), hop_tolerance)
 
 
 # The equations as functions of plain floats: Ball's methods call them, and the compiled CVODE
@@ -249,7 +283,7 @@ def gap_acceleration(x, v, mode, load, m, k, b):
     would bury its deflection in their round-off. The load, not g - F_ext/m, which rounds
     differently: a ball creeping to a rest height of exactly R felt a residual 2e-15 m/s2.
     """
-    if mode == 0:
+    if mode != 1:  # flight, or free below R under the no-pull law
         return -load / m
     return (-b * v - k * x - load) / m
 
@@ -305,6 +339,49 @@ def conserved_speed(parameters, mode, x_start, v_start):
     return v_start > 0.0 if mode == 0 else (v_start < 0.0 and parameters[2] == 0.0)
 
 
+def pressed_gap(parameters, x, v, load):
+    """(z [m], dz/dt [m/s]) of the pressed no-pull contact at the gap x [m] and v [m/s]: z = x + (b / k) v = -force / k.
+
+    The force k (R - h) - b v = -k z reaches 0 where z crosses 0: going up the ball is released (the
+    force would pull), going down it is pressed again. z obeys the pressed contact's own equation
+    (z'' + 2 sigma z' + w2 z = -g_eff, as x does), so its crossing upwards is the linear law's departure
+    search of (z, dz/dt) (exact.departure_time); in the free sub-mode it moves on the flight's parabola
+    from (z, dz/dt) too, and its crossing downwards is an impact's. dz/dt = v + (b / k) a, with a the
+    pressed contact's acceleration. parameters: Ball.parameters.
+    """
+    m, k, b = parameters[0], parameters[1], parameters[2]
+    c = b / k
+    return x + c * v, v + c * gap_acceleration(x, v, 1, load, m, k, b)
+
+
+def free_gap_rate(parameters, v, load):
+    """dz/dt [m/s] in the free sub-mode at v [m/s]: v - (b / k) g_eff (pressed_gap's z on the parabola)."""
+    return v - (parameters[2] / parameters[1]) * (load / parameters[0])
+
+
+def no_pull_rest_margin_value(x, v, d, hop_tolerance, w2, sigma):
+    """w2^2 (d + hop)^2 - (w2 + 4 sigma^2)(v^2 + w2 y^2) [m2/s4]: positive once a pressed no-pull ball never leaves.
+
+    y = x + d, the deflection from the rest height. The force is k (d - y) - b v, and it reaches 0 where
+    w2 y + 2 sigma v = w2 d; by Cauchy-Schwarz w2 y + 2 sigma v <= sqrt(w2 + 4 sigma^2) sqrt(v^2 + w2 y^2),
+    and the energy v^2 + w2 y^2 never grows in contact (nor in the free sub-mode), so once the margin is
+    positive with hop = 0 the force stays positive for ever. hop [m] (the hop tolerance) lets the force
+    dip to -k hop at most, a pull the run may merge as it merges a hop. Written as
+    w2^2 (hop - x)(2 d + hop + x) - 4 sigma^2 w2 y^2 - (w2 + 4 sigma^2) v^2, which keeps x's digits.
+    """
+    y = x + d
+    return w2 * w2 * ((hop_tolerance - x) * (2.0 * d + hop_tolerance + x)) - 4.0 * sigma * sigma * w2 * (y * y) \
+        - (w2 + 4.0 * sigma * sigma) * (v * v)
+
+
+def law_rest_margin(parameters, x, v, d, hop_tolerance):
+    """The rest margin under the ball's contact law (parameters: Ball.parameters); see rest_margin_value."""
+    m, k = parameters[0], parameters[1]
+    if parameters[5] == NO_PULL:
+        return no_pull_rest_margin_value(x, v, d, hop_tolerance, k / m, parameters[2] / (2.0 * m))
+    return rest_margin_value(x, v, d, hop_tolerance, k / m)
+
+
 def effective_gravity_value(F_ext, m, g):
     """(m g - F_ext)/m [m/s2]; see Ball.effective_gravity and load_value."""
     return load_value(F_ext, m, g) / m
@@ -341,10 +418,11 @@ def rest_margin_value(x, v, d, hop_tolerance, w2):
 def gap_flow_value(mode, x0, v0, tau, load, m, k, b):
     """The exact (x [m], v [m/s]) a time tau [s] after (x0, v0) in mode; load = load_value(F_ext, m, g) [N].
 
-    See Ball.gap_flow. Floats or arrays; compiled by the compiled engine.
+    See Ball.gap_flow. Floats or arrays; compiled by the compiled engine. Mode 2 (free below R under the
+    no-pull law) is the flight's parabola.
     """
     g_eff = load / m
-    if mode == 0:
+    if mode != 1:
         return x0 + tau * (v0 - 0.5 * g_eff * tau), v0 - g_eff * tau
     return contact_gap_flow(b / (2.0 * m), k / m, g_eff, x0, v0, tau)
 

@@ -62,7 +62,7 @@ _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_
 # The parameters (float64) the callbacks read.
 # CVODE integrates x / length and v / speed (x = h - R), the phase's frame set by _engine_start.
 (_P_M, _P_K, _P_B, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
- _P_LENGTH, _P_SPEED, _P_LOAD, _P_SIZE) = range(14)
+ _P_LENGTH, _P_SPEED, _P_LOAD, _P_LAW, _P_SIZE) = range(15)
 
 
 
@@ -190,7 +190,7 @@ def _roots(t, y, gout, user_data):
     state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
     out = carray(gout, 3)
     out[0], out[1], out[2] = _root_values(state[0], state[1], p[_P_MODE], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD],
-                                          p[_P_OWN_SIDE], p[_P_HOP], p[_P_K], p[_P_M])
+                                          p[_P_OWN_SIDE], p[_P_HOP], p[_P_K], p[_P_M], p[_P_B], p[_P_LAW])
     u[_U_EVALUATIONS] += 1
     return 1 if u[_U_EVALUATIONS] > u[_U_MAX_EVALUATIONS] else 0
 
@@ -310,7 +310,7 @@ class PhaseSolver:
     # --- the calls BallIntegrator makes (solvers/stepper.py) ---------------------------------------
     def bind(self, ball) -> None:
         """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
-        self.parameters[[_P_M, _P_K, _P_B]] = ball.m, ball.k, ball.b
+        self.parameters[[_P_M, _P_K, _P_B, _P_LAW]] = ball.m, ball.k, ball.b, ball.parameters[5]
 
     def handle(self) -> np.ndarray:
         """This solver's row of the compiled machine's engine (see _H_*; its CVODE made on first use)."""

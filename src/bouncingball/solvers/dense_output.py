@@ -65,7 +65,7 @@ def interpolate(parameters, load: float, points: np.ndarray, t: np.ndarray) -> t
     j = i + 1
     x = np.empty_like(t)
     v = np.empty_like(t)
-    for mode in (0, 1):
+    for mode in (0, 1, 2):  # 2: the no-pull law's free sub-mode
         sel = modes[i] == mode
         if np.any(sel):
             a, b = i[sel], j[sel]

@@ -32,7 +32,7 @@ from .layout import (
     V,
     X,
 )
-from .phases import FLIGHT, frame
+from .phases import CONTACT, FLIGHT, frame
 from .settings import ERROR_WITHIN_PHASE, ESTIMATE_CAP, ESTIMATE_SAFETY, PROMISE
 
 _EPS = 2.0**-52
@@ -68,6 +68,8 @@ def phase_error(parameters, rtol, atol, state):
     if mode == FLIGHT:
         carried = max(abs(ex0), abs(ex))
         height = max(height, R + length)  # the apex
+    elif mode != CONTACT:  # the no-pull law's free sub-mode below R: x's error, ex0 + tau ev0, is largest at an end
+        carried = max(abs(ex0), abs(ex))
     else:
         carried = max(hypot(ex0, ev0 / math.sqrt(k / m)), abs(ex))
         own += state[HOP]
@@ -105,8 +107,10 @@ def carry_error(parameters, rtol, atol, state, jump, reflection):
     A compliant contact's event keeps the state (reflection 1) and jumps the field: a perturbation dx
     of the state before the event moves the event by -dx/v, over which the acceleration differs by
     (a+ - a-) = -+ b v / m, so jump = -+ b / m [1/s] (0 where the field does not jump): dv after = dv
-    + jump dx, with no 1/v. A rigid impact reverses the velocity, v+ = -e v-: reflection -e and jump
-    -(1 + e) g_eff / v- (physics.rigid_rebound's caller), or both 0 where the ball stays on R.
+    + jump dx, with no 1/v (and 0 at the no-pull law's switches below R, where the force is 0 on either
+    side, and at its departures from the free sub-mode). A rigid impact reverses the velocity, v+ = -e v-:
+    reflection -e and jump -(1 + e) g_eff / v- (physics.rigid_rebound's caller), or both 0 where the ball
+    stays on R.
     """
     ex, ev, bound, height = phase_error(parameters, rtol, atol, state)
     state[SCALE], state[ERR_MAX] = max(state[SCALE], height), max(state[ERR_MAX], bound)

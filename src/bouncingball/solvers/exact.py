@@ -1,7 +1,10 @@
 """The exact piecewise-analytic solution: parabolas in flight, a damped linear oscillator in contact.
 
 Event times are found in closed form (impact) or by a safeguarded Newton iteration inside a
-bracket between extrema of the oscillator (departure), to a few ulps.
+bracket between extrema of the oscillator (departure), to a few ulps. Under the no-pull law the
+pressed contact ends where its force reaches 0 (the release: the same search, of physics.pressed_gap's
+z), and the free sub-mode below R, a parabola, at the first root of a quadratic: x reaching R (a
+departure) or z falling back to 0 (an engagement).
 """
 
 from __future__ import annotations
@@ -13,11 +16,22 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import limits
-from ..physics import RIGID, Ball, Mode, conserved_speed, contact_gap_flow, load_value, rigid_rebound
+from ..physics import (
+    NO_PULL,
+    RIGID,
+    Ball,
+    Mode,
+    conserved_speed,
+    contact_gap_flow,
+    free_gap_rate,
+    load_value,
+    pressed_gap,
+    rigid_rebound,
+)
 from ..rounding import later
 from . import forcing
 from .forcing import ForceTable
-from .result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
+from .result import DEPARTURE, ENGAGE, IMPACT, RELEASE, Event, SimulationResult, SolverStats, output_grid
 
 
 class Phase(NamedTuple):
@@ -64,6 +78,8 @@ class ExactSolution:
                 phase = self.phases[-1]
                 h, v = (float(y) for y in ball.flow(phase.mode, phase.h0, phase.v0, t - phase.t_start, phase.F_ext))
                 mode = phase.mode
+            parameters = ball.parameters
+            contact_start = t  # the last impact (the no-pull law's engagements start no contact), or this piece's start
             while True:
                 if mode == Mode.CONTACT and t > resolvable_until:
                     # contacts too short for the ulps of t: the phases would stop advancing t (it never ended)
@@ -71,23 +87,33 @@ class ExactSolution:
                 self.phases.append(Phase(t, mode, h, v, F_ext))
                 if len(self.phases) >= self._max_phases:
                     return
+                x_next, load = 0.0, load_value(F_ext, ball.m, ball.g)
                 if mode == Mode.FLIGHT:
                     tau, v_next = time_to_impact(h - R, v, ball.effective_gravity(F_ext))
                     kind, next_mode = IMPACT, Mode.CONTACT
+                elif mode == Mode.FREE:  # below R under the no-pull law: on to R, or pressed again
+                    tau, x_next, v_next, departs = free_event(parameters, h - R, v, load)
+                    kind, next_mode = (DEPARTURE, Mode.FLIGHT) if departs else (ENGAGE, Mode.CONTACT)
                 else:
-                    load = load_value(F_ext, ball.m, ball.g)
-                    tau = departure_time(ball.parameters, h - R, v, load)
+                    no_pull = parameters[5] == NO_PULL
+                    tau = (release_time if no_pull else departure_time)(parameters, h - R, v, load)
                     if math.isinf(tau):
                         if last:
-                            self.rest_time = max(t, zeno_end)
+                            self.rest_time = max(contact_start if no_pull else t, zeno_end)
                         break
-                    v_next = departure_speed(ball.parameters, h - R, v, tau, load)
-                    kind, next_mode = DEPARTURE, Mode.FLIGHT
+                    if no_pull:
+                        x_next, v_next = release_state(parameters, h - R, v, tau, load)
+                        kind, next_mode = RELEASE, Mode.FREE
+                    else:
+                        v_next = departure_speed(parameters, h - R, v, tau, load)
+                        kind, next_mode = DEPARTURE, Mode.FLIGHT
                 t_event, t_event_low = later(t, t_low, tau)
                 if not t_event <= piece_end:
                     break
-                t, t_low, h, v, mode = t_event, t_event_low, R, v_next, next_mode
+                t, t_low, h, v, mode = t_event, t_event_low, R + x_next, v_next, next_mode
                 self.events.append(Event(t, kind, v))
+                if kind == IMPACT:
+                    contact_start = t
                 if kind == IMPACT and ball.rigid:  # the bounce: on in flight, or the ball stays on R
                     v, zeno = rigid_rebound(ball.parameters, v, load_value(F_ext, ball.m, ball.g))
                     mode = Mode.FLIGHT if v > 0.0 else Mode.CONTACT
@@ -230,6 +256,58 @@ def departure_speed(parameters, x0, v0, tau, load):
         return max(v0, 0.0)
     m, k, b = parameters[0], parameters[1], parameters[2]
     return max(contact_gap_flow(b / (2.0 * m), k / m, load / m, x0, v0, tau)[1], 0.0)
+
+
+def release_time(parameters, x0, v0, load):
+    """Time [s] from the gap x0 [m] and v0 [m/s] in a pressed no-pull contact to its release; inf if none.
+
+    The release is where the force k (R - h) - b v falls to 0, where physics.pressed_gap's z crosses 0
+    upwards; z obeys the contact's equation as x does, so it is departure_time's search of (z, dz/dt).
+    Arguments as departure_time's.
+    """
+    z, rate = pressed_gap(parameters, x0, v0, load)
+    return departure_time(parameters, z, rate, load)
+
+
+def release_state(parameters, x0, v0, tau, load):
+    """(x [m], v [m/s]) of a pressed no-pull contact from (x0, v0) at its release tau later (release_time): v >= 0.
+
+    The force is 0 there, k x = -b v: below R the ball rises (v >= 0; the flow may round a grazing
+    release's speed below 0).
+    """
+    m, k, b = parameters[0], parameters[1], parameters[2]
+    x, v = contact_gap_flow(b / (2.0 * m), k / m, load / m, x0, v0, tau)
+    return x, max(v, 0.0)
+
+
+def free_event(parameters, x0, v0, load):
+    """(tau [s], x [m], v [m/s], departs): the event ending the free sub-mode from the gap x0 <= 0 [m] at v0 [m/s].
+
+    The ball moves on the flight's parabola (g_eff = load / m). It departs where x reaches 0 going up:
+    tau = -2 x0 / (v0 + s), s = sqrt(v0^2 + 2 g_eff x0), at v = s (no cancellation, as time_to_impact);
+    it is pressed again (engages) where physics.pressed_gap's z, a parabola from (z0, free_gap_rate),
+    falls back to 0: time_to_impact of z. The first of the two; (inf, x0, v0, True) where neither comes
+    (a weightless ball at rest on R). departs: whether it is the departure (x = 0 there exactly).
+    """
+    g_eff = load / parameters[0]
+    z, rate = pressed_gap(parameters, x0, v0, load)[0], free_gap_rate(parameters, v0, load)
+    disc = v0 * v0 + 2.0 * g_eff * x0
+    tau_departure, s = math.inf, 0.0
+    if disc >= 0.0:
+        s = math.sqrt(disc)
+        if v0 + s > 0.0:
+            tau_departure = -2.0 * x0 / (v0 + s)
+    if z <= 0.0 and rate <= 0.0:
+        tau_engage = 0.0  # a grazing release (the force only touched 0): pressed again at once
+    elif z < 0.0 and rate * rate + 2.0 * g_eff * z < 0.0:
+        tau_engage = 0.0  # z an ulp below 0 and turning back before it: the same
+    else:
+        tau_engage = time_to_impact(max(z, 0.0), rate, g_eff)[0]
+    if tau_departure <= tau_engage:
+        return tau_departure, 0.0, s, True
+    if math.isinf(tau_engage):
+        return math.inf, x0, v0, True
+    return tau_engage, x0 + tau_engage * (v0 - 0.5 * g_eff * tau_engage), v0 - g_eff * tau_engage, False
 
 
 def _overdamped_extremum(v0, q, mu):

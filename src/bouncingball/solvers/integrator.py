@@ -35,11 +35,14 @@ from . import engines, layout, machine, stepper
 from . import state as state_checks
 from .dense_output import interpolate
 from .engines import choose_engine
-from .result import DEPARTURE, IMPACT, Event, accuracy_warning
+from .result import DEPARTURE, ENGAGE, IMPACT, RELEASE, Event, accuracy_warning
 from .settings import CvodeSettings, choose_method, too_many_steps_cause
 from .state import IntegratorState, IntegratorView
 from .stepper import SolverError
 
+# The modes CVODE integrates, one solver each: the no-pull law's free sub-mode (Mode.FREE) is a parabola,
+# always taken in closed form (phases.decide_phase).
+_CVODE_MODES = (Mode.FLIGHT, Mode.CONTACT)
 # The value the root function h - R takes at h == R: the mode's own side (see _own_side).
 _OWN_SIDE = 1e-300
 _MAX_STEPS_PER_CALL = 1_000_000
@@ -111,10 +114,10 @@ class BallIntegrator(IntegratorView):
         self._solvers = {mode: stepper.acquire(self.engine, ball, mode, self.methods[mode], s.rtol, s.max_step,
                                                _MAX_STEPS_PER_CALL, _own_side(mode),
                                                _root_directions(mode), MAX_STEPS_PER_PHASE)
-                         for mode in Mode}
+                         for mode in _CVODE_MODES}
         self._machine = stepper.phase_machine(self.engine)
-        self._engine = self._machine.engine([self._solvers[mode] for mode in Mode])
-        self._logs = tuple(self._solvers[mode].log for mode in Mode)  # indexed by the mode's value
+        self._engine = self._machine.engine([self._solvers[mode] for mode in _CVODE_MODES])
+        self._logs = tuple(self._solvers[mode].log for mode in _CVODE_MODES)  # indexed by the mode's value
         # s: the engine's first use in the process (its import, and its first CVODE objects); 0 after
         self.first_use_time = 0.0 if self.engine in loaded else time.perf_counter() - started
         self._parameters, self._atol = ball.parameters, 0.0 if s.atol is None else s.atol
@@ -227,8 +230,9 @@ class BallIntegrator(IntegratorView):
             self._engine, self._parameters, self.settings.rtol, self._atol, self._state, t_target, stop_at_event,
             self._event_rows, 0, self._scratch)
         # Without an event the mode never changed: its solver alone ran (one file to read, not two).
-        self._unreported = (self._logs if n_events or status != machine.DONE
-                            else (self._logs[int(self._state[layout.MODE])],))
+        mode = int(self._state[layout.MODE])
+        self._unreported = (self._logs if n_events or status != machine.DONE or mode >= len(self._logs)
+                            else (self._logs[mode],))
         if status != machine.DONE:
             raise self._machine_failure(status)
         self._warn_if_untrusted(whole=False)
@@ -315,5 +319,5 @@ def _events(rows: np.ndarray, count: int) -> list[Event]:
     """The machine's event rows (t, kind, v) as Events."""
     if count == 0:  # most of an FMU's advances
         return []
-    kinds = (IMPACT, DEPARTURE)
+    kinds = (IMPACT, DEPARTURE, RELEASE, ENGAGE)
     return [Event(t, kinds[int(kind)], v) for t, kind, v in rows[:count].tolist()]  # tolist: Python floats

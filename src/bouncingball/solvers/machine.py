@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from ..physics import RIGID, law_flow_value, rigid_rebound
+from ..physics import NO_PULL, RIGID, law_flow_value, rigid_rebound
 from ..rounding import later
 from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, engine_exceeded, engine_start, engine_steps
@@ -45,9 +45,11 @@ from .layout import (
     NFEV,
     ORIGIN,
     ORIGIN_LOW,
+    PEND_KIND,
     PEND_T,
     PEND_T_LOW,
     PEND_V,
+    PEND_X,
     PENDING,
     REST_T,
     REST_V,
@@ -85,20 +87,25 @@ from .layout import (
 from .phases import (
     BY_CVODE,
     CONTACT,
+    DEPARTURE,
     FLIGHT,
+    FREE,
+    IMPACT,
     IN_CLOSED_FORM,
+    RELEASE,
     REST,
     decide_phase,
     frame,
     on_wrong_side,
     polish_event,
+    polish_release,
     side_margin,
     taylor_step,
 )
 
 # What run_phases returns.
 DONE, RETURNED, CVODE_FAILED, TOO_MANY_STEPS, STEPPED_OVER = range(5)
-IMPACT, DEPARTURE = 0, 1  # an event row's kind: (t, kind, v)
+# An event row's kind, (t, kind, v): phases.IMPACT, DEPARTURE, and the no-pull law's RELEASE, ENGAGE.
 CV_ROOT_RETURN = 2
 STEP_HORIZON = 1.0  # s: how far ahead advance's CVODE steps aim (see advance)
 
@@ -132,23 +139,27 @@ def phase_ends(parameters, rtol, atol, state, jump, reflection):
     restart_needed(state)
 
 
-def closed_form_phase(state, tau, v_event):
-    """The phase from the state ends at an event tau later at v_event, from the exact flow: kept as the last step."""
+def closed_form_phase(state, tau, x_event, v_event, kind):
+    """The phase from the state ends at an event of kind tau later at (x_event, v_event), from the exact flow.
+
+    The phase is kept as the last step.
+    """
     t_event, t_low = later(state[T], state[T_LOW], tau)
     state[SEGMENT], state[SEG_MODE] = 1.0, state[MODE]
     state[SEG_T0], state[SEG_X0], state[SEG_V0] = state[T], state[X], state[V]
-    state[SEG_T1], state[SEG_X1], state[SEG_V1] = t_event, 0.0, v_event
+    state[SEG_T1], state[SEG_X1], state[SEG_V1] = t_event, x_event, v_event
     state[PENDING], state[PEND_T], state[PEND_V], state[PEND_T_LOW] = 1.0, t_event, v_event, t_low
+    state[PEND_X], state[PEND_KIND] = x_event, kind
 
 
 def _decided_by_cvode(parameters, rtol, state):
     """Whether CVODE takes the phase starting at the state (phases.decide_phase); else its rest or event is set."""
-    answer, tau, v_event = decide_phase(parameters, int(state[MODE]), state[X], state[V], state[LOAD], state[HOP],
-                                        rtol)
+    answer, tau, x_event, v_event, kind = decide_phase(parameters, int(state[MODE]), state[X], state[V], state[LOAD],
+                                                       state[HOP], rtol)
     if answer == REST:
         state[REST_T], state[REST_X], state[REST_V] = state[T], state[X], state[V]
     elif answer == IN_CLOSED_FORM:
-        closed_form_phase(state, tau, v_event)
+        closed_form_phase(state, tau, x_event, v_event, kind)
     return answer == BY_CVODE
 
 
@@ -297,21 +308,32 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
         return TOO_MANY_STEPS if engine_exceeded(engine, mode) else CVODE_FAILED, rows, 0
     state[NFEV] = rhs_calls
     last = count - 1
+    no_pull = parameters[5] == NO_PULL and mode == CONTACT  # a pressed contact: its event is the release
     if gap_root != 0:
-        tau, v = polish_event(parameters, mode, load, length, rows[last - 1, 0] if count > 1 else tau_before,
-                              rows[last, 0], length * rows[last, 1], speed * rows[last, 2], state[RS_X], state[RS_V])
-        state[PENDING], state[PEND_V] = 1.0, v
+        tau_step = rows[last - 1, 0] if count > 1 else tau_before
+        if no_pull:
+            tau, x, v = polish_release(parameters, load, length, tau_step, rows[last, 0], length * rows[last, 1],
+                                       speed * rows[last, 2])
+            kind = RELEASE
+        else:
+            tau, v = polish_event(parameters, mode, load, length, tau_step, rows[last, 0], length * rows[last, 1],
+                                  speed * rows[last, 2], state[RS_X], state[RS_V])
+            x, kind = 0.0, IMPACT if mode == FLIGHT else DEPARTURE
+        state[PENDING], state[PEND_V], state[PEND_X], state[PEND_KIND] = 1.0, v, x, kind
         state[PEND_T], state[PEND_T_LOW] = later(origin, state[ORIGIN_LOW], tau)
     rows[:count, 0] += origin
     rows[:count, 1] *= length
     rows[:count, 2] *= speed
     if gap_root != 0:
-        rows[last, 0], rows[last, 1], rows[last, 2] = state[PEND_T], 0.0, state[PEND_V]
+        rows[last, 0], rows[last, 1], rows[last, 2] = state[PEND_T], state[PEND_X], state[PEND_V]
     elif flag != CV_ROOT_RETURN and not one_step and flag != BUFFER_FULL:
         rows[last, 0] = t_stop  # CVODE stopped at t_stop - origin, which may round off t_stop
-    checked = count - 1 if gap_root != 0 else count  # the event's row is on R, polished
+    checked = count - 1 if gap_root != 0 else count  # the event's row is on R (or, a release, polished below it)
     if checked > 0:
-        extreme = rows[:checked, 1].min() if mode == FLIGHT else rows[:checked, 1].max()
+        if no_pull:  # the step ends' z = -force / k (physics.pressed_gap), which a missed release leaves above 0
+            extreme = (rows[:checked, 1] + (parameters[2] / parameters[1]) * rows[:checked, 2]).max()
+        else:
+            extreme = rows[:checked, 1].min() if mode == FLIGHT else rows[:checked, 1].max()
         if on_wrong_side(mode, extreme, side_margin(hop, rtol, length)):
             state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = rows[checked - 1, 0], extreme, 0.0
             return STEPPED_OVER, rows, 0
@@ -331,20 +353,27 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
 
 def _take_event(parameters, rtol, atol, state, events, n_events):
     """The PENDING event: the state moves there, the mode switches, the phase ends; (events, n_events) with its row."""
-    state[T], state[X], state[V], state[T_LOW] = state[PEND_T], 0.0, state[PEND_V], state[PEND_T_LOW]
+    state[T], state[X], state[V], state[T_LOW] = state[PEND_T], state[PEND_X], state[PEND_V], state[PEND_T_LOW]
     if n_events == events.shape[0]:
         events = _grown(events)
-    kind = IMPACT if int(state[MODE]) == FLIGHT else DEPARTURE
+    kind, mode = int(state[PEND_KIND]), int(state[MODE])
     events[n_events, 0], events[n_events, 1], events[n_events, 2] = state[T], kind, state[V]
     if kind == IMPACT and parameters[5] == RIGID:
         _bounce(parameters, rtol, atol, state)
         return events, n_events + 1
+    # the saltation's jump: the field's, -+ b/m at an impact or a departure from the pressed contact; none at the
+    # no-pull law's switches below R, where the force is 0 on either side, nor at a departure from its free sub-mode
     damping = parameters[2] / parameters[0]
     if kind == IMPACT:
         state[MODE], state[IMPACTS], state[LAST_IMPACT] = CONTACT, state[IMPACTS] + 1.0, state[T]
-    else:
+        jump = -damping
+    elif kind == DEPARTURE:
         state[MODE], state[DEPARTURES] = FLIGHT, state[DEPARTURES] + 1.0
-    phase_ends(parameters, rtol, atol, state, -damping if kind == IMPACT else damping, 1.0)
+        jump = damping if mode == CONTACT else 0.0
+    else:
+        state[MODE] = FREE if kind == RELEASE else CONTACT
+        jump = 0.0
+    phase_ends(parameters, rtol, atol, state, jump, 1.0)
     return events, n_events + 1
 
 

@@ -18,12 +18,25 @@ from __future__ import annotations
 
 import math
 
-from ..physics import RIGID, conserved_speed, gap_acceleration, gap_flow_value, rest_margin_value
+from ..physics import (
+    NO_PULL,
+    RIGID,
+    conserved_speed,
+    gap_acceleration,
+    gap_flow_value,
+    law_rest_margin,
+    no_pull_rest_margin_value,
+    pressed_gap,
+    rest_margin_value,
+)
 from ..rounding import hypot
-from .exact import departure_speed, departure_time, time_to_impact
+from .exact import departure_speed, departure_time, free_event, release_state, release_time, time_to_impact
 from .settings import HOP_RESOLUTION
 
-FLIGHT, CONTACT = 0, 1
+FLIGHT, CONTACT, FREE = 0, 1, 2  # FREE: the no-pull law's free sub-mode below R (physics.Mode)
+# The kinds of event (an event row's (t, kind, v), and PEND_KIND): the no-pull law's release and engagement
+# switch its sub-modes below R (result.EventKind).
+IMPACT, DEPARTURE, RELEASE, ENGAGE = 0, 1, 2, 3
 _EPS = 2.0**-52
 # A phase whose length scale [m] is below this (a hop or contact of 1e-200 m) is taken on the exact
 # flow: its scaled state would leave the range of double precision.
@@ -42,11 +55,17 @@ def phase_scales(parameters, mode, x, v, load):
     1.6e-9 m hop or a contact deflecting the ball by 1e-9 R after a 100 m fall are resolved as well
     as the article's bounce.
     A flight that never comes down is scaled by its height (at least R). A rigid ball resting on R
-    (its contact) is scaled by R, at rest.
+    (its contact) is scaled by R, at rest. The no-pull law's free sub-mode (always in closed form) by its
+    depth below R and its rise.
     """
     m, k, R = parameters[0], parameters[1], parameters[3]
     if mode != FLIGHT and parameters[5] == RIGID:
         return R, 0.0
+    if mode == FREE:
+        g_eff = load / m
+        rise = 0.5 * (v * v) / g_eff if g_eff > 0.0 and v > 0.0 else 0.0
+        length = abs(x) + rise
+        return length, max(abs(v), math.sqrt(2.0 * abs(g_eff) * length))
     if mode == FLIGHT:
         g_eff = load / m
         if g_eff > 0.0:
@@ -89,12 +108,12 @@ def contact_unresolved(parameters, x, v, load, rtol):
 
 
 def decide_phase(parameters, mode, x, v, load, hop, rtol):
-    """How the phase from (x, v) in mode is taken: (answer, tau, v_event).
+    """How the phase from (x, v) in mode is taken: (answer, tau, x_event, v_event, kind).
 
     BY_CVODE: CVODE integrates it. REST: a contact that can never again lift the ball more than hop
     above R; the rest is taken on the contact's exact flow. IN_CLOSED_FORM: the phase ends tau [s]
-    later in an event at v_event [m/s], from the mode's exact flow (each mode's flow is exact, so
-    events come out of the right kind at the right times):
+    later in an event of kind (IMPACT ..) at the gap x_event [m] (0: on R) and v_event [m/s], from the
+    mode's exact flow (each mode's flow is exact, so events come out of the right kind at the right times):
     - a flight whose apex stays within hop of R (a hop merged into the contacts around it would be
       as right) or below MIN_PHASE_SCALE;
     - a contact CVODE cannot resolve (contact_unresolved), or one that cannot hold the ball (F_ext
@@ -109,34 +128,46 @@ def decide_phase(parameters, mode, x, v, load, hop, rtol):
     8e12 1/s); such a contact has at most one extremum, so the exact flow's departure search
     (exact.departure_time) decides at once whether it ever reaches R, and so it does for a contact
     CVODE cannot resolve.
+    Under the no-pull law the pressed contact's event is its release (exact.release_time, the same
+    search of physics.pressed_gap's z) and its rest margin physics.law_rest_margin's; the free sub-mode
+    is always taken in closed form (a parabola: exact.free_event).
     """
     if mode == FLIGHT:
         if x < 0.0 or not load / parameters[0] > 0.0:
-            return BY_CVODE, 0.0, 0.0
+            return BY_CVODE, 0.0, 0.0, 0.0, IMPACT
         apex, _ = phase_scales(parameters, FLIGHT, x, v, load)
         if apex >= max(hop, MIN_PHASE_SCALE):
-            return BY_CVODE, 0.0, 0.0
+            return BY_CVODE, 0.0, 0.0, 0.0, IMPACT
         tau, v_impact = flight_impact(parameters, x, v, load)
-        return IN_CLOSED_FORM, tau, v_impact
+        return IN_CLOSED_FORM, tau, 0.0, v_impact, IMPACT
+    if mode == FREE:
+        tau, x_event, v_event, departs = free_event(parameters, x, v, load)
+        return IN_CLOSED_FORM, tau, x_event, v_event, DEPARTURE if departs else ENGAGE
     if parameters[5] == RIGID:  # a rigid ball resting on R: it stays, or F_ext lifts it at once
         tau = departure_time(parameters, x, v, load)
-        return (REST, 0.0, 0.0) if math.isinf(tau) else (IN_CLOSED_FORM, tau, departure_speed(parameters, x, v, tau,
-                                                                                                  load))
+        if math.isinf(tau):
+            return REST, 0.0, 0.0, 0.0, DEPARTURE
+        return IN_CLOSED_FORM, tau, 0.0, departure_speed(parameters, x, v, tau, load), DEPARTURE
     m, k, b = parameters[0], parameters[1], parameters[2]
+    no_pull = parameters[5] == NO_PULL
+    kind = RELEASE if no_pull else DEPARTURE
     d = load / k
-    if d > 0.0 and rest_margin_value(x, v, d, hop, k / m) > 0.0:
-        return REST, 0.0, 0.0
+    if d > 0.0 and law_rest_margin(parameters, x, v, d, hop) > 0.0:
+        return REST, 0.0, 0.0, 0.0, kind
     unresolved = contact_unresolved(parameters, x, v, load, rtol)
     rest_by_search = b / (2.0 * math.sqrt(k * m)) >= 1.0 or d <= 0.0 or unresolved
     departure_in_closed_form = d < 0.0 or unresolved
     if not (rest_by_search or departure_in_closed_form):
-        return BY_CVODE, 0.0, 0.0
-    tau = departure_time(parameters, x, v, load)
+        return BY_CVODE, 0.0, 0.0, 0.0, kind
+    tau = release_time(parameters, x, v, load) if no_pull else departure_time(parameters, x, v, load)
     if math.isinf(tau):
-        return (REST if rest_by_search else BY_CVODE), 0.0, 0.0
+        return (REST if rest_by_search else BY_CVODE), 0.0, 0.0, 0.0, kind
     if departure_in_closed_form:
-        return IN_CLOSED_FORM, tau, departure_speed(parameters, x, v, tau, load)
-    return BY_CVODE, 0.0, 0.0
+        if no_pull:
+            x_event, v_event = release_state(parameters, x, v, tau, load)
+            return IN_CLOSED_FORM, tau, x_event, v_event, kind
+        return IN_CLOSED_FORM, tau, 0.0, departure_speed(parameters, x, v, tau, load), kind
+    return BY_CVODE, 0.0, 0.0, 0.0, kind
 
 
 def flight_impact(parameters, x, v, load):
@@ -178,6 +209,19 @@ def polish_event(parameters, mode, load, length, tau_before, tau_root, x_root, v
     return tau_root, (min(v_root, 0.0) if mode == FLIGHT else max(v_root, 0.0))
 
 
+def polish_release(parameters, load, length, tau_before, tau_root, x_root, v_root):
+    """The no-pull release CVODE located at (tau_root, x_root, v_root) in a pressed contact: (tau, x, v) there.
+
+    polish_event's Newton on physics.pressed_gap's z (which obeys the contact's own equation) instead of
+    x, then the state moved on the contact's exact flow to the polished time. v >= 0 (the ball rises).
+    """
+    m, k, b = parameters[0], parameters[1], parameters[2]
+    z, rate = pressed_gap(parameters, x_root, v_root, load)
+    tau, _ = polish_event(parameters, CONTACT, load, length, tau_before, tau_root, z, rate, 1.0, 0.0)
+    x, v = gap_flow_value(CONTACT, x_root, v_root, tau - tau_root, load, m, k, b)
+    return tau, x, max(v, 0.0)
+
+
 def side_margin(hop, rtol, length):
     """How far [m] a step end may lie on the other side of R before CVODE must have stepped over an event.
 
@@ -210,13 +254,23 @@ def scaled_jacobian(mode, length, speed, m, k, b):
     return 0.0, 1.0 * speed / length, (-k / m if contact else 0.0) * length / speed, -b / m if contact else 0.0
 
 
-def root_values(y0, y1, mode, length, speed, load, own_side, hop, k, m):
+def root_values(y0, y1, mode, length, speed, load, own_side, hop, k, m, b, law):
     """CVODE's three root functions: the gap (own_side where it is 0), v, and the rest margin in contact.
 
     Under zero net load v never changes in flight: a root function identically 0 would only make
     CVODE warn, so it is 1 there. The rest margin (physics.rest_margin_value, with the static
-    deflection from the phase's load) is -1 where the contact cannot rest.
+    deflection from the phase's load) is -1 where the contact cannot rest. law: Ball.parameters' code.
+    Under the no-pull law the pressed contact's are its own: physics.pressed_gap's z = -force / k in
+    the gap's place (its crossing upwards the release), dz/dt in v's (a step ends at each extremum of
+    z, so that none holds both crossings of a short free spell) and no_pull_rest_margin_value.
     """
     d = load / k
+    if law == NO_PULL and mode == CONTACT:
+        c = b / k
+        z = y0 + (c * speed / length) * y1
+        rate = y1 + c * gap_acceleration(length * y0, speed * y1, CONTACT, load, m, k, b) / speed
+        sigma = b / (2.0 * m)
+        rest = no_pull_rest_margin_value(length * y0, speed * y1, d, hop, k / m, sigma) if d > 0.0 else -1.0
+        return z if z != 0.0 else own_side, rate, rest
     rest = rest_margin_value(length * y0, speed * y1, d, hop, k / m) if mode == CONTACT and d > 0.0 else -1.0
     return y0 if y0 != 0.0 else own_side, y1 if mode == CONTACT or load != 0.0 else 1.0, rest

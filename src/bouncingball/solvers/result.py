@@ -18,20 +18,26 @@ class EventKind(StrEnum):
     """What a mode switch is: an impact starts a contact, a departure ends one.
 
     A str enum, like `physics.Mode` an enum: it compares equal to, prints and writes to CSV as its
-    value ("impact", "departure").
+    value ("impact", "departure"). Under the no-pull law a contact also has its sub-mode switches below
+    R, where the force k (R - h) - b v crosses 0: a release (pressed to free: the force would pull) and
+    an engagement (free to pressed); a departure there leaves the free sub-mode.
     """
 
     IMPACT = "impact"
     DEPARTURE = "departure"
+    RELEASE = "release"
+    ENGAGE = "engage"
 
 
 IMPACT = EventKind.IMPACT
 DEPARTURE = EventKind.DEPARTURE
+RELEASE = EventKind.RELEASE
+ENGAGE = EventKind.ENGAGE
 
 
 @dataclass(frozen=True)
 class Event:
-    """A mode switch: time [s], kind (impact or departure) and the velocity there [m/s]."""
+    """A mode switch: time [s], kind (impact, departure; release or engage) and the velocity there [m/s]."""
 
     time: float
     kind: EventKind

@@ -10,7 +10,7 @@ import numbers
 from dataclasses import dataclass
 
 from .. import limits, validation
-from ..physics import Ball, Mode, gap_acceleration, load_value
+from ..physics import NO_PULL, Ball, Mode, gap_acceleration, load_value
 from . import layout, machine
 from .phases import REST, decide_phase, frame, on_wrong_side, side_margin
 from .settings import CvodeSettings, hop_tolerance
@@ -175,6 +175,8 @@ class IntegratorView:
         x, v = float(self._state[layout.X]), float(self._state[layout.V])
         if self.ball.rigid:
             return self.ball.contact_force(self.ball.R + x, v, self.mode, self._F_ext)
+        if self.ball.no_pull:  # max(0, ...), and 0 in the free sub-mode
+            return 0.0 if self.mode != Mode.CONTACT else max(-self.ball.k * x - self.ball.b * v, 0.0)
         return 0.0 if self.mode == Mode.FLIGHT else -self.ball.k * x - self.ball.b * v
 
     @property
@@ -283,6 +285,9 @@ def checked(ball: Ball, state: IntegratorState, settings: CvodeSettings) -> Chec
         raise ValueError(f"state = {validation.shown(state)} is not allowed: it must be an IntegratorState "
                          "(one of get_state())")
     point = _point(ball, "state", state.t, state.gap, state.h, state.v, state.mode, state.F_ext)
+    if point[3] == Mode.FREE and ball.parameters[5] != NO_PULL:
+        raise ValueError(f"state mode = {Mode.FREE.value} (FREE) is not allowed for contact = {ball.contact!r} "
+                         f"(b = {ball.b!r} N s/m): it is the no-pull law's free sub-mode (with b > 0)")
     t_start = validation.finite("state t_start", state.t_start, "s")
     counts = _counts("state", state)
     restart = state.restart

@@ -78,18 +78,18 @@ class SksundaePhaseSolver:
 
         def rhs(t, y, yp):
             length, speed, _ = self._frame
-            load, m, k, b = self._constants
+            load, m, k, b, _ = self._constants
             yp[0], yp[1] = rates(y[0], y[1], mode, length, speed, load, m, k, b)
 
         def jac(t, y, yp, JJ):
             length, speed, _ = self._frame
-            _, m, k, b = self._constants
+            _, m, k, b, _ = self._constants
             JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = jacobian(mode, length, speed, m, k, b)
 
         def event(t, y, out):
             length, speed, hop = self._frame
-            load, m, k, _ = self._constants
-            out[0], out[1], out[2] = roots(y[0], y[1], mode, length, speed, load, own_side, hop, k, m)
+            load, m, k, b, law = self._constants
+            out[0], out[1], out[2] = roots(y[0], y[1], mode, length, speed, load, own_side, hop, k, m, b, law)
             # CVODE evaluates the root functions once per step (and a few times per root found)
             self._evaluations += 1
             if self._evaluations > max_evaluations:
@@ -108,8 +108,8 @@ class SksundaePhaseSolver:
 
     def bind(self, ball: Ball) -> None:
         """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
-        self._m, self._k, self._b = ball.m, ball.k, ball.b
-        self._constants = (0.0, ball.m, ball.k, ball.b)  # load [N], m, k, b
+        self._m, self._k, self._b, self._law = ball.m, ball.k, ball.b, ball.parameters[5]
+        self._constants = (0.0, ball.m, ball.k, ball.b, self._law)  # load [N], m, k, b, the contact law's code
         self.set_frame(1.0, 1.0, 0.0)
 
     def set_frame(self, length: float, speed: float, hop_tolerance: float) -> None:
@@ -154,7 +154,7 @@ class SksundaePhaseSolver:
               load: float) -> int:
         """Take the phase's frame; restart CVODE at 0 from (y0, y1) for one-step calls, or in steps() to t_stop."""
         self.set_frame(length, speed, hop)
-        self._constants, self._start = (load, self._m, self._k, self._b), (y0, y1)
+        self._constants, self._start = (load, self._m, self._k, self._b, self._law), (y0, y1)
         if t_stop == math.inf:
             with self.log.capturing():
                 self.init_step(0.0, np.array([y0, y1]))
