@@ -202,7 +202,7 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
     ball = scene.ball
     print(f"scene {scene.name}: {scene.description}")
     law = (f"rigid contact, e = {ball.e:g}, v_min = {ball.v_min:g} m/s" if ball.rigid
-           else f"k = {ball.k:g} N/m, b = {ball.b:g} N s/m")
+           else ("no-pull contact, " if ball.no_pull else "") + f"k = {ball.k:g} N/m, b = {ball.b:g} N s/m")
     print(f"  ball        m = {ball.m:g} kg, {law}, R = {ball.R:g} m, g = {ball.g:g} m/s2")
     print(f"  start       h0 = {scene.h0:.15g} m, v0 = {scene.v0:g} m/s; {result.t[0]:g} to {result.t[-1]:g} s, "
           f"output every {result.t[1] - result.t[0]:g} s")

@@ -27,9 +27,15 @@ def plural(count: int, noun: str) -> str:
 
 
 def event_counts(events: list[Event]) -> str:
-    """'41 (21 impacts, 20 departures)', '2 (1 impact, 1 departure)': the plurals right."""
-    impacts = sum(event.kind == "impact" for event in events)
-    return f"{len(events)} ({plural(impacts, 'impact')}, {plural(len(events) - impacts, 'departure')})"
+    """'41 (21 impacts, 20 departures)', '2 (1 impact, 1 departure)': the plurals right.
+
+    The no-pull law's releases and engagements are counted too where there are any
+    ('54 (18 impacts, 18 departures, 18 releases)').
+    """
+    counts = [plural(sum(event.kind == kind for event in events), noun) for kind, noun in
+              (("impact", "impact"), ("departure", "departure"), ("release", "release"), ("engage", "engagement"))
+              if kind in ("impact", "departure") or any(event.kind == kind for event in events)]
+    return f"{len(events)} ({', '.join(counts)})"
 
 
 def event_lines(events: list[Event], shown: int = EVENTS_SHOWN) -> list[str]:
@@ -59,8 +65,14 @@ def restitution_line(events: list[Event], ball) -> str:
     if ball.rigid:
         impacts = sum(event.kind == "impact" for event in events)
         return f"e = {ball.e:g} at each impact (the rigid law's), {plural(impacts, 'impact')}" if impacts else ""
-    ratios = [after.velocity / -before.velocity for before, after in zip(events, events[1:], strict=False)
-              if before.kind == "impact" and after.kind == "departure"]
+    # each impact and the departure that ends its contact (the no-pull law's releases and engagements between)
+    impacts = [(i, event) for i, event in enumerate(events) if event.kind == "impact"]
+    ratios = []
+    for number, (i, impact) in enumerate(impacts):
+        end = impacts[number + 1][0] if number + 1 < len(impacts) else len(events)
+        departure = next((event for event in events[i + 1:end] if event.kind == "departure"), None)
+        if departure is not None:
+            ratios.append(departure.velocity / -impact.velocity)
     if not ratios:
         return ""
     shown = [f"{ratio:.3g}" for ratio in ratios]
