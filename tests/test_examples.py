@@ -284,3 +284,32 @@ def test_sweep_example(tmp_path):
             assert status == "finished" and found == expected and float(error) <= 1e-6, (k, zeta, error)
     assert "cvode cells outside 1e-6 m: 0 of 6" in out
     assert list((tmp_path / "sweep" / "sweep_parts").glob("*.parquet"))  # streamed to disk as it ran
+
+
+def test_contact_laws_example_against_the_three_laws_independent_truths(tmp_path):
+    """Its table: impacts in 3 s, the first contact's length, least force and first restitution, from the mpmath truths."""
+    pytest.importorskip("matplotlib")
+    from mpmath_oracle import Oracle
+    from nopull_truth import NoPullTruth
+    from rigid_truth import RigidTruth
+
+    out = run_example([sys.executable, EXAMPLES / "contact_laws.py", tmp_path / "out"], tmp_path)
+    rows = {m[0]: m[1:] for m in re.findall(rf"^(linear|linear-no-pull|rigid, e = {NUMBER}) +(\d+) +(\S+(?: \(instant\))?)"
+                                            rf" +({NUMBER}) +({NUMBER})$", out, re.M)}
+    assert len(rows) == 3, out
+    linear = Oracle(1.0, 1e4, 10.0, 0.06, 9.81, 2.0, 0.0, 3.0)
+    impact, departure = linear.events[:2]
+    e = float(departure.velocity / -impact.velocity)
+    assert rows["linear"] == (str(sum(ev.kind == "impact" for ev in linear.events)),
+                              f"{float(departure.time - impact.time) * 1e3:.3f}", rows["linear"][2], f"{e:.6f}")
+    assert float(rows["linear"][2]) < -50.0  # the published damper's pull before departure
+    free = NoPullTruth(1.0, 1e4, 10.0, 0.06, 9.81, 2.0, 0.0, 3.0)
+    kinds = [kind for _, kind, _, _ in free.events]
+    first_departure = next(event for event in free.events if event[1] == "departure")
+    assert rows["linear-no-pull"] == (str(kinds.count("impact")),
+                                      f"{float(first_departure[0] - free.events[0][0]) * 1e3:.3f}", "0",
+                                      f"{float(first_departure[3] / -free.events[0][3]):.6f}")
+    rigid = RigidTruth(0.06, 9.81, e, 0.0, 2.0, 0.0, 3.0)
+    label = f"rigid, e = {e:.3f}"
+    assert rows[label] == (str(sum(t <= 3.0 for t, _ in rigid.impacts)), "0 (instant)", "0", f"{e:.6f}")
+    assert (tmp_path / "out" / "contact_laws.png").stat().st_size > 10_000

@@ -174,7 +174,11 @@ bounce that would leave slower than <code>v_min</code> ends at rest on R; with <
 the infinitely many bounces before the Zeno time are summed exactly in co-simulation. A resting ball
 leaves R when F_ext exceeds m g. In model exchange an impact is a jump of the state
 (valuesOfContinuousStatesChanged), and a bounce lower than the master can follow (100 rtol R) ends at
-rest.</p>"""
+rest.</p>
+<p>With <code>contact_law</code> = linear-no-pull the spring and damper's force max(0, k (R - h) - b v)
+never pulls: below R the ball is pressed while that force is positive and free (the flight's parabola)
+where it would pull, switching where the force crosses 0 (a release, an engagement) and departing where a
+free ball reaches R. <code>contact</code> is true while the ground pushes.</p>"""
 
 
 def _variables_section(root: ET.Element, fmi3: bool) -> str:

@@ -20,7 +20,7 @@ from pythonfmu3.enums import Fmi3Causality, Fmi3Initial, Fmi3Status, Fmi3Variabi
 from pythonfmu3.modelexchange import ModelExchange
 
 from .. import validation
-from ..physics import Ball, Mode, load_value, rigid_rebound_above
+from ..physics import NO_PULL, Ball, Mode, free_gap_rate, load_value, pressed_gap, rigid_rebound_above
 from ..solvers.phases import phase_scales
 from .slave_base import BallSlave
 from .variables import EVENT_INDICATOR, FMI3_VARIABLES, VARIABLES
@@ -72,6 +72,50 @@ def rigid_impact(ball: Ball, v: float, F_ext: float, impacts: int, apex_floor: f
     if v_after > 0.0:
         return [above, v_after, Mode.FLIGHT, impacts + 1]
     return [ball.R, 0.0, Mode.CONTACT, impacts + 1]
+
+
+def event_indicator(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> float:
+    """Model exchange's event indicator in mode: >= 0 out of contact, <= 0 in it, crossing 0 where the mode ends.
+
+    In flight and in the linear law's contact h - R [m]. In the no-pull law's pressed contact
+    z = h - R + (b / k) v = -force / k [m] (it is released where z turns positive); in its free sub-mode
+    min(z, R - h) [m] (pressed again where z, departing where R - h, reaches 0). For a rigid ball resting
+    on R, F_ext / m - g [m/s2] (it lifts where that turns positive). The FMU's binary tells a master's
+    step over an event by that sign against the output contact.
+    """
+    x = h - ball.R
+    if mode == Mode.FLIGHT:
+        return x
+    if ball.rigid:
+        return -load_value(F_ext, ball.m, ball.g) / ball.m
+    if ball.parameters[5] != NO_PULL:
+        return x
+    z = x + (ball.b / ball.k) * v
+    return z if mode == Mode.CONTACT else min(z, -x)
+
+
+def switched_mode(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> Mode | None:
+    """The mode a model-exchange event at (h [m], v [m/s]) switches the linear or no-pull ball to; None: none.
+
+    An impact where h - R has turned negative (or is 0 going down); a departure where it turned positive.
+    Under the no-pull law a release where the pressed contact's force has turned negative, an
+    engagement where the free ball's would turn positive (physics.pressed_gap's z).
+    """
+    x = h - ball.R
+    up, down = x > 0.0 or (x == 0.0 and v > 0.0), x < 0.0 or (x == 0.0 and v < 0.0)
+    if mode == Mode.FLIGHT:
+        return Mode.CONTACT if down else None
+    parameters = ball.parameters
+    if parameters[5] != NO_PULL:
+        return Mode.FLIGHT if up else None
+    load = load_value(F_ext, ball.m, ball.g)
+    if mode == Mode.CONTACT:
+        z, rate = pressed_gap(parameters, x, v, load)
+        return Mode.FREE if z > 0.0 or (z == 0.0 and rate > 0.0) else None
+    if up:
+        return Mode.FLIGHT
+    z, rate = x + (ball.b / ball.k) * v, free_gap_rate(parameters, v, load)
+    return Mode.CONTACT if z < 0.0 or (z == 0.0 and rate < 0.0) else None
 
 
 class DiscreteStatesUpdate(NamedTuple):
@@ -187,9 +231,9 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
             return [1.0, 1.0][:size]
 
     def update_discrete_states(self):
-        """The event: an impact where h - R has turned negative, a departure where it turned positive.
+        """The event: an impact where h - R has turned negative, a departure where it turned positive (switched_mode).
 
-        Under the linear law the mode switches, and h and v do not jump: their values did not change (the
+        Under the linear and no-pull laws the mode switches, and h and v do not jump: their values did not change (the
         standard forbids saying so), but every switch says the nominals changed (phase_nominals, also where
         the new ones happen to equal the old), because an importer that restarts its integrator only when
         told (fmusim's model exchange) must restart where the equations change. Under the rigid law an
@@ -213,12 +257,12 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
             state[4:6] = phase_nominals(ball, *state[:3], F_ext)
             return DiscreteStatesUpdate(nominalContinuousStatesChanged=True,
                                         valuesOfContinuousStatesChanged=state[:2] != [h, v])
-        if mode == Mode.FLIGHT and (x < 0.0 or (x == 0.0 and v < 0.0)):
-            state[2], state[3] = Mode.CONTACT, impacts + 1
-        elif mode == Mode.CONTACT and (x > 0.0 or (x == 0.0 and v > 0.0)):
-            state[2] = Mode.FLIGHT
-        else:
+        switched = switched_mode(ball, h, v, mode, F_ext)
+        if switched is None:
             return DiscreteStatesUpdate()
+        while switched is not None:  # a master that noticed an event late may be past the next one too
+            state[2], state[3] = switched, state[3] + (mode == Mode.FLIGHT)
+            mode, switched = switched, switched_mode(ball, h, v, switched, F_ext)
         state[4:6] = phase_nominals(ball, h, v, state[2], F_ext)
         # Said at every switch, even where the new phase's nominals equal the old ones to the bit (a weightless
         # ball whose impact speed is 2 R w): the equations changed, and the master must restart there.
@@ -253,13 +297,9 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         return -1.0 if self._exchange else super()._error_estimate()  # the master integrates: unknown
 
     def _gap(self):
-        """The event indicator: h - R [m]; for a rigid ball resting on R, F_ext / m - g [m/s2] (> 0: it lifts).
-
-        >= 0 out of contact, <= 0 in it: the FMU's binary tells a master's step over an event by that sign.
-        """
-        if self._exchange and self._exchange[2] == Mode.CONTACT and self._integrator.ball.rigid:
-            ball = self._integrator.ball
-            return -load_value(self._values["F_ext"], ball.m, ball.g) / ball.m
+        """The event indicator of the current mode (event_indicator); h - R before initialisation."""
+        if self._exchange:
+            return event_indicator(self._integrator.ball, *self._exchange[:3], self._values["F_ext"])
         return self._h() - (self._integrator.ball.R if self._integrator else self._values["R"])
 
     # --- FMU state: the model exchange state too -----------------------------------------------------

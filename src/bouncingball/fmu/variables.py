@@ -55,7 +55,7 @@ VARIABLES = (
                 "value is the initial velocity", "m/s", initial="exact"),
     FmuVariable("a", "Real", "output", "continuous", "vertical acceleration dv/dt", "m/s2"),
     FmuVariable("contact", "Boolean", "output", "discrete", "true while the ball touches the ground (contact_law "
-                "rigid: while it rests on it)"),
+                "rigid: while it rests on it; linear-no-pull: while the ground pushes it)"),
     FmuVariable("contact_force", "Real", "output", "continuous", "force of the ground on the ball, upwards "
                 "positive (contact_law linear: the damper can pull just before departure; rigid: the load of a "
                 "ball resting on the ground, 0 otherwise: an impact's impulse is not a force)", "N"),
@@ -81,8 +81,8 @@ VARIABLES = (
                 "model exchange (the master integrates)", "m"),
     # After the seed's variables, so that theirs keep their value references.
     FmuVariable("contact_law", "String", "parameter", "fixed", "the contact law: linear (the spring k and damper "
-                "b, the default) or rigid (an instantaneous impact on h = R with restitution e; k and b play no "
-                "part)"),
+                "b, the default), rigid (an instantaneous impact on h = R with restitution e; k and b play no "
+                "part) or linear-no-pull (the spring and damper whose force max(0, k (R - h) - b v) never pulls)"),
     FmuVariable("e", "Real", "parameter", "fixed", "contact_law rigid: coefficient of restitution, v+ = -e v- at "
                 "each impact, in [0, 1]", min=0.0, max=1.0),
     FmuVariable("v_min", "Real", "parameter", "fixed", "contact_law rigid: a bounce that would leave slower "
@@ -99,7 +99,7 @@ SOLUTION_OUTPUTS = tuple(name for name in OUTPUTS if name != "error_estimate")
 # scene's start state and force as h, v and F_ext. The one mapping of the slave's defaults, validate,
 # the bench and `check` (testing.scene_with_start_values).
 # The contact laws (physics.CONTACT_LAWS) the FMU runs, in co-simulation and in model exchange (slave3's events).
-FMU_CONTACT_LAWS = ("linear", "rigid")
+FMU_CONTACT_LAWS = ("linear", "rigid", "linear-no-pull")
 
 SCENE_FIELD_OF_START_VALUE = {"m": "m", "k": "k", "b": "b", "R": "R", "g": "g", "contact_law": "contact", "e": "e",
                               "v_min": "v_min", "h": "h0", "v": "v0", "F_ext": "F_ext"}
