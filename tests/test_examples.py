@@ -287,15 +287,15 @@ def test_sweep_example(tmp_path):
 
 
 def test_contact_laws_example_against_the_three_laws_independent_truths(tmp_path):
-    """Its table: impacts in 3 s, the first contact's length, least force and first restitution, from the mpmath truths."""
+    """Its table (impacts in 3 s, first contact's length, least force, first restitution) from the mpmath truths."""
     pytest.importorskip("matplotlib")
     from mpmath_oracle import Oracle
     from nopull_truth import NoPullTruth
     from rigid_truth import RigidTruth
 
     out = run_example([sys.executable, EXAMPLES / "contact_laws.py", tmp_path / "out"], tmp_path)
-    rows = {m[0]: m[1:] for m in re.findall(rf"^(linear|linear-no-pull|rigid, e = {NUMBER}) +(\d+) +(\S+(?: \(instant\))?)"
-                                            rf" +({NUMBER}) +({NUMBER})$", out, re.M)}
+    pattern = rf"^(linear|linear-no-pull|rigid, e = {NUMBER}) +(\d+) +(\S+(?: \(instant\))?) +({NUMBER}) +({NUMBER})$"
+    rows = {m[0]: m[1:] for m in re.findall(pattern, out, re.M)}
     assert len(rows) == 3, out
     linear = Oracle(1.0, 1e4, 10.0, 0.06, 9.81, 2.0, 0.0, 3.0)
     impact, departure = linear.events[:2]

@@ -1,4 +1,4 @@
-"""The FMU under contact_law = linear-no-pull, against the no-pull law's independent mpmath truth (tests/nopull_truth.py).
+"""The FMU under contact_law = linear-no-pull, against the no-pull law's mpmath truth (tests/nopull_truth.py).
 
 Co-simulation (FMI 2.0, FMI 3.0 with early return) runs the FMU's own CVODE through the phase machine: heights
 within 1e-9 m, every event (impact, release, engagement, departure) where the truth has it, the contact force
