@@ -313,3 +313,5 @@ def test_contact_laws_example_against_the_three_laws_independent_truths(tmp_path
     label = f"rigid, e = {e:.3f}"
     assert rows[label] == (str(sum(t <= 3.0 for t, _ in rigid.impacts)), "0 (instant)", "0", f"{e:.6f}")
     assert (tmp_path / "out" / "contact_laws.png").stat().st_size > 10_000
+    readme = " ".join((EXAMPLES.parent / "README.md").read_text(encoding="utf-8").split())
+    assert f"first restitution, {e:.3f})" in readme and f"negative ({float(rows['linear'][2]):.0f} N)" in readme
