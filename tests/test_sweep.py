@@ -387,3 +387,32 @@ def test_ctrl_c_inside_dask_sync_logs_no_name_error_with_the_filter():
     assert "NameError" in shown.stderr and "in cancel" in shown.stderr, \
         f"distributed's sync() no longer shows the bug: remove HideDaskSyncCancelBug\n{shown.stderr}"
     assert hidden.stderr == "", hidden.stderr
+
+
+def test_the_grid_takes_a_contact_law_its_axes_describe_and_cvode_alone_for_the_no_pull_law():
+    from bouncingball.sweep.command import build_grid
+    from bouncingball.sweep.grid import Grid
+
+    grid = build_grid(k="1e4", zeta="0.05", contact="linear-no-pull")
+    assert grid.solvers == ("cvode",) and grid.cells()[0].scene(1.0, 1e-3).ball.contact == "linear-no-pull"
+    [run] = grid.runs()
+    assert run["contact"] == "linear-no-pull" and run["key"].endswith("|linear-no-pull")
+    linear = build_grid(k="1e4", zeta="0.05", solvers="cvode").runs()[0]
+    assert linear["key"] == "cvode|10000.0|0.05|1.0|2.0|8.0|0.001"  # as before the laws: --resume still reads them
+    with pytest.raises(ValueError, match="contact = 'rigid' is not allowed: it must be one of linear, linear-no-pull"):
+        Grid(contact="rigid")
+    with pytest.raises(ValueError, match="solver = 'article' is not allowed with contact = 'linear-no-pull'"):
+        build_grid(solvers="cvode,article", contact="linear-no-pull")
+
+
+def test_a_no_pull_cell_is_measured_with_the_no_pull_truths_events():
+    """The worker's measure on a no-pull cell: every impact, release and departure of the mpmath truth."""
+    from bouncingball.sweep.child import measure
+    from nopull_truth import NoPullTruth
+
+    row = measure({"k": 1e4, "zeta": 0.05, "m": 1.0, "h0": 2.0, "t_end": 3.0, "output_interval": 1e-3,
+                   "solver": "cvode", "contact": "linear-no-pull"})
+    truth = NoPullTruth(1.0, 1e4, 10.0, 0.06, 9.81, 2.0, 0.0, 3.0)
+    assert row["status"] == "finished" and row["event_mismatches"] == 0
+    assert row["events_found"] == row["events_exact"] == len(truth.events) == 9
+    assert row["max_height_error"] <= 1e-9

@@ -108,6 +108,8 @@ def _build_parser() -> argparse.ArgumentParser:
                                          "Dask (needs the [sweep] extra)")
     for name, default in (("k", "1e2:1e14:13"), ("zeta", "1e-4:1e2:7"), ("m", "1"), ("h0", "2")):
         sweep.add_argument(f"--{name}", metavar="LO:HI:N", help=f"log-spaced values (default: {default})")
+    sweep.add_argument("--contact", metavar="LAW", help="the balls' contact law: linear (default) or linear-no-pull "
+                       "(then CVODE alone by default: the article's and SciPy's algorithms model the linear law)")
     sweep.add_argument("--t-end", type=float, help="end time of each run [s] (default: 8)")
     sweep.add_argument("--solvers", help="comma-separated: cvode, cvode:Adams, cvode:BDF, article, scipy:METHOD "
                                          "(default: cvode,article,scipy:DOP853)")

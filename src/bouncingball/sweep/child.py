@@ -51,7 +51,8 @@ def measure(spec: dict) -> dict:
     ('finished', 4, True)
     """
     try:
-        scene = Cell(spec["k"], spec["zeta"], spec["m"], spec["h0"]).scene(spec["t_end"], spec["output_interval"])
+        scene = Cell(spec["k"], spec["zeta"], spec["m"], spec["h0"], spec.get("contact", "linear")).scene(
+            spec["t_end"], spec["output_interval"])
         run = runners.run_solver(solver_spec(spec["solver"]), scene, scene.output_interval,
                                  *tolerances(spec["solver"]))
         exact, errors = runners.exact_and_errors(scene, run)

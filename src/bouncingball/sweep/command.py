@@ -14,8 +14,11 @@ QUICK_TIME_CAP = 1.0  # s
 
 
 def build_grid(k: str | None = None, zeta: str | None = None, m: str | None = None, h0: str | None = None,
-               t_end: float | None = None, solvers: str | None = None, quick: bool = False) -> grids.Grid:
+               t_end: float | None = None, solvers: str | None = None, quick: bool = False,
+               contact: str | None = None) -> grids.Grid:
     """The Grid from the command line's text (None: the default, or with quick the small grid).
+
+    contact: the contact law (default linear); another runs CVODE alone unless solvers says otherwise.
 
     Raises
     ------
@@ -31,21 +34,23 @@ def build_grid(k: str | None = None, zeta: str | None = None, m: str | None = No
                 grids.DEFAULT_ZETA, "m": grids.DEFAULT_M, "h0": grids.DEFAULT_H0}
     axes = {field: defaults[field] if text is None else grids.parse_range(field, text)
             for field, text in (("k", k), ("zeta", zeta), ("m", m), ("h0", h0))}
-    names = grids.DEFAULT_SOLVERS if solvers is None else tuple(name.strip() for name in solvers.split(","))
+    contact = "linear" if contact is None else validation.choice("--contact", contact, grids.MAPPED_CONTACT_LAWS)
+    default = grids.DEFAULT_SOLVERS if contact == "linear" else ("cvode",)
+    names = default if solvers is None else tuple(name.strip() for name in solvers.split(","))
     for name in names:
         if name.lower() not in (known.lower() for known in grids.solver_names()):
             raise ValueError(f"--solvers: {name!r} is not allowed: each must be one of "
                              f"{', '.join(grids.solver_names())}")
     if t_end is not None and not (0.0 < t_end < float("inf")):
         raise ValueError(f"--t-end = {t_end!r} s is not allowed: it must be finite and > 0")
-    return grids.Grid(**axes, t_end=grids.DEFAULT_T_END if t_end is None else t_end, solvers=names)
+    return grids.Grid(**axes, t_end=grids.DEFAULT_T_END if t_end is None else t_end, solvers=names, contact=contact)
 
 
 def sweep_command(args) -> int:
     """Run `bouncingball sweep` from parsed arguments; every input is checked before a cluster starts."""
     from .run import check_settings
 
-    grid = build_grid(args.k, args.zeta, args.m, args.h0, args.t_end, args.solvers, args.quick)
+    grid = build_grid(args.k, args.zeta, args.m, args.h0, args.t_end, args.solvers, args.quick, args.contact)
     time_cap = args.time_cap if args.time_cap is not None else QUICK_TIME_CAP if args.quick else DEFAULT_TIME_CAP
     check_settings(time_cap, args.workers, args.batch_size)
     connect_timeout = validation.positive("--connect-timeout", args.connect_timeout, "s")

@@ -29,6 +29,8 @@ QUICK_ZETA = (1e-4, 1e2, 3)
 MAX_POINTS = 1000  # per axis: a bigger grid is a typo, not a study
 MAX_RUNS = 1_000_000
 UNITS = {"k": "N/m", "zeta": "", "m": "kg", "h0": "m"}
+# The contact laws whose balls the (k, zeta) grid describes: the rigid law has neither.
+MAPPED_CONTACT_LAWS = ("linear", "linear-no-pull")
 
 
 def solver_names() -> tuple[str, ...]:
@@ -112,12 +114,16 @@ def log_points(low: float, high: float, points: int) -> tuple[float, ...]:
 
 @dataclass(frozen=True)
 class Cell:
-    """One point of the parameter space: stiffness k [N/m], damping ratio zeta, mass m [kg], drop height h0 [m]."""
+    """One point of the parameter space: stiffness k [N/m], damping ratio zeta, mass m [kg], drop height h0 [m].
+
+    contact: the ball's contact law, one of MAPPED_CONTACT_LAWS.
+    """
 
     k: float
     zeta: float
     m: float
     h0: float
+    contact: str = "linear"
 
     @property
     def b(self) -> float:
@@ -126,7 +132,7 @@ class Cell:
 
     def scene(self, t_end: float, output_interval: float) -> Scene:
         """The cell as a Scene: the article's R and g, dropped at rest from h0."""
-        ball = Ball(m=self.m, k=self.k, b=self.b, R=ARTICLE_BALL.R, g=ARTICLE_BALL.g)
+        ball = Ball(m=self.m, k=self.k, b=self.b, R=ARTICLE_BALL.R, g=ARTICLE_BALL.g, contact=self.contact)
         return Scene(f"k={self.k:.3g},zeta={self.zeta:.3g},m={self.m:.3g},h0={self.h0:.3g}", "sweep cell",
                      ball, self.h0, 0.0, t_end, output_interval)
 
@@ -149,6 +155,7 @@ class Grid:
     t_end: float = DEFAULT_T_END
     output_interval: float = DEFAULT_OUTPUT_INTERVAL
     solvers: tuple[str, ...] = DEFAULT_SOLVERS
+    contact: str = "linear"
 
     def __post_init__(self) -> None:
         for field in ("k", "zeta", "m", "h0"):
@@ -166,6 +173,13 @@ class Grid:
                              f"{', '.join(solver_names())}")
         names = tuple(dict.fromkeys(validation.choice("solver", name, solver_names()) for name in self.solvers))
         object.__setattr__(self, "solvers", names)
+        contact = validation.choice("contact", self.contact, MAPPED_CONTACT_LAWS)
+        object.__setattr__(self, "contact", contact)
+        other = next((name for name in names if not name.startswith("cvode")), None)
+        if contact != "linear" and other is not None:
+            raise ValueError(f"solver = {other!r} is not allowed with contact = {contact!r}: the article's algorithm "
+                             "and SciPy's methods model the linear contact law only; use cvode, cvode:Adams or "
+                             "cvode:BDF")
         runs = len(self.cells()) * len(names)
         if runs > MAX_RUNS:
             raise ValueError(f"the grid = {runs} runs is not allowed: at most {MAX_RUNS}")
@@ -176,17 +190,18 @@ class Grid:
 
     def cells(self) -> list[Cell]:
         """Every cell of the grid, k varying fastest."""
-        return [Cell(k, zeta, m, h0) for m in self.axis("m") for h0 in self.axis("h0")
+        return [Cell(k, zeta, m, h0, self.contact) for m in self.axis("m") for h0 in self.axis("h0")
                 for zeta in self.axis("zeta") for k in self.axis("k")]
 
     def runs(self) -> list[dict]:
         """Every (cell, solver) as the plain dict a worker receives; key identifies it for --resume."""
         return [{"key": run_key(cell, solver, self.t_end, self.output_interval), "k": cell.k, "zeta": cell.zeta,
                  "m": cell.m, "h0": cell.h0, "b": cell.b, "t_end": self.t_end,
-                 "output_interval": self.output_interval, "solver": solver}
+                 "output_interval": self.output_interval, "solver": solver, "contact": cell.contact}
                 for cell in self.cells() for solver in self.solvers]
 
 
 def run_key(cell: Cell, solver: str, t_end: float, output_interval: float) -> str:
-    """A text key that identifies one run exactly (floats as repr)."""
-    return f"{solver}|{cell.k!r}|{cell.zeta!r}|{cell.m!r}|{cell.h0!r}|{t_end!r}|{output_interval!r}"
+    """A text key that identifies one run exactly (floats as repr); the linear law's keys name no law (as before)."""
+    law = "" if cell.contact == "linear" else f"|{cell.contact}"
+    return f"{solver}|{cell.k!r}|{cell.zeta!r}|{cell.m!r}|{cell.h0!r}|{t_end!r}|{output_interval!r}{law}"
