@@ -212,7 +212,8 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         return [self._v(), self._a()]
 
     def get_event_indicators(self):
-        return [self._gap()]
+        state = self._model_exchange()
+        return [event_indicator(self._integrator.ball, *state[:3], self._values["F_ext"])]
 
     def get_nominals_of_continuous_states(self, size):
         """The nominals of h [m] and v [m/s] of the current phase (phase_nominals); fixed between events."""

@@ -135,7 +135,9 @@ FMI3_VARIABLES = (
                 "(model exchange)", "m/s", derivative="h"),
     FmuVariable("der(v)", "Real", "local", "continuous", "dv/dt, the derivative of the continuous state v "
                 "(model exchange)", "m/s2", derivative="v"),
-    FmuVariable("gap", "Real", "local", "continuous", "h - R, the event indicator: an impact where it crosses 0 "
-                "downwards, a departure where it crosses 0 upwards", "m"),
+    FmuVariable("gap", "Real", "local", "continuous", "the event indicator, >= 0 out of contact and <= 0 in it, "
+                "crossing 0 at each event: h - R [m] in flight and in the linear law's contact (an impact where it "
+                "crosses 0 downwards, a departure upwards); linear-no-pull: h - R + (b/k) v [m] pressed, the least "
+                "of that and R - h free; rigid, resting on the ground: F_ext/m - g [m/s2]"),
 )
 EVENT_INDICATOR = "gap"
