@@ -164,7 +164,7 @@ def cache_allowed(files) -> bool:
                 else:
                     misfit = f"the cache shipped with it does not fit ({unfit})"
             if misfit is not None:
-                _say(f"numba compiles the compiled engine for this host, once (about 11 s; {misfit}), into {folder}")
+                _say(f"numba compiles the compiled engine for this host, once (about 15 s; {misfit}), into {folder}")
         _use_folder(files, folder, digest)
     except Exception:  # a numba without these internals, or a cache folder we cannot write
         return False
