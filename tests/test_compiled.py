@@ -458,7 +458,7 @@ def test_a_change_to_a_compiled_source_recompiles_the_code_numbas_disk_cache_hel
     assert first["machine_misses"] > 0 and first["machine_hits"] == 0 and first["rhs_hits"] == 0
     # said on stderr before it compiled (the Python API's say), not again once cached
     assert first["stderr"].startswith("bouncingball: numba compiles the compiled engine for this host, once (about "
-                                      "11 s; no code compiled from these sources yet), into "), first["stderr"]
+                                      "15 s; no code compiled from these sources yet), into "), first["stderr"]
     again = _compiled_run_of_a_copy(package)
     assert again["machine_hits"] > 0 and again["machine_misses"] == 0 and again["rhs_hits"] == 1  # the cache works
     assert again["stderr"] == ""
