@@ -326,6 +326,27 @@ def rigid_rebound_above(parameters, v_impact, load, apex_floor):
     return v_after, 0.0
 
 
+def summed_bounce_state(parameters, v_first, load, tau):
+    """(x [m], v [m/s]) of a rigid ball tau [s] after the impact whose bounces rigid_rebound summed (Ball.parameters).
+
+    Its bounces leave R at v_first e^j, j = 0, 1, ..., under the constant load [N]; the j-th leaves at
+    S_j = 2 v_first (1 - e^j) / (g_eff (1 - e)), and from the Zeno time S_inf on the ball rests, (0, 0). Each is
+    lower than ZENO_APEX R, so the ball is taken on R while they last; this is where it truly is, for a change
+    of F_ext inside that time: a lift there leaves with the bounce's speed, not from rest.
+    """
+    e, g_eff = parameters[6], load / parameters[0]
+    scale = 2.0 * v_first / (g_eff * (1.0 - e))  # S_inf
+    if not tau < scale:
+        return 0.0, 0.0
+    j = max(int(math.floor(math.log1p(-tau / scale) / math.log(e))), 0)  # e^j >= 1 - tau / S_inf
+    while j > 0 and scale * (1.0 - e**j) > tau:  # the rounding of the logarithms, either way
+        j -= 1
+    while scale * (1.0 - e ** (j + 1)) <= tau:
+        j += 1
+    s, v_j = tau - scale * (1.0 - e**j), v_first * e**j
+    return max(s * (v_j - 0.5 * g_eff * s), 0.0), v_j - g_eff * s
+
+
 def conserved_speed(parameters, mode, x_start, v_start):
     """Whether a phase from the gap x_start [m] at v_start [m/s] in mode ends on R at -v_start exactly.
 

@@ -27,6 +27,7 @@ from ..physics import (
     load_value,
     pressed_gap,
     rigid_rebound,
+    summed_bounce_state,
 )
 from ..rounding import later
 from . import forcing
@@ -69,15 +70,21 @@ class ExactSolution:
         ball, R = self.ball, self.ball.R
         resolvable_until = limits.resolvable_until(ball)
         constant_pieces = forcing.pieces(self.F_ext, self.t_start, self.t_end)
+        zeno_end = -math.inf  # where a rigid ball's bounces summed in the current piece end (physics.rigid_rebound)
         for number, (t, piece_end, F_ext) in enumerate(constant_pieces):
             last, t_low = number == len(constant_pieces) - 1, 0.0  # t_low: t's rounding error (rounding.later)
-            zeno_end = -math.inf  # where a rigid ball's bounces summed in this piece end (physics.rigid_rebound)
             if number == 0:
                 mode = ball.initial_mode(h, v, F_ext)
             else:  # a change of F_ext: the state where the previous phase has it, the mode held
                 phase = self.phases[-1]
                 h, v = (float(y) for y in ball.flow(phase.mode, phase.h0, phase.v0, t - phase.t_start, phase.F_ext))
                 mode = phase.mode
+                if t < zeno_end:  # inside a rigid ball's summed bounces: on from where the bounce truly is
+                    v_first = -ball.e * self.events[-1].velocity  # the impact that started them, at the phase's start
+                    x, v = summed_bounce_state(ball.parameters, v_first, load_value(phase.F_ext, ball.m, ball.g),
+                                               t - phase.t_start)
+                    h, mode = R + x, Mode.FLIGHT
+            zeno_end = -math.inf
             parameters = ball.parameters
             contact_start = t  # the last impact (the no-pull law's engagements start no contact), or this piece's start
             while True:
