@@ -7,6 +7,7 @@ exact solver) and the stepping API.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -228,3 +229,25 @@ def test_the_stepping_api_lifts_from_inside_the_summed_bounces_as_the_truth_does
     # CVODE's 43 impacts are 1e-14 s off the truth's: at 1e-7 m/s each bounce's speed is off by g times that
     assert integrator.h == pytest.approx(float(h_lift + v_lift * 100), abs=HEIGHT_TOLERANCE)
     assert integrator.v == pytest.approx(float(v_lift), rel=1e-6) and integrator.mode == bb.Mode.FLIGHT
+
+
+@pytest.mark.parametrize("restart", [True, False])
+def test_a_state_taken_inside_the_summed_bounces_keeps_them(restart):
+    """get_state/set_state (an FMU's state) inside the summed bounces: its rest time, and a lift from the bounce."""
+    ball = bb.Ball(R=R, g=G, contact="rigid", e=0.7)
+    truth = RigidTruth(R, G, 0.7, 0.0, 1.0 + R, 0.0, 10.0)
+    t_lift = float(truth.impacts[42][0]) + 5e-8
+    original = BallIntegrator(ball, 1.0 + R, 0.0)
+    original.advance(t_lift)
+    state = original.get_state()
+    assert abs(state.zeno_time - float(truth.rest_time)) <= TIME_TOLERANCE
+    restored = BallIntegrator(ball, 2.0, 0.0)
+    restored.set_state(state if restart else dataclasses.replace(state, restart=None))
+    assert restored.rest_time == original.rest_time == state.zeno_time
+    for integrator in (original, restored):
+        integrator.F_ext = G
+        integrator.advance(t_lift + 100.0)
+    _, v_lift = truth.state(t_lift)
+    assert restored.h == original.h and restored.v == pytest.approx(float(v_lift), rel=1e-6)
+    with pytest.raises(ValueError, match="state zeno_time = 1.0 s is not allowed"):
+        restored.set_state(dataclasses.replace(state, zeno_time=1.0))

@@ -153,6 +153,7 @@ class BallIntegrator(IntegratorView):
         previous = self.get_state() if hasattr(self, "_F_ext") else None
         if checked.restart_point is None:
             self._restart_at((t, x, v, mode), F_ext, counts, t_start)
+            self._resume_summed_bounces(state.zeno_time)
             return
         self._restart_at(checked.restart_point, F_ext, checked.restart_counts, t_start, checked.restart_t_low,
                          checked.restart_errors)
@@ -176,6 +177,12 @@ class BallIntegrator(IntegratorView):
         # The counters as they were: CVODE's step history is the original's.
         self._set_counts(counts)
         reached[layout.RHS_CALLS] -= reached[layout.NFEV]
+        self._resume_summed_bounces(state.zeno_time)
+
+    def _resume_summed_bounces(self, zeno_time: float | None) -> None:
+        """A rigid ball's rest on R from zeno_time [s] (its summed bounces until then), which no restart point knows."""
+        if zeno_time is not None:
+            self._state[[layout.REST_T, layout.REST_X, layout.REST_V]] = zeno_time, 0.0, 0.0
 
     def close(self) -> None:
         """Give the CVODE objects back to the process's pool for the next integrator; unusable after.

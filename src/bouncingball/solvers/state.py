@@ -65,6 +65,7 @@ class IntegratorState:
     steps: int = 0
     gap: float | None = None  # h - R [m] to every digit (h rounds a deflection to ulp(R)); None: h - R
     restart: RestartPoint | None = None
+    zeno_time: float | None = None  # a rigid ball's summed bounces end then [s] (physics.rigid_rebound); None: none
 
     def __post_init__(self) -> None:
         """Take the restart point from a dict of its fields (a deserialized state); TypeError names a bad one."""
@@ -237,7 +238,12 @@ class IntegratorView:
                                impacts=self.impacts, departures=self.departures,
                                last_impact_time=self._last_impact_time, t_start=self._t_start,
                                rhs_calls=self.rhs_calls, steps=self.steps, gap=float(state[layout.X]),
-                               restart=restart)
+                               restart=restart, zeno_time=self._zeno_time())
+
+    def _zeno_time(self) -> float | None:
+        """When the summed bounces of a rigid ball resting on R end [s] (REST_T, after its last impact), else None."""
+        rest, impact = float(self._state[layout.REST_T]), float(self._state[layout.LAST_IMPACT])
+        return rest if self.ball.rigid and self.mode == Mode.CONTACT and rest > impact else None
 
     def _errors(self) -> tuple[float, float, float, float | None, float]:
         """The error estimate's fields at the restart point, as RestartPoint holds them."""
@@ -311,6 +317,10 @@ def checked(ball: Ball, state: IntegratorState, settings: CvodeSettings) -> Chec
                          f"(b = {ball.b!r} N s/m): it is the no-pull law's free sub-mode (with b > 0)")
     t_start = validation.finite("state t_start", state.t_start, "s")
     counts = _counts("state", state)
+    if state.zeno_time is not None and not (ball.rigid and point[3] == Mode.CONTACT and counts[2] is not None
+                                            and validation.finite("state zeno_time", state.zeno_time, "s") > counts[2]):
+        raise ValueError(f"state zeno_time = {state.zeno_time!r} s is not allowed: it is where a rigid ball resting "
+                         "on R ends its summed bounces, after its last impact (None otherwise)")
     restart = state.restart
     if restart is None:
         _check_side(ball, settings, "state", point, point, state.h)
