@@ -531,7 +531,7 @@ def test_both_engines_report_a_failed_phase_alike(monkeypatch):
     assert outcomes[0] == outcomes[1] and 0 < outcomes[0][1] < 150 and outcomes[0][2] > 0.0
 
 
-def test_numbas_private_api_that_jit_uses_is_still_there():
+def test_numbas_private_api_that_jit_uses_is_still_there(tmp_path):
     """jit's one block of numba's private API (its cache's locator classes, _CacheLocator, the index files' format, the
     host's key): this fails on an upgrade that changes it, instead of the compiled engine silently compiling afresh in
     every process."""
@@ -553,27 +553,86 @@ def test_numbas_private_api_that_jit_uses_is_still_there():
     assert (version, stamp) == (numba.__version__, jit.sources_digest(jit.engine_sources()))
     assert (triple, cpu, features) in [key[1] for key in keys]
     assert jit.cache_misfit(folder, stamp) is None
+    assert str(index) in jit._indexes(folder)  # numba's name for this Python's index
+    # an index _copy_cache writes is one numba reads
+    from numba.core.caching import IndexDataCacheFile
+
+    copied = tmp_path / "copied"
+    copied.mkdir()
+    jit._copy_cache(folder, str(copied))
+    reader = IndexDataCacheFile(str(copied), index.name.removesuffix(".nbi"), stamp)
+    assert keys and all(reader.load(key) is not None for key in keys)
 
 
 def test_a_cache_compiled_elsewhere_is_named_for_what_does_not_fit(tmp_path):
     """The code in a cache folder runs here only if numba, the sources and the CPU are this host's: a cache that
     differs in one says which (what the FMU logs before numba compiles)."""
-    import pickle
-
     from bouncingball.solvers import jit
 
     digest = jit.sources_digest(jit.engine_sources())
     host = jit._host_key()
     assert jit.cache_misfit(str(tmp_path), digest) == "no code compiled from these sources yet"
-    index = tmp_path / "machine.run_phases-1.py311.nbi"
+    index = tmp_path / f"machine.run_phases-1{_python_tag()}.nbi"
     for version, stamp, key, why in [
             ("0.1.0", digest, host, "its code was compiled by numba 0.1.0, this is numba "),
             (jit.numba.__version__, "other", host, "its code was compiled from other sources"),
-            (jit.numba.__version__, digest, (host[0], "a486", host[2]), "its code was compiled for the CPU a486, ")]:
-        with index.open("wb") as file:
-            pickle.dump(version, file)
-            file.write(pickle.dumps((stamp, {((), key, ("", "")): "x.1.nbc"})))
+            (jit.numba.__version__, digest, (host[0], "a486", host[2]), "its code was compiled for the CPU a486 ("),
+            (jit.numba.__version__, digest, ("aarch64-unknown-linux-gnu", "generic", ""),
+             "its code was compiled for the CPU generic (aarch64-unknown-linux-gnu), this is ")]:
+        _write_index(index, version, stamp, {((), key, ("", "")): "x.1.nbc"})
         assert jit.cache_misfit(str(tmp_path), digest).startswith(why)
+        assert jit.cache_misfit(str(tmp_path), digest, portable=True).startswith(why)
+    index.rename(tmp_path / "machine.run_phases-1.py29.nbi")  # another Python's: numba would not read it here
+    assert jit.cache_misfit(str(tmp_path), digest) == "no code compiled from these sources yet"
+
+
+def _python_tag() -> str:
+    return f".py{sys.version_info[0]}{sys.version_info[1]}{sys.abiflags}"
+
+
+def _write_index(path, version, stamp, overloads) -> None:
+    """An index file as numba writes one: its version pickled, then the stamp and the overloads."""
+    import pickle
+
+    with open(path, "wb") as file:
+        pickle.dump(version, file)
+        file.write(pickle.dumps((stamp, overloads)))
+
+
+def test_code_compiled_for_the_generic_cpu_is_shipped_code_that_fits_and_is_filed_under_this_cpu(tmp_path):
+    """A shipped cache compiled for numba's generic CPU of this architecture fits any CPU of it: as shipped it fits
+    (not in the user-wide cache, where numba would not find it), and the copy into the user-wide cache files each
+    overload under this host's CPU, data files copied byte for byte."""
+    from bouncingball.solvers import jit
+
+    digest = jit.sources_digest(jit.engine_sources())
+    host = jit._host_key()
+    generic = (host[0], "generic", "")
+    shipped, folder = tmp_path / "shipped", tmp_path / "user"
+    shipped.mkdir()
+    folder.mkdir()
+    overloads = {(("float64",), generic, ("a", "b")): "m.f-1.py.1.nbc",
+                 (("int64",), host, ("a", "b")): "m.f-1.py.2.nbc"}
+    _write_index(shipped / f"m.f-1{_python_tag()}.nbi", jit.numba.__version__, digest, overloads)
+    for data in overloads.values():
+        (shipped / data).write_bytes(data.encode() * 3)
+    assert jit.cache_misfit(str(shipped), digest, portable=True) is None
+    assert jit.cache_misfit(str(shipped), digest) is None  # one overload is this host's own
+    _write_index(shipped / f"m.f-1{_python_tag()}.nbi", jit.numba.__version__, digest,
+                 {key: data for key, data in overloads.items() if key[1] == generic})
+    assert jit.cache_misfit(str(shipped), digest).startswith("its code was compiled for the CPU generic (")
+    assert jit.cache_misfit(str(shipped), digest, portable=True) is None
+    _write_index(shipped / f"m.f-1{_python_tag()}.nbi", jit.numba.__version__, digest, overloads)
+
+    jit._copy_cache(str(shipped), str(folder))
+    version, stamp, copied = jit._index(str(folder / f"m.f-1{_python_tag()}.nbi"))
+    assert (version, stamp) == (jit.numba.__version__, digest)
+    assert copied == {(("float64",), host, ("a", "b")): "m.f-1.py.1.nbc",
+                      (("int64",), host, ("a", "b")): "m.f-1.py.2.nbc"}
+    for data in overloads.values():
+        assert (folder / data).read_bytes() == data.encode() * 3
+    assert sorted(path.name for path in folder.iterdir()) == sorted([*overloads.values(), f"m.f-1{_python_tag()}.nbi"])
+    assert jit.cache_misfit(str(folder), digest) is None
 
 
 def test_the_cache_is_taken_whole_under_a_lock_by_processes_importing_at_once(tmp_path):

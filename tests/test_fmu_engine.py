@@ -254,6 +254,26 @@ def test_the_fmus_first_use_of_the_compiled_engine_reads_the_cache_it_ships(fmu,
     assert report["log"] == [], report["log"]
 
 
+def test_the_fmu_ships_code_compiled_for_any_cpu_of_its_architecture(fmu, tmp_path):
+    """Every overload in the FMU's cache was compiled for numba's generic CPU (no instruction this host has and
+    another CPU of its architecture may lack), for this numba and from the FMU's own sources."""
+    import zipfile
+
+    pytest.importorskip("numba")
+    from bouncingball.solvers import jit
+
+    with zipfile.ZipFile(fmu) as archive:
+        names = [name for name in archive.namelist() if name.startswith("resources/numba-cache/")]
+        archive.extractall(tmp_path, names)
+    indexes = sorted((tmp_path / "resources" / "numba-cache").glob("*.nbi"))
+    assert len(indexes) > 10 and len(names) > 2 * len(indexes) - 1
+    host = jit._host_key()
+    for index in indexes:
+        version, _, overloads = jit._index(str(index))
+        assert version == jit.numba.__version__
+        assert {key[1] for key in overloads} == {(host[0], "generic", "")}, index.name
+
+
 def test_a_shipped_cache_that_does_not_fit_is_compiled_once_and_said_first(fmu, tmp_path):
     """The FMU's cache compiled by another numba (its index files' version changed): numba compiles, said in the
     FMU's log as its first message; the code is then kept in the user-wide cache, which the next process reads."""

@@ -1,4 +1,4 @@
-"""What a user gets from `pip install 'bouncingball[fmu]'`: a wheel in a fresh virtual environment, run
+"""What a user gets from `pip install 'bouncingball[fmu,fast]'`: a wheel in a fresh virtual environment, run
 from a folder that is not the checkout. One venv for the whole module (it takes ~1 minute)."""
 
 from __future__ import annotations
@@ -27,13 +27,13 @@ def run(command, cwd, timeout=600) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory) -> Path:
-    """The bin folder of a fresh venv with the wheel installed with its [fmu] extra."""
+    """The bin folder of a fresh venv with the wheel installed with its [fmu] and [fast] extras."""
     folder = tmp_path_factory.mktemp("wheel")
     run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", folder / "dist", ROOT], cwd=folder)
     [wheel] = (folder / "dist").glob("bouncingball-*.whl")
     run([sys.executable, "-m", "venv", folder / "venv"], cwd=folder)
     bin_dir = folder / "venv" / "bin"
-    run([bin_dir / "python", "-m", "pip", "install", "--quiet", f"{wheel}[fmu]"], cwd=folder)
+    run([bin_dir / "python", "-m", "pip", "install", "--quiet", f"{wheel}[fmu,fast]"], cwd=folder)
     return bin_dir
 
 
@@ -52,6 +52,41 @@ def test_the_wheel_builds_and_runs_the_fmu_outside_the_checkout(installed, tmp_p
     h_exact, _, impacts_exact = exact_at(t)
     assert t[-1] == pytest.approx(2.0) and np.max(np.abs(h - h_exact)) < 1e-7
     np.testing.assert_array_equal(impacts, impacts_exact)
+
+
+_FIRST_COMPILED_RUN = """
+import json
+import bouncingball as bb
+from bouncingball.solvers import compiled
+result = bb.simulate(bb.Ball(), 2.0, 0.0, 8.0, 1e-3, engine="compiled")
+dispatchers = [value for value in vars(compiled).values() if hasattr(value, "stats")]
+dispatchers += list(compiled._compiled.values())
+print(json.dumps({"t": result.t.tolist(), "h": result.h.tolist(), "engine": result.stats.engine,
+                  "misses": sum(sum(d.stats.cache_misses.values()) for d in dispatchers),
+                  "hits": sum(sum(d.stats.cache_hits.values()) for d in dispatchers)}))
+"""
+
+
+def test_the_wheel_carries_its_compiled_engine_and_a_first_use_compiles_nothing(installed, tmp_path):
+    """The wheel's build compiled the engine for any CPU of its architecture into the package: a first run with the
+    compiled engine, in a fresh process with an empty user-wide cache, reads every function from it, compiles none
+    and says nothing; its heights are the exact solution's."""
+    import json
+    import os
+
+    site = run([installed / "python", "-c", "import bouncingball, os; print(os.path.dirname(bouncingball.__file__))"],
+               cwd=tmp_path).stdout.strip()
+    assert len(list(Path(site, "numba-cache").glob("*.nbi"))) > 10
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "empty-cache")}
+    env.pop("NUMBA_CACHE_DIR", None)
+    completed = subprocess.run([installed / "python", "-c", _FIRST_COMPILED_RUN], cwd=tmp_path, env=env,
+                               capture_output=True, text=True, timeout=300, check=False)
+    assert completed.returncode == 0 and completed.stderr == "", completed.stderr
+    report = json.loads(completed.stdout)
+    assert report["engine"] == "compiled" and report["misses"] == 0 and report["hits"] > 0, report
+    h_exact, _, _ = exact_at(np.array(report["t"]))
+    assert np.max(np.abs(np.array(report["h"]) - h_exact)) < 1e-7
+    assert len(list((tmp_path / "empty-cache" / "bouncingball").glob("numba-*/*.nbi"))) > 10  # kept for the next
 
 
 def test_the_main_job_runs_from_the_wheel(installed, tmp_path):

@@ -3,7 +3,8 @@
 ``compiled_together`` compiles plain-Python functions of floats and arrays (physics, the phase
 machine) as they are, so one source runs interpreted in one engine and compiled in the other;
 ``cache_allowed`` keeps numba's disk cache true to every source the compiled code inlines, in a folder
-named after their contents (so a copy of the package elsewhere, an FMU's, finds it too); the
+named after their contents (so a copy of the package elsewhere, an FMU's, finds it too), taken from
+a cache shipped with the package or the FMU where it fits the host; the
 ``call_*`` intrinsics call a C function whose address is a run-time integer (``doubles`` and
 ``addresses`` read pointers from integers), so that no process-specific constant is baked into
 the code and it can be cached on disk.
@@ -65,6 +66,8 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
+from .engine_cache import PORTABLE_CPU, package_shipped, say_on_stderr
+
 # Every source the compiled code is compiled from, relative to the package: the modules whose functions
 # compiled.py gives compiled_together, those whose constants they read (rule 5), jit.py and compiled.py.
 ENGINE_SOURCES = ("rounding.py", "physics.py", "solvers/settings.py", "solvers/phases.py", "solvers/layout.py",
@@ -109,14 +112,10 @@ def cache_folder(digest: str) -> str:
     return os.path.join(user_cache_root(), f"numba-{digest[:24]}")
 
 
-def say_on_stderr(message: str) -> None:
-    print(f"bouncingball: {message}", file=sys.stderr, flush=True)
-
-
-# What cache_allowed says before numba compiles, and the cache it may take the code from instead (an FMU's):
-# set by first_use around the compiled engine's import.
+# What cache_allowed says before numba compiles, and the cache it may take the code from instead: the one shipped
+# in the package (a wheel's), or the one first_use names around the compiled engine's import (an FMU's).
 _say: Callable[[str], None] = say_on_stderr
-_shipped: str | None = None
+_shipped: str | None = package_shipped()
 
 
 @contextlib.contextmanager
@@ -141,8 +140,10 @@ def cache_allowed(files) -> bool:
     into a new folder by most masters, found no cache at all. So the code compiled from files is
     kept in one folder named after the digest of all their contents (a change to any is a new
     folder), wherever the files are. Where that folder holds no code for this host's numba and CPU,
-    it is first taken from the shipped cache (first_use) if that fits, else numba compiles, said
-    through first_use's say before it does. Where a file is gone (the master deleted the unzipped
+    it is first taken from the shipped cache (the package's own, a wheel's; or first_use's, an
+    FMU's: engine_cache.py compiled it for any CPU of its architecture) if that fits, its code filed
+    under this host's CPU as it is copied; else numba compiles, said through first_use's say (on
+    stderr unless first_use says otherwise) before it does. Where a file is gone (the master deleted the unzipped
     FMU after the process imported it) or the folder cannot be written, nothing is cached.
     Processes importing at once (Dask's workers) take turns under one lock file, and every file is
     written whole (a temporary file renamed) or not at all.
@@ -157,7 +158,7 @@ def cache_allowed(files) -> bool:
             fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
             misfit = cache_misfit(folder, digest)
             if misfit is not None and _shipped is not None:
-                unfit = cache_misfit(_shipped, digest)
+                unfit = cache_misfit(_shipped, digest, portable=True)
                 if unfit is None:
                     _copy_cache(_shipped, folder)
                     misfit = None
@@ -171,28 +172,24 @@ def cache_allowed(files) -> bool:
     return True
 
 
-def _copy_cache(source: str, folder: str) -> None:
-    for path in sorted(glob.glob(os.path.join(source, "*.nb[ci]")), key=lambda p: p.endswith(".nbi")):
-        written = os.path.join(folder, f".{os.path.basename(path)}.{os.getpid()}")
-        shutil.copyfile(path, written)
-        os.replace(written, os.path.join(folder, os.path.basename(path)))
-
-
-def cache_misfit(folder: str, digest: str) -> str | None:
-    """Why the code cached in folder cannot run here (none, another numba, CPU or set of sources); None if it can."""
-    indexes = glob.glob(os.path.join(folder, "*.nbi"))
+def cache_misfit(folder: str, digest: str, portable: bool = False) -> str | None:
+    """Why the code cached in folder cannot run here (none for this Python, another numba, CPU or set of sources);
+    None if it can. portable: code compiled for PORTABLE_CPU on this host's architecture runs here too (a shipped
+    cache, which _copy_cache retargets to this host's CPU as it copies it)."""
+    indexes = _indexes(folder)
     if not indexes:
         return "no code compiled from these sources yet"
     host = _host_key()
+    fits = {host, (host[0], PORTABLE_CPU, "")} if portable else {host}
     for path in indexes:
         version, stamp, keys = _index(path)
         if version != numba.__version__:
             return f"its code was compiled by numba {version}, this is numba {numba.__version__}"
         if stamp != digest:
             return "its code was compiled from other sources"
-        if not any(key[1] == host for key in keys):
-            built = sorted({key[1][1] for key in keys})
-            return f"its code was compiled for the CPU {', '.join(built)}, this is {host[1]}"
+        if not any(key[1] in fits for key in keys):
+            built = sorted({f"{key[1][1]} ({key[1][0]})" for key in keys})
+            return f"its code was compiled for the CPU {', '.join(built)}, this is {host[1]} ({host[0]})"
     return None
 
 
@@ -217,14 +214,42 @@ def _host_key() -> tuple:
     return cpu_target.target_context.codegen().magic_tuple()
 
 
+def _indexes(folder: str) -> list[str]:
+    """numba's index files (.nbi) in folder for this Python (numba names them ...-<line>.py311.nbi, say)."""
+    return glob.glob(os.path.join(folder, f"*.py{sys.version_info[0]}{sys.version_info[1]}{sys.abiflags}.nbi"))
+
+
+def _copy_cache(source: str, folder: str) -> None:
+    """Copy numba's cache files from source into folder, each written whole, the data before the indexes that name
+    it; an index's code compiled for PORTABLE_CPU is filed under this host's CPU, where numba looks for it."""
+    from numba.core.serialize import dumps
+
+    host = _host_key()
+    portable = (host[0], PORTABLE_CPU, "")
+    for path in sorted(glob.glob(os.path.join(source, "*.nb[ci]")), key=lambda p: p.endswith(".nbi")):
+        written = os.path.join(folder, f".{os.path.basename(path)}.{os.getpid()}")
+        if path.endswith(".nbi"):
+            version, stamp, overloads = _index(path)
+            overloads = {(key[0], host if key[1] == portable else key[1], *key[2:]): data
+                         for key, data in overloads.items()}
+            with open(written, "wb") as file:
+                pickle.dump(version, file, protocol=-1)
+                file.write(dumps((stamp, overloads)))
+        else:
+            shutil.copyfile(path, written)
+        os.replace(written, os.path.join(folder, os.path.basename(path)))
+
+
 def _index(path: str) -> tuple:
-    """(numba's version, the source stamp, the keys of the overloads) of one of numba's index files (.nbi)."""
+    """(numba's version, the source stamp, {an overload's key: its data file}) of one of numba's index files (.nbi).
+
+    A key is (signature, (LLVM's target triple, the CPU's name, its features), the code's hashes)."""
     with open(path, "rb") as file:
         version = pickle.load(file)
         if version != numba.__version__:
-            return version, None, ()
+            return version, None, {}
         stamp, overloads = pickle.loads(file.read())
-    return version, stamp, tuple(overloads)
+    return version, stamp, overloads
 
 
 @functools.cache

@@ -1,0 +1,47 @@
+"""bouncingball's build backend: setuptools', and a wheel that carries its compiled engine's code compiled ahead.
+
+numba would compile the compiled engine at its first use after install (about 15 s). A wheel's build
+compiles it once for any CPU of the build host's architecture and puts numba's cache files in the
+package (bouncingball/solvers/engine_cache.py), so a first use reads them in well under a second.
+That needs the engine's own requirements in the build environment, which get_requires_for_build_wheel
+adds (the project's dependencies and its [fast] extra, read from pyproject.toml). An editable install
+and an sdist compile nothing. BOUNCINGBALL_SHIP_NUMBA_CACHE=0 builds a wheel without it (its engine
+then compiles at first use, and says so).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tomllib
+
+from setuptools import build_meta
+from setuptools.build_meta import *  # noqa: F403  (every hook as setuptools has it, but the two below)
+from setuptools.command.build_py import build_py
+
+
+def _ships_cache() -> bool:
+    return os.environ.get("BOUNCINGBALL_SHIP_NUMBA_CACHE", "1") != "0"
+
+
+def get_requires_for_build_wheel(config_settings=None):
+    """setuptools' requirements, and where the wheel ships the compiled engine's code, those of the engine."""
+    requires = build_meta.get_requires_for_build_wheel(config_settings)
+    if _ships_cache():
+        with open("pyproject.toml", "rb") as file:
+            project = tomllib.load(file)["project"]
+        requires += [*project["dependencies"], *project["optional-dependencies"]["fast"]]
+    return requires
+
+
+class BuildPy(build_py):
+    """setuptools' build_py, then, for a wheel, the compiled engine of the package just built compiled into it."""
+
+    def run(self):
+        """Build the package, then compile its engine into it (not for an editable install)."""
+        super().run()
+        if self.editable_mode or not _ships_cache():
+            return
+        environment = {**os.environ, "PYTHONPATH": os.path.abspath(self.build_lib)}
+        subprocess.run([sys.executable, "-m", "bouncingball.solvers.engine_cache"], env=environment, check=True)
