@@ -112,6 +112,36 @@ def test_a_quoted_figure_is_the_generated_pages(document):
         assert missing == [], f"{document} quotes figures {page} does not print: {missing}"
 
 
+def _per_do_step_means() -> dict[tuple[str, str], str]:
+    """docs/benchmarks.md's "Per doStep, call by call" table: (slave, state at every step) -> mean doStep [us]."""
+    page = (ROOT / "docs" / "benchmarks.md").read_text(encoding="utf-8")
+    table = page.split("### Per doStep, call by call", 1)[1].split("\n\n")[2]
+    rows = [[cell.strip() for cell in line.strip("|").split("|")] for line in table.splitlines()[2:]]
+    return {(slave, state): mean for slave, state, mean, *_ in rows}
+
+
+def test_the_fmu_pages_doStep_costs_are_the_benchmark_pages():
+    """docs/fmu.md's costs per doStep, each the mean docs/benchmarks.md prints for that slave (not only somewhere)."""
+    if not FMU_PAGE.is_file():
+        pytest.skip("runs in a source checkout")
+    means = _per_do_step_means()
+    fmi2, fmi3 = means["FMU, default engine (auto)", "no"], means["FMI 3.0 FMU, default engine (auto)", "no"]
+    empty2, empty3 = means["empty pythonfmu slave", "no"], means["empty pythonfmu3 slave", "no"]
+    compiled, sksundae = means["FMU, engine compiled", "no"], means["FMU, engine sksundae", "no"]
+    assert_fmu_page_quotes(
+        f"| per doStep, 1 ms, FMPy call by call (the mean in docs/benchmarks.md, \"Per doStep, call by call\") | "
+        f"{fmi2} us, against {empty2} us for an empty pythonfmu slave | {fmi3} us without early return, "
+        f"{means['FMI 3.0 FMU, default engine (auto), early return', 'no']} us per communication step with it, "
+        f"against {empty3} us for an empty pythonfmu3 slave |",
+        f"a `doStep` costs a mean of {compiled} us with `compiled` against {sksundae} us with `sksundae` ({empty2} us "
+        f"of it pythonfmu's floor; {means['FMU, engine compiled', 'yes']} against "
+        f"{means['FMU, engine sksundae', 'yes']} us with `fmi2GetFMUstate` before every step)",
+        f"a `doStep` takes a mean of {fmi2} us at the default engine ({sksundae} us with the scikit-sundae engine) "
+        f"against {empty2} us for an empty pythonfmu slave")
+    # "The FMI 3.0 doStep costs more than the FMI 2.0 one mostly by the empty slaves' difference"
+    assert float(empty3) - float(empty2) > 0.5 * (float(fmi3) - float(fmi2)) > 0
+
+
 def test_the_python_hosts_the_docs_name_are_those_tested():
     from bouncingball.fmu.host_check import TESTED_PYTHON_HOSTS
 
