@@ -153,8 +153,9 @@ def test_the_python_hosts_the_docs_name_are_those_tested():
 
 # --- docs/fmu.md: the FMU's own figures, computed by the code that makes them -------------------------------
 # The FMU's co-simulation is its slave's do_step (fmu/slave_base.py): documentation.py drives it in-process, as a
-# master does, for the FMU's own page, and so do these tests. A master's integrator (model exchange) and the masters
-# that cannot be installed here (OMSimulator, fmusim) are dated measurements on the page, said so there.
+# master does, for the FMU's own page, and so do these tests. A master's integrator (model exchange) is computed again
+# where its runs are (tests/test_fmu3.py, test_strict_masters.py, test_fmu_rigid.py, test_fmu_nopull.py); the masters
+# that cannot be installed here (OMSimulator, fmusim) are described on the page, with no figure, said so there.
 @dataclass
 class _SlaveRun:
     t: np.ndarray  # the rows a master records: each communication point, and each early return's time
