@@ -30,6 +30,20 @@ def unzipped(fmu, tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="session")
+def validated_article(fmu) -> tuple[str, str]:
+    """`bouncingball validate article --fmu FMU`, run once per session: what it prints (stdout, stderr)."""
+    import contextlib
+    import io
+
+    from bouncingball.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        assert main(["validate", "article", "--fmu", str(fmu)]) == 0
+    return out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(scope="session")
 def fmu3(tmp_path_factory) -> Path:
     """The FMI 3.0 FMU, built once per session through `bouncingball build-fmu --fmi-version 3 -o`."""
     from bouncingball.cli import main

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import textwrap
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -153,13 +154,63 @@ def test_without_early_return_each_step_resolves_its_events(unzipped3):
     assert out["stops"] == [] and abs(out["h"] - h[0]) <= 1e-6 and out["impacts"] == impacts[0]
 
 
-def test_model_exchange_in_fmpy_cvode_finds_every_impact(fmu3):
-    result = fmpy.simulate_fmu(str(fmu3), fmi_type="ModelExchange", solver="CVode", relative_tolerance=1e-8,
-                               stop_time=8.0, output_interval=0.01)
-    # events to ~1e-5 s: the master's CVode's accuracy, not the FMU's (docs/fmu.md quotes its error)
-    assert_exact(result, tolerance=1e-4, tie=1e-4)
-    error = page_figure(np.max(np.abs(result["h"] - exact_at(result["time"])[0])))
-    assert_fmu_page_quotes(f"rtol 1e-8: {error} m, 21/21;", f"| FMPy CVode, rtol 1e-8 (tested) | {error} m | 21 |")
+@dataclass
+class _FmpyModelExchange:
+    """The article through FMPy's own integrator in model exchange, against the exact solution."""
+
+    error: float  # max |h - h_exact| over the rows
+    impacts: int
+    first_impact_lag: float  # the first row counting an impact, after the exact first impact [s]
+    result: np.ndarray
+
+    def row(self, label: str) -> str:
+        """This run's row of docs/fmu.md's "Model exchange in FMPy" table."""
+        counted = "21" if self.impacts == 21 else f"{self.impacts} of 21"
+        lag = page_figure(abs(self.first_impact_lag))
+        return (f"| {label} | {_metres(self.error)} | {counted} | {lag} s "
+                f"{'late' if self.first_impact_lag > 0 else 'early'} |")
+
+
+def _metres(value: float) -> str:
+    """A height error as docs/fmu.md prints it: two digits, an exponent below 0.1 m."""
+    return f"{value:.2g} m" if value >= 0.1 else f"{page_figure(value)} m"
+
+
+def _fmpy_model_exchange(fmu3, **options) -> _FmpyModelExchange:
+    result = fmpy.simulate_fmu(str(fmu3), fmi_type="ModelExchange", stop_time=8.0, **options)
+    first_impact = next(event.time for event in ARTICLE.events if event.kind == IMPACT)
+    return _FmpyModelExchange(float(np.max(np.abs(result["h"] - exact_at(result["time"])[0]))),
+                              int(result["impacts"][-1]),
+                              float(result["time"][np.argmax(result["impacts"] >= 1)] - first_impact), result)
+
+
+def test_model_exchange_in_fmpy_cvode_follows_the_masters_tolerance(fmu3):
+    """FMPy's CVode integrates the FMU: every impact on time from rtol 1e-6 on, the error shrinking with rtol."""
+    runs = {rtol: _fmpy_model_exchange(fmu3, solver="CVode", relative_tolerance=float(rtol), output_interval=0.01)
+            for rtol in ("1e-4", "1e-6", "1e-8", "1e-10")}
+    for rtol, run in runs.items():
+        if float(rtol) <= 1e-6:  # events to ~1e-5 s: the master's CVode's accuracy, not the FMU's
+            assert_exact(run.result, tolerance=1e-4, tie=1e-4)
+    errors = [run.error for run in runs.values()]
+    assert errors == sorted(errors, reverse=True)
+    loose, tested = runs["1e-4"], runs["1e-8"]
+    assert_fmu_page_quotes(*(run.row(f"FMPy CVode, rtol {rtol}") for rtol, run in runs.items()),
+                           f"rtol 1e-8: {_metres(tested.error)}, {tested.impacts}/21; rtol 1e-4: "
+                           f"{_metres(loose.error)}, {loose.impacts}/21 (its integrator's accuracy)")
+
+
+@pytest.mark.parametrize("step", [1e-3, pytest.param(1e-4, marks=pytest.mark.slow)], ids=["1 ms", "0.1 ms"])
+def test_model_exchange_in_fmpy_euler_cannot_follow_the_stiff_contact(fmu3, step):
+    """FMPy's forward Euler, one step per output interval: the stiff contact (w dt = 0.1 at 1 ms) comes out wrong."""
+    run = _fmpy_model_exchange(fmu3, solver="Euler", step_size=step, output_interval=step)
+    assert run.error > 0.1 and run.impacts < 21
+    w = np.sqrt(Ball().k / Ball().m)
+    if step == 1e-3:
+        assert_fmu_page_quotes(run.row("FMPy Euler, 1 ms (FMPy's Euler takes one step per output interval)"),
+                               f"(w = {w:g} rad/s, so w dt = {w * step:g} at 1 ms)")
+    else:
+        assert_fmu_page_quotes(run.row("FMPy Euler, 0.1 ms"), f"at 0.1 ms ({round(8.0 / step):,} steps) the height "
+                               f"is still {_metres(run.error)} off")
 
 
 # --- the FMI 3.0 state machine ---------------------------------------------------------------------

@@ -160,11 +160,9 @@ def test_c_master_gets_fmi2Error_for_a_bad_parameter(c_master, unzipped, referen
     assert "m = -1.0 kg is not allowed: it must be finite and > 0" in completed.stderr
 
 
-def test_validate_command_prints_the_four_runs(fmu, capsys):
-    assert main(["validate", "article", "--fmu", str(fmu)]) == 0
-    captured = capsys.readouterr()
-    out = captured.out
-    assert [line.split(" (")[0] for line in captured.err.splitlines()] == [  # a sign of life before each stage
+def test_validate_command_prints_the_four_runs(validated_article):
+    out, err = validated_article
+    assert [line.split(" (")[0] for line in err.splitlines()] == [  # a sign of life before each stage
         "validate: the exact solution ...", "validate: the article's SciPy algorithm",
         "validate: CVODE in this process ...", "validate: the FMU through FMPy ..."]
     rows = {line[:31].strip(): line[31:].split() for line in out.splitlines()[3:7]}

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fmu_helpers import assert_fmu_page_quotes, page_figure
 from rigid_truth import RigidTruth
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -93,6 +94,8 @@ def test_model_exchange_jumps_at_each_impact_and_never_falls_through(unzipped3, 
                         start_values={"contact_law": "rigid", "e": 0.7, "v_min": v_min, "h": R + 1.0})
     error = np.max(np.abs(run.h - np.array(truth.heights(run.t))))
     assert error <= tolerance, error
+    # docs/fmu.md gives one figure per rtol: with and without v_min, restarting when told or always, alike
+    assert_fmu_page_quotes(f"{page_figure(error)} m at {'rtol ' if rtol == 1e-4 else ''}1e{round(np.log10(rtol))},")
     assert run.h[-1] == R and 0 < run.impacts[-1] <= len(truth.impacts)
     if v_min > 0.0:
         assert run.impacts[-1] == len(truth.impacts) == 11
@@ -105,7 +108,8 @@ def test_fmpy_model_exchange_follows_the_rigid_truth_to_its_tolerance(fmu3):
     truth = RigidTruth(R, G, 0.7, 0.0, R + 1.0, 0.0, T_END)
     result = _simulate(fmu3, _start_values(0.7, 0.0, 1.0), fmi_type="ModelExchange", solver="CVode",
                        relative_tolerance=1e-8)
-    _assert_follows_truth(result, truth, 5e-7, time_slack=1e-3)  # the master locates the low bounces' impacts
+    error = _assert_follows_truth(result, truth, 5e-7, time_slack=1e-3)  # the master locates the low bounces' impacts
+    assert_fmu_page_quotes(f"FMPy's CVode (v_min = 0): {page_figure(error)} m at 1e-8.")
 
 
 def test_fmpy_model_exchange_lifts_a_resting_rigid_ball_when_f_ext_exceeds_its_weight(fmu3):
