@@ -178,6 +178,9 @@ def cache_misfit(folder: str, digest: str, portable: bool = False) -> str | None
     cache, which _copy_cache retargets to this host's CPU as it copies it)."""
     indexes = _indexes(folder)
     if not indexes:
+        others = sorted({path.rsplit(".", 2)[-2] for path in glob.glob(os.path.join(folder, "*.nbi"))})
+        if others:
+            return f"its code was compiled for Python {', '.join(others)}, this is {_python_tag()}"
         return "no code compiled from these sources yet"
     host = _host_key()
     fits = {host, (host[0], PORTABLE_CPU, "")} if portable else {host}
@@ -214,9 +217,14 @@ def _host_key() -> tuple:
     return cpu_target.target_context.codegen().magic_tuple()
 
 
+def _python_tag() -> str:
+    """What numba's cache file names say of this Python: py311 for CPython 3.11, say."""
+    return f"py{sys.version_info[0]}{sys.version_info[1]}{sys.abiflags}"
+
+
 def _indexes(folder: str) -> list[str]:
     """numba's index files (.nbi) in folder for this Python (numba names them ...-<line>.py311.nbi, say)."""
-    return glob.glob(os.path.join(folder, f"*.py{sys.version_info[0]}{sys.version_info[1]}{sys.abiflags}.nbi"))
+    return glob.glob(os.path.join(folder, f"*.{_python_tag()}.nbi"))
 
 
 def _copy_cache(source: str, folder: str) -> None:
