@@ -467,6 +467,7 @@ def test_check_passes_an_early_return_result_with_its_event_rows(fmu3, tmp_path,
     assert "points compared    883" in out and "PASS" in out  # 801 points, each of the 41 events twice
 
 
+@pytest.mark.slow  # a build of its own (the numba cache compiled again)
 def test_build_fmu_writes_the_fmi3_fmu_to_its_default_path(tmp_path, monkeypatch, capsys):
     from bouncingball.cli import main
 

@@ -127,6 +127,7 @@ def test_the_fmu_documentation_shows_the_default_run_as_a_png(fmu):
     assert "No plot" not in page
 
 
+@pytest.mark.slow  # a build of its own (the numba cache compiled again), in a subprocess
 def test_build_fmu_without_matplotlib_writes_the_page_without_a_plot(tmp_path):
     """build-fmu must not need matplotlib: without it, no plot and a sentence that says why."""
     path = tmp_path / "BouncingBall.fmu"
