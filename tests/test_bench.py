@@ -283,11 +283,12 @@ def test_the_floor_section_says_the_work_was_the_same(markdown):
 def test_the_first_use_page_gives_each_case_its_min_and_median_and_what_was_said(tmp_path):
     from bouncingball.bench import first_use
 
-    study = first_use.Study(22.4, 2_100_000, 154, [
+    study = first_use.Study(22.4, 2_100_000, 154, 17.6, 2_440_000, (3_600_000, 1_500_000), [
         first_use.Case("simulate", [0.7, 0.6, 0.9], [0.5, 0.4, 0.8], ""),
         first_use.Case("the FMU", [1.0, 1.2, 1.1], [0.6, 0.7, 0.65], "bouncingball: numba compiles")])
     text = first_use.write_page(study, tmp_path / "first_use.md").read_text(encoding="utf-8")
     assert "built in 22 s" in text and "2.1 MB with 154 numba cache files" in text
+    assert "took 18 s" in text and "the FMU is 2.4 MB, its numba cache 3.6 MB (1.5 MB compressed)" in text
     assert "| simulate | 0.60 | 0.70 | 0.40 | 0.50 | nothing |" in text
     assert "| the FMU | 1.00 | 1.10 | 0.60 | 0.65 | bouncingball: numba compiles |" in text
 

@@ -142,6 +142,34 @@ def test_the_fmu_pages_doStep_costs_are_the_benchmark_pages():
     assert float(empty3) - float(empty2) > 0.5 * (float(fmi3) - float(fmi2)) > 0
 
 
+def test_the_fmu_pages_build_figures_are_the_first_use_pages():
+    """docs/fmu.md's build time and sizes, as docs/first_use.md (bench --first-use) measured them."""
+    if not FMU_PAGE.is_file():
+        pytest.skip("runs in a source checkout")
+    measured = (ROOT / "docs" / "first_use.md").read_text(encoding="utf-8")
+    found = re.search(r"`build-fmu` in that venv took (\d+) s, the FMU's compiled engine's compile included; the FMU "
+                      r"is ([\d.]+) MB, its numba cache ([\d.]+) MB \(([\d.]+) MB compressed\)", measured)
+    assert found, measured
+    seconds, size, cache, compressed = found.groups()
+    assert_fmu_page_quotes(f"the build took {seconds} s and the FMU is {size} MB, its numba cache {cache} MB "
+                           f"({compressed} MB compressed)")
+
+
+def test_the_readmes_first_use_figures_are_the_first_use_pages():
+    """The README's first use from a wheel, as docs/first_use.md (bench --first-use) measured it."""
+    page = ROOT / "docs" / "first_use.md"
+    if not page.is_file():
+        pytest.skip("runs in a source checkout")
+    measured = page.read_text(encoding="utf-8")
+    built = re.search(r"The wheel: built in (\d+) s", measured).group(1)
+    rows = [row for row in measured.splitlines() if row.startswith(("| simulate", "| the FMU"))]
+    simulate, fmu = (row.split(" | ")[2] for row in rows)  # each one's median over the processes
+    readme = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    assert (f"the wheel built in {built} s, a whole process running the article with the compiled engine {simulate} s, "
+            f"and the FMU that venv's `build-fmu` makes, run by FMPy's `simulate_fmu` over its first 1 s on a fresh "
+            f"unzip, {fmu} s<!-- end of figures -->") in readme
+
+
 def test_the_python_hosts_the_docs_name_are_those_tested():
     from bouncingball.fmu.host_check import TESTED_PYTHON_HOSTS
 

@@ -63,6 +63,9 @@ class Study:
     wheel_build: float  # pip wheel [s], the engine's compile included
     wheel_size: int  # [bytes]
     cache_files: int  # numba's cache files the wheel carries
+    fmu_build: float  # build-fmu in the venv [s], the FMU's engine compiled included
+    fmu_size: int  # [bytes]
+    fmu_cache: tuple[int, int]  # the numba cache the FMU ships: its size [bytes], as stored in the FMU (compressed)
     cases: list[Case]
 
 
@@ -90,7 +93,13 @@ def measure(repeats: int = REPEATS) -> Study:
         _run([sys.executable, "-m", "venv", temp / "venv"], cwd=temp)
         python = temp / "venv" / "bin" / "python"
         _run([python, "-m", "pip", "install", "--quiet", f"{wheel}[fast,fmu]"], cwd=temp)
+        started = time.perf_counter()
         _run([temp / "venv" / "bin" / "bouncingball", "build-fmu", "-o", temp / "BouncingBall.fmu"], cwd=temp)
+        fmu_build = time.perf_counter() - started
+        fmu_size = (temp / "BouncingBall.fmu").stat().st_size
+        with zipfile.ZipFile(temp / "BouncingBall.fmu") as archive:
+            shipped = [info for info in archive.infolist() if info.filename.startswith("resources/numba-cache/")]
+        fmu_cache = (sum(info.file_size for info in shipped), sum(info.compress_size for info in shipped))
         programs = {"simulate(engine=\"compiled\"), the article": [python, "-c", _SIMULATE],
                     "the FMU, simulate_fmu over 1 s": [python, "-c", _FMU, temp / "BouncingBall.fmu"]}
         runs: dict[str, list[tuple[float, float, str]]] = {name: [] for name in programs}
@@ -107,7 +116,7 @@ def measure(repeats: int = REPEATS) -> Study:
                                    completed.stderr.strip()))
     cases = [Case(name, [r[0] for r in rows], [r[1] for r in rows], "; ".join(sorted({r[2] for r in rows if r[2]})))
              for name, rows in runs.items()]
-    return Study(wheel_build, wheel_size, cache_files, cases)
+    return Study(wheel_build, wheel_size, cache_files, fmu_build, fmu_size, fmu_cache, cases)
 
 
 def write_page(study: Study, path: Path) -> Path:
@@ -121,10 +130,14 @@ def write_page(study: Study, path: Path) -> Path:
         "",
         *environment_lines(environment()),
         "",
-        __doc__.split("\n\n", 1)[1].replace("\n", " ").strip(),
+        __doc__.split("\n\n", 1)[1].replace("\n", " ").strip().replace("REPEATS", str(len(study.cases[0].process))),
         "",
         f"The wheel: built in {study.wheel_build:.0f} s, the compiled engine's compile included; "
         f"{study.wheel_size / 1e6:.1f} MB with {study.cache_files} numba cache files.",
+        "",
+        f"The FMU: `build-fmu` in that venv took {study.fmu_build:.0f} s, the FMU's compiled engine's compile "
+        f"included; the FMU is {study.fmu_size / 1e6:.1f} MB, its numba cache {study.fmu_cache[0] / 1e6:.1f} MB "
+        f"({study.fmu_cache[1] / 1e6:.1f} MB compressed).",
         "",
         *table(["first use", "process, min [s]", "process, median [s]", "call, min [s]", "call, median [s]",
                 "said on stderr"], rows),
