@@ -106,7 +106,7 @@ def test_a_quoted_figure_is_the_generated_pages(document):
     for page, text in passages:
         generated = (ROOT / page).read_text(encoding="utf-8")
         figures = NUMBER.findall(re.sub(r"`[^`]*`", "", text))
-        assert len(figures) > 5
+        assert len(figures) >= 3  # a passage of figures, not a marker around prose
         missing = [figure for figure in figures
                    if not re.search(rf"(?<![\w.-]){re.escape(figure)}(?!\.?\d)", generated)]
         assert missing == [], f"{document} quotes figures {page} does not print: {missing}"
