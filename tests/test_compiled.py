@@ -661,3 +661,23 @@ def test_the_cache_is_taken_whole_under_a_lock_by_processes_importing_at_once(tm
     assert folder.name == shipped.name
     assert sorted(path.name for path in folder.iterdir()) == sorted(["lock", *(path.name for path in
                                                                                shipped.glob("*.nb[ci]"))])
+
+
+@pytest.mark.slow  # numba compiles the engine in the child (about 15 s)
+def test_a_cache_folder_that_cannot_be_used_is_said_before_numba_compiles_in_the_process(tmp_path):
+    """A user-wide cache that cannot be written (here under a file): the engine still runs, compiled in the process,
+    and stderr says so once, naming the folder, before numba starts."""
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("")
+    code = ("import bouncingball as bb\n"
+            "r = bb.simulate(bb.Ball(), 2.0, 0.0, 1.0, 1e-3, engine='compiled')\n"
+            "print(r.stats.engine, r.h[-1])\n")
+    completed = subprocess.run([sys.executable, "-c", code], env={**os.environ, "NUMBA_CACHE_DIR": str(blocker)},
+                               capture_output=True, text=True, timeout=300, check=False)
+    assert completed.returncode == 0, completed.stderr
+    engine, h = completed.stdout.split()
+    exact = bb.simulate(bb.Ball(), 2.0, 0.0, 1.0, 1e-3, solver="exact")
+    assert engine == "compiled" and abs(float(h) - exact.h[-1]) < 1e-8
+    [line] = completed.stderr.splitlines()
+    assert line.startswith("bouncingball: numba compiles the compiled engine in this process (about 15 s), and cannot "
+                           f"keep it: its cache folder {blocker}/bouncingball/numba-")

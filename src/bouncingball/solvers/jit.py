@@ -143,12 +143,15 @@ def cache_allowed(files) -> bool:
     it is first taken from the shipped cache (the package's own, a wheel's; or first_use's, an
     FMU's: engine_cache.py compiled it for any CPU of its architecture) if that fits, its code filed
     under this host's CPU as it is copied; else numba compiles, said through first_use's say (on
-    stderr unless first_use says otherwise) before it does. Where a file is gone (the master deleted the unzipped
-    FMU after the process imported it) or the folder cannot be written, nothing is cached.
+    stderr unless first_use says otherwise) before it does. Where a file is gone (the master
+    deleted the unzipped FMU after the process imported it) or the folder cannot be written, nothing
+    is cached: numba compiles in every such process, said the same way.
     Processes importing at once (Dask's workers) take turns under one lock file, and every file is
     written whole (a temporary file renamed) or not at all.
     """
     if not all(os.path.isfile(file) for file in files):
+        _say("numba compiles the compiled engine in this process (about 15 s), and cannot keep it: its sources are "
+             "gone from disk")
         return False
     digest = sources_digest(files)
     folder = cache_folder(digest)
@@ -167,7 +170,9 @@ def cache_allowed(files) -> bool:
             if misfit is not None:
                 _say(f"numba compiles the compiled engine for this host, once (about 15 s; {misfit}), into {folder}")
         _use_folder(files, folder, digest)
-    except Exception:  # a numba without these internals, or a cache folder we cannot write
+    except Exception as error:  # a numba without these internals, or a cache folder we cannot write
+        _say(f"numba compiles the compiled engine in this process (about 15 s), and cannot keep it: its cache folder "
+             f"{folder} cannot be used ({type(error).__name__}: {error})")
         return False
     return True
 
