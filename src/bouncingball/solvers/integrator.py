@@ -241,7 +241,7 @@ class BallIntegrator(IntegratorView):
         self._unreported = (self._logs if n_events or status != machine.DONE or mode >= len(self._logs)
                             else (self._logs[mode],))
         if status != machine.DONE:
-            raise self._machine_failure(status)
+            raise _machine_failure(self, status)
         self._warn_if_untrusted(whole=False)
         return _events(events, n_events)
 
@@ -274,7 +274,7 @@ class BallIntegrator(IntegratorView):
             if status == machine.DONE:
                 break
             if status != machine.RETURNED:
-                raise self._machine_failure(status)
+                raise _machine_failure(self, status)
         rest = state[[layout.REST_T, layout.REST_X, layout.REST_V]]
         self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0, 1.0)
         state[[layout.REST_T, layout.REST_X, layout.REST_V]] = rest  # a rest goes on
@@ -287,26 +287,28 @@ class BallIntegrator(IntegratorView):
             self._machine.fill_grid(self._parameters, self._load, points, n_points, grid, x_out, v_out)
         return self.ball.R + x_out, v_out, _events(events, n_events)
 
-    def _machine_failure(self, status: int) -> SolverError:
-        state = self._state
-        mode, t, x = self.mode, float(state[layout.FAIL_T]), float(state[layout.FAIL_X])
-        if status == machine.TOO_MANY_STEPS:
-            return SolverError(f"CVODE ({self.methods[mode]}) took more than {MAX_STEPS_PER_PHASE} steps in one "
-                               f"{mode.name.lower()} phase, at t = {t!r} s: "
-                               + too_many_steps_cause(self.settings, self.methods[mode], mode, MAX_STEPS_PER_PHASE))
-        R = self.ball.R
-        if status == machine.STEPPED_OVER:
-            return SolverError(f"CVODE stepped over an {'impact' if mode == Mode.FLIGHT else 'departure'} unseen "
-                               f"near t = {t!r} s (h = {R + x!r} m, R = {R!r} m); "
-                               "the result would be wrong: tighten rtol/atol or set max_step")
-        message = self._solvers[mode].message(int(state[layout.FAIL_FLAG]))
-        return SolverError(f"CVODE failed at t = {t!r} s ({mode.name.lower()}, h = {self.h!r} m, v = {self.v!r} m/s): "
-                           f"{message}")
-
     def _report_sundials_warnings(self) -> None:
         logs, self._unreported = self._unreported, ()
         for log in logs:
             log.report(stacklevel=4)
+
+
+def _machine_failure(integrator: BallIntegrator, status: int) -> SolverError:
+    """The error the machine's failure status stands for, with where it failed (the state's FAIL_* slots)."""
+    state, mode, R = integrator._state, integrator.mode, integrator.ball.R
+    t, x = float(state[layout.FAIL_T]), float(state[layout.FAIL_X])
+    method = integrator.methods[mode]
+    if status == machine.TOO_MANY_STEPS:
+        return SolverError(f"CVODE ({method}) took more than {MAX_STEPS_PER_PHASE} steps in one "
+                           f"{mode.name.lower()} phase, at t = {t!r} s: "
+                           + too_many_steps_cause(integrator.settings, method, mode, MAX_STEPS_PER_PHASE))
+    if status == machine.STEPPED_OVER:
+        return SolverError(f"CVODE stepped over an {'impact' if mode == Mode.FLIGHT else 'departure'} unseen "
+                           f"near t = {t!r} s (h = {R + x!r} m, R = {R!r} m); "
+                           "the result would be wrong: tighten rtol/atol or set max_step")
+    message = integrator._solvers[mode].message(int(state[layout.FAIL_FLAG]))
+    return SolverError(f"CVODE failed at t = {t!r} s ({mode.name.lower()}, h = {integrator.h!r} m, "
+                       f"v = {integrator.v!r} m/s): {message}")
 
 
 # x = h - R is exactly 0 where a phase starts (at each event). CVODE takes a root function that
