@@ -9,7 +9,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import bouncingball
-from bouncingball.physics import Ball, Mode, oscillator_basis
+from bouncingball.oscillator import oscillator_basis
+from bouncingball.physics import Ball, Mode
 from bouncingball.solvers.exact import ExactSolution
 from closed_forms import undamped_event_count
 

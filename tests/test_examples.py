@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bouncingball.physics import Ball, oscillator_basis
+from bouncingball.oscillator import oscillator_basis
+from bouncingball.physics import Ball
 from bouncingball.solvers.exact import ExactSolution
 from fmu_helpers import assert_fmu_page_quotes, exact_at
 

@@ -28,7 +28,7 @@ import weakref
 import numpy as np
 from numba import carray, cfunc, njit, types
 
-from .. import physics, rounding
+from .. import oscillator, physics, rounding
 from . import dense_output, engine_protocol, error_estimate, exact, machine, phases
 from .jit import (
     addresses,
@@ -156,8 +156,9 @@ def _engine_exceeded(engine, mode):
 # Lazily: numba compiles a function at its first call from compiled code, so only what the machine and
 # the callbacks reach is ever compiled (and cached).
 _compiled = compiled_together(
-    functions_of(rounding, physics, exact, phases, error_estimate, machine, dense_output),
-    {physics.oscillator_basis: physics.oscillator_basis_value, physics.unit_response: physics.unit_response_value,
+    functions_of(rounding, oscillator, physics, exact, phases, error_estimate, machine, dense_output),
+    {oscillator.oscillator_basis: oscillator.oscillator_basis_value,
+     oscillator.unit_response: oscillator.unit_response_value,
      rounding.hypot: rounding.hypot_value, engine_protocol.engine_start: _engine_start,
      engine_protocol.engine_steps: _engine_steps, engine_protocol.engine_exceeded: _engine_exceeded}, _CACHE)
 run_phases = _compiled[machine.run_phases]

@@ -16,13 +16,13 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import limits
+from ..oscillator import contact_gap_flow
 from ..physics import (
     NO_PULL,
     RIGID,
     Ball,
     Mode,
     conserved_speed,
-    contact_gap_flow,
     free_gap_rate,
     load_value,
     pressed_gap,

@@ -12,7 +12,7 @@ the code and it can be cached on disk.
 The rules for the source compiled together
 ------------------------------------------
 compiled.py gives ``compiled_together`` every function of the modules it lists
-(``functions_of(rounding, physics, exact, phases, error_estimate, machine, dense_output)``). numba
+(``functions_of(rounding, oscillator, physics, exact, phases, error_estimate, machine, dense_output)``). numba
 compiles, at their first call, those that the compiled entry points reach (the functions compiled.py
 keeps compiled copies of: run_phases, fill_grid, advance, advance_in_step and the callbacks'
 scaled_rates, root_values, scaled_jacobian), from the very source the scikit-sundae engine runs
@@ -33,8 +33,8 @@ interpreted. A function so reached:
 4. Uses nothing numba cannot compile: no keyword-only or variadic parameters (``*args``,
    ``**kwargs``), no nested function, lambda or class, no try, with, yield, global or f-string. A
    function that needs one for the interpreted engine (the float-or-array dispatch of
-   physics.unit_response) has a plain-float stand-in in ``compiled_together``'s ``bound``
-   (physics.unit_response_value), and the compiled code calls that.
+   oscillator.unit_response) has a plain-float stand-in in ``compiled_together``'s ``bound``
+   (oscillator.unit_response_value), and the compiled code calls that.
 5. Lives in a source the cache digest covers, as does every constant it reads: a new compiled module,
    or one whose constants the compiled code imports (layout.py's indices, settings.py's tolerances),
    goes into ``ENGINE_SOURCES`` too, or a change to it leaves numba's disk cache with the old code.
@@ -70,8 +70,8 @@ from .engine_cache import PORTABLE_CPU, package_shipped, say_on_stderr
 
 # Every source the compiled code is compiled from, relative to the package: the modules whose functions
 # compiled.py gives compiled_together, those whose constants they read (rule 5), jit.py and compiled.py.
-ENGINE_SOURCES = ("rounding.py", "physics.py", "solvers/settings.py", "solvers/phases.py", "solvers/layout.py",
-                  "solvers/error_estimate.py", "solvers/engine_protocol.py", "solvers/machine.py",
+ENGINE_SOURCES = ("rounding.py", "oscillator.py", "physics.py", "solvers/settings.py", "solvers/phases.py",
+                  "solvers/layout.py", "solvers/error_estimate.py", "solvers/engine_protocol.py", "solvers/machine.py",
                   "solvers/dense_output.py", "solvers/exact.py", "solvers/jit.py", "solvers/compiled.py")
 
 
