@@ -548,7 +548,7 @@ def test_numbas_private_api_that_jit_uses_is_still_there(tmp_path):
     triple, cpu, features = jit._host_key()
     assert triple.startswith("x86_64") and cpu and features.startswith(("+", "-"))
     bb.simulate(bb.Ball(), 2.0, 0.0, 0.1, 1e-3, engine="compiled")  # run_phases compiled or read, so indexed
-    [index] = Path(folder).glob("machine.run_phases-*.nbi")
+    [index] = Path(folder).glob("drivers.run_phases-*.nbi")
     version, stamp, keys = jit._index(str(index))
     assert (version, stamp) == (numba.__version__, jit.sources_digest(jit.engine_sources()))
     assert (triple, cpu, features) in [key[1] for key in keys]
@@ -572,7 +572,7 @@ def test_a_cache_compiled_elsewhere_is_named_for_what_does_not_fit(tmp_path):
     digest = jit.sources_digest(jit.engine_sources())
     host = jit._host_key()
     assert jit.cache_misfit(str(tmp_path), digest) == "no code compiled from these sources yet"
-    index = tmp_path / f"machine.run_phases-1{_python_tag()}.nbi"
+    index = tmp_path / f"drivers.run_phases-1{_python_tag()}.nbi"
     for version, stamp, key, why in [
             ("0.1.0", digest, host, "its code was compiled by numba 0.1.0, this is numba "),
             (jit.numba.__version__, "other", host, "its code was compiled from other sources"),
@@ -582,7 +582,7 @@ def test_a_cache_compiled_elsewhere_is_named_for_what_does_not_fit(tmp_path):
         _write_index(index, version, stamp, {((), key, ("", "")): "x.1.nbc"})
         assert jit.cache_misfit(str(tmp_path), digest).startswith(why)
         assert jit.cache_misfit(str(tmp_path), digest, portable=True).startswith(why)
-    index.rename(tmp_path / "machine.run_phases-1.py29.nbi")  # another Python's: numba would not read it here
+    index.rename(tmp_path / "drivers.run_phases-1.py29.nbi")  # another Python's: numba would not read it here
     python = _python_tag()[1:]
     assert jit.cache_misfit(str(tmp_path), digest) == f"its code was compiled for Python py29, this is {python}"
 

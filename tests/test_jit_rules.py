@@ -123,9 +123,9 @@ def compiled_rule_violations(function, namespace) -> list[str]:
 
 def test_the_rules_are_checked_on_what_compiled_py_gives():
     """The functions come from compiled.py as it is: the machine and the callbacks' functions among them."""
-    from bouncingball.solvers import dense_output, machine, phases
+    from bouncingball.solvers import dense_output, drivers, phases
 
-    assert {machine.run_phases, dense_output.fill_grid, phases.scaled_rates} <= set(entry_points())
+    assert {drivers.run_phases, dense_output.fill_grid, phases.scaled_rates} <= set(entry_points())
     assert len(reached(entry_points())) > 20
 
 

@@ -29,7 +29,7 @@ import numpy as np
 from numba import carray, cfunc, njit, types
 
 from .. import oscillator, physics, rounding
-from . import dense_output, engine_protocol, error_estimate, exact, machine, phases
+from . import dense_output, drivers, engine_protocol, error_estimate, exact, machine, phases
 from .jit import (
     addresses,
     cache_allowed,
@@ -156,15 +156,15 @@ def _engine_exceeded(engine, mode):
 # Lazily: numba compiles a function at its first call from compiled code, so only what the machine and
 # the callbacks reach is ever compiled (and cached).
 _compiled = compiled_together(
-    functions_of(rounding, oscillator, physics, exact, phases, error_estimate, machine, dense_output),
+    functions_of(rounding, oscillator, physics, exact, phases, error_estimate, machine, drivers, dense_output),
     {oscillator.oscillator_basis: oscillator.oscillator_basis_value,
      oscillator.unit_response: oscillator.unit_response_value,
      rounding.hypot: rounding.hypot_value, engine_protocol.engine_start: _engine_start,
      engine_protocol.engine_steps: _engine_steps, engine_protocol.engine_exceeded: _engine_exceeded}, _CACHE)
-run_phases = _compiled[machine.run_phases]
+run_phases = _compiled[drivers.run_phases]
 fill_grid = _compiled[dense_output.fill_grid]
-advance = _compiled[machine.advance]
-advance_in_step = _compiled[machine.advance_in_step]
+advance = _compiled[drivers.advance]
+advance_in_step = _compiled[drivers.advance_in_step]
 phase_ends, run_estimate = _compiled[machine.phase_ends], _compiled[error_estimate.run_estimate]
 _scaled_rates, _root_values = _compiled[phases.scaled_rates], _compiled[phases.root_values]
 _scaled_jacobian = _compiled[phases.scaled_jacobian]

@@ -12,9 +12,9 @@ the code and it can be cached on disk.
 The rules for the source compiled together
 ------------------------------------------
 compiled.py gives ``compiled_together`` every function of the modules it lists
-(``functions_of(rounding, oscillator, physics, exact, phases, error_estimate, machine, dense_output)``). numba
-compiles, at their first call, those that the compiled entry points reach (the functions compiled.py
-keeps compiled copies of: run_phases, fill_grid, advance, advance_in_step and the callbacks'
+(``functions_of(rounding, oscillator, physics, exact, phases, error_estimate, machine, drivers,
+dense_output)``). numba compiles, at their first call, those that the compiled entry points reach
+(the functions compiled.py keeps compiled copies of: run_phases, fill_grid, advance, advance_in_step and the callbacks'
 scaled_rates, root_values, scaled_jacobian), from the very source the scikit-sundae engine runs
 interpreted. A function so reached:
 
@@ -72,6 +72,7 @@ from .engine_cache import PORTABLE_CPU, package_shipped, say_on_stderr
 # compiled.py gives compiled_together, those whose constants they read (rule 5), jit.py and compiled.py.
 ENGINE_SOURCES = ("rounding.py", "oscillator.py", "physics.py", "solvers/settings.py", "solvers/phases.py",
                   "solvers/layout.py", "solvers/error_estimate.py", "solvers/engine_protocol.py", "solvers/machine.py",
+                  "solvers/drivers.py",
                   "solvers/dense_output.py", "solvers/exact.py", "solvers/jit.py", "solvers/compiled.py")
 
 

@@ -1,21 +1,19 @@
-"""The phase machine: CVODE phase by phase, written once for both engines, with both drivers.
+"""The phase machine: CVODE phase by phase, written once for both engines; its drivers are in drivers.py.
 
 At each phase start it decides (phases.py) whether the contact is a rest (then the rest is taken on
 the contact's exact flow), whether the phase is taken in closed form (its event from the exact flow),
 or else restarts CVODE in the phase's frame and takes its steps to the terminal root (an impact or a
 departure, polished on the exact flow), checking that no step end lies beyond R on the other side.
-Two drivers take it: ``run_phases`` to the end of a grid run, recording every step end (t, x = h - R,
-v, mode) and every event, for the grid values to be read off the dense output afterwards
-(dense_output.py); ``advance`` one CVODE step at a time to a target time, keeping the last step for
-the dense output of a target inside it (the FMU's doStep), optionally stopping at the first event.
+``phase_steps`` is the one phase routine (restart, steps, polish, side check, the last step kept),
+``_take_event`` takes an event in one place; drivers.py's two drivers run them, a grid run to its end
+(``run_phases``) and the stepping API's ``advance``.
 
 The whole integrator state is one array (new_state's; BallIntegrator keeps it). The source is plain
 Python over floats and numpy arrays, and calls its engine through the engine_* functions: as written
 here they drive the scikit-sundae engine's solvers (stepper.SksundaePhaseSolver), and it runs
 interpreted; the compiled engine compiles this very source with numba (compiled.py), the engine_*
 bound to its own calls into SUNDIALS, so that no Python runs between phases. The machine decides
-every phase itself (phases.decide_phase); run_phases returns to its caller every step_budget steps
-(RETURNED), for progress and Ctrl-C.
+every phase itself (phases.decide_phase).
 """
 
 from __future__ import annotations
@@ -24,9 +22,8 @@ import math
 
 import numpy as np
 
-from ..physics import NO_PULL, RIGID, law_flow_value, rigid_rebound
+from ..physics import NO_PULL, RIGID, rigid_rebound
 from ..rounding import later
-from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, engine_exceeded, engine_start, engine_steps
 from .error_estimate import carry_error
 from .layout import (
@@ -85,29 +82,24 @@ from .layout import (
     X,
 )
 from .phases import (
-    BY_CVODE,
     CONTACT,
     DEPARTURE,
     FLIGHT,
     FREE,
     IMPACT,
-    IN_CLOSED_FORM,
     RELEASE,
-    REST,
-    decide_phase,
     frame,
     on_wrong_side,
     polish_event,
     polish_release,
     side_margin,
-    taylor_step,
 )
 
 # What run_phases returns.
 DONE, RETURNED, CVODE_FAILED, TOO_MANY_STEPS, STEPPED_OVER = range(5)
 # An event row's kind, (t, kind, v): phases.IMPACT, DEPARTURE, and the no-pull law's RELEASE, ENGAGE.
 CV_ROOT_RETURN = 2
-STEP_HORIZON = 1.0  # s: how far ahead advance's CVODE steps aim (see advance)
+STEP_HORIZON = 1.0  # s: how far ahead advance's CVODE steps aim (see drivers.advance)
 
 
 def new_state():
@@ -150,128 +142,6 @@ def closed_form_phase(state, tau, x_event, v_event, kind):
     state[SEG_T1], state[SEG_X1], state[SEG_V1] = t_event, x_event, v_event
     state[PENDING], state[PEND_T], state[PEND_V], state[PEND_T_LOW] = 1.0, t_event, v_event, t_low
     state[PEND_X], state[PEND_KIND] = x_event, kind
-
-
-def _decided_by_cvode(parameters, rtol, state):
-    """Whether CVODE takes the phase starting at the state (phases.decide_phase); else its rest or event is set."""
-    answer, tau, x_event, v_event, kind = decide_phase(parameters, int(state[MODE]), state[X], state[V], state[LOAD],
-                                                       state[HOP], rtol)
-    if answer == REST:
-        state[REST_T], state[REST_X], state[REST_V] = state[T], state[X], state[V]
-    elif answer == IN_CLOSED_FORM:
-        closed_form_phase(state, tau, x_event, v_event, kind)
-    return answer == BY_CVODE
-
-
-def _finish_by_taylor(parameters, state, t_target):
-    """Within a few ulps of t_target CVODE refuses to step (CV_TOO_CLOSE): finish by a Taylor step; whether it did."""
-    dt = t_target - state[T]
-    if dt > 32.0 * _ulp(max(abs(t_target), abs(state[T]), 1e-300)):
-        return False
-    state[X], state[V] = taylor_step(parameters, int(state[MODE]), state[X], state[V], state[LOAD], dt)
-    state[T], state[T_LOW] = t_target, 0.0
-    return True
-
-
-def _rest_state(parameters, state, t):
-    """The state at t on the rest that began at REST_*, on the contact's exact flow."""
-    state[X], state[V] = law_flow_value(parameters, CONTACT, state[REST_X], state[REST_V], t - state[REST_T],
-                                        state[LOAD])
-    state[T], state[T_LOW] = t, 0.0
-
-
-def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, events, n_events, scratch,
-               step_budget):
-    """Integrate from the state to t_end phase by phase; (status, points, n_points, events, n_events).
-
-    parameters: Ball.parameters; atol 0 for none; state: new_state's array after restart_needed,
-    updated in place; points (n, 4: t, x, v, mode) and events (n, 3: t, kind, v) hold n_points and
-    n_events rows so far and are returned grown where they filled up; scratch (n, 3) is the engine's
-    buffer of step ends. status: DONE at t_end, RETURNED after step_budget steps, or a failure
-    (state[FAIL_T], state[FAIL_X] and state[FAIL_FLAG] say where and CVODE's flag).
-    """
-    steps_at_entry = state[STEPS]
-    while True:
-        t, mode = state[T], int(state[MODE])
-        if not t < t_end:
-            return DONE, points, n_points, events, n_events
-        if state[PENDING] != 0.0:  # a phase in closed form: to its event, or on its flow to t_end
-            points, n_points = _record(points, n_points, t, state[X], state[V], mode)
-            if state[PEND_T] <= t_end:
-                events, n_events = _take_event(parameters, rtol, atol, state, events, n_events)
-            else:
-                state[X], state[V] = law_flow_value(parameters, mode, state[X], state[V], t_end - t, state[LOAD])
-                state[T], state[T_LOW] = t_end, 0.0
-            points, n_points = _record(points, n_points, state[T], state[X], state[V], mode)
-            continue
-        if not math.isnan(state[REST_T]):
-            points, n_points = _record(points, n_points, t, state[X], state[V], mode)
-            _rest_state(parameters, state, t_end)
-            points, n_points = _record(points, n_points, t_end, state[X], state[V], mode)
-            return DONE, points, n_points, events, n_events
-        if state[STEPS] - steps_at_entry >= step_budget:
-            return RETURNED, points, n_points, events, n_events
-        if state[NEEDS_INIT] != 0.0:
-            if not _decided_by_cvode(parameters, rtol, state):
-                continue
-            # Only once the phase is decided: one in closed form may end within these ulps before t_end.
-            if _finish_by_taylor(parameters, state, t_end):
-                points, n_points = _record(points, n_points, t_end, state[X], state[V], mode)
-                return DONE, points, n_points, events, n_events
-            points, n_points = _record(points, n_points, t, state[X], state[V], mode)  # as it is, not scaled and back
-        status, rows, count = phase_steps(engine, parameters, rtol, atol, state, t_end, scratch)
-        if status != DONE:
-            return status, points, n_points, events, n_events
-        points = _room(points, n_points + count)
-        points[n_points:n_points + count, :3] = rows[:count, :3]
-        points[n_points:n_points + count, 3] = mode
-        n_points += count
-        if state[PENDING] != 0.0:
-            events, n_events = _take_event(parameters, rtol, atol, state, events, n_events)
-        elif not math.isnan(state[REST_T]) or state[STEP_T] == t_end:
-            state[T], state[X], state[V], state[T_LOW] = state[STEP_T], state[STEP_X], state[STEP_V], 0.0
-
-
-def advance_in_step(parameters, state, t_from, t_target):
-    """Whether the state is at t_from and t_target lies in its kept last step, after it: then the state there.
-
-    The state at t_target is read off the step's dense output.
-    """
-    if not (state[SEGMENT] != 0.0 and state[T] == t_from and t_from < t_target <= state[SEG_T1]):
-        return False
-    state[X], state[V] = step_state(parameters, state[LOAD], int(state[SEG_MODE]), state[SEG_T0], state[SEG_X0],
-                                    state[SEG_V0], state[SEG_T1], state[SEG_X1], state[SEG_V1], t_target)
-    state[T], state[T_LOW] = t_target, 0.0
-    return True
-
-
-def advance(engine, parameters, rtol, atol, state, t_target, stop_at_event, events, n_events, scratch):
-    """Integrate from the state to t_target one CVODE step at a time; (status, events, n_events).
-
-    CVODE's steps do not depend on the targets: each aims STEP_HORIZON past the last step's start,
-    and a target inside a step is read off its dense output. With stop_at_event it returns at the
-    first event before t_target (the state there, the mode switched). Arguments and statuses as
-    run_phases (scratch: at least one row); state[T] <= t_target.
-    """
-    while state[T] < t_target:
-        if advance_in_step(parameters, state, state[T], t_target):
-            break
-        if state[PENDING] != 0.0:  # the kept step ends at an event before t_target
-            events, n_events = _take_event(parameters, rtol, atol, state, events, n_events)
-            if stop_at_event:
-                break
-            continue
-        if state[NEEDS_INIT] != 0.0 and math.isnan(state[REST_T]) and not _decided_by_cvode(parameters, rtol, state):
-            continue  # a rest, or a phase in closed form: taken above
-        if not math.isnan(state[REST_T]):
-            _rest_state(parameters, state, t_target)
-            break
-        if _finish_by_taylor(parameters, state, t_target):
-            break
-        status, _, _ = phase_steps(engine, parameters, rtol, atol, state, math.inf, scratch)
-        if status != DONE:
-            return status, events, n_events
-    return DONE, events, n_events
 
 
 def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
@@ -355,7 +225,7 @@ def _take_event(parameters, rtol, atol, state, events, n_events):
     """The PENDING event: the state moves there, the mode switches, the phase ends; (events, n_events) with its row."""
     state[T], state[X], state[V], state[T_LOW] = state[PEND_T], state[PEND_X], state[PEND_V], state[PEND_T_LOW]
     if n_events == events.shape[0]:
-        events = _grown(events)
+        events = grown(events)
     kind, mode = int(state[PEND_KIND]), int(state[MODE])
     events[n_events, 0], events[n_events, 1], events[n_events, 2] = state[T], kind, state[V]
     if kind == IMPACT and parameters[5] == RIGID:
@@ -395,23 +265,6 @@ def _bounce(parameters, rtol, atol, state):
         state[REST_T], state[REST_X], state[REST_V] = later(state[T], state[T_LOW], zeno)[0], 0.0, 0.0
 
 
-def _record(points, n_points, t, x, v, mode):
-    if n_points == points.shape[0]:
-        points = _grown(points)
-    points[n_points, 0], points[n_points, 1], points[n_points, 2], points[n_points, 3] = t, x, v, mode
-    return points, n_points + 1
-
-
-def _room(rows, n_rows):
-    """rows, or a copy grown to hold at least n_rows."""
-    while rows.shape[0] < n_rows:
-        rows = _grown(rows)
-    return rows
-
-
-def _grown(rows):
+def grown(rows):
+    """rows with as many more, uninitialised: an array of rows made room in."""
     return np.concatenate((rows, np.empty_like(rows)))
-
-
-def _ulp(a):
-    return np.spacing(a)

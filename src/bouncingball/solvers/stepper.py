@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..physics import Ball, Mode
-from . import error_estimate, machine, phases, sksundae_events
+from . import drivers, error_estimate, machine, phases, sksundae_events
 from .sundials_log import ErrorsOffStdout, SundialsLog
 
 CV_RTFUNC_FAIL = -12
@@ -214,14 +214,14 @@ class PhaseMachine:
 
 @functools.cache
 def phase_machine(engine: str) -> PhaseMachine:
-    """The phase machine of engine: compiled for "compiled", else machine.py's as written."""
+    """The phase machine of engine: compiled for "compiled", else machine.py's and drivers.py's as written."""
     if engine == "compiled":
         from . import compiled
 
         return PhaseMachine(compiled.run_phases, compiled.advance, compiled.advance_in_step, compiled.fill_grid,
                             lambda solvers: np.stack([solver.handle() for solver in solvers]), compiled.phase_ends,
                             compiled.run_estimate)
-    return PhaseMachine(machine.run_phases, machine.advance, machine.advance_in_step, None, tuple,
+    return PhaseMachine(drivers.run_phases, drivers.advance, drivers.advance_in_step, None, tuple,
                         machine.phase_ends, error_estimate.run_estimate)
 
 
