@@ -31,8 +31,7 @@ import numpy as np
 from .. import limits, validation
 from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode
-from . import engines, layout, machine, stepper
-from . import state as state_checks
+from . import engines, layout, machine, state_checks, stepper
 from .dense_output import interpolate
 from .engines import choose_engine
 from .result import DEPARTURE, ENGAGE, IMPACT, RELEASE, Event, accuracy_warning
