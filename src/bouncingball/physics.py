@@ -29,8 +29,11 @@ class Mode(enum.IntEnum):
 
 
 # The contact laws (Ball.contact) and the codes the phase machine knows them by (Ball.parameters).
-CONTACT_LAWS = ("linear", "rigid", "linear-no-pull")
-LINEAR, RIGID, NO_PULL = 0, 1, 2
+CONTACT_LAWS = ("linear", "rigid", "linear-no-pull", "hunt-crossley")
+LINEAR, RIGID, NO_PULL, HUNT_CROSSLEY = 0, 1, 2, 3
+# The Hunt-Crossley law's exponent n: 1 (a linear spring) .. 2.5 (beyond Hertz's 1.5 for spheres, as fitted
+# to soft and granular materials); its release speed is 2 / (3 alpha).
+HC_N_RANGE = (1.0, 2.5)
 
 
 @dataclass(frozen=True)
@@ -99,6 +102,8 @@ class Ball:
     contact: str = "linear"
     e: float = 0.7
     v_min: float = 0.0
+    n: float = 1.5
+    alpha: float = 0.0
 
     def __post_init__(self) -> None:
         """Check every parameter before the ball exists."""
@@ -110,6 +115,8 @@ class Ball:
         object.__setattr__(self, "contact", validation.choice("contact", self.contact, CONTACT_LAWS))
         object.__setattr__(self, "e", validation.in_closed_range("e", self.e, 0.0, 1.0))
         object.__setattr__(self, "v_min", validation.non_negative("v_min", self.v_min, "m/s"))
+        object.__setattr__(self, "n", validation.in_closed_range("n", self.n, *HC_N_RANGE))
+        object.__setattr__(self, "alpha", validation.non_negative("alpha", self.alpha, "s/m"))
 
     # --- derived quantities -------------------------------------------------------------
     @property
@@ -123,14 +130,22 @@ class Ball:
         return self.contact == "linear-no-pull"
 
     @property
-    def parameters(self) -> tuple[float, float, float, float, float, float, float, float]:
-        """(m, k, b, R, g, law, e, v_min): the ball as plain floats, as the phase machine (solvers/phases.py) takes it.
+    def hunt_crossley(self) -> bool:
+        """Whether the contact law is Hunt and Crossley's (k delta^n (1 + 3/2 alpha delta'), clipped at 0)."""
+        return self.contact == "hunt-crossley"
 
-        law: LINEAR (0), RIGID (1) or NO_PULL (2), the code of the contact law. A no-pull ball with b = 0
-        is the linear law's (its force k (R - h) never pulls below R), and has its code: the same run.
+    @property
+    def parameters(self) -> tuple[float, float, float, float, float, float, float, float, float, float]:
+        """(m, k, b, R, g, law, e, v_min, n, alpha): the ball as plain floats, as the phase machine (solvers/phases.py) takes it.
+
+        law: LINEAR (0), RIGID (1), NO_PULL (2) or HUNT_CROSSLEY (3), the code of the contact law. A no-pull
+        ball with b = 0 is the linear law's (its force k (R - h) never pulls below R), and has its code: the
+        same run. Under the Hunt-Crossley law b is 0.0 here (its damping is alpha's: no linear damper).
         """
+        if self.hunt_crossley:
+            return self.m, self.k, 0.0, self.R, self.g, float(HUNT_CROSSLEY), self.e, self.v_min, self.n, self.alpha
         law = RIGID if self.rigid else (NO_PULL if self.no_pull and self.b > 0.0 else LINEAR)
-        return self.m, self.k, self.b, self.R, self.g, float(law), self.e, self.v_min
+        return self.m, self.k, self.b, self.R, self.g, float(law), self.e, self.v_min, self.n, self.alpha
 
     @property
     def natural_frequency(self) -> float:
@@ -168,6 +183,8 @@ class Ball:
         if self.rigid and mode == Mode.CONTACT:
             return max(-load_value(F_ext, self.m, self.g), 0.0) / self.m
         if self.no_pull and mode == Mode.CONTACT:  # the force clipped at 0, as a state off its sub-mode would have it
+            return (max(self.contact_force(h, v, mode), 0.0) - load_value(F_ext, self.m, self.g)) / self.m
+        if self.hunt_crossley and mode == Mode.CONTACT:  # the force clipped at 0, as a state off its sub-mode would have it
             return (max(self.contact_force(h, v, mode), 0.0) - load_value(F_ext, self.m, self.g)) / self.m
         return mode_acceleration(h, v, mode, F_ext, self.m, self.k, self.b, self.R, self.g)
 
@@ -208,6 +225,8 @@ class Ball:
             return max(load_value(F_ext, self.m, self.g), 0.0)
         if self.no_pull:
             return max(self.k * (self.R - h) - self.b * v, 0.0)
+        if self.hunt_crossley:
+            return max(hunt_crossley_force(h - self.R, v, self.k, self.n, self.alpha), 0.0)
         return self.k * (self.R - h) - self.b * v
 
     def energy(self, h, v, F_ext: float = 0.0):
@@ -218,6 +237,9 @@ class Ball:
         h = np.asarray(h, dtype=float)
         v = np.asarray(v, dtype=float)
         compression = np.maximum(self.R - h, 0.0)
+        if self.hunt_crossley:  # the spring k delta^n stores k delta^(n+1) / (n + 1)
+            return 0.5 * self.m * v**2 + (self.m * self.g - F_ext) * h + self.k * compression ** (self.n + 1.0) / (
+                self.n + 1.0)
         return 0.5 * self.m * v**2 + (self.m * self.g - F_ext) * h + 0.5 * self.k * compression**2
 
     # --- events ---------------------------------------------------------------------------------
@@ -241,8 +263,15 @@ class Ball:
         return Mode.FLIGHT
 
     def _free_below_R(self, h0: float, v0: float, F_ext: float) -> bool:
-        """Under the no-pull law, whether a ball below R starts free: its force would pull, or is 0 and turning so."""
+        """Under the no-pull law, whether a ball below R starts free: its force would pull, or is 0 and turning so.
+
+        Under the Hunt-Crossley law: where 1 - 3/2 alpha v < 0 (rising faster than the release speed), or = 0 with
+        F_ext lifting more than the weight (v grows past it).
+        """
         parameters = self.parameters
+        if parameters[5] == HUNT_CROSSLEY:
+            factor = 1.0 - 1.5 * self.alpha * v0
+            return factor < 0.0 or (factor == 0.0 and load_value(F_ext, self.m, self.g) < 0.0)
         if parameters[5] != NO_PULL:
             return False
         load = load_value(F_ext, self.m, self.g)
@@ -295,6 +324,8 @@ def law_flow_value(parameters, mode, x0, v0, tau, load):
     """
     if mode == 1 and parameters[5] == RIGID:
         return x0 + 0.0 * tau, v0 + 0.0 * tau
+    if mode == 1 and parameters[5] == HUNT_CROSSLEY:  # no closed form: never asked for (NaN if it were)
+        return x0 + math.nan * tau, v0 + math.nan * tau
     return gap_flow_value(mode, x0, v0, tau, load, parameters[0], parameters[1], parameters[2])
 
 
@@ -357,7 +388,34 @@ def conserved_speed(parameters, mode, x_start, v_start):
     """
     if x_start != 0.0:
         return False
+    if parameters[5] == HUNT_CROSSLEY:  # alpha = 0: the Hertz contact conserves energy, its force 0 on R
+        return v_start > 0.0 if mode == 0 else (v_start < 0.0 and parameters[9] == 0.0)
     return v_start > 0.0 if mode == 0 else (v_start < 0.0 and parameters[2] == 0.0)
+
+
+def hunt_crossley_force(x, v, k, n, alpha):
+    """k delta^n (1 + 3/2 alpha delta') [N], delta = -x the penetration, delta' = -v: the pressed contact's force, unclipped.
+
+    delta^n continued as sign(delta) |delta|^n beyond R (x > 0), where CVODE's trial steps may look past
+    a departure: smooth there (for n > 1 its derivative is 0), as the linear law's k x continues.
+    """
+    return k * math.copysign(abs(x) ** n, -x) * (1.0 - 1.5 * alpha * v)
+
+
+def hunt_crossley_acceleration(x, v, load, m, k, n, alpha):
+    """dv/dt [m/s2] in the Hunt-Crossley pressed contact (Mode.CONTACT): (force - load) / m."""
+    return (hunt_crossley_force(x, v, k, n, alpha) - load) / m
+
+
+def hunt_crossley_partials(x, v, load, m, k, n, alpha):
+    """(da/dx [1/s2], da/dv [1/s]) of hunt_crossley_acceleration: the Jacobian's second row, which changes with the state."""
+    power = abs(x) ** (n - 1.0)  # |x|^0 = 1 at n = 1 (and at x = 0)
+    return -(k / m) * n * power * (1.0 - 1.5 * alpha * v), -(k / m) * math.copysign(abs(x) ** n, -x) * 1.5 * alpha
+
+
+def release_speed(alpha):
+    """2 / (3 alpha) [m/s]: the speed above which the Hunt-Crossley force would pull (inf for alpha = 0)."""
+    return 2.0 / (3.0 * alpha) if alpha > 0.0 else math.inf
 
 
 def pressed_gap(parameters, x, v, load):

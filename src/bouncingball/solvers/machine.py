@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from ..physics import NO_PULL, RIGID, law_flow_value, rigid_rebound
+from ..physics import HUNT_CROSSLEY, NO_PULL, RIGID, law_flow_value, release_speed, rigid_rebound
 from ..rounding import later
 from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, engine_exceeded, engine_start, engine_steps
@@ -309,6 +309,14 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     state[NFEV] = rhs_calls
     last = count - 1
     no_pull = parameters[5] == NO_PULL and mode == CONTACT  # a pressed contact: its event is the release
+    # A Hunt-Crossley contact's third root is its release (the force's clip engaging), taken where CVODE located
+    # it (no closed form to polish on), at the release speed exactly; a departure on the same step comes first.
+    hc_release = parameters[5] == HUNT_CROSSLEY and mode == CONTACT and rest_root != 0 and gap_root == 0
+    if hc_release:
+        state[PENDING], state[PEND_V], state[PEND_KIND] = 1.0, release_speed(parameters[9]), RELEASE
+        state[PEND_X] = min(length * rows[last, 1], 0.0)
+        state[PEND_T], state[PEND_T_LOW] = later(origin, state[ORIGIN_LOW], rows[last, 0])
+        rest_root = 0
     if gap_root != 0:
         tau_step = rows[last - 1, 0] if count > 1 else tau_before
         if no_pull:
@@ -324,11 +332,11 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     rows[:count, 0] += origin
     rows[:count, 1] *= length
     rows[:count, 2] *= speed
-    if gap_root != 0:
+    if gap_root != 0 or hc_release:
         rows[last, 0], rows[last, 1], rows[last, 2] = state[PEND_T], state[PEND_X], state[PEND_V]
     elif flag != CV_ROOT_RETURN and not one_step and flag != BUFFER_FULL:
         rows[last, 0] = t_stop  # CVODE stopped at t_stop - origin, which may round off t_stop
-    checked = count - 1 if gap_root != 0 else count  # the event's row is on R (or, a release, polished below it)
+    checked = count - 1 if gap_root != 0 or hc_release else count  # the event's row is on R (or, a release, polished below it)
     if checked > 0:
         if no_pull:  # the step ends' z = -force / k (physics.pressed_gap), which a missed release leaves above 0
             extreme = (rows[:checked, 1] + (parameters[2] / parameters[1]) * rows[:checked, 2]).max()
@@ -338,7 +346,8 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
             state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = rows[checked - 1, 0], extreme, 0.0
             return STEPPED_OVER, rows, 0
     # A root of the extremum function alone ends no CVODE step (one_step returns at it): not counted.
-    state[STEPS] += count - 1 if flag == CV_ROOT_RETURN and gap_root == 0 and rest_root == 0 else count
+    state[STEPS] += count - 1 if flag == CV_ROOT_RETURN and gap_root == 0 and rest_root == 0 and not hc_release \
+        else count
     state[SEGMENT], state[SEG_MODE] = 1.0, mode
     if count > 1:
         state[SEG_T0], state[SEG_X0], state[SEG_V0] = rows[last - 1, 0], rows[last - 1, 1], rows[last - 1, 2]

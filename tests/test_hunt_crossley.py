@@ -1,0 +1,123 @@
+"""contact="hunt-crossley" against its independent mpmath solution (tests/hunt_crossley_truth.py).
+
+Both CVODE engines (simulate) and the stepping API (BallIntegrator.advance in 1 ms steps), every output point
+and every event time; the truth itself against the Hertz contact's invariants.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+import pytest
+from hunt_crossley_truth import HuntCrossleyTruth, hertz_contact_duration, mp
+
+from bouncingball import Ball, simulate
+from bouncingball.solvers.cvode import BallIntegrator, CvodeSettings
+
+TOLERANCE = 1e-6  # of the height scale, the promise; measured errors are ~1e-9 (see MEASURED)
+EVENT_TOLERANCE = 1e-9  # s
+
+# name: (k, n, alpha, m, R, g, h0, v0, t_end, F_ext)
+CASES = {
+    "benchmark": (1e6, 1.5, 0.05, 1.0, 0.06, 9.81, 2.0, 0.0, 3.0, 0.0),
+    "elastic": (1e6, 1.5, 0.0, 1.0, 0.06, 9.81, 0.5, 0.0, 1.0, 0.0),
+    "grazing": (1e6, 1.5, 0.05, 1.0, 0.06, 9.81, 0.0601, 0.0, 0.3, 0.0),
+    "linear-n": (1e4, 1.0, 0.2, 1.0, 0.06, 9.81, 0.5, 0.0, 0.8, 0.0),
+    "stiff-n": (1e7, 2.5, 0.5, 0.5, 0.06, 9.81, 0.3, -1.0, 0.6, 0.0),
+    # resting at its static deflection, then lifted by 3 m g: the clip engages (a release, free, a departure)
+    "lifted": (1e6, 1.5, 20.0, 1.0, 0.06, 9.81, 0.06 - (9.81 / 1e6) ** (1 / 1.5), 0.0, 0.1, 3 * 9.81),
+}
+
+
+@functools.cache
+def truth(name):
+    k, n, alpha, m, R, g, h0, v0, t_end, F_ext = CASES[name]
+    return HuntCrossleyTruth(m, k, n, alpha, R, g, h0, v0, t_end, F_ext)
+
+
+def ball_of(name):
+    k, n, alpha, m, R, g, *_ = CASES[name]
+    return Ball(m=m, k=k, R=R, g=g, contact="hunt-crossley", n=n, alpha=alpha)
+
+
+def _compare(name, t, h, events):
+    k, n, alpha, m, R, g, h0, v0, t_end, F_ext = CASES[name]
+    tr = truth(name)
+    h_true = np.array([float(tr.state(ti)[0]) for ti in t])
+    scale = max(float(np.max(np.abs(h_true))), R)
+    error = float(np.max(np.abs(h - h_true))) / scale
+    kinds = [str(e.kind) for e in events]
+    assert kinds == [kind for _, kind, _ in tr.events]
+    event_error = max((abs(e.time - float(te)) for e, (te, _, _) in zip(events, tr.events, strict=True)), default=0.0)
+    assert error < TOLERANCE, (name, error)
+    assert event_error < EVENT_TOLERANCE, (name, event_error)
+    return error, event_error
+
+
+@pytest.mark.parametrize("engine", ["sksundae", "compiled"])
+@pytest.mark.parametrize("name", list(CASES))
+def test_simulate_against_truth(name, engine):
+    k, n, alpha, m, R, g, h0, v0, t_end, F_ext = CASES[name]
+    result = simulate(ball_of(name), h0, v0, t_end, 1e-3, F_ext=F_ext, engine=engine)
+    _compare(name, result.t, result.h, result.events)
+    assert result.error_estimate is None  # no estimate rather than a wrong one
+
+
+@pytest.mark.parametrize("name", ["benchmark", "lifted"])
+def test_stepping_api_against_truth(name):
+    k, n, alpha, m, R, g, h0, v0, t_end, F_ext = CASES[name]
+    integrator = BallIntegrator(ball_of(name), h0, v0, 0.0, F_ext, CvodeSettings(engine="compiled"))
+    steps = int(round(t_end / 1e-3))
+    t, h, events = [0.0], [h0], []
+    try:
+        for i in range(1, steps + 1):
+            events += integrator.advance(i * 1e-3)
+            t.append(integrator.t)
+            h.append(integrator.h)
+        assert math.isnan(integrator.error_estimate)
+    finally:
+        integrator.close()
+    _compare(name, np.array(t), np.array(h), events)
+
+
+def test_clip_engages_where_lifted():
+    kinds = [kind for _, kind, _ in truth("lifted").events]
+    assert kinds[:2] == ["release", "departure"]
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_force_never_negative(name):
+    k, n, alpha, m, R, g, h0, v0, t_end, F_ext = CASES[name]
+    ball = ball_of(name)
+    result = simulate(ball, h0, v0, t_end, 1e-3, F_ext=F_ext, engine="compiled")
+    from bouncingball.physics import Mode
+
+    forces = [ball.contact_force(h, v, Mode.CONTACT) for h, v in zip(result.h, result.v, strict=True)]
+    assert min(forces) >= 0.0
+
+
+def test_truth_elastic_contact_conserves_speed_and_takes_hertz_time():
+    """alpha = 0, g = 0: the rebound speed is the impact's, the contact lasts the Hertz time 3.2181 (m^2/(k^2 v))^(1/5)."""
+    tr = HuntCrossleyTruth(1.0, 1e6, 1.5, 0.0, 0.06, 0.0, 0.06, -2.0, 0.02)
+    (t_dep, kind, v_dep), = tr.events
+    assert kind == "departure" and abs(v_dep - 2) < mp.mpf(10) ** -20
+    duration = hertz_contact_duration(1.0, 1e6, 1.5, 2.0)
+    assert abs(t_dep - duration) < mp.mpf(10) ** -20
+    # the closed form's constant for n = 3/2: 2 sqrt(pi) Gamma(7/5) / Gamma(9/10) (5/4)^(2/5)
+    constant = duration / (mp.mpf(1) / (mp.mpf(10) ** 12 * 2)) ** (mp.mpf(1) / 5)
+    assert abs(constant - mp.mpf("3.2180654597190430845")) < mp.mpf(10) ** -18
+
+
+def test_refused_by_exact_and_scipy():
+    ball = ball_of("elastic")
+    for solver in ("exact", "scipy"):
+        with pytest.raises(ValueError, match="hunt-crossley"):
+            simulate(ball, 0.5, 0.0, 0.1, 1e-3, solver=solver)
+
+
+@pytest.mark.parametrize(("field", "value"), [("n", 0.5), ("n", 3.0), ("alpha", -1.0), ("alpha", math.inf)])
+def test_parameters_validated_by_name(field, value):
+    with pytest.raises(ValueError, match=f"^{field} = "):
+        Ball(contact="hunt-crossley", **{field: value})
