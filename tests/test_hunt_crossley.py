@@ -11,10 +11,10 @@ import math
 
 import numpy as np
 import pytest
-from hunt_crossley_truth import HuntCrossleyTruth, hertz_contact_duration, mp
 
 from bouncingball import Ball, simulate
 from bouncingball.solvers.cvode import BallIntegrator, CvodeSettings
+from hunt_crossley_truth import HuntCrossleyTruth, hertz_contact_duration, mp
 
 TOLERANCE = 1e-6  # of the height scale, the promise; measured errors are ~1e-9 (see MEASURED)
 EVENT_TOLERANCE = 1e-9  # s
@@ -99,7 +99,7 @@ def test_force_never_negative(name):
 
 
 def test_truth_elastic_contact_conserves_speed_and_takes_hertz_time():
-    """alpha = 0, g = 0: the rebound speed is the impact's, the contact lasts the Hertz time 3.2181 (m^2/(k^2 v))^(1/5)."""
+    """alpha = 0, g = 0: the rebound speed is the impact's; the contact lasts 3.2181 (m^2/(k^2 v))^(1/5) (Hertz)."""
     tr = HuntCrossleyTruth(1.0, 1e6, 1.5, 0.0, 0.06, 0.0, 0.06, -2.0, 0.02)
     (t_dep, kind, v_dep), = tr.events
     assert kind == "departure" and abs(v_dep - 2) < mp.mpf(10) ** -20

@@ -136,7 +136,7 @@ class Ball:
 
     @property
     def parameters(self) -> tuple[float, float, float, float, float, float, float, float, float, float]:
-        """(m, k, b, R, g, law, e, v_min, n, alpha): the ball as plain floats, as the phase machine (solvers/phases.py) takes it.
+        """(m, k, b, R, g, law, e, v_min, n, alpha): the ball as plain floats, as the phase machine takes it.
 
         law: LINEAR (0), RIGID (1), NO_PULL (2) or HUNT_CROSSLEY (3), the code of the contact law. A no-pull
         ball with b = 0 is the linear law's (its force k (R - h) never pulls below R), and has its code: the
@@ -184,7 +184,7 @@ class Ball:
             return max(-load_value(F_ext, self.m, self.g), 0.0) / self.m
         if self.no_pull and mode == Mode.CONTACT:  # the force clipped at 0, as a state off its sub-mode would have it
             return (max(self.contact_force(h, v, mode), 0.0) - load_value(F_ext, self.m, self.g)) / self.m
-        if self.hunt_crossley and mode == Mode.CONTACT:  # the force clipped at 0, as a state off its sub-mode would have it
+        if self.hunt_crossley and mode == Mode.CONTACT:  # clipped at 0, as a state off its sub-mode would have it
             return (max(self.contact_force(h, v, mode), 0.0) - load_value(F_ext, self.m, self.g)) / self.m
         return mode_acceleration(h, v, mode, F_ext, self.m, self.k, self.b, self.R, self.g)
 
@@ -394,7 +394,7 @@ def conserved_speed(parameters, mode, x_start, v_start):
 
 
 def hunt_crossley_force(x, v, k, n, alpha):
-    """k delta^n (1 + 3/2 alpha delta') [N], delta = -x the penetration, delta' = -v: the pressed contact's force, unclipped.
+    """k delta^n (1 + 3/2 alpha delta') [N], delta = -x the penetration, delta' = -v: the pressed force, unclipped.
 
     delta^n continued as sign(delta) |delta|^n beyond R (x > 0), where CVODE's trial steps may look past
     a departure: smooth there (for n > 1 its derivative is 0), as the linear law's k x continues.
@@ -408,7 +408,7 @@ def hunt_crossley_acceleration(x, v, load, m, k, n, alpha):
 
 
 def hunt_crossley_partials(x, v, load, m, k, n, alpha):
-    """(da/dx [1/s2], da/dv [1/s]) of hunt_crossley_acceleration: the Jacobian's second row, which changes with the state."""
+    """(da/dx [1/s2], da/dv [1/s]) of hunt_crossley_acceleration: the Jacobian's second row, state-dependent."""
     power = abs(x) ** (n - 1.0)  # |x|^0 = 1 at n = 1 (and at x = 0)
     return -(k / m) * n * power * (1.0 - 1.5 * alpha * v), -(k / m) * math.copysign(abs(x) ** n, -x) * 1.5 * alpha
 

@@ -336,7 +336,8 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
         rows[last, 0], rows[last, 1], rows[last, 2] = state[PEND_T], state[PEND_X], state[PEND_V]
     elif flag != CV_ROOT_RETURN and not one_step and flag != BUFFER_FULL:
         rows[last, 0] = t_stop  # CVODE stopped at t_stop - origin, which may round off t_stop
-    checked = count - 1 if gap_root != 0 or hc_release else count  # the event's row is on R (or, a release, polished below it)
+    # the event's row is on R (or, a release, below it)
+    checked = count - 1 if gap_root != 0 or hc_release else count
     if checked > 0:
         if no_pull:  # the step ends' z = -force / k (physics.pressed_gap), which a missed release leaves above 0
             extreme = (rows[:checked, 1] + (parameters[2] / parameters[1]) * rows[:checked, 2]).max()
