@@ -121,3 +121,55 @@ def test_refused_by_exact_and_scipy():
 def test_parameters_validated_by_name(field, value):
     with pytest.raises(ValueError, match=f"^{field} = "):
         Ball(contact="hunt-crossley", **{field: value})
+
+
+REST_CASE = (1e6, 1.5, 5.0, 1.0, 0.06, 9.81, 0.07, 0.0, 0.12)  # k, n, alpha, m, R, g, h0, v0, t_end: one impact
+REST_TOLERANCE = 1e-9  # s; measured 2.7e-13 (both engines), 2.7e-13 in the stepping API
+
+
+@functools.cache
+def rest_truth():
+    """The heavily damped ball's truth and when its energy E (physics.hunt_crossley_rest_margin) turns negative."""
+    k, n, alpha, m, R, g, h0, v0, t_end = REST_CASE
+    tr = HuntCrossleyTruth(m, k, n, alpha, R, g, h0, v0, t_end)
+
+    def energy(t):
+        h, v = tr.state(t)
+        d = mp.mpf(R) - h
+        return v * v / 2 - mp.mpf(g) * d + mp.mpf(k) / m * d ** (mp.mpf(n) + 1) / (mp.mpf(n) + 1)
+
+    start = tr.events[-1][0]
+    times = [start + (mp.mpf(t_end) - start) * i / 200 for i in range(201)]
+    i = next(i for i, t in enumerate(times) if energy(t) < 0)
+    low, high = times[i - 1], times[i]
+    for _ in range(60):
+        mid = (low + high) / 2
+        low, high = (low, mid) if energy(mid) < 0 else (mid, high)
+    return tr, high
+
+
+@pytest.mark.parametrize("engine", ["sksundae", "compiled"])
+def test_rest_where_energy_turns_negative(engine):
+    """The truth's contact never ends; rest_time is where E < 0 (hop ~1e-16 m: its margin is below 1e-13 s)."""
+    k, n, alpha, m, R, g, h0, v0, t_end = REST_CASE
+    tr, t_rest = rest_truth()
+    assert [kind for _, kind, _ in tr.events] == ["impact"]
+    ball = Ball(m=m, k=k, R=R, g=g, contact="hunt-crossley", n=n, alpha=alpha)
+    result = simulate(ball, h0, v0, t_end, 1e-3, engine=engine)
+    assert [str(e.kind) for e in result.events] == ["impact"]
+    assert abs(result.rest_time - float(t_rest)) < REST_TOLERANCE
+    integrator = BallIntegrator(ball, h0, v0, 0.0, 0.0, CvodeSettings(engine=engine))
+    try:
+        assert integrator.rest_time is None
+        for i in range(1, 121):
+            integrator.advance(i * 1e-3)
+            assert (integrator.rest_time is None) == (integrator.t < float(t_rest) - REST_TOLERANCE) \
+                or abs(integrator.t - float(t_rest)) < 1e-3
+        assert abs(integrator.rest_time - float(t_rest)) < REST_TOLERANCE
+    finally:
+        integrator.close()
+
+
+def test_no_rest_while_bouncing():
+    result = simulate(ball_of("benchmark"), 2.0, 0.0, 3.0, 1e-3, engine="compiled")
+    assert result.rest_time is None

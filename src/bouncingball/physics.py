@@ -413,6 +413,25 @@ def hunt_crossley_partials(x, v, load, m, k, n, alpha):
     return -(k / m) * n * power * (1.0 - 1.5 * alpha * v), -(k / m) * math.copysign(abs(x) ** n, -x) * 1.5 * alpha
 
 
+def hunt_crossley_rest_margin(x, v, load, m, k, n, hop):
+    """g_eff (hop + delta) - v^2 / 2 - (k/m) delta^(n+1) / (n + 1) [m2/s2]: positive once it never rises hop above R.
+
+    delta = max(-x, 0); positive once a pressed Hunt-Crossley ball can never again rise more than hop [m] above R.
+
+    It is L hop - E per mass, with the load L = m g - F_ext (held constant) and the energy
+    E = m v^2 / 2 - L delta + k delta^(n+1) / (n + 1). Proof: with delta' = -v, dE/dt = v (m v' + L - k delta^n).
+    Pressed, m v' = k delta^n (1 - 3/2 alpha v) - L, so dE/dt = -3/2 alpha k delta^n v^2 <= 0; free (the force's
+    clip engaged: v above the release speed 2 / (3 alpha) > 0), m v' = -L, so dE/dt = -k delta^n v < 0. So E never
+    grows while delta > 0. On R (delta = 0) E = m v^2 / 2 >= 0, and a ball leaving R rising at v reaches
+    v^2 / (2 g_eff) = E / L above it. Hence once E < L hop (the margin positive) the ball either never reaches
+    R again, or (E in [0, L hop)) leaves it by a hop lower than hop; with hop = 0 it never leaves: E < 0 at
+    delta > 0 and E >= 0 at delta = 0 cannot both hold on a path along which E does not grow. (E < 0 needs
+    L delta > 0: a lifted ball, L <= 0, is never at rest.)
+    """
+    delta = max(-x, 0.0)
+    return (load / m) * (hop + delta) - 0.5 * (v * v) - (k / m) * delta ** (n + 1.0) / (n + 1.0)
+
+
 def release_speed(alpha):
     """2 / (3 alpha) [m/s]: the speed above which the Hunt-Crossley force would pull (inf for alpha = 0)."""
     return 2.0 / (3.0 * alpha) if alpha > 0.0 else math.inf

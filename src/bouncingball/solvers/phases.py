@@ -191,7 +191,7 @@ def decide_phase(parameters, mode, x, v, load, hop, rtol):
         else:
             tau, x_event, v_event, departs = free_event(parameters, x, v, load)
         return IN_CLOSED_FORM, tau, x_event, v_event, DEPARTURE if departs else ENGAGE
-    if parameters[5] == HUNT_CROSSLEY:  # no closed form: CVODE takes every contact (no rest: see root_values)
+    if parameters[5] == HUNT_CROSSLEY:  # no closed form: CVODE takes every contact, a rest only reported (HC_REST_T)
         return BY_CVODE, 0.0, 0.0, 0.0, DEPARTURE
     if parameters[5] == RIGID:  # a rigid ball resting on R: it stays, or F_ext lifts it at once
         tau = departure_time(parameters, x, v, load)

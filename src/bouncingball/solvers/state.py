@@ -208,8 +208,14 @@ class IntegratorView:
         """Start of the current contact if it can never again lift the ball above R + hop_tolerance, else None.
 
         F_ext is taken as held constant from now on. A rigid ball's rest starts at the Zeno time where
-        its last bounces were summed (physics.rigid_rebound).
+        its last bounces were summed (physics.rigid_rebound). A Hunt-Crossley ball's rest starts where
+        its energy criterion (physics.hunt_crossley_rest_margin) became true in its current contact, found
+        since CVODE last restarted (layout.HC_REST_T): CVODE integrates on through it, there being no
+        closed form of the rest flow.
         """
+        if self.ball.hunt_crossley:
+            rest = float(self._state[layout.HC_REST_T])
+            return rest if self.mode == Mode.CONTACT and not math.isnan(rest) else None
         x, v = float(self._state[layout.X]), float(self._state[layout.V])
         if decide_phase(self._parameters, self.mode, x, v, self._load, self._hop, self.settings.rtol)[0] != REST:
             return None
