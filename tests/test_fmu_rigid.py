@@ -203,3 +203,19 @@ def test_fmpy_model_exchange_at_a_loose_tolerance_has_no_event_storm(fmu3, h0, v
     assert len(result) <= 4001 + 2 * 50
     assert np.max(np.abs(result["h"] - np.array(truth.heights(result["time"])))) <= tolerance
     assert result["h"][-1] == R
+
+
+def test_validate_runs_a_rigid_scene_file_without_the_articles_algorithm(fmu, tmp_path):
+    """The Reference-FMUs' ball as a scene file: the FMU's impacts and heights against the exact ones, SciPy not run."""
+    from bouncingball.fmu.validate import validate
+
+    scene = tmp_path / "reference.toml"
+    scene.write_text('contact = "rigid"\ne = 0.7\nv_min = 0.1\nh0 = 1.06\nt_end = 3.0\n')
+    said = []
+    report = validate(str(scene), fmu=fmu, progress=said.append)
+    assert any("SciPy algorithm is not run: it models the linear contact law, not rigid" in line for line in said)
+    rows = {row.name: row for row in report.rows}
+    assert set(rows) == {"FMU (FMPy)", "CVODE (in-process)", "exact"}
+    fmu_row = rows["FMU (FMPy)"].accuracy
+    assert fmu_row.max_height_error <= HEIGHT_TOLERANCE and fmu_row.events_found == fmu_row.events_exact == 11
+    assert report.impacts_match_at_every_point

@@ -177,15 +177,11 @@ class Ball:
     def acceleration(self, h: float, v: float, mode: Mode, F_ext: float = 0.0) -> float:
         """dv/dt [m/s2] in the given mode.
 
-        A rigid ball resting on R: 0 while the ground carries its load, (F_ext - m g)/m where F_ext lifts it
-        (contact_force is then 0).
+        Under the rigid, no-pull and Hunt-Crossley laws, from the force their contact_force clips at 0: a rigid ball
+        resting on R has 0 while the ground carries its load, (F_ext - m g)/m where F_ext lifts it.
         """
-        if self.rigid and mode == Mode.CONTACT:
-            return max(-load_value(F_ext, self.m, self.g), 0.0) / self.m
-        if self.no_pull and mode == Mode.CONTACT:  # the force clipped at 0, as a state off its sub-mode would have it
-            return (max(self.contact_force(h, v, mode), 0.0) - load_value(F_ext, self.m, self.g)) / self.m
-        if self.hunt_crossley and mode == Mode.CONTACT:  # clipped at 0, as a state off its sub-mode would have it
-            return (max(self.contact_force(h, v, mode), 0.0) - load_value(F_ext, self.m, self.g)) / self.m
+        if mode == Mode.CONTACT and (self.rigid or self.no_pull or self.hunt_crossley):
+            return (self.contact_force(h, v, mode, F_ext) - load_value(F_ext, self.m, self.g)) / self.m
         return mode_acceleration(h, v, mode, F_ext, self.m, self.k, self.b, self.R, self.g)
 
     def jacobian(self, mode: Mode) -> np.ndarray:

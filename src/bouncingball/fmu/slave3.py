@@ -92,7 +92,7 @@ def event_indicator(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) ->
         return max(x, SMALLEST_POSITIVE) if ball.rigid and v > 0.0 else x
     if ball.rigid:
         return -load_value(F_ext, ball.m, ball.g) / ball.m
-    if ball.parameters[5] != NO_PULL:
+    if not ball.no_pull:  # (with b = 0 the no-pull law's z is x: no Ball.parameters built on this hot path)
         return x
     z = x + (ball.b / ball.k) * v
     return z if mode == Mode.CONTACT else min(z, -x)

@@ -175,11 +175,10 @@ class IntegratorView:
         starts from where the bounce truly is: a lift from rest would lose its speed (up to 1e-6 m/s after
         the Reference-FMUs' drop, 9.4e-5 m after 100 s at F_ext = m g).
         """
-        state = self._state
-        rest, impact, t = float(state[layout.REST_T]), float(state[layout.LAST_IMPACT]), self.t
-        if not (self.ball.rigid and self.mode == Mode.CONTACT and impact <= t < rest):
+        rest, t = self._zeno_time(), self.t
+        if rest is None or not t < rest:
             return None
-        parameters = self.ball.parameters
+        impact, parameters = float(self._state[layout.LAST_IMPACT]), self.ball.parameters
         e, g_eff = parameters[6], self._load / parameters[0]
         v_first = 0.5 * (rest - impact) * g_eff * (1.0 - e)  # from the Zeno time rigid_rebound gave
         return summed_bounce_state(parameters, v_first, self._load, t - impact)
