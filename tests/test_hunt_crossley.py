@@ -15,7 +15,9 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from bouncingball import Ball, simulate
+from bouncingball.physics import Mode
 from bouncingball.solvers.cvode import BallIntegrator, CvodeSettings
+from bouncingball.solvers.settings import hop_tolerance, merged_hop_limit
 from hunt_crossley_truth import HuntCrossleyTruth, hertz_contact_duration, mp
 
 TOLERANCE = 1e-6  # of the height scale, the promise; measured errors are ~1e-9 (see MEASURED)
@@ -94,8 +96,6 @@ def test_force_never_negative(name):
     k, n, alpha, m, R, g, h0, v0, t_end, F_ext = CASES[name]
     ball = ball_of(name)
     result = simulate(ball, h0, v0, t_end, 1e-3, F_ext=F_ext, engine="compiled")
-    from bouncingball.physics import Mode
-
     forces = [ball.contact_force(h, v, Mode.CONTACT) for h, v in zip(result.h, result.v, strict=True)]
     assert min(forces) >= 0.0
 
@@ -203,3 +203,32 @@ def test_follows_its_truth_over_decades_of_impact_speed(log_speed, n, alpha, eng
                       default=0.0)
     assert error < 1e-9, error
     assert event_error < EVENT_TOLERANCE * max(1.0, t_end), event_error
+
+
+# --- the law's own hop tolerance (physics.hunt_crossley_hop_tolerance) ---------------------------------------------
+@pytest.mark.parametrize(("n", "alpha", "F_ext"),
+                         [(1.0, 0.2, 0.0), (1.5, 0.05, 0.0), (2.5, 1.0, 3.0), (1.5, 0.5, -2.0)])
+def test_hop_tolerance_is_the_contacts_resolution_near_rest(n, alpha, F_ext):
+    """HOP_RESOLUTION rtol (2 (n + 1) (m g - F_ext) / k)^(1/n): the hop of CVODE's x error at R, its energy's."""
+    ball = Ball(m=2.0, k=1e6, g=9.81, contact="hunt-crossley", n=n, alpha=alpha)
+    load = mp.mpf(2.0) * mp.mpf(9.81) - F_ext
+    depth = (2 * (mp.mpf(n) + 1) * load / mp.mpf(1e6)) ** (1 / mp.mpf(n))
+    assert hop_tolerance(ball, 1e-12, None, F_ext) == pytest.approx(float(10 * mp.mpf(1e-12) * depth), rel=1e-14)
+    assert hop_tolerance(ball, 1e-12, 1e-20, F_ext) == 10 * 1e-20  # an atol tightens it
+    static = (load / mp.mpf(1e6)) ** (1 / mp.mpf(n))
+    assert ball.static_deflection(F_ext) == pytest.approx(float(static), rel=1e-15)
+    stiffness = 1e6 / 2.0 * n * float(static) ** (n - 1.0)  # d(acceleration)/dh there [1/s2]; h rounds to ulp(R)
+    assert abs(ball.acceleration(ball.rest_height(F_ext), 0.0, Mode.CONTACT, F_ext)) < 2.0 * stiffness * math.ulp(0.06)
+
+
+def test_no_hop_tolerance_where_the_contact_never_rests():
+    assert hop_tolerance(Ball(k=1e6, contact="hunt-crossley", alpha=0.0)) == 0.0  # undamped: its energy kept
+    assert hop_tolerance(Ball(k=1e6, contact="hunt-crossley", alpha=0.5), F_ext=20.0) == 0.0  # lifted
+
+
+@pytest.mark.parametrize("engine", ["sksundae", "compiled"])
+def test_rests_from_its_rest_height(engine):
+    ball = Ball(k=1e6, contact="hunt-crossley", n=1.5, alpha=0.5)
+    result = simulate(ball, ball.rest_height(), 0.0, 0.1, 1e-3, engine=engine)
+    assert result.rest_time == 0.0 and not result.events
+    assert np.max(np.abs(result.h - ball.rest_height())) <= merged_hop_limit(ball)

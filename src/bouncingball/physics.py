@@ -166,11 +166,16 @@ class Ball:
         return effective_gravity_value(F_ext, self.m, self.g)
 
     def static_deflection(self, F_ext: float = 0.0) -> float:
-        """(m g - F_ext)/k [m]: how far below R the centre rests; negative if F_ext lifts the ball."""
+        """(m g - F_ext)/k [m]: how far below R the centre rests; negative if F_ext lifts the ball.
+
+        Under the Hunt-Crossley law ((m g - F_ext)/k)^(1/n), where k delta^n carries the load (its sign kept).
+        """
+        if self.hunt_crossley:
+            return hunt_crossley_static_deflection(load_value(F_ext, self.m, self.g), self.k, self.n)
         return static_deflection_value(F_ext, self.m, self.k, self.g)
 
     def rest_height(self, F_ext: float = 0.0) -> float:
-        """R - (m g - F_ext)/k [m]: the equilibrium height of the centre in contact."""
+        """R - (m g - F_ext)/k [m]: the equilibrium height of the centre in contact (R - static_deflection)."""
         return self.R - self.static_deflection(F_ext)
 
     # --- equations of motion ---------------------------------------------------------------
@@ -291,6 +296,9 @@ class Ball:
         It only grows in contact, so it is a root function for the start of a rest. Under the no-pull law
         the margin is no_pull_rest_margin_value's (the force can never again reach 0).
         """
+        if self.hunt_crossley:  # its own energy's (per mass, m2/s2)
+            return hunt_crossley_rest_margin(h - self.R, v, load_value(F_ext, self.m, self.g), self.m, self.k, self.n,
+                                             hop_tolerance)
         return law_rest_margin(self.parameters, h - self.R, v, self.static_deflection(F_ext), hop_tolerance)
 
 
@@ -426,6 +434,37 @@ def hunt_crossley_rest_margin(x, v, load, m, k, n, hop):
     """
     delta = max(-x, 0.0)
     return (load / m) * (hop + delta) - 0.5 * (v * v) - (k / m) * delta ** (n + 1.0) / (n + 1.0)
+
+
+def hunt_crossley_static_deflection(load, k, n):
+    """(load / k)^(1/n) [m], its sign the load's: the penetration at which k delta^n carries the load [N]."""
+    return math.copysign((abs(load) / k) ** (1.0 / n), load)
+
+
+def hunt_crossley_rest_depth(load, m, k, n):
+    """(2 (n + 1) g_eff / (k/m))^(1/n) [m], g_eff = load / m > 0: the length scale of a Hunt-Crossley contact near rest.
+
+    A contact of energy per mass e = v^2 / 2 - g_eff delta + (k/m) delta^(n+1) / (n + 1) <= 0 (one that leaves R no
+    higher than it hops, e = g_eff hop, for hop -> 0) stays shallower than this: past it the spring's energy
+    (k/m) delta^(n+1) / (n + 1) exceeds 2 g_eff delta. It is (2 (n + 1))^(1/n) times the static deflection
+    (hunt_crossley_static_deflection): 4 at n = 1, 2.9 at n = 3/2, 2.2 at n = 5/2. The contact's frame
+    (phases.hunt_crossley_scales) is never smaller.
+    """
+    return (2.0 * (n + 1.0) * (load / m) / (k / m)) ** (1.0 / n)
+
+
+def hunt_crossley_hop_tolerance(load, m, k, n, alpha, resolution):
+    """The highest hop [m] a Hunt-Crossley run may merge: resolution (HOP_RESOLUTION rtol) hunt_crossley_rest_depth.
+
+    From the law's energy (hunt_crossley_rest_margin): a ball leaving R rising at v hops H = v^2 / (2 g_eff) above
+    it, its energy on R E = m v^2 / 2 = L H (L = m g - F_ext, the load). Near rest CVODE integrates the contact
+    to rtol of its frame, whose length is at least hunt_crossley_rest_depth: its error of x, resolution times
+    that, is an error of L resolution depth in E at R, that of a hop of resolution depth, which no run can tell
+    from a rest. 0 where the contact never rests: undamped (alpha = 0, E kept), or a load <= 0 (lifted).
+    """
+    if not (alpha > 0.0 and load > 0.0):
+        return 0.0
+    return resolution * hunt_crossley_rest_depth(load, m, k, n)
 
 
 def release_speed(alpha):

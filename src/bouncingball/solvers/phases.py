@@ -27,6 +27,7 @@ from ..physics import (
     gap_flow_value,
     hunt_crossley_acceleration,
     hunt_crossley_partials,
+    hunt_crossley_rest_depth,
     law_rest_margin,
     no_pull_rest_margin_value,
     pressed_gap,
@@ -105,7 +106,7 @@ def hunt_crossley_scales(parameters, x, v, load):
     energy = 0.5 * (v * v) - g_eff * depth + w2 * depth ** (n + 1.0) / (n + 1.0)
     deepest = max(abs(x), (2.0 * (n + 1.0) * max(energy, 0.0) / w2) ** (1.0 / (n + 1.0)))
     if g_eff > 0.0:
-        deepest = max(deepest, (2.0 * (n + 1.0) * g_eff / w2) ** (1.0 / n))
+        deepest = max(deepest, hunt_crossley_rest_depth(load, m, k, n))
     length = min(deepest, SOFT_CONTACT_CAP * max(R, abs(x)))
     fastest = math.sqrt(2.0 * max(energy + max(g_eff, 0.0) * length, 0.0))
     return length, max(abs(v), fastest, math.sqrt(n * w2 * length ** (n - 1.0)) * length)
