@@ -130,6 +130,5 @@ def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     options = {"rtol": settings.rtol, "atol": settings.atol, "method": settings.method,
                "contact_method": integrator.methods[Mode.CONTACT], "max_step": settings.max_step,
                "engine": settings.engine}
-    # None under the Hunt-Crossley law: no estimate rather than a wrong one (error_estimate.phase_error)
-    estimate = None if ball.hunt_crossley else integrator.error_estimate
+    estimate = integrator.error_estimate
     return SimulationResult("cvode", ball, grid, h, v, events, integrator.rest_time, stats, F_ext, options, estimate)

@@ -131,7 +131,7 @@ class BallIntegrator(IntegratorView):
 
         Checked at the phases' ends (one comparison) or, with whole, over everything integrated so far.
         """
-        if self._accuracy_warned or (not whole and math.isnan(self._state[layout.ERR_FROM])) or self.ball.hunt_crossley:
+        if self._accuracy_warned or (not whole and math.isnan(self._state[layout.ERR_FROM])):
             return
         warning = accuracy_warning(*self._machine.run_estimate(self._parameters, self.settings.rtol, self._atol,
                                                            self._state), self.t, self.settings.rtol)

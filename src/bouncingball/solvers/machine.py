@@ -36,7 +36,7 @@ from ..physics import (
 from ..rounding import later
 from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, engine_exceeded, engine_start, engine_steps
-from .error_estimate import carry_error
+from .error_estimate import carry_error, contact_steps_ellipse, start_contact_ellipses
 from .layout import (
     DEPARTURES,
     ERR_FROM,
@@ -308,6 +308,8 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
             return CVODE_FAILED, scratch, 0
         state[NEEDS_INIT] = 0.0
         state[STEP_T], state[STEP_X], state[STEP_V] = state[T], state[X], state[V]
+        if parameters[5] == HUNT_CROSSLEY and mode == CONTACT:
+            start_contact_ellipses(state)
     origin, length, speed = state[ORIGIN], state[LENGTH], state[SPEED]
     tau_before = state[STEP_T] - origin
     flag, count, rows, gap_root, rest_root, rhs_calls = engine_steps(
@@ -356,8 +358,10 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
         if on_wrong_side(mode, extreme, side_margin(hop, rtol, length)):
             state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = rows[checked - 1, 0], extreme, 0.0
             return STEPPED_OVER, rows, 0
-    if parameters[5] == HUNT_CROSSLEY and mode == CONTACT and math.isnan(state[HC_REST_T]):
-        _hunt_crossley_rest(parameters, state, rows, count)
+    if parameters[5] == HUNT_CROSSLEY and mode == CONTACT:  # no closed form: its error carried step by step
+        contact_steps_ellipse(parameters, rtol, state, rows, count)
+        if math.isnan(state[HC_REST_T]):
+            _hunt_crossley_rest(parameters, state, rows, count)
     # A root of the extremum function alone ends no CVODE step (one_step returns at it): not counted.
     state[STEPS] += count - 1 if flag == CV_ROOT_RETURN and gap_root == 0 and rest_root == 0 and not hc_release \
         else count

@@ -292,7 +292,10 @@ def on_wrong_side(mode, x, margin):
 def taylor_step(parameters, mode, x, v, load, dt):
     """(x, v) after dt [s] by a second-order Taylor step: where dt is a few ulps of t, too short for CVODE."""
     m, k, b = parameters[0], parameters[1], parameters[2]
-    a = gap_acceleration(x, v, mode, load, m, k, b)
+    if parameters[5] == HUNT_CROSSLEY and mode == CONTACT:
+        a = hunt_crossley_acceleration(x, v, load, m, k, parameters[8], parameters[9])
+    else:
+        a = gap_acceleration(x, v, mode, load, m, k, b)
     return x + dt * (v + 0.5 * dt * a), v + dt * a
 
 

@@ -49,6 +49,10 @@ ERROR_WITHIN_PHASE = 5.0
 # The bound is first order in the errors (the flows are exact, the events linearised): twice it keeps it above
 # the true error where second-order terms and rounding add to it (tests/test_error_estimate.py).
 ESTIMATE_SAFETY = 2.0
+# Under the Hunt-Crossley law a contact's error is bounded by what CVODE's error test let through at each step
+# (error_estimate._contact_step): this many times the ellipse the test holds its estimate of the
+# local error in, for an error it underestimated. Measured against the mpmath solution: tests/test_hunt_crossley.py.
+LOCAL_ERROR_SAFETY = 2.0
 ESTIMATE_CAP = 10.0  # an error estimate is at most this many times the height scale: the run is then lost
 
 

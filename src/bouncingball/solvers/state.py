@@ -41,6 +41,12 @@ class RestartPoint:
     error_bound: float = 0.0
     untrusted_from: float | None = None
     height_scale: float = 0.0
+    # under the Hunt-Crossley law the error lies in the sum of two ellipses (error_estimate.hunt_crossley_errors):
+    # error_x and error_v are the half-widths [m, m/s] of the first, error_xv its correlation; error2_* the second's
+    error_xv: float = 0.0
+    error2_x: float = 0.0
+    error2_v: float = 0.0
+    error2_xv: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -110,8 +116,6 @@ class IntegratorView:
         the height scale only where the run is ill-conditioned, and then an AccuracyWarning says from
         when the run cannot be trusted.
         """
-        if self.ball.hunt_crossley:  # no closed form to measure its contacts against: no estimate (error_estimate.py)
-            return math.nan
         return float(self._machine.run_estimate(self.ball.parameters, self.settings.rtol, self._atol, self._state)[0])
 
     @property
@@ -252,15 +256,16 @@ class IntegratorView:
         rest, impact = float(self._state[layout.REST_T]), float(self._state[layout.LAST_IMPACT])
         return rest if self.ball.rigid and self.mode == Mode.CONTACT and rest > impact else None
 
-    def _errors(self) -> tuple[float, float, float, float | None, float]:
+    def _errors(self) -> tuple:
         """The error estimate's fields at the restart point, as RestartPoint holds them."""
         state = self._state
         since = float(state[layout.ERR_FROM])
         return (float(state[layout.ERR_X]), float(state[layout.ERR_V]), float(state[layout.ERR_MAX]),
-                None if math.isnan(since) else since, float(state[layout.SCALE]))
+                None if math.isnan(since) else since, float(state[layout.SCALE]),
+                *(float(state[i]) for i in (layout.ERR_XV, layout.ERR2_X, layout.ERR2_V, layout.ERR2_XV)))
 
     def _restart_at(self, point, F_ext: float, counts, t_start: float, t_low: float = 0.0,
-                    errors=(0.0, 0.0, 0.0, None, 0.0)) -> None:
+                    errors=(0.0, 0.0, 0.0, None, 0.0, 0.0, 0.0, 0.0, 0.0)) -> None:
         """Set the state (t, x, v, mode) and what goes with it; CVODE restarts there.
 
         With t's rounding error t_low, F_ext, the counters and the error estimate's fields (_errors).
@@ -268,8 +273,9 @@ class IntegratorView:
         state = self._state
         state[layout.T], state[layout.X], state[layout.V], state[layout.MODE] = point
         state[layout.T_LOW] = t_low
-        error_x, error_v, bound, since, scale = errors
+        error_x, error_v, bound, since, scale, *ellipses = errors
         state[layout.ERR_X], state[layout.ERR_V], state[layout.ERR_MAX] = error_x, error_v, bound
+        state[[layout.ERR_XV, layout.ERR2_X, layout.ERR2_V, layout.ERR2_XV]] = ellipses
         state[layout.ERR_FROM], state[layout.SCALE] = math.nan if since is None else since, scale
         self._F_ext, self._t_start = F_ext, t_start
         self._set_counts(counts)
@@ -310,7 +316,7 @@ class CheckedState:
     restart_point: tuple[float, float, float, Mode] | None
     restart_counts: Counts | None
     restart_t_low: float = 0.0
-    restart_errors: tuple = (0.0, 0.0, 0.0, None, 0.0)
+    restart_errors: tuple = (0.0, 0.0, 0.0, None, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def checked(ball: Ball, state: IntegratorState, settings: CvodeSettings) -> CheckedState:
@@ -349,7 +355,7 @@ def checked(ball: Ball, state: IntegratorState, settings: CvodeSettings) -> Chec
                         _errors("state restart", restart))
 
 
-def _errors(name: str, restart: RestartPoint) -> tuple[float, float, float, float | None, float]:
+def _errors(name: str, restart: RestartPoint) -> tuple:
     """The error estimate's fields of a restart point, checked."""
     error_x = validation.finite(f"{name} error_x", restart.error_x, "m")
     error_v = validation.finite(f"{name} error_v", restart.error_v, "m/s")
@@ -357,7 +363,11 @@ def _errors(name: str, restart: RestartPoint) -> tuple[float, float, float, floa
     scale = validation.non_negative(f"{name} height_scale", restart.height_scale, "m")
     since = None if restart.untrusted_from is None else validation.finite(f"{name} untrusted_from",
                                                                          restart.untrusted_from, "s")
-    return error_x, error_v, bound, since, scale
+    error_xv = validation.in_closed_range(f"{name} error_xv", restart.error_xv, -1.0, 1.0)
+    error2_x = validation.non_negative(f"{name} error2_x", restart.error2_x, "m")
+    error2_v = validation.non_negative(f"{name} error2_v", restart.error2_v, "m/s")
+    error2_xv = validation.in_closed_range(f"{name} error2_xv", restart.error2_xv, -1.0, 1.0)
+    return error_x, error_v, bound, since, scale, error_xv, error2_x, error2_v, error2_xv
 
 
 def _check_side(ball: Ball, settings: CvodeSettings, name: str, point, start, h) -> None:
