@@ -112,7 +112,9 @@ class IntegratorView:
 
         Each phase's own error is measured against its exact flow (the flow is affine in the start
         state, in closed form), the error it started with carried by the flow's transition matrix and,
-        at an event, the saltation of the field's jump; see error_estimate.phase_error. It passes 1e-6 of
+        at an event, the saltation of the field's jump; see error_estimate.phase_error. A Hunt-Crossley
+        contact, with no closed form, is bounded by what CVODE's error test let through at each step
+        (error_estimate.hunt_crossley_errors). It passes 1e-6 of
         the height scale only where the run is ill-conditioned, and then an AccuracyWarning says from
         when the run cannot be trusted.
         """
