@@ -506,7 +506,7 @@ def test_the_compiled_decisions_and_flows_are_the_interpreted_ones_to_the_bit():
     for _ in range(3000):
         m, k = 10.0 ** generator.uniform(-3, 3), 10.0 ** generator.uniform(0, 8)
         ball = (m, k, 2.0 * math.sqrt(k * m) * generator.uniform(0.0, 3.0), 10.0 ** generator.uniform(-3, 0), 9.81,
-                float(generator.choice((physics.LINEAR, physics.RIGID))), 0.7, 0.0)
+                float(generator.choice((physics.LINEAR, physics.RIGID))), 0.7, 0.0, 1.5, 0.0)
         load = m * 9.81 * generator.uniform(-0.5, 1.5)
         x, v, tau = generator.uniform(-1e-2, 2.0), generator.uniform(-10.0, 10.0), 10.0 ** generator.uniform(-6, 0)
         for mode in (0, 1):

@@ -30,8 +30,11 @@ class Mode(enum.IntEnum):
 
 
 # The contact laws (Ball.contact) and the codes the phase machine knows them by (Ball.parameters).
-CONTACT_LAWS = ("linear", "rigid", "linear-no-pull")
-LINEAR, RIGID, NO_PULL = 0, 1, 2
+CONTACT_LAWS = ("linear", "rigid", "linear-no-pull", "hunt-crossley")
+LINEAR, RIGID, NO_PULL, HUNT_CROSSLEY = 0, 1, 2, 3
+# The Hunt-Crossley law's exponent n: 1 (a linear spring) .. 2.5 (beyond Hertz's 1.5 for spheres, as fitted
+# to soft and granular materials); its release speed is 2 / (3 alpha).
+HC_N_RANGE = (1.0, 2.5)
 
 
 @dataclass(frozen=True)
@@ -100,6 +103,8 @@ class Ball:
     contact: str = "linear"
     e: float = 0.7
     v_min: float = 0.0
+    n: float = 1.5
+    alpha: float = 0.0
 
     def __post_init__(self) -> None:
         """Check every parameter before the ball exists."""
@@ -111,6 +116,8 @@ class Ball:
         object.__setattr__(self, "contact", validation.choice("contact", self.contact, CONTACT_LAWS))
         object.__setattr__(self, "e", validation.in_closed_range("e", self.e, 0.0, 1.0))
         object.__setattr__(self, "v_min", validation.non_negative("v_min", self.v_min, "m/s"))
+        object.__setattr__(self, "n", validation.in_closed_range("n", self.n, *HC_N_RANGE))
+        object.__setattr__(self, "alpha", validation.non_negative("alpha", self.alpha, "s/m"))
 
     # --- derived quantities -------------------------------------------------------------
     @property
@@ -124,14 +131,22 @@ class Ball:
         return self.contact == "linear-no-pull"
 
     @property
-    def parameters(self) -> tuple[float, float, float, float, float, float, float, float]:
-        """(m, k, b, R, g, law, e, v_min): the ball as plain floats, as the phase machine (solvers/phases.py) takes it.
+    def hunt_crossley(self) -> bool:
+        """Whether the contact law is Hunt and Crossley's (k delta^n (1 + 3/2 alpha delta'), clipped at 0)."""
+        return self.contact == "hunt-crossley"
 
-        law: LINEAR (0), RIGID (1) or NO_PULL (2), the code of the contact law. A no-pull ball with b = 0
-        is the linear law's (its force k (R - h) never pulls below R), and has its code: the same run.
+    @property
+    def parameters(self) -> tuple[float, float, float, float, float, float, float, float, float, float]:
+        """(m, k, b, R, g, law, e, v_min, n, alpha): the ball as plain floats, as the phase machine takes it.
+
+        law: LINEAR (0), RIGID (1), NO_PULL (2) or HUNT_CROSSLEY (3), the code of the contact law. A no-pull
+        ball with b = 0 is the linear law's (its force k (R - h) never pulls below R), and has its code: the
+        same run. Under the Hunt-Crossley law b is 0.0 here (its damping is alpha's: no linear damper).
         """
+        if self.hunt_crossley:
+            return self.m, self.k, 0.0, self.R, self.g, float(HUNT_CROSSLEY), self.e, self.v_min, self.n, self.alpha
         law = RIGID if self.rigid else (NO_PULL if self.no_pull and self.b > 0.0 else LINEAR)
-        return self.m, self.k, self.b, self.R, self.g, float(law), self.e, self.v_min
+        return self.m, self.k, self.b, self.R, self.g, float(law), self.e, self.v_min, self.n, self.alpha
 
     @property
     def natural_frequency(self) -> float:
@@ -152,21 +167,26 @@ class Ball:
         return effective_gravity_value(F_ext, self.m, self.g)
 
     def static_deflection(self, F_ext: float = 0.0) -> float:
-        """(m g - F_ext)/k [m]: how far below R the centre rests; negative if F_ext lifts the ball."""
+        """(m g - F_ext)/k [m]: how far below R the centre rests; negative if F_ext lifts the ball.
+
+        Under the Hunt-Crossley law ((m g - F_ext)/k)^(1/n), where k delta^n carries the load (its sign kept).
+        """
+        if self.hunt_crossley:
+            return hunt_crossley_static_deflection(load_value(F_ext, self.m, self.g), self.k, self.n)
         return static_deflection_value(F_ext, self.m, self.k, self.g)
 
     def rest_height(self, F_ext: float = 0.0) -> float:
-        """R - (m g - F_ext)/k [m]: the equilibrium height of the centre in contact."""
+        """R - (m g - F_ext)/k [m]: the equilibrium height of the centre in contact (R - static_deflection)."""
         return self.R - self.static_deflection(F_ext)
 
     # --- equations of motion ---------------------------------------------------------------
     def acceleration(self, h: float, v: float, mode: Mode, F_ext: float = 0.0) -> float:
         """dv/dt [m/s2] in the given mode.
 
-        Under the rigid and no-pull laws, from the force their contact_force clips at 0: a rigid ball
+        Under the rigid, no-pull and Hunt-Crossley laws, from the force their contact_force clips at 0: a rigid ball
         resting on R has 0 while the ground carries its load, (F_ext - m g)/m where F_ext lifts it.
         """
-        if mode == Mode.CONTACT and (self.rigid or self.no_pull):
+        if mode == Mode.CONTACT and (self.rigid or self.no_pull or self.hunt_crossley):
             return (self.contact_force(h, v, mode, F_ext) - load_value(F_ext, self.m, self.g)) / self.m
         return mode_acceleration(h, v, mode, F_ext, self.m, self.k, self.b, self.R, self.g)
 
@@ -207,6 +227,8 @@ class Ball:
             return max(load_value(F_ext, self.m, self.g), 0.0)
         if self.no_pull:
             return max(self.k * (self.R - h) - self.b * v, 0.0)
+        if self.hunt_crossley:
+            return max(hunt_crossley_force(h - self.R, v, self.k, self.n, self.alpha), 0.0)
         return self.k * (self.R - h) - self.b * v
 
     def energy(self, h, v, F_ext: float = 0.0):
@@ -217,6 +239,9 @@ class Ball:
         h = np.asarray(h, dtype=float)
         v = np.asarray(v, dtype=float)
         compression = np.maximum(self.R - h, 0.0)
+        if self.hunt_crossley:  # the spring k delta^n stores k delta^(n+1) / (n + 1)
+            return 0.5 * self.m * v**2 + (self.m * self.g - F_ext) * h + self.k * compression ** (self.n + 1.0) / (
+                self.n + 1.0)
         return 0.5 * self.m * v**2 + (self.m * self.g - F_ext) * h + 0.5 * self.k * compression**2
 
     # --- events ---------------------------------------------------------------------------------
@@ -240,8 +265,15 @@ class Ball:
         return Mode.FLIGHT
 
     def _free_below_R(self, h0: float, v0: float, F_ext: float) -> bool:
-        """Under the no-pull law, whether a ball below R starts free: its force would pull, or is 0 and turning so."""
+        """Under the no-pull law, whether a ball below R starts free: its force would pull, or is 0 and turning so.
+
+        Under the Hunt-Crossley law: where 1 - 3/2 alpha v < 0 (rising faster than the release speed), or = 0 with
+        F_ext lifting more than the weight (v grows past it).
+        """
         parameters = self.parameters
+        if parameters[5] == HUNT_CROSSLEY:
+            factor = 1.0 - 1.5 * self.alpha * v0
+            return factor < 0.0 or (factor == 0.0 and load_value(F_ext, self.m, self.g) < 0.0)
         if parameters[5] != NO_PULL:
             return False
         load = load_value(F_ext, self.m, self.g)
@@ -265,6 +297,9 @@ class Ball:
         It only grows in contact, so it is a root function for the start of a rest. Under the no-pull law
         the margin is no_pull_rest_margin_value's (the force can never again reach 0).
         """
+        if self.hunt_crossley:  # its own energy's (per mass, m2/s2)
+            return hunt_crossley_rest_margin(h - self.R, v, load_value(F_ext, self.m, self.g), self.m, self.k, self.n,
+                                             hop_tolerance)
         return law_rest_margin(self.parameters, h - self.R, v, self.static_deflection(F_ext), hop_tolerance)
 
 
@@ -294,6 +329,8 @@ def law_flow_value(parameters, mode, x0, v0, tau, load):
     """
     if mode == 1 and parameters[5] == RIGID:
         return x0 + 0.0 * tau, v0 + 0.0 * tau
+    if mode == 1 and parameters[5] == HUNT_CROSSLEY:  # no closed form: never asked for (NaN if it were)
+        return x0 + math.nan * tau, v0 + math.nan * tau
     return gap_flow_value(mode, x0, v0, tau, load, parameters[0], parameters[1], parameters[2])
 
 
@@ -356,7 +393,84 @@ def conserved_speed(parameters, mode, x_start, v_start):
     """
     if x_start != 0.0:
         return False
+    if parameters[5] == HUNT_CROSSLEY:  # alpha = 0: the Hertz contact conserves energy, its force 0 on R
+        return v_start > 0.0 if mode == 0 else (v_start < 0.0 and parameters[9] == 0.0)
     return v_start > 0.0 if mode == 0 else (v_start < 0.0 and parameters[2] == 0.0)
+
+
+def hunt_crossley_force(x, v, k, n, alpha):
+    """k delta^n (1 + 3/2 alpha delta') [N], delta = -x the penetration, delta' = -v: the pressed force, unclipped.
+
+    delta^n continued as sign(delta) |delta|^n beyond R (x > 0), where CVODE's trial steps may look past
+    a departure: smooth there (for n > 1 its derivative is 0), as the linear law's k x continues.
+    """
+    return k * math.copysign(abs(x) ** n, -x) * (1.0 - 1.5 * alpha * v)
+
+
+def hunt_crossley_acceleration(x, v, load, m, k, n, alpha):
+    """dv/dt [m/s2] in the Hunt-Crossley pressed contact (Mode.CONTACT): (force - load) / m."""
+    return (hunt_crossley_force(x, v, k, n, alpha) - load) / m
+
+
+def hunt_crossley_partials(x, v, load, m, k, n, alpha):
+    """(da/dx [1/s2], da/dv [1/s]) of hunt_crossley_acceleration: the Jacobian's second row, state-dependent."""
+    power = abs(x) ** (n - 1.0)  # |x|^0 = 1 at n = 1 (and at x = 0)
+    return -(k / m) * n * power * (1.0 - 1.5 * alpha * v), -(k / m) * math.copysign(abs(x) ** n, -x) * 1.5 * alpha
+
+
+def hunt_crossley_rest_margin(x, v, load, m, k, n, hop):
+    """g_eff (hop + delta) - v^2 / 2 - (k/m) delta^(n+1) / (n + 1) [m2/s2]: positive once it never rises hop above R.
+
+    delta = max(-x, 0); positive once a pressed Hunt-Crossley ball can never again rise more than hop [m] above R.
+
+    It is L hop - E per mass, with the load L = m g - F_ext (held constant) and the energy
+    E = m v^2 / 2 - L delta + k delta^(n+1) / (n + 1). Proof: with delta' = -v, dE/dt = v (m v' + L - k delta^n).
+    Pressed, m v' = k delta^n (1 - 3/2 alpha v) - L, so dE/dt = -3/2 alpha k delta^n v^2 <= 0; free (the force's
+    clip engaged: v above the release speed 2 / (3 alpha) > 0), m v' = -L, so dE/dt = -k delta^n v < 0. So E never
+    grows while delta > 0. On R (delta = 0) E = m v^2 / 2 >= 0, and a ball leaving R rising at v reaches
+    v^2 / (2 g_eff) = E / L above it. Hence once E < L hop (the margin positive) the ball either never reaches
+    R again, or (E in [0, L hop)) leaves it by a hop lower than hop; with hop = 0 it never leaves: E < 0 at
+    delta > 0 and E >= 0 at delta = 0 cannot both hold on a path along which E does not grow. (E < 0 needs
+    L delta > 0: a lifted ball, L <= 0, is never at rest.)
+    """
+    delta = max(-x, 0.0)
+    return (load / m) * (hop + delta) - 0.5 * (v * v) - (k / m) * delta ** (n + 1.0) / (n + 1.0)
+
+
+def hunt_crossley_static_deflection(load, k, n):
+    """(load / k)^(1/n) [m], its sign the load's: the penetration at which k delta^n carries the load [N]."""
+    return math.copysign((abs(load) / k) ** (1.0 / n), load)
+
+
+def hunt_crossley_rest_depth(load, m, k, n):
+    """(2 (n + 1) g_eff / (k/m))^(1/n) [m], g_eff = load / m > 0: the length scale of a Hunt-Crossley contact near rest.
+
+    A contact of energy per mass e = v^2 / 2 - g_eff delta + (k/m) delta^(n+1) / (n + 1) <= 0 (one that leaves R no
+    higher than it hops, e = g_eff hop, for hop -> 0) stays shallower than this: past it the spring's energy
+    (k/m) delta^(n+1) / (n + 1) exceeds 2 g_eff delta. It is (2 (n + 1))^(1/n) times the static deflection
+    (hunt_crossley_static_deflection): 4 at n = 1, 2.9 at n = 3/2, 2.2 at n = 5/2. The contact's frame
+    (phases.hunt_crossley_scales) is never smaller.
+    """
+    return (2.0 * (n + 1.0) * (load / m) / (k / m)) ** (1.0 / n)
+
+
+def hunt_crossley_hop_tolerance(load, m, k, n, alpha, resolution):
+    """The highest hop [m] a Hunt-Crossley run may merge: resolution (HOP_RESOLUTION rtol) hunt_crossley_rest_depth.
+
+    From the law's energy (hunt_crossley_rest_margin): a ball leaving R rising at v hops H = v^2 / (2 g_eff) above
+    it, its energy on R E = m v^2 / 2 = L H (L = m g - F_ext, the load). Near rest CVODE integrates the contact
+    to rtol of its frame, whose length is at least hunt_crossley_rest_depth: its error of x, resolution times
+    that, is an error of L resolution depth in E at R, that of a hop of resolution depth, which no run can tell
+    from a rest. 0 where the contact never rests: undamped (alpha = 0, E kept), or a load <= 0 (lifted).
+    """
+    if not (alpha > 0.0 and load > 0.0):
+        return 0.0
+    return resolution * hunt_crossley_rest_depth(load, m, k, n)
+
+
+def release_speed(alpha):
+    """2 / (3 alpha) [m/s]: the speed above which the Hunt-Crossley force would pull (inf for alpha = 0)."""
+    return 2.0 / (3.0 * alpha) if alpha > 0.0 else math.inf
 
 
 def pressed_gap(parameters, x, v, load):

@@ -62,7 +62,8 @@ _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_
 # The parameters (float64) the callbacks read.
 # CVODE integrates x / length and v / speed (x = h - R), the phase's frame set by _engine_start.
 (_P_M, _P_K, _P_B, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
- _P_LENGTH, _P_SPEED, _P_LOAD, _P_LAW, _P_SIZE) = range(15)
+ _P_LENGTH, _P_SPEED, _P_LOAD, _P_LAW, _P_N, _P_ALPHA, _P_SIZE) = range(17)
+_HUNT_CROSSLEY = float(physics.HUNT_CROSSLEY)
 
 
 
@@ -168,6 +169,7 @@ advance_in_step = _compiled[drivers.advance_in_step]
 phase_ends, run_estimate = _compiled[machine.phase_ends], _compiled[error_estimate.run_estimate]
 _scaled_rates, _root_values = _compiled[phases.scaled_rates], _compiled[phases.root_values]
 _scaled_jacobian = _compiled[phases.scaled_jacobian]
+_hunt_crossley_jacobian = _compiled[phases.hunt_crossley_jacobian]
 
 
 _callback_data = types.CPointer(types.intp)
@@ -180,7 +182,7 @@ def _rhs(t, y, ydot, user_data):
     state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
     out = carray(doubles(call_p1(u[_U_GET_ARRAY], ydot)), 2)
     out[0], out[1] = _scaled_rates(state[0], state[1], p[_P_MODE], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD], p[_P_M],
-                                   p[_P_K], p[_P_B])
+                                   p[_P_K], p[_P_B], p[_P_LAW], p[_P_N], p[_P_ALPHA])
     return 0
 
 
@@ -191,7 +193,8 @@ def _roots(t, y, gout, user_data):
     state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
     out = carray(gout, 3)
     out[0], out[1], out[2] = _root_values(state[0], state[1], p[_P_MODE], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD],
-                                          p[_P_OWN_SIDE], p[_P_HOP], p[_P_K], p[_P_M], p[_P_B], p[_P_LAW])
+                                          p[_P_OWN_SIDE], p[_P_HOP], p[_P_K], p[_P_M], p[_P_B], p[_P_LAW],
+                                          p[_P_ALPHA])
     u[_U_EVALUATIONS] += 1
     return 1 if u[_U_EVALUATIONS] > u[_U_MAX_EVALUATIONS] else 0
 
@@ -203,6 +206,13 @@ def _jacobian(t, y, fy, matrix, user_data, tmp1, tmp2, tmp3):
     p = carray(doubles(u[_U_PARAMETERS]), _P_SIZE)
     columns = carray(addresses(call_p1(u[_U_COLUMNS], matrix)), 2)
     first, second = carray(doubles(columns[0]), 2), carray(doubles(columns[1]), 2)
+    if p[_P_LAW] == _HUNT_CROSSLEY and p[_P_MODE] == 1.0:  # the Hunt-Crossley contact's, where it changes
+        state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
+        j00, j01, j10, j11 = _hunt_crossley_jacobian(state[0], state[1], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD],
+                                                     p[_P_M], p[_P_K], p[_P_N], p[_P_ALPHA])
+        first[0], first[1] = j00, j10  # SUNDIALS' dense matrices are stored by columns
+        second[0], second[1] = j01, j11
+        return 0
     first[0], first[1] = p[_P_J00], p[_P_J10]  # SUNDIALS' dense matrices are stored by columns
     second[0], second[1] = p[_P_J01], p[_P_J11]
     return 0
@@ -311,7 +321,9 @@ class PhaseSolver:
     # --- the calls BallIntegrator makes (solvers/stepper.py) ---------------------------------------
     def bind(self, ball) -> None:
         """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
-        self.parameters[[_P_M, _P_K, _P_B, _P_LAW]] = ball.m, ball.k, ball.b, ball.parameters[5]
+        parameters = ball.parameters  # b is 0 there under the Hunt-Crossley law (no linear damper)
+        self.parameters[[_P_M, _P_K, _P_B, _P_LAW, _P_N, _P_ALPHA]] = (ball.m, ball.k, parameters[2], parameters[5],
+                                                                       parameters[8], parameters[9])
 
     def handle(self) -> np.ndarray:
         """This solver's row of the compiled machine's engine (see _H_*; its CVODE made on first use)."""

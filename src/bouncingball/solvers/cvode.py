@@ -67,6 +67,8 @@ def _integrate_pieces(integrator: BallIntegrator, grid: np.ndarray,
 def _steps_for_auto(ball: Ball, h0: float, v0: float, grid: np.ndarray, F_ext: float | ForceTable,
                     settings: CvodeSettings) -> float | None:
     """The run's expected steps where engine "auto" has to weigh them (see choose_engine), else None."""
+    if ball.hunt_crossley:  # no exact solution to count its phases by: unknown, as an FMU's
+        return None
     if settings.engine != "auto" or (break_even := engines.compiled_break_even()) == 0.0:
         return None
     return engines.expected_steps(ball, h0, v0, float(grid[0]), float(grid[-1]), F_ext, at_most=break_even)
@@ -128,5 +130,5 @@ def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     options = {"rtol": settings.rtol, "atol": settings.atol, "method": settings.method,
                "contact_method": integrator.methods[Mode.CONTACT], "max_step": settings.max_step,
                "engine": settings.engine}
-    return SimulationResult("cvode", ball, grid, h, v, events, integrator.rest_time, stats, F_ext, options,
-                            integrator.error_estimate)
+    estimate = integrator.error_estimate
+    return SimulationResult("cvode", ball, grid, h, v, events, integrator.rest_time, stats, F_ext, options, estimate)

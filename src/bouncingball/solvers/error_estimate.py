@@ -6,40 +6,82 @@ from its start. The error it started with is carried by the flow's transition ma
 unit vectors under no load) and, at an impact or departure, by the saltation matrix of the field's
 jump there (-+ b/m: no 1/v). The functions are plain Python over floats and the state array
 (layout.py), run interpreted and compiled alike (machine.py calls them at each phase's end).
+
+The Hunt-Crossley law's contact has no closed form to measure CVODE's error against. There the error is
+bounded instead by what CVODE's error test let through: each step's local error lies in the ellipse its test
+holds it in (_contact_step), and the error the step started with is carried by the step's
+transition matrix (the contact's equation linearised on the step). The error of (x, v) is then a set, carried
+as such through every phase of the run: the sum of two ellipses, the errors from before the last contact and
+that contact's own (hunt_crossley_errors). The flights' and free spells' own errors are measured as for the
+other laws, and added to the second.
 """
 
 from __future__ import annotations
 
 import math
 
-from ..physics import law_flow_value
+from ..oscillator import oscillator_basis
+from ..physics import HUNT_CROSSLEY, hunt_crossley_partials, law_flow_value
 from ..rounding import hypot
+from .dense_output import hunt_crossley_state
 from .layout import (
+    ERR2_V,
+    ERR2_X,
+    ERR2_XV,
     ERR_FROM,
     ERR_MAX,
     ERR_V,
     ERR_X,
+    ERR_XV,
+    HC_A00,
+    HC_A01,
+    HC_A11,
+    HC_B00,
+    HC_B01,
+    HC_B11,
+    HC_QA00,
+    HC_QA01,
+    HC_QA11,
+    HC_QB00,
+    HC_QB01,
+    HC_QB11,
+    HC_XMAX,
     HOP,
+    LENGTH,
     LOAD,
+    NEEDS_INIT,
     RS_MODE,
     RS_T,
     RS_T_LOW,
     RS_V,
     RS_X,
     SCALE,
+    SEG_T0,
+    SEG_T1,
+    SEG_V0,
+    SEG_V1,
+    SEG_X0,
+    SEG_X1,
+    SPEED,
+    STEP_T,
+    STEP_V,
+    STEP_X,
     T_LOW,
     T,
     V,
     X,
 )
 from .phases import CONTACT, FLIGHT, frame
-from .settings import ERROR_WITHIN_PHASE, ESTIMATE_CAP, ESTIMATE_SAFETY, PROMISE
+from .settings import ERROR_WITHIN_PHASE, ESTIMATE_CAP, ESTIMATE_SAFETY, LOCAL_ERROR_SAFETY, PROMISE
 
 _EPS = 2.0**-52
 
 
 def phase_error(parameters, rtol, atol, state):
-    """(ex, ev, bound, height): the run's error of (x [m], v [m/s]) at the state, and bounds since the restart point.
+    """(ex, ev, rho, bound, height): the run's error of (x [m], v [m/s]) at the state, and bounds since the restart.
+
+    rho: under the Hunt-Crossley law the errors are an ellipse, ex and ev its half-widths, rho its correlation
+    (hunt_crossley_errors: the first of its two); 0.0 under the other laws, whose ex and ev are the errors themselves.
 
     bound: on |h - h_true| [m] over the phase from the restart point to the state; height: the phase's
     height scale max(|h|, R) [m] (a flight's apex, or the state's height).
@@ -54,6 +96,9 @@ def phase_error(parameters, rtol, atol, state):
     it may merge.
     """
     m, k, R = parameters[0], parameters[1], parameters[3]
+    if parameters[5] == HUNT_CROSSLEY:
+        ax, av, a_rho, _, _, _, bound, height = hunt_crossley_errors(parameters, rtol, atol, state)
+        return ax, av, a_rho, bound, height
     mode, load = int(state[RS_MODE]), state[LOAD]
     x0, v0, ex0, ev0 = state[RS_X], state[RS_V], state[ERR_X], state[ERR_V]
     tau = (state[T] - state[RS_T]) + (state[T_LOW] - state[RS_T_LOW])
@@ -75,7 +120,7 @@ def phase_error(parameters, rtol, atol, state):
         own += state[HOP]
     bound = ESTIMATE_SAFETY * (carried + own)
     # an error grown past double precision (inf, then nan) is no error to drop: it is the run lost
-    return ex, ev, bound if bound < math.inf else math.inf, height
+    return ex, ev, 0.0, bound if bound < math.inf else math.inf, height
 
 
 def _untrusted_from(estimate, scale, since, phase_start):
@@ -91,7 +136,7 @@ def run_estimate(parameters, rtol, atol, state):
     scale: the height scale max(|h|, R) [m]; from: the start of the first phase past PROMISE of it
     (NaN: none).
     """
-    _, _, bound, height = phase_error(parameters, rtol, atol, state)
+    _, _, _, bound, height = phase_error(parameters, rtol, atol, state)
     scale, estimate = max(state[SCALE], height), max(state[ERR_MAX], bound)
     since = _untrusted_from(estimate, scale, state[ERR_FROM], state[RS_T])
     # past the range of the motion an estimate says nothing more (amplifications of 1e40 were measured)
@@ -112,7 +157,191 @@ def carry_error(parameters, rtol, atol, state, jump, reflection):
     reflection -e and jump -(1 + e) g_eff / v- (physics.rigid_rebound's caller), or both 0 where the ball
     stays on R.
     """
-    ex, ev, bound, height = phase_error(parameters, rtol, atol, state)
+    if parameters[5] == HUNT_CROSSLEY:  # its events keep the state and the field (its force is 0 there): no saltation
+        ax, av, a_rho, bx, bv, b_rho, bound, height = hunt_crossley_errors(parameters, rtol, atol, state)
+        state[ERR_X], state[ERR_V], state[ERR_XV] = ax, av, a_rho
+        state[ERR2_X], state[ERR2_V], state[ERR2_XV] = bx, bv, b_rho
+    else:
+        ex, ev, _, bound, height = phase_error(parameters, rtol, atol, state)
     state[SCALE], state[ERR_MAX] = max(state[SCALE], height), max(state[ERR_MAX], bound)
     state[ERR_FROM] = _untrusted_from(state[ERR_MAX], state[SCALE], state[ERR_FROM], state[RS_T])
-    state[ERR_X], state[ERR_V] = reflection * ex, reflection * ev + jump * ex
+    if parameters[5] != HUNT_CROSSLEY:
+        state[ERR_X], state[ERR_V] = reflection * ex, reflection * ev + jump * ex
+
+
+# --- the Hunt-Crossley law: the error as an ellipse {e : e^T P^-1 e <= 1} of (x, v), P = [[p00, p01], [p01, p11]] ---
+def ellipse_sum(a00, a01, a11, b00, b01, b11):
+    """An ellipse holding the Minkowski sum of the ellipses A and B: (1 + p) A + (1 + 1/p) B, p = sqrt(tr B / tr A).
+
+    Every p > 0 gives one that holds it; this p the one of least trace (exact where B is a multiple of A).
+    """
+    ta, tb = a00 + a11, b00 + b11
+    if not tb > 0.0:
+        return a00, a01, a11
+    if not ta > 0.0:
+        return b00, b01, b11
+    p = math.sqrt(tb / ta)
+    q = 1.0 + 1.0 / p
+    return (1.0 + p) * a00 + q * b00, (1.0 + p) * a01 + q * b01, (1.0 + p) * a11 + q * b11
+
+
+def ellipse_image(p00, p01, p10, p11, a00, a01, a11):
+    """Phi A Phi^T: the ellipse A mapped by the matrix Phi = [[p00, p01], [p10, p11]]."""
+    c00, c01 = p00 * a00 + p01 * a01, p00 * a01 + p01 * a11  # the rows of Phi A
+    c10, c11 = p10 * a00 + p11 * a01, p10 * a01 + p11 * a11
+    return c00 * p00 + c01 * p01, c00 * p10 + c01 * p11, c10 * p10 + c11 * p11
+
+
+def ellipse_of(ex, ev, rho):
+    """(p00, p01, p11) of the ellipse of half-widths ex, ev and correlation rho."""
+    return ex * ex, rho * ex * ev, ev * ev
+
+
+def widths_of(p00, p01, p11):
+    """(ex, ev, rho): the ellipse's half-widths (the box holding it) and correlation in [-1, 1]."""
+    ex, ev = math.sqrt(max(p00, 0.0)), math.sqrt(max(p11, 0.0))
+    rho = p01 / (ex * ev) if ex > 0.0 and ev > 0.0 else 0.0
+    return ex, ev, min(max(rho, -1.0), 1.0)
+
+
+def hunt_crossley_transition(parameters, load, t0, x0, v0, t1, x1, v1, t):
+    """(p00, p01, p10, p11): the transition matrix of (x, v) over a Hunt-Crossley contact's step, from t0 to t <= t1.
+
+    The contact's equation linearised at the state halfway (its interpolant, dense_output.hunt_crossley_state):
+    the oscillator x'' + 2 sigma x' + w2 x = 0 with sigma = -a_v / 2 and w2 = -a_x (physics.hunt_crossley_partials,
+    both >= 0 pressed), whose flow of the unit vectors is exact (oscillator.oscillator_basis). Second order in the
+    step: the error it carries is first order itself, so a few per cent on it are within ESTIMATE_SAFETY.
+    """
+    m, k, n, alpha = parameters[0], parameters[1], parameters[8], parameters[9]
+    tau = t - t0
+    xm, vm = hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t0 + 0.5 * tau)
+    a_x, a_v = hunt_crossley_partials(xm, vm, load, m, k, n, alpha)
+    sigma, w2 = max(-0.5 * a_v, 0.0), max(-a_x, 0.0)
+    c, s = oscillator_basis(sigma, w2, tau)
+    return c + sigma * s, s, -w2 * s, c - sigma * s
+
+
+def start_contact_ellipses(state):
+    """A Hunt-Crossley contact CVODE starts in its frame (LENGTH, SPEED): the restart point's two ellipses are one.
+
+    Its own error (the second) starts at 0. Merged here, after a flight that sheared both alike.
+    """
+    sx, sv = state[LENGTH], state[SPEED]
+    a00, a01, a11 = ellipse_of(abs(state[ERR_X]) / sx, abs(state[ERR_V]) / sv, state[ERR_XV])
+    b00, b01, b11 = ellipse_of(abs(state[ERR2_X]) / sx, abs(state[ERR2_V]) / sv, state[ERR2_XV])
+    a00, a01, a11 = ellipse_sum(a00, a01, a11, b00, b01, b11)
+    state[HC_A00], state[HC_A01], state[HC_A11] = a00, a01, a11
+    state[HC_QA00], state[HC_QA01], state[HC_QA11] = a00, a01, a11
+    state[HC_B00], state[HC_B01], state[HC_B11] = 0.0, 0.0, 0.0
+    state[HC_QB00], state[HC_QB01], state[HC_QB11] = 0.0, 0.0, 0.0
+    state[HC_XMAX] = math.sqrt(a00) * sx
+
+
+def _contact_step(parameters, load, rtol, length, speed, t0, x0, v0, t1, x1, v1, t, a00, a01, a11, b00, b01, b11):
+    """The two ellipses at t in a contact's step from t0 to t1, from (a, b) at t0, in the phase's frame.
+
+    In the frame (x / length, v / speed), where CVODE integrates with rtol = atol: both carried by the step's
+    transition matrix (hunt_crossley_transition), and b plus the step's local error. CVODE's error test passes a
+    step whose estimated local error e has the weighted RMS norm sqrt((e0^2 / w0^2 + e1^2 / w1^2) / 2) <= 1, with
+    the weights w = rtol (|y| + 1) at the step's start: the ellipse diag(2 w0^2, 2 w1^2), taken LOCAL_ERROR_SAFETY
+    times (the test judges an estimate of the error, not the error).
+    """
+    p00, p01, p10, p11 = hunt_crossley_transition(parameters, load, t0, x0, v0, t1, x1, v1, t)
+    ratio = speed / length
+    a00, a01, a11 = ellipse_image(p00, p01 * ratio, p10 / ratio, p11, a00, a01, a11)
+    b00, b01, b11 = ellipse_image(p00, p01 * ratio, p10 / ratio, p11, b00, b01, b11)
+    w0 = LOCAL_ERROR_SAFETY * rtol * (abs(x0) / length + 1.0)
+    w1 = LOCAL_ERROR_SAFETY * rtol * (abs(v0) / speed + 1.0)
+    b00, b01, b11 = ellipse_sum(b00, b01, b11, 2.0 * (w0 * w0), 0.0, 2.0 * (w1 * w1))
+    return a00, a01, a11, b00, b01, b11
+
+
+def contact_steps_ellipse(parameters, rtol, state, rows, count):
+    """The two ellipses carried over CVODE's steps from the last step end (STEP_*) through rows[:count] (t, x, v).
+
+    HC_A*, HC_B* at the last of them, HC_QA*, HC_QB* at the one before (the kept last step's start), HC_XMAX the
+    largest half-width of x's error at them (the sum of the two's: the support of a sum of sets is the sum of theirs).
+    """
+    length, speed, load = state[LENGTH], state[SPEED], state[LOAD]
+    t0, x0, v0 = state[STEP_T], state[STEP_X], state[STEP_V]
+    a00, a01, a11 = state[HC_A00], state[HC_A01], state[HC_A11]
+    b00, b01, b11 = state[HC_B00], state[HC_B01], state[HC_B11]
+    qa00, qa01, qa11, qb00, qb01, qb11 = a00, a01, a11, b00, b01, b11
+    largest = state[HC_XMAX]
+    for i in range(count):
+        t1, x1, v1 = rows[i, 0], rows[i, 1], rows[i, 2]
+        qa00, qa01, qa11, qb00, qb01, qb11 = a00, a01, a11, b00, b01, b11
+        a00, a01, a11, b00, b01, b11 = _contact_step(parameters, load, rtol, length, speed, t0, x0, v0, t1, x1, v1,
+                                                     t1, a00, a01, a11, b00, b01, b11)
+        largest = max(largest, (math.sqrt(max(a00, 0.0)) + math.sqrt(max(b00, 0.0))) * length)
+        t0, x0, v0 = t1, x1, v1
+    state[HC_A00], state[HC_A01], state[HC_A11] = a00, a01, a11
+    state[HC_B00], state[HC_B01], state[HC_B11] = b00, b01, b11
+    state[HC_QA00], state[HC_QA01], state[HC_QA11] = qa00, qa01, qa11
+    state[HC_QB00], state[HC_QB01], state[HC_QB11] = qb00, qb01, qb11
+    state[HC_XMAX] = largest
+
+
+def hunt_crossley_errors(parameters, rtol, atol, state):
+    """phase_error under the Hunt-Crossley law: (ax, av, a_rho, bx, bv, b_rho, bound, height).
+
+    The run's error of (x, v) at the state lies in the sum of two ellipses (half-widths [m, m/s] and correlation):
+    a, the errors from before the last contact, and b, the last contact's own (and the phases' after it).
+    Kept apart, each is carried by the phases' transition matrices exactly; only b grows by each step's local
+    error, and they are merged once per contact (start_contact_ellipses), after a flight sheared both alike: a
+    sum of two ellipses held in one is wider than theirs where they differ in shape.
+
+    A contact's are those carried over CVODE's steps (contact_steps_ellipse); inside the kept last step (a target
+    the stepping API reached on its interpolant) they are carried there from the step's start, with the step's
+    local error twice (the interpolant's own, sixth order, below it). |h - h_true| over the contact is at most the
+    largest x half-width at its step ends, plus ERROR_WITHIN_PHASE rtol its length between them and the hop
+    tolerance. A flight or a free spell (parabolas, exact) carries both by its transition matrix and adds its own
+    error to b, measured against the exact flow from its start as under the other laws.
+    """
+    R, mode, load = parameters[3], int(state[RS_MODE]), state[LOAD]
+    x0, v0 = state[RS_X], state[RS_V]
+    ax, av, a_rho = abs(state[ERR_X]), abs(state[ERR_V]), state[ERR_XV]
+    bx, bv, b_rho = abs(state[ERR2_X]), abs(state[ERR2_V]), state[ERR2_XV]
+    length, _ = frame(parameters, mode, x0, v0, load, rtol, atol)
+    own = ERROR_WITHIN_PHASE * rtol * length + 8.0 * _EPS * (abs(x0) + length + R)
+    height = max(R, abs(R + state[X]))
+    carried = ax + bx
+    if mode == CONTACT:
+        own += state[HOP]
+        if state[NEEDS_INIT] == 0.0:  # CVODE has started it (else: the restart point's)
+            sx, sv = state[LENGTH], state[SPEED]
+            a00, a01, a11 = state[HC_A00], state[HC_A01], state[HC_A11]
+            b00, b01, b11 = state[HC_B00], state[HC_B01], state[HC_B11]
+            if state[T] < state[STEP_T]:
+                a00, a01, a11, b00, b01, b11 = _contact_step(
+                    parameters, load, 2.0 * rtol, sx, sv, state[SEG_T0], state[SEG_X0], state[SEG_V0], state[SEG_T1],
+                    state[SEG_X1], state[SEG_V1], state[T], state[HC_QA00], state[HC_QA01], state[HC_QA11],
+                    state[HC_QB00], state[HC_QB01], state[HC_QB11])
+            ax, av, a_rho = widths_of(a00, a01, a11)
+            bx, bv, b_rho = widths_of(b00, b01, b11)
+            ax, av, bx, bv = ax * sx, av * sv, bx * sx, bv * sv
+            carried = max(state[HC_XMAX], ax + bx)
+    else:
+        tau = (state[T] - state[RS_T]) + (state[T_LOW] - state[RS_T_LOW])
+        x_flow, v_flow = law_flow_value(parameters, mode, x0, v0, tau, load)
+        p00, p10 = law_flow_value(parameters, mode, 1.0, 0.0, tau, 0.0)
+        p01, p11 = law_flow_value(parameters, mode, 0.0, 1.0, tau, 0.0)
+        dx, dv = state[X] - x_flow, state[V] - v_flow
+        # in a frame where the errors are of order 1 (any frame holds the same sets; this one keeps their digits)
+        sx, sv = max(ax, bx, abs(dx)), max(av, bv, abs(dv))
+        sx, sv = sx if sx > 0.0 else 1.0, sv if sv > 0.0 else 1.0
+        q01, q10 = p01 * (sv / sx), p10 * (sx / sv)
+        a00, a01, a11 = ellipse_of(ax / sx, av / sv, a_rho)
+        a00, a01, a11 = ellipse_image(p00, q01, q10, p11, a00, a01, a11)
+        ax, av, a_rho = widths_of(a00, a01, a11)
+        b00, b01, b11 = ellipse_of(bx / sx, bv / sv, b_rho)
+        b00, b01, b11 = ellipse_image(p00, q01, q10, p11, b00, b01, b11)
+        dx, dv = dx / sx, dv / sv
+        b00, b01, b11 = ellipse_sum(b00, b01, b11, dx * dx, dx * dv, dv * dv)
+        bx, bv, b_rho = widths_of(b00, b01, b11)
+        ax, av, bx, bv = ax * sx, av * sv, bx * sx, bv * sv
+        carried = max(carried, ax + bx)  # x's half-widths are convex in the time along a parabola: largest at an end
+        if mode == FLIGHT:
+            height = max(height, R + length)  # the apex
+    bound = ESTIMATE_SAFETY * (carried + own)
+    return ax, av, a_rho, bx, bv, b_rho, bound if bound < math.inf else math.inf, height

@@ -56,6 +56,9 @@ class ExactSolution:
     def __init__(self, ball: Ball, h0: float, v0: float, t_start: float = 0.0,
                  t_end: float = math.inf, F_ext: float | ForceTable = 0.0, max_phases: int | None = None) -> None:
         """max_phases: stop after that many phases (a count for an estimate, not a solution to t_end)."""
+        if ball.hunt_crossley:  # its contact has no closed form
+            raise ValueError(f"solver = 'exact' is not allowed with contact = {ball.contact!r}: the Hunt-Crossley "
+                             "contact has no closed form; use cvode")
         self.ball = ball
         self._max_phases = math.inf if max_phases is None else max_phases
         self.F_ext = F_ext

@@ -274,9 +274,9 @@ class BallIntegrator(IntegratorView):
                 break
             if status != machine.RETURNED:
                 raise _machine_failure(self, status)
-        rest = state[[layout.REST_T, layout.REST_X, layout.REST_V]]
+        rest = state[[layout.REST_T, layout.REST_X, layout.REST_V, layout.HC_REST_T]]
         self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0, 1.0)
-        state[[layout.REST_T, layout.REST_X, layout.REST_V]] = rest  # a rest goes on
+        state[[layout.REST_T, layout.REST_X, layout.REST_V, layout.HC_REST_T]] = rest  # a rest goes on
         self._warn_if_untrusted(whole=True)
         points = points[:n_points]
         if self._machine.fill_grid is None:

@@ -22,16 +22,25 @@ import math
 
 import numpy as np
 
-from ..physics import NO_PULL, RIGID, rigid_rebound
+from ..physics import (
+    HUNT_CROSSLEY,
+    NO_PULL,
+    RIGID,
+    hunt_crossley_rest_margin,
+    release_speed,
+    rigid_rebound,
+)
 from ..rounding import later
+from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, engine_exceeded, engine_start, engine_steps
-from .error_estimate import carry_error
+from .error_estimate import carry_error, contact_steps_ellipse, start_contact_ellipses
 from .layout import (
     DEPARTURES,
     ERR_FROM,
     FAIL_FLAG,
     FAIL_T,
     FAIL_X,
+    HC_REST_T,
     HOP,
     IMPACTS,
     LAST_IMPACT,
@@ -106,6 +115,7 @@ def new_state():
     """An integrator's state array, all zero but NaN for no last impact, no rest and no untrusted phase."""
     state = np.zeros(STATE_SIZE)
     state[LAST_IMPACT], state[REST_T], state[ERR_FROM] = math.nan, math.nan, math.nan
+    state[HC_REST_T] = math.nan
     return state
 
 
@@ -113,7 +123,7 @@ def restart_needed(state):
     """CVODE restarts at the current state, which becomes the restart point (the last step and any rest forgotten)."""
     state[RHS_CALLS] += state[NFEV]
     state[NFEV], state[NEEDS_INIT], state[SEGMENT], state[PENDING] = 0.0, 1.0, 0.0, 0.0
-    state[REST_T] = math.nan
+    state[REST_T], state[HC_REST_T] = math.nan, math.nan
     state[RS_T], state[RS_X], state[RS_V], state[RS_MODE] = state[T], state[X], state[V], state[MODE]
     state[RS_T_LOW] = state[T_LOW]
     state[RS_IMPACTS], state[RS_DEPARTURES] = state[IMPACTS], state[DEPARTURES]
@@ -168,6 +178,8 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
             return CVODE_FAILED, scratch, 0
         state[NEEDS_INIT] = 0.0
         state[STEP_T], state[STEP_X], state[STEP_V] = state[T], state[X], state[V]
+        if parameters[5] == HUNT_CROSSLEY and mode == CONTACT:
+            start_contact_ellipses(state)
     origin, length, speed = state[ORIGIN], state[LENGTH], state[SPEED]
     tau_before = state[STEP_T] - origin
     flag, count, rows, gap_root, rest_root, rhs_calls = engine_steps(
@@ -179,6 +191,14 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     state[NFEV] = rhs_calls
     last = count - 1
     no_pull = parameters[5] == NO_PULL and mode == CONTACT  # a pressed contact: its event is the release
+    # A Hunt-Crossley contact's third root is its release (the force's clip engaging), taken where CVODE located
+    # it (no closed form to polish on), at the release speed exactly; a departure on the same step comes first.
+    hc_release = parameters[5] == HUNT_CROSSLEY and mode == CONTACT and rest_root != 0 and gap_root == 0
+    if hc_release:
+        state[PENDING], state[PEND_V], state[PEND_KIND] = 1.0, release_speed(parameters[9]), RELEASE
+        state[PEND_X] = min(length * rows[last, 1], 0.0)
+        state[PEND_T], state[PEND_T_LOW] = later(origin, state[ORIGIN_LOW], rows[last, 0])
+        rest_root = 0
     if gap_root != 0:
         tau_step = rows[last - 1, 0] if count > 1 else tau_before
         if no_pull:
@@ -194,11 +214,12 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     rows[:count, 0] += origin
     rows[:count, 1] *= length
     rows[:count, 2] *= speed
-    if gap_root != 0:
+    if gap_root != 0 or hc_release:
         rows[last, 0], rows[last, 1], rows[last, 2] = state[PEND_T], state[PEND_X], state[PEND_V]
     elif flag != CV_ROOT_RETURN and not one_step and flag != BUFFER_FULL:
         rows[last, 0] = t_stop  # CVODE stopped at t_stop - origin, which may round off t_stop
-    checked = count - 1 if gap_root != 0 else count  # the event's row is on R (or, a release, polished below it)
+    # the event's row is on R (or, a release, below it)
+    checked = count - 1 if gap_root != 0 or hc_release else count
     if checked > 0:
         if no_pull:  # the step ends' z = -force / k (physics.pressed_gap), which a missed release leaves above 0
             extreme = (rows[:checked, 1] + (parameters[2] / parameters[1]) * rows[:checked, 2]).max()
@@ -207,8 +228,13 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
         if on_wrong_side(mode, extreme, side_margin(hop, rtol, length)):
             state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = rows[checked - 1, 0], extreme, 0.0
             return STEPPED_OVER, rows, 0
+    if parameters[5] == HUNT_CROSSLEY and mode == CONTACT:  # no closed form: its error carried step by step
+        contact_steps_ellipse(parameters, rtol, state, rows, count)
+        if math.isnan(state[HC_REST_T]):
+            _hunt_crossley_rest(parameters, state, rows, count)
     # A root of the extremum function alone ends no CVODE step (one_step returns at it): not counted.
-    state[STEPS] += count - 1 if flag == CV_ROOT_RETURN and gap_root == 0 and rest_root == 0 else count
+    state[STEPS] += count - 1 if flag == CV_ROOT_RETURN and gap_root == 0 and rest_root == 0 and not hc_release \
+        else count
     state[SEGMENT], state[SEG_MODE] = 1.0, mode
     if count > 1:
         state[SEG_T0], state[SEG_X0], state[SEG_V0] = rows[last - 1, 0], rows[last - 1, 1], rows[last - 1, 2]
@@ -219,6 +245,38 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     if rest_root != 0:
         state[REST_T], state[REST_X], state[REST_V] = rows[last, 0], rows[last, 1], rows[last, 2]
     return DONE, rows, count
+
+
+def _hunt_crossley_rest(parameters, state, rows, count):
+    """HC_REST_T: where physics.hunt_crossley_rest_margin first turns positive on these steps, if it does.
+
+    The steps run from the last step's end (STEP_*, the phase start after a restart) through rows[:count];
+    within the step where the margin turns positive its crossing is bisected on the step's dense output
+    (dense_output.step_state, the interpolant the grid is read from). There is no closed form of the rest
+    flow under this law, so the rest is only reported: CVODE integrates on through it (the ball never
+    leaves, or by a hop below HOP). A margin already positive at a restart dates the rest there.
+    """
+    m, k, n, load, hop = parameters[0], parameters[1], parameters[8], state[LOAD], state[HOP]
+    t0, x0, v0 = state[STEP_T], state[STEP_X], state[STEP_V]
+    if hunt_crossley_rest_margin(x0, v0, load, m, k, n, hop) > 0.0:
+        state[HC_REST_T] = t0
+        return
+    for i in range(count):
+        t1, x1, v1 = rows[i, 0], rows[i, 1], rows[i, 2]
+        if hunt_crossley_rest_margin(x1, v1, load, m, k, n, hop) > 0.0:
+            low, high = t0, t1
+            for _ in range(80):
+                mid = 0.5 * (low + high)
+                if not low < mid < high:
+                    break
+                x, v = step_state(parameters, load, CONTACT, t0, x0, v0, t1, x1, v1, mid)
+                if hunt_crossley_rest_margin(x, v, load, m, k, n, hop) > 0.0:
+                    high = mid
+                else:
+                    low = mid
+            state[HC_REST_T] = high
+            return
+        t0, x0, v0 = t1, x1, v1
 
 
 def _take_event(parameters, rtol, atol, state, events, n_events):
@@ -239,6 +297,7 @@ def _take_event(parameters, rtol, atol, state, events, n_events):
         jump = -damping
     elif kind == DEPARTURE:
         state[MODE], state[DEPARTURES] = FLIGHT, state[DEPARTURES] + 1.0
+        state[HC_REST_T] = math.nan  # a Hunt-Crossley rest ended by a hop below HOP
         jump = damping if mode == CONTACT else 0.0
     else:
         state[MODE] = FREE if kind == RELEASE else CONTACT

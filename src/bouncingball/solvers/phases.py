@@ -19,14 +19,19 @@ from __future__ import annotations
 import math
 
 from ..physics import (
+    HUNT_CROSSLEY,
     NO_PULL,
     RIGID,
     conserved_speed,
     gap_acceleration,
     gap_flow_value,
+    hunt_crossley_acceleration,
+    hunt_crossley_partials,
+    hunt_crossley_rest_depth,
     law_rest_margin,
     no_pull_rest_margin_value,
     pressed_gap,
+    release_speed,
     rest_margin_value,
 )
 from ..rounding import hypot
@@ -74,6 +79,8 @@ def phase_scales(parameters, mode, x, v, load):
             return length, math.sqrt(2.0 * g_eff * length)
         length = max(abs(x), R)
         return length, max(abs(v), math.sqrt(2.0 * abs(g_eff) * length), length)
+    if parameters[5] == HUNT_CROSSLEY:
+        return hunt_crossley_scales(parameters, x, v, load)
     w = math.sqrt(k / m)
     amplitude = hypot(x + load / k, v / w)
     # Never far beyond the scene's own scale: a contact so soft that its amplitude dwarfs R (k/m = 7e-12
@@ -82,6 +89,45 @@ def phase_scales(parameters, mode, x, v, load):
     # contact swings 1.3 R, 17 times its accuracy.)
     length = min(amplitude, SOFT_CONTACT_CAP * max(R, abs(x)))
     return length, w * length
+
+
+def hunt_crossley_scales(parameters, x, v, load):
+    """phase_scales of a Hunt-Crossley contact: a bound on its deepest penetration [m] and on its speed [m/s].
+
+    With delta = -x and the energy per mass e = v^2 / 2 - g_eff delta + (k/m) delta^(n+1) / (n + 1), which
+    never grows in contact, the penetration stays below the larger of ((n + 1) 2 e / (k/m))^(1/(n+1)) and
+    (2 (n + 1) g_eff / (k/m))^(1/n) (past both, the spring's energy exceeds e + g_eff delta); the speed below
+    sqrt(2 (e + g_eff delta_max)), and at least w delta_max with w^2 = n (k/m) delta_max^(n-1), the contact's
+    own rate there.
+    """
+    m, k, R, n = parameters[0], parameters[1], parameters[3], parameters[8]
+    w2, g_eff = k / m, load / m
+    depth = max(-x, 0.0)
+    energy = 0.5 * (v * v) - g_eff * depth + w2 * depth ** (n + 1.0) / (n + 1.0)
+    deepest = max(abs(x), (2.0 * (n + 1.0) * max(energy, 0.0) / w2) ** (1.0 / (n + 1.0)))
+    if g_eff > 0.0:
+        deepest = max(deepest, hunt_crossley_rest_depth(load, m, k, n))
+    length = min(deepest, SOFT_CONTACT_CAP * max(R, abs(x)))
+    fastest = math.sqrt(2.0 * max(energy + max(g_eff, 0.0) * length, 0.0))
+    return length, max(abs(v), fastest, math.sqrt(n * w2 * length ** (n - 1.0)) * length)
+
+
+def hunt_crossley_free_event(parameters, x, v, load):
+    """(tau [s], x [m], v [m/s], departs): how the Hunt-Crossley free sub-mode from (x < 0, v) ends, on its parabola.
+
+    Free, the ball rises faster than the release speed 2 / (3 alpha) (its force would pull). It departs
+    on R (x = 0, at sqrt(v^2 + 2 g_eff x), energy's) unless its speed falls back to the release speed first
+    (g_eff > 0): then it is pressed again there (an engagement).
+    """
+    g_eff = load / parameters[0]
+    v_release = release_speed(parameters[9])
+    disc = v * v + 2.0 * g_eff * x
+    tau_departure = -2.0 * x / (v + math.sqrt(disc)) if disc >= 0.0 and v > 0.0 else math.inf
+    tau_engage = (v - v_release) / g_eff if g_eff > 0.0 else math.inf
+    if tau_departure <= tau_engage:
+        return tau_departure, 0.0, math.sqrt(disc), True
+    tau_engage = max(tau_engage, 0.0)
+    return tau_engage, min(x + (v * v - v_release * v_release) / (2.0 * g_eff), 0.0), v_release, False
 
 
 def frame(parameters, mode, x, v, load, rtol, atol):
@@ -141,8 +187,13 @@ def decide_phase(parameters, mode, x, v, load, hop, rtol):
         tau, v_impact = flight_impact(parameters, x, v, load)
         return IN_CLOSED_FORM, tau, 0.0, v_impact, IMPACT
     if mode == FREE:
-        tau, x_event, v_event, departs = free_event(parameters, x, v, load)
+        if parameters[5] == HUNT_CROSSLEY:
+            tau, x_event, v_event, departs = hunt_crossley_free_event(parameters, x, v, load)
+        else:
+            tau, x_event, v_event, departs = free_event(parameters, x, v, load)
         return IN_CLOSED_FORM, tau, x_event, v_event, DEPARTURE if departs else ENGAGE
+    if parameters[5] == HUNT_CROSSLEY:  # no closed form: CVODE takes every contact, a rest only reported (HC_REST_T)
+        return BY_CVODE, 0.0, 0.0, 0.0, DEPARTURE
     if parameters[5] == RIGID:  # a rigid ball resting on R: it stays, or F_ext lifts it at once
         tau = departure_time(parameters, x, v, load)
         if math.isinf(tau):
@@ -193,13 +244,16 @@ def polish_event(parameters, mode, load, length, tau_before, tau_root, x_root, v
     to an error of the bounces' times growing with the square of their count.
     """
     m, k, b = parameters[0], parameters[1], parameters[2]
+    # A Hunt-Crossley contact has no closed form, but its force k delta^n is 0 on R: within the root's few
+    # ulps of R the flight's parabola is its flow to within k |x|^n tau / m.
+    flow_mode = FLIGHT if parameters[5] == HUNT_CROSSLEY else mode
     tau, x, v = 0.0, x_root, v_root
     for _ in range(8):
         if x == 0.0 or v == 0.0:
             break
         correction = x / v
         tau -= correction
-        x, v = gap_flow_value(mode, x_root, v_root, tau, load, m, k, b)
+        x, v = gap_flow_value(flow_mode, x_root, v_root, tau, load, m, k, b)
         if abs(correction) <= 2.0 * _EPS * abs(tau_root + tau):
             break
     if abs(x) <= 16.0 * _EPS * length and tau_root + tau >= tau_before:
@@ -238,23 +292,38 @@ def on_wrong_side(mode, x, margin):
 def taylor_step(parameters, mode, x, v, load, dt):
     """(x, v) after dt [s] by a second-order Taylor step: where dt is a few ulps of t, too short for CVODE."""
     m, k, b = parameters[0], parameters[1], parameters[2]
-    a = gap_acceleration(x, v, mode, load, m, k, b)
+    if parameters[5] == HUNT_CROSSLEY and mode == CONTACT:
+        a = hunt_crossley_acceleration(x, v, load, m, k, parameters[8], parameters[9])
+    else:
+        a = gap_acceleration(x, v, mode, load, m, k, b)
     return x + dt * (v + 0.5 * dt * a), v + dt * a
 
 
 # --- CVODE's functions of a phase, in its frame: (y0, y1) = (x / length, v / speed), both engines' callbacks ---
-def scaled_rates(y0, y1, mode, length, speed, load, m, k, b):
-    """d(y0, y1)/dt: the mode's equations (physics.gap_acceleration) in the phase's frame."""
+def scaled_rates(y0, y1, mode, length, speed, load, m, k, b, law, n, alpha):
+    """d(y0, y1)/dt: the mode's equations (physics.gap_acceleration) in the phase's frame.
+
+    Under the Hunt-Crossley law the pressed contact's are physics.hunt_crossley_acceleration's (its force
+    unclipped: the clip is the release event into the free sub-mode, never a max() here).
+    """
+    if law == HUNT_CROSSLEY and mode == CONTACT:
+        return (speed / length) * y1, hunt_crossley_acceleration(length * y0, speed * y1, load, m, k, n, alpha) / speed
     return (speed / length) * y1, gap_acceleration(length * y0, speed * y1, mode, load, m, k, b) / speed
 
 
 def scaled_jacobian(mode, length, speed, m, k, b):
-    """(j00, j01, j10, j11): the constant Jacobian of scaled_rates, row by row."""
+    """(j00, j01, j10, j11): the constant Jacobian of scaled_rates, row by row (not the Hunt-Crossley contact's)."""
     contact = mode == CONTACT
     return 0.0, 1.0 * speed / length, (-k / m if contact else 0.0) * length / speed, -b / m if contact else 0.0
 
 
-def root_values(y0, y1, mode, length, speed, load, own_side, hop, k, m, b, law):
+def hunt_crossley_jacobian(y0, y1, length, speed, load, m, k, n, alpha):
+    """(j00, j01, j10, j11): the Jacobian of scaled_rates in a Hunt-Crossley contact at (y0, y1), where it changes."""
+    a_x, a_v = hunt_crossley_partials(length * y0, speed * y1, load, m, k, n, alpha)
+    return 0.0, 1.0 * speed / length, a_x * length / speed, a_v
+
+
+def root_values(y0, y1, mode, length, speed, load, own_side, hop, k, m, b, law, alpha):
     """CVODE's three root functions: the gap (own_side where it is 0), v, and the rest margin in contact.
 
     Under zero net load v never changes in flight: a root function identically 0 would only make
@@ -265,6 +334,11 @@ def root_values(y0, y1, mode, length, speed, load, own_side, hop, k, m, b, law):
     z, so that none holds both crossings of a short free spell) and no_pull_rest_margin_value.
     """
     d = load / k
+    if law == HUNT_CROSSLEY and mode == CONTACT:
+        # the gap (departure), v, and 3/2 alpha v - 1, whose crossing upwards is the release (the force's clip
+        # engaging: 1 + 3/2 alpha delta' turning negative); no rest root: CVODE integrates a contact to its end
+        release = 1.5 * alpha * (speed * y1) - 1.0 if alpha > 0.0 else -1.0
+        return y0 if y0 != 0.0 else own_side, y1, release
     if law == NO_PULL and mode == CONTACT:
         c = b / k
         z = y0 + (c * speed / length) * y1

@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .. import validation
-from ..physics import Ball, Mode
+from ..physics import Ball, Mode, hunt_crossley_hop_tolerance, load_value
 
 METHODS = ("auto", "Adams", "BDF")
 ENGINES = ("auto", "compiled", "sksundae")
@@ -49,6 +49,10 @@ ERROR_WITHIN_PHASE = 5.0
 # The bound is first order in the errors (the flows are exact, the events linearised): twice it keeps it above
 # the true error where second-order terms and rounding add to it (tests/test_error_estimate.py).
 ESTIMATE_SAFETY = 2.0
+# Under the Hunt-Crossley law a contact's error is bounded by what CVODE's error test let through at each step
+# (error_estimate._contact_step): this many times the ellipse the test holds its estimate of the
+# local error in, for an error it underestimated. Measured against the mpmath solution: tests/test_hunt_crossley.py.
+LOCAL_ERROR_SAFETY = 2.0
 ESTIMATE_CAP = 10.0  # an error estimate is at most this many times the height scale: the run is then lost
 
 
@@ -100,8 +104,14 @@ def hop_tolerance(ball: Ball, rtol: float = DEFAULT_RTOL, atol: float | None = D
     error: a contact that cannot lift the ball higher is taken as a rest, and a flight lower than
     that is taken in closed form. An undamped contact never comes to rest (its energy is kept), and
     neither does a lifted one (d <= 0): there the rule is 0, every hop is integrated. A rigid ball has
-    no contact to merge a hop into: 0 (its bounces too low to tell are summed, physics.rigid_rebound).
+    no contact to merge a hop into: 0 (its bounces too low to tell are summed, physics.rigid_rebound). The
+    Hunt-Crossley law's is HOP_RESOLUTION rtol its contact's length scale near rest, (2 (n + 1) (m g - F_ext) / k)^(1/n)
+    (physics.hunt_crossley_hop_tolerance), 0 with alpha = 0.
     """
+    if ball.hunt_crossley:  # its own, from its energy (physics.hunt_crossley_hop_tolerance)
+        tolerance = hunt_crossley_hop_tolerance(load_value(F_ext, ball.m, ball.g), ball.m, ball.k, ball.n, ball.alpha,
+                                                HOP_RESOLUTION * rtol)
+        return tolerance if atol is None else min(tolerance, HOP_RESOLUTION * atol)
     d = ball.static_deflection(F_ext)
     if ball.rigid or ball.b == 0.0 or not d > 0.0:
         return 0.0

@@ -40,6 +40,12 @@ class RestartPoint:
     error_bound: float = 0.0
     untrusted_from: float | None = None
     height_scale: float = 0.0
+    # under the Hunt-Crossley law the error lies in the sum of two ellipses (error_estimate.hunt_crossley_errors):
+    # error_x and error_v are the half-widths [m, m/s] of the first, error_xv its correlation; error2_* the second's
+    error_xv: float = 0.0
+    error2_x: float = 0.0
+    error2_v: float = 0.0
+    error2_xv: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -105,7 +111,9 @@ class IntegratorView:
 
         Each phase's own error is measured against its exact flow (the flow is affine in the start
         state, in closed form), the error it started with carried by the flow's transition matrix and,
-        at an event, the saltation of the field's jump; see error_estimate.phase_error. It passes 1e-6 of
+        at an event, the saltation of the field's jump; see error_estimate.phase_error. A Hunt-Crossley
+        contact, with no closed form, is bounded by what CVODE's error test let through at each step
+        (error_estimate.hunt_crossley_errors). It passes 1e-6 of
         the height scale only where the run is ill-conditioned, and then an AccuracyWarning says from
         when the run cannot be trusted.
         """
@@ -184,7 +192,7 @@ class IntegratorView:
     def acceleration(self) -> float:
         """dv/dt [m/s2] at t in the current mode."""
         ball, state = self.ball, self._state
-        if ball.rigid:
+        if ball.rigid or ball.hunt_crossley:
             return ball.acceleration(ball.R + float(state[layout.X]), float(state[layout.V]), self.mode, self._F_ext)
         return gap_acceleration(float(state[layout.X]), float(state[layout.V]), self.mode, self._load, ball.m,
                                 ball.k, ball.b)
@@ -193,7 +201,7 @@ class IntegratorView:
     def contact_force(self) -> float:
         """Force of the ground on the ball [N] at t, positive upwards; zero in flight."""
         x, v = float(self._state[layout.X]), float(self._state[layout.V])
-        if self.ball.rigid:
+        if self.ball.rigid or self.ball.hunt_crossley:
             return self.ball.contact_force(self.ball.R + x, v, self.mode, self._F_ext)
         if self.ball.no_pull:  # max(0, ...), and 0 in the free sub-mode
             return 0.0 if self.mode != Mode.CONTACT else max(-self.ball.k * x - self.ball.b * v, 0.0)
@@ -204,8 +212,14 @@ class IntegratorView:
         """Start of the current contact if it can never again lift the ball above R + hop_tolerance, else None.
 
         F_ext is taken as held constant from now on. A rigid ball's rest starts at the Zeno time where
-        its last bounces were summed (physics.rigid_rebound).
+        its last bounces were summed (physics.rigid_rebound). A Hunt-Crossley ball's rest starts where
+        its energy criterion (physics.hunt_crossley_rest_margin) became true in its current contact, found
+        since CVODE last restarted (layout.HC_REST_T): CVODE integrates on through it, there being no
+        closed form of the rest flow.
         """
+        if self.ball.hunt_crossley:
+            rest = float(self._state[layout.HC_REST_T])
+            return rest if self.mode == Mode.CONTACT and not math.isnan(rest) else None
         x, v = float(self._state[layout.X]), float(self._state[layout.V])
         if decide_phase(self._parameters, self.mode, x, v, self._load, self._hop, self.settings.rtol)[0] != REST:
             return None
@@ -243,15 +257,16 @@ class IntegratorView:
         rest, impact = float(self._state[layout.REST_T]), float(self._state[layout.LAST_IMPACT])
         return rest if self.ball.rigid and self.mode == Mode.CONTACT and rest > impact else None
 
-    def _errors(self) -> tuple[float, float, float, float | None, float]:
+    def _errors(self) -> tuple:
         """The error estimate's fields at the restart point, as RestartPoint holds them."""
         state = self._state
         since = float(state[layout.ERR_FROM])
         return (float(state[layout.ERR_X]), float(state[layout.ERR_V]), float(state[layout.ERR_MAX]),
-                None if math.isnan(since) else since, float(state[layout.SCALE]))
+                None if math.isnan(since) else since, float(state[layout.SCALE]),
+                *(float(state[i]) for i in (layout.ERR_XV, layout.ERR2_X, layout.ERR2_V, layout.ERR2_XV)))
 
     def _restart_at(self, point, F_ext: float, counts, t_start: float, t_low: float = 0.0,
-                    errors=(0.0, 0.0, 0.0, None, 0.0)) -> None:
+                    errors=(0.0, 0.0, 0.0, None, 0.0, 0.0, 0.0, 0.0, 0.0)) -> None:
         """Set the state (t, x, v, mode) and what goes with it; CVODE restarts there.
 
         With t's rounding error t_low, F_ext, the counters and the error estimate's fields (_errors).
@@ -259,8 +274,9 @@ class IntegratorView:
         state = self._state
         state[layout.T], state[layout.X], state[layout.V], state[layout.MODE] = point
         state[layout.T_LOW] = t_low
-        error_x, error_v, bound, since, scale = errors
+        error_x, error_v, bound, since, scale, *ellipses = errors
         state[layout.ERR_X], state[layout.ERR_V], state[layout.ERR_MAX] = error_x, error_v, bound
+        state[[layout.ERR_XV, layout.ERR2_X, layout.ERR2_V, layout.ERR2_XV]] = ellipses
         state[layout.ERR_FROM], state[layout.SCALE] = math.nan if since is None else since, scale
         self._F_ext, self._t_start = F_ext, t_start
         self._set_counts(counts)

@@ -10,7 +10,7 @@ import numbers
 from dataclasses import dataclass
 
 from .. import validation
-from ..physics import NO_PULL, Ball, Mode, load_value
+from ..physics import HUNT_CROSSLEY, NO_PULL, Ball, Mode, load_value
 from .phases import frame, on_wrong_side, side_margin
 from .settings import CvodeSettings, hop_tolerance
 from .state import IntegratorState, RestartPoint
@@ -28,7 +28,7 @@ class CheckedState:
     restart_point: tuple[float, float, float, Mode] | None
     restart_counts: Counts | None
     restart_t_low: float = 0.0
-    restart_errors: tuple = (0.0, 0.0, 0.0, None, 0.0)
+    restart_errors: tuple = (0.0, 0.0, 0.0, None, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def checked(ball: Ball, state: IntegratorState, settings: CvodeSettings) -> CheckedState:
@@ -37,9 +37,10 @@ def checked(ball: Ball, state: IntegratorState, settings: CvodeSettings) -> Chec
         raise ValueError(f"state = {validation.shown(state)} is not allowed: it must be an IntegratorState "
                          "(one of get_state())")
     point = _point(ball, "state", state.t, state.gap, state.h, state.v, state.mode, state.F_ext)
-    if point[3] == Mode.FREE and ball.parameters[5] != NO_PULL:
+    if point[3] == Mode.FREE and ball.parameters[5] not in (NO_PULL, HUNT_CROSSLEY):
         raise ValueError(f"state mode = {Mode.FREE.value} (FREE) is not allowed for contact = {ball.contact!r} "
-                         f"(b = {ball.b!r} N s/m): it is the no-pull law's free sub-mode (with b > 0)")
+                         f"(b = {ball.b!r} N s/m): it is the free sub-mode of the linear-no-pull law (with b > 0) "
+                         "and of the hunt-crossley law")
     t_start = validation.finite("state t_start", state.t_start, "s")
     counts = _counts("state", state)
     if state.zeno_time is not None and not (ball.rigid and point[3] == Mode.CONTACT and counts[2] is not None
@@ -67,7 +68,7 @@ def checked(ball: Ball, state: IntegratorState, settings: CvodeSettings) -> Chec
                         _errors("state restart", restart))
 
 
-def _errors(name: str, restart: RestartPoint) -> tuple[float, float, float, float | None, float]:
+def _errors(name: str, restart: RestartPoint) -> tuple:
     """The error estimate's fields of a restart point, checked."""
     error_x = validation.finite(f"{name} error_x", restart.error_x, "m")
     error_v = validation.finite(f"{name} error_v", restart.error_v, "m/s")
@@ -75,7 +76,11 @@ def _errors(name: str, restart: RestartPoint) -> tuple[float, float, float, floa
     scale = validation.non_negative(f"{name} height_scale", restart.height_scale, "m")
     since = None if restart.untrusted_from is None else validation.finite(f"{name} untrusted_from",
                                                                          restart.untrusted_from, "s")
-    return error_x, error_v, bound, since, scale
+    error_xv = validation.in_closed_range(f"{name} error_xv", restart.error_xv, -1.0, 1.0)
+    error2_x = validation.non_negative(f"{name} error2_x", restart.error2_x, "m")
+    error2_v = validation.non_negative(f"{name} error2_v", restart.error2_v, "m/s")
+    error2_xv = validation.in_closed_range(f"{name} error2_xv", restart.error2_xv, -1.0, 1.0)
+    return error_x, error_v, bound, since, scale, error_xv, error2_x, error2_v, error2_xv
 
 
 def _check_side(ball: Ball, settings: CvodeSettings, name: str, point, start, h) -> None:

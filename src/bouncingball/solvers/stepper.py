@@ -75,21 +75,25 @@ class SksundaePhaseSolver:
         # The frame and the ball's constants are read from self._frame and self._constants (one lookup each):
         # these run for every right-hand side and root evaluation, ~5000 times a run.
         rates, jacobian, roots = phases.scaled_rates, phases.scaled_jacobian, phases.root_values
+        hc_jacobian, hunt_crossley = phases.hunt_crossley_jacobian, float(phases.HUNT_CROSSLEY)
 
         def rhs(t, y, yp):
             length, speed, _ = self._frame
-            load, m, k, b, _ = self._constants
-            yp[0], yp[1] = rates(y[0], y[1], mode, length, speed, load, m, k, b)
+            load, m, k, b, law, n, alpha = self._constants
+            yp[0], yp[1] = rates(y[0], y[1], mode, length, speed, load, m, k, b, law, n, alpha)
 
         def jac(t, y, yp, JJ):
             length, speed, _ = self._frame
-            _, m, k, b, _ = self._constants
-            JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = jacobian(mode, length, speed, m, k, b)
+            load, m, k, b, law, n, alpha = self._constants
+            if law == hunt_crossley and mode == Mode.CONTACT:  # evaluated where it changes
+                JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = hc_jacobian(y[0], y[1], length, speed, load, m, k, n, alpha)
+            else:
+                JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = jacobian(mode, length, speed, m, k, b)
 
         def event(t, y, out):
             length, speed, hop = self._frame
-            load, m, k, b, law = self._constants
-            out[0], out[1], out[2] = roots(y[0], y[1], mode, length, speed, load, own_side, hop, k, m, b, law)
+            load, m, k, b, law, _, alpha = self._constants
+            out[0], out[1], out[2] = roots(y[0], y[1], mode, length, speed, load, own_side, hop, k, m, b, law, alpha)
             # CVODE evaluates the root functions once per step (and a few times per root found)
             self._evaluations += 1
             if self._evaluations > max_evaluations:
@@ -108,8 +112,11 @@ class SksundaePhaseSolver:
 
     def bind(self, ball: Ball) -> None:
         """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
-        self._m, self._k, self._b, self._law = ball.m, ball.k, ball.b, ball.parameters[5]
-        self._constants = (0.0, ball.m, ball.k, ball.b, self._law)  # load [N], m, k, b, the contact law's code
+        parameters = ball.parameters  # b is 0 there under the Hunt-Crossley law (no linear damper)
+        self._m, self._k, self._b, self._law = ball.m, ball.k, parameters[2], parameters[5]
+        self._n, self._alpha = parameters[8], parameters[9]
+        # load [N], m, k, b, the contact law's code, the Hunt-Crossley law's n and alpha
+        self._constants = (0.0, ball.m, ball.k, self._b, self._law, self._n, self._alpha)
         self.set_frame(1.0, 1.0, 0.0)
 
     def set_frame(self, length: float, speed: float, hop_tolerance: float) -> None:
@@ -154,7 +161,8 @@ class SksundaePhaseSolver:
               load: float) -> int:
         """Take the phase's frame; restart CVODE at 0 from (y0, y1) for one-step calls, or in steps() to t_stop."""
         self.set_frame(length, speed, hop)
-        self._constants, self._start = (load, self._m, self._k, self._b, self._law), (y0, y1)
+        self._constants = (load, self._m, self._k, self._b, self._law, self._n, self._alpha)
+        self._start = (y0, y1)
         if t_stop == math.inf:
             with self.log.capturing():
                 self.init_step(0.0, np.array([y0, y1]))
