@@ -141,7 +141,7 @@ REST_TOLERANCE = 1e-9  # s; measured 2.7e-13 (both engines), 2.7e-13 in the step
 
 @functools.cache
 def rest_truth():
-    """The heavily damped ball's truth and when its energy E (physics.hunt_crossley_rest_margin) turns negative."""
+    """The heavily damped ball's truth and when its energy E (contact_laws.hunt_crossley_rest_margin) turns negative."""
     k, n, alpha, m, R, g, h0, v0, t_end = REST_CASE
     tr = HuntCrossleyTruth(m, k, n, alpha, R, g, h0, v0, t_end)
 
@@ -265,7 +265,7 @@ def test_saved_state_resumes_its_estimate_bit_for_bit(engine):
         second.close()
 
 
-# --- the law's own hop tolerance (physics.hunt_crossley_hop_tolerance) ---------------------------------------------
+# --- the law's own hop tolerance (contact_laws.hunt_crossley_hop_tolerance) ------------------------------------------
 @pytest.mark.parametrize(("n", "alpha", "F_ext"),
                          [(1.0, 0.2, 0.0), (1.5, 0.05, 0.0), (2.5, 1.0, 3.0), (1.5, 0.5, -2.0)])
 def test_hop_tolerance_is_the_contacts_resolution_near_rest(n, alpha, F_ext):

@@ -173,23 +173,23 @@ def test_every_source_the_compiled_code_reads_is_in_the_cache_digest():
 # --- the checks themselves find a violation ---------------------------------------------------------
 def test_the_checks_find_a_call_through_a_module_and_an_object_read():
     """A function as an engineer might write it: each check names its line."""
-    from bouncingball import physics
+    from bouncingball import equations, physics
     from bouncingball.solvers import phases
 
-    namespace = {"physics": physics, "Ball": physics.Ball, "math": math, "LIMIT": 2.0}
+    namespace = {"equations": equations, "Ball": physics.Ball, "math": math, "LIMIT": 2.0}
     source = textwrap.dedent('''
         def flow(x, v, tau, ball, *rest):
             if ball.m > LIMIT:
-                return physics.gap_flow_value(0, x, v, tau, 9.81, 1.0, 1e4, 10.0)
+                return equations.gap_flow_value(0, x, v, tau, 9.81, 1.0, 1e4, 10.0)
             return Ball(), math.sqrt(x), f"{x}"
     ''')
     function = _function_from(source, namespace)
-    assert module_attribute_calls(function, {"bouncingball.physics"}) == [
-        "bouncingball.solvers.phases.flow, line 4: physics.gap_flow_value (import it: from bouncingball.physics "
+    assert module_attribute_calls(function, {"bouncingball.equations"}) == [
+        "bouncingball.solvers.phases.flow, line 4: equations.gap_flow_value (import it: from bouncingball.equations "
         "import gap_flow_value, and call it by its name)"]
     violations = "\n".join(compiled_rule_violations(function, namespace))
     for expected in ("line 2: keyword-only or variadic", "line 5: JoinedStr", "line 5: reads Ball, a type",
-                     "line 4: reads physics, a module other than math", "line 3: ball.m, an object's attribute"):
+                     "line 4: reads equations, a module other than math", "line 3: ball.m, an object's attribute"):
         assert expected in violations
     assert "reads LIMIT" not in violations and "reads math" not in violations
     assert len(violations.splitlines()) == 5

@@ -12,16 +12,21 @@ import bouncingball
 
 PACKAGE = Path(bouncingball.__file__).parent
 MODULES = sorted(m.name for m in pkgutil.walk_packages([str(PACKAGE)], "bouncingball."))
-# What each layer may import from this package: rounding <- oscillator <- physics <- limits <- solvers <- the rest.
+# What each layer may import from this package: rounding, oscillator <- equations <- contact_laws <- physics <- limits
+# <- solvers <- the rest.
+MODEL = {"bouncingball.rounding", "bouncingball.oscillator", "bouncingball.equations", "bouncingball.contact_laws",
+         "bouncingball.physics"}
 LOWER_LAYERS = {
     "bouncingball.rounding": set(),
     "bouncingball.oscillator": set(),
-    "bouncingball.physics": {"bouncingball.validation", "bouncingball.rounding", "bouncingball.oscillator"},
-    "bouncingball.limits": {"bouncingball.physics", "bouncingball.validation"},
-    "bouncingball.solvers": {"bouncingball.physics", "bouncingball.validation", "bouncingball.limits",
-                             "bouncingball.rounding", "bouncingball.oscillator", "bouncingball.solvers"},
+    "bouncingball.equations": {"bouncingball.rounding", "bouncingball.oscillator"},
+    "bouncingball.contact_laws": {"bouncingball.equations"},
+    "bouncingball.physics": {"bouncingball.validation", "bouncingball.equations", "bouncingball.contact_laws"},
+    "bouncingball.limits": {*MODEL, "bouncingball.validation"},
+    "bouncingball.solvers": {*MODEL, "bouncingball.validation", "bouncingball.limits", "bouncingball.solvers"},
 }
-SINGLE_FILE_LAYERS = ("bouncingball.rounding", "bouncingball.oscillator", "bouncingball.physics", "bouncingball.limits")
+SINGLE_FILE_LAYERS = ("bouncingball.rounding", "bouncingball.oscillator", "bouncingball.equations",
+                      "bouncingball.contact_laws", "bouncingball.physics", "bouncingball.limits")
 
 
 @pytest.mark.slow
@@ -69,3 +74,16 @@ def test_layer_check_sees_a_violation(tmp_path):
     source.write_text("from ..cli import main\nfrom .result import Event\nfrom .. import scenes\nimport numpy\n")
     assert _imports_of(source, "bouncingball.solvers.cvode") == {"bouncingball.cli", "bouncingball.solvers.result",
                                                                  "bouncingball.scenes"}
+
+
+MAX_MODULE_LINES, MAX_CLASS_LINES = 400, 250  # what a maintainer reads in one pass
+
+
+def test_no_module_or_class_is_too_long_to_read_in_one_pass():
+    sources = sorted(PACKAGE.rglob("*.py"))
+    long_modules = {str(path.relative_to(PACKAGE)): n for path in sources
+                    if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES}
+    long_classes = {f"{path.relative_to(PACKAGE)}:{node.name}": node.end_lineno - node.lineno + 1 for path in sources
+                    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+                    if isinstance(node, ast.ClassDef) and node.end_lineno - node.lineno + 1 > MAX_CLASS_LINES}
+    assert len(sources) > 40 and long_modules == {} and long_classes == {}

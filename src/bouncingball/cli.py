@@ -12,8 +12,8 @@ import warnings
 from collections.abc import Sequence
 
 from . import SOLVERS, AccuracyWarning, __version__
+from .contact_laws import CONTACT_LAWS
 from .output import STANDARD_OUTPUT
-from .physics import CONTACT_LAWS
 
 EXIT_BAD_INPUT = 2
 EXIT_SOLVER_FAILED = 1

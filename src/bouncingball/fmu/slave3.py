@@ -20,7 +20,9 @@ from pythonfmu3.enums import Fmi3Causality, Fmi3Initial, Fmi3Status, Fmi3Variabi
 from pythonfmu3.modelexchange import ModelExchange
 
 from .. import validation
-from ..physics import NO_PULL, Ball, Mode, free_gap_rate, load_value, pressed_gap, rigid_rebound_above
+from ..contact_laws import NO_PULL, free_gap_rate, pressed_gap, rigid_rebound_above
+from ..equations import load_value
+from ..physics import Ball, Mode
 from ..solvers.phases import phase_scales
 from .slave_base import BallSlave
 from .variables import EVENT_INDICATOR, FMI3_VARIABLES, SMALLEST_POSITIVE, VARIABLES
@@ -57,7 +59,7 @@ UNRESOLVED_APEX_PER_RTOL = 100.0
 def rigid_impact(ball: Ball, v: float, F_ext: float, impacts: int, apex_floor: float) -> list:
     """[h, v, mode, impacts] after the rigid law's impact of the ball at v [m/s] (model exchange's state jump).
 
-    The ball is put on R and leaves at -e v (physics.rigid_rebound_above). Where it would leave slower
+    The ball is put on R and leaves at -e v (contact_laws.rigid_rebound_above). Where it would leave slower
     than v_min, or its bounce would rise less than apex_floor [m], it rests on R from now: the true ball
     then stays within apex_floor of R (its bounces summed, as the Zeno series they are). A ball found
     below R already moving up (an event located late) is put on R, v kept.
@@ -103,7 +105,7 @@ def switched_mode(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> M
 
     An impact where h - R has turned negative (or is 0 going down); a departure where it turned positive.
     Under the no-pull law a release where the pressed contact's force has turned negative, an
-    engagement where the free ball's would turn positive (physics.pressed_gap's z).
+    engagement where the free ball's would turn positive (contact_laws.pressed_gap's z).
     """
     x = h - ball.R
     up, down = x > 0.0 or (x == 0.0 and v > 0.0), x < 0.0 or (x == 0.0 and v < 0.0)

@@ -98,7 +98,7 @@ SOLUTION_OUTPUTS = tuple(name for name in OUTPUTS if name != "error_estimate")
 # A scene and the FMU's start values, name by name: the ball's parameters under their own names, the
 # scene's start state and force as h, v and F_ext. The one mapping of the slave's defaults, validate,
 # the bench and `check` (testing.scene_with_start_values).
-# The contact laws (physics.CONTACT_LAWS) the FMU runs, in co-simulation and in model exchange (slave3's events).
+# The contact laws (contact_laws.CONTACT_LAWS) the FMU runs, in co-simulation and in model exchange (slave3's events).
 FMU_CONTACT_LAWS = ("linear", "rigid", "linear-no-pull")
 
 SCENE_FIELD_OF_START_VALUE = {"m": "m", "k": "k", "b": "b", "R": "R", "g": "g", "contact_law": "contact", "e": "e",

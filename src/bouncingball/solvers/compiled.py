@@ -28,7 +28,7 @@ import weakref
 import numpy as np
 from numba import carray, cfunc, njit, types
 
-from .. import oscillator, physics, rounding
+from .. import contact_laws, equations, oscillator, physics, rounding
 from . import dense_output, drivers, engine_protocol, error_estimate, exact, machine, phases
 from .jit import (
     addresses,
@@ -63,7 +63,7 @@ _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_
 # CVODE integrates x / length and v / speed (x = h - R), the phase's frame set by _engine_start.
 (_P_M, _P_K, _P_B, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
  _P_LENGTH, _P_SPEED, _P_LOAD, _P_LAW, _P_N, _P_ALPHA, _P_SIZE) = range(17)
-_HUNT_CROSSLEY = float(physics.HUNT_CROSSLEY)
+_HUNT_CROSSLEY = float(contact_laws.HUNT_CROSSLEY)
 
 
 
@@ -157,7 +157,8 @@ def _engine_exceeded(engine, mode):
 # Lazily: numba compiles a function at its first call from compiled code, so only what the machine and
 # the callbacks reach is ever compiled (and cached).
 _compiled = compiled_together(
-    functions_of(rounding, oscillator, physics, exact, phases, error_estimate, machine, drivers, dense_output),
+    functions_of(rounding, oscillator, equations, contact_laws, physics, exact, phases, error_estimate, machine,
+                 drivers, dense_output),
     {oscillator.oscillator_basis: oscillator.oscillator_basis_value,
      oscillator.unit_response: oscillator.unit_response_value,
      rounding.hypot: rounding.hypot_value, engine_protocol.engine_start: _engine_start,

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..physics import HUNT_CROSSLEY, hunt_crossley_acceleration, hunt_crossley_partials, law_flow_value
+from ..contact_laws import HUNT_CROSSLEY, hunt_crossley_acceleration, hunt_crossley_partials, law_flow_value
 
 
 def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from ..physics import law_flow_value
+from ..contact_laws import law_flow_value
 from .dense_output import step_state
 from .layout import (
     HOP,

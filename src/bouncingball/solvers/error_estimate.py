@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import math
 
+from ..contact_laws import HUNT_CROSSLEY, hunt_crossley_partials, law_flow_value
 from ..oscillator import oscillator_basis
-from ..physics import HUNT_CROSSLEY, hunt_crossley_partials, law_flow_value
 from ..rounding import hypot
 from .dense_output import hunt_crossley_state
 from .layout import (
@@ -154,7 +154,7 @@ def carry_error(parameters, rtol, atol, state, jump, reflection):
     (a+ - a-) = -+ b v / m, so jump = -+ b / m [1/s] (0 where the field does not jump): dv after = dv
     + jump dx, with no 1/v (and 0 at the no-pull law's switches below R, where the force is 0 on either
     side, and at its departures from the free sub-mode). A rigid impact reverses the velocity, v+ = -e v-:
-    reflection -e and jump -(1 + e) g_eff / v- (physics.rigid_rebound's caller), or both 0 where the ball
+    reflection -e and jump -(1 + e) g_eff / v- (contact_laws.rigid_rebound's caller), or both 0 where the ball
     stays on R.
     """
     if parameters[5] == HUNT_CROSSLEY:  # its events keep the state and the field (its force is 0 there): no saltation
@@ -208,7 +208,7 @@ def hunt_crossley_transition(parameters, load, t0, x0, v0, t1, x1, v1, t):
     """(p00, p01, p10, p11): the transition matrix of (x, v) over a Hunt-Crossley contact's step, from t0 to t <= t1.
 
     The contact's equation linearised at the state halfway (its interpolant, dense_output.hunt_crossley_state):
-    the oscillator x'' + 2 sigma x' + w2 x = 0 with sigma = -a_v / 2 and w2 = -a_x (physics.hunt_crossley_partials,
+    the oscillator x'' + 2 sigma x' + w2 x = 0 with sigma = -a_v / 2 and w2 = -a_x (contact_laws.hunt_crossley_partials,
     both >= 0 pressed), whose flow of the unit vectors is exact (oscillator.oscillator_basis). Second order in the
     step: the error it carries is first order itself, so a few per cent on it are within ESTIMATE_SAFETY.
     """

@@ -2,7 +2,7 @@
 
 Event times are found in closed form (impact) or by a safeguarded Newton iteration inside a
 bracket between extrema of the oscillator (departure), to a few ulps. Under the no-pull law the
-pressed contact ends where its force reaches 0 (the release: the same search, of physics.pressed_gap's
+pressed contact ends where its force reaches 0 (the release: the same search, of contact_laws.pressed_gap's
 z), and the free sub-mode below R, a parabola, at the first root of a quadratic: x reaching R (a
 departure) or z falling back to 0 (an engagement).
 """
@@ -16,19 +16,18 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import limits
-from ..oscillator import contact_gap_flow
-from ..physics import (
+from ..contact_laws import (
     NO_PULL,
     RIGID,
-    Ball,
-    Mode,
     conserved_speed,
     free_gap_rate,
-    load_value,
     pressed_gap,
     rigid_rebound,
     summed_bounce_state,
 )
+from ..equations import load_value
+from ..oscillator import contact_gap_flow
+from ..physics import Ball, Mode
 from ..rounding import later
 from . import forcing
 from .forcing import ForceTable
@@ -73,7 +72,7 @@ class ExactSolution:
         ball, R = self.ball, self.ball.R
         resolvable_until = limits.resolvable_until(ball)
         constant_pieces = forcing.pieces(self.F_ext, self.t_start, self.t_end)
-        zeno_end = -math.inf  # where a rigid ball's bounces summed in the current piece end (physics.rigid_rebound)
+        zeno_end = -math.inf  # where a rigid ball's bounces summed in this piece end (contact_laws.rigid_rebound)
         for number, (t, piece_end, F_ext) in enumerate(constant_pieces):
             last, t_low = number == len(constant_pieces) - 1, 0.0  # t_low: t's rounding error (rounding.later)
             if number == 0:
@@ -188,7 +187,7 @@ def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tupl
 def departure_time(parameters, x0, v0, load):
     """Time [s] from the gap x0 = h0 - R [m] and v0 [m/s] in contact to the first upward crossing of h = R; inf if none.
 
-    parameters: Ball.parameters; load: m g - F_ext [N] (physics.load_value). Plain floats, so that the
+    parameters: Ball.parameters; load: m g - F_ext [N] (equations.load_value). Plain floats, so that the
     compiled phase machine runs this very search. A rigid ball resting on R leaves it at once where
     F_ext lifts it (load < 0), else never.
     """
@@ -258,7 +257,7 @@ def departure_speed(parameters, x0, v0, tau, load):
     A departure crosses R upwards; where the ball barely moves (at R with v0 = -1e-112) the flow can
     round it to a tiny downward speed, and the flight would end at once in an impact at R, and so on
     for ever. An undamped contact from R leaves at the speed it came with, exactly
-    (physics.conserved_speed). Arguments as departure_time's.
+    (contact_laws.conserved_speed). Arguments as departure_time's.
     """
     if conserved_speed(parameters, 1, x0, v0):
         return -v0
@@ -271,7 +270,7 @@ def departure_speed(parameters, x0, v0, tau, load):
 def release_time(parameters, x0, v0, load):
     """Time [s] from the gap x0 [m] and v0 [m/s] in a pressed no-pull contact to its release; inf if none.
 
-    The release is where the force k (R - h) - b v falls to 0, where physics.pressed_gap's z crosses 0
+    The release is where the force k (R - h) - b v falls to 0, where contact_laws.pressed_gap's z crosses 0
     upwards; z obeys the contact's equation as x does, so it is departure_time's search of (z, dz/dt).
     Arguments as departure_time's.
     """
@@ -295,7 +294,7 @@ def free_event(parameters, x0, v0, load):
 
     The ball moves on the flight's parabola (g_eff = load / m). It departs where x reaches 0 going up:
     tau = -2 x0 / (v0 + s), s = sqrt(v0^2 + 2 g_eff x0), at v = s (no cancellation, as time_to_impact);
-    it is pressed again (engages) where physics.pressed_gap's z, a parabola from (z0, free_gap_rate),
+    it is pressed again (engages) where contact_laws.pressed_gap's z, a parabola from (z0, free_gap_rate),
     falls back to 0: time_to_impact of z. The first of the two; (inf, x0, v0, True) where neither comes
     (a weightless ball at rest on R). departs: whether it is the departure (x = 0 there exactly).
     """

@@ -12,15 +12,15 @@ the code and it can be cached on disk.
 The rules for the source compiled together
 ------------------------------------------
 compiled.py gives ``compiled_together`` every function of the modules it lists
-(``functions_of(rounding, oscillator, physics, exact, phases, error_estimate, machine, drivers,
-dense_output)``). numba compiles, at their first call, those that the compiled entry points reach
+(``functions_of(rounding, oscillator, equations, contact_laws, physics, exact, phases, error_estimate,
+machine, drivers, dense_output)``). numba compiles, at their first call, those that the compiled entry points reach
 (the functions compiled.py keeps compiled copies of: run_phases, fill_grid, advance, advance_in_step and the callbacks'
 scaled_rates, root_values, scaled_jacobian), from the very source the scikit-sundae engine runs
 interpreted. A function so reached:
 
 1. Calls another compiled function by its bare name, defined in its own module or imported with
    ``from .x import name``. ``compiled_together`` re-binds bare global names only: a call written
-   ``physics.gap_flow_value(...)`` reaches the plain Python function through the module, and numba
+   ``equations.gap_flow_value(...)`` reaches the plain Python function through the module, and numba
    fails to type it, far from its cause.
 2. Reads as globals only those functions, numbers (int, float, bool) and tuples of them, the modules
    ``math`` and ``numpy`` (the functions numba supports) and the builtins numba supports (abs, min,
@@ -70,9 +70,9 @@ from .engine_cache import PORTABLE_CPU, package_shipped, say_on_stderr
 
 # Every source the compiled code is compiled from, relative to the package: the modules whose functions
 # compiled.py gives compiled_together, those whose constants they read (rule 5), jit.py and compiled.py.
-ENGINE_SOURCES = ("rounding.py", "oscillator.py", "physics.py", "solvers/settings.py", "solvers/phases.py",
-                  "solvers/layout.py", "solvers/error_estimate.py", "solvers/engine_protocol.py", "solvers/machine.py",
-                  "solvers/drivers.py",
+ENGINE_SOURCES = ("rounding.py", "oscillator.py", "equations.py", "contact_laws.py", "physics.py",
+                  "solvers/settings.py", "solvers/phases.py", "solvers/layout.py", "solvers/error_estimate.py",
+                  "solvers/engine_protocol.py", "solvers/machine.py", "solvers/drivers.py",
                   "solvers/dense_output.py", "solvers/exact.py", "solvers/jit.py", "solvers/compiled.py")
 
 

@@ -18,7 +18,7 @@ before it; ERR_FROM: the start of the first phase whose bound passed the promise
 SCALE: the largest height [m] of the phases so far (max(|h|, R)). PEND_X, PEND_KIND: the pending
 event's gap (0 on R; below R for the no-pull law's release and engagement) and kind (phases.IMPACT ..
 phases.ENGAGE). HC_REST_T: under the Hunt-Crossley law, when the pressed contact's rest criterion
-(physics.hunt_crossley_rest_margin) became true; CVODE integrates on through that rest (NaN: not at rest).
+(contact_laws.hunt_crossley_rest_margin) became true; CVODE integrates on through that rest (NaN: not at rest).
 Under the Hunt-Crossley law the run's error of (x, v) is the sum of two ellipses (error_estimate.py): the one
 of the phases before the last contact (ERR_X and ERR_V its half-widths [m, m/s], ERR_XV its correlation in [-1, 1])
 and the last contact's own (ERR2_X, ERR2_V, ERR2_XV). In a contact CVODE integrates, HC_A00, HC_A01, HC_A11 and

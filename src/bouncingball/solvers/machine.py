@@ -22,14 +22,7 @@ import math
 
 import numpy as np
 
-from ..physics import (
-    HUNT_CROSSLEY,
-    NO_PULL,
-    RIGID,
-    hunt_crossley_rest_margin,
-    release_speed,
-    rigid_rebound,
-)
+from ..contact_laws import HUNT_CROSSLEY, NO_PULL, RIGID, hunt_crossley_rest_margin, release_speed, rigid_rebound
 from ..rounding import later
 from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, engine_exceeded, engine_start, engine_steps
@@ -221,7 +214,7 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     # the event's row is on R (or, a release, below it)
     checked = count - 1 if gap_root != 0 or hc_release else count
     if checked > 0:
-        if no_pull:  # the step ends' z = -force / k (physics.pressed_gap), which a missed release leaves above 0
+        if no_pull:  # the step ends' z = -force / k (contact_laws.pressed_gap), which a missed release leaves above 0
             extreme = (rows[:checked, 1] + (parameters[2] / parameters[1]) * rows[:checked, 2]).max()
         else:
             extreme = rows[:checked, 1].min() if mode == FLIGHT else rows[:checked, 1].max()
@@ -248,7 +241,7 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
 
 
 def _hunt_crossley_rest(parameters, state, rows, count):
-    """HC_REST_T: where physics.hunt_crossley_rest_margin first turns positive on these steps, if it does.
+    """HC_REST_T: where contact_laws.hunt_crossley_rest_margin first turns positive on these steps, if it does.
 
     The steps run from the last step's end (STEP_*, the phase start after a restart) through rows[:count];
     within the step where the margin turns positive its crossing is bisected on the step's dense output
@@ -307,7 +300,7 @@ def _take_event(parameters, rtol, atol, state, events, n_events):
 
 
 def _bounce(parameters, rtol, atol, state):
-    """A rigid impact at the state (on R, at v < 0): the ball flies on at -e v, or stays on R (physics.rigid_rebound).
+    """A rigid impact at the state (on R, at v < 0): the ball flies on at -e v, or stays on R (rigid_rebound).
 
     Where it stays after bounces summed as their series, its rest starts at the Zeno time, after the
     state's time; between them the ball is taken on R (the bounces there are lower than ZENO_APEX R).

@@ -7,7 +7,7 @@ form instead, its event from the exact flow), where exactly the event CVODE loca
 (polish_event), and how far a step end may stray to the other side of R before an event was
 missed (side_margin). The arguments are the ball's parameters (Ball.parameters: m, k, b, R, g, the
 contact law's code, e, v_min), the mode (0 flight, 1 contact), the gap x = h - R [m], v [m/s], the
-load m g - F_ext [N] (physics.load_value), the hop tolerance [m] (settings.hop_tolerance) and rtol.
+load m g - F_ext [N] (equations.load_value), the hop tolerance [m] (settings.hop_tolerance) and rtol.
 
 Every function here takes and returns floats only, so solvers/machine.py runs them as they are
 (the scikit-sundae engine) and the compiled engine compiles the very same source with numba,
@@ -18,13 +18,11 @@ from __future__ import annotations
 
 import math
 
-from ..physics import (
+from ..contact_laws import (
     HUNT_CROSSLEY,
     NO_PULL,
     RIGID,
     conserved_speed,
-    gap_acceleration,
-    gap_flow_value,
     hunt_crossley_acceleration,
     hunt_crossley_partials,
     hunt_crossley_rest_depth,
@@ -32,8 +30,8 @@ from ..physics import (
     no_pull_rest_margin_value,
     pressed_gap,
     release_speed,
-    rest_margin_value,
 )
+from ..equations import gap_acceleration, gap_flow_value, rest_margin_value
 from ..rounding import hypot
 from .exact import departure_speed, departure_time, free_event, release_state, release_time, time_to_impact
 from .settings import HOP_RESOLUTION
@@ -167,7 +165,7 @@ def decide_phase(parameters, mode, x, v, load, hop, rtol):
       towards a rest height closer to R than CVODE resolves, where h never visibly crosses R (a
       weightless ball lifted by 1e-6 N stayed at R instead of flying 4.5e-6 m in 3 s); when it never
       departs, CVODE integrates it.
-    A contact is a rest once the energy bound (physics.rest_margin_value, as Ball.contact_is_permanent)
+    A contact is a rest once the energy bound (equations.rest_margin_value, as Ball.contact_is_permanent)
     proves it: the ball's weight holds it down by more than its motion. A critically or over-damped
     ball (or one with no weight on the spring) creeps towards its rest height for many spring time
     constants, which CVODE would crawl through at the spring's time scale (500,000 steps for k/m =
@@ -175,7 +173,7 @@ def decide_phase(parameters, mode, x, v, load, hop, rtol):
     (exact.departure_time) decides at once whether it ever reaches R, and so it does for a contact
     CVODE cannot resolve.
     Under the no-pull law the pressed contact's event is its release (exact.release_time, the same
-    search of physics.pressed_gap's z) and its rest margin physics.law_rest_margin's; the free sub-mode
+    search of contact_laws.pressed_gap's z) and its rest margin contact_laws.law_rest_margin's; the free sub-mode
     is always taken in closed form (a parabola: exact.free_event).
     """
     if mode == FLIGHT:
@@ -266,7 +264,7 @@ def polish_event(parameters, mode, load, length, tau_before, tau_root, x_root, v
 def polish_release(parameters, load, length, tau_before, tau_root, x_root, v_root):
     """The no-pull release CVODE located at (tau_root, x_root, v_root) in a pressed contact: (tau, x, v) there.
 
-    polish_event's Newton on physics.pressed_gap's z (which obeys the contact's own equation) instead of
+    polish_event's Newton on contact_laws.pressed_gap's z (which obeys the contact's own equation) instead of
     x, then the state moved on the contact's exact flow to the polished time. v >= 0 (the ball rises).
     """
     m, k, b = parameters[0], parameters[1], parameters[2]
@@ -301,9 +299,9 @@ def taylor_step(parameters, mode, x, v, load, dt):
 
 # --- CVODE's functions of a phase, in its frame: (y0, y1) = (x / length, v / speed), both engines' callbacks ---
 def scaled_rates(y0, y1, mode, length, speed, load, m, k, b, law, n, alpha):
-    """d(y0, y1)/dt: the mode's equations (physics.gap_acceleration) in the phase's frame.
+    """d(y0, y1)/dt: the mode's equations (equations.gap_acceleration) in the phase's frame.
 
-    Under the Hunt-Crossley law the pressed contact's are physics.hunt_crossley_acceleration's (its force
+    Under the Hunt-Crossley law the pressed contact's are contact_laws.hunt_crossley_acceleration's (its force
     unclipped: the clip is the release event into the free sub-mode, never a max() here).
     """
     if law == HUNT_CROSSLEY and mode == CONTACT:
@@ -327,9 +325,9 @@ def root_values(y0, y1, mode, length, speed, load, own_side, hop, k, m, b, law, 
     """CVODE's three root functions: the gap (own_side where it is 0), v, and the rest margin in contact.
 
     Under zero net load v never changes in flight: a root function identically 0 would only make
-    CVODE warn, so it is 1 there. The rest margin (physics.rest_margin_value, with the static
+    CVODE warn, so it is 1 there. The rest margin (equations.rest_margin_value, with the static
     deflection from the phase's load) is -1 where the contact cannot rest. law: Ball.parameters' code.
-    Under the no-pull law the pressed contact's are its own: physics.pressed_gap's z = -force / k in
+    Under the no-pull law the pressed contact's are its own: contact_laws.pressed_gap's z = -force / k in
     the gap's place (its crossing upwards the release), dz/dt in v's (a step ends at each extremum of
     z, so that none holds both crossings of a short free spell) and no_pull_rest_margin_value.
     """

@@ -9,7 +9,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .. import validation
-from ..physics import Ball, Mode, hunt_crossley_hop_tolerance, load_value
+from ..contact_laws import hunt_crossley_hop_tolerance
+from ..equations import load_value
+from ..physics import Ball, Mode
 
 METHODS = ("auto", "Adams", "BDF")
 ENGINES = ("auto", "compiled", "sksundae")
@@ -104,11 +106,11 @@ def hop_tolerance(ball: Ball, rtol: float = DEFAULT_RTOL, atol: float | None = D
     error: a contact that cannot lift the ball higher is taken as a rest, and a flight lower than
     that is taken in closed form. An undamped contact never comes to rest (its energy is kept), and
     neither does a lifted one (d <= 0): there the rule is 0, every hop is integrated. A rigid ball has
-    no contact to merge a hop into: 0 (its bounces too low to tell are summed, physics.rigid_rebound). The
+    no contact to merge a hop into: 0 (its bounces too low to tell are summed, contact_laws.rigid_rebound). The
     Hunt-Crossley law's is HOP_RESOLUTION rtol its contact's length scale near rest, (2 (n + 1) (m g - F_ext) / k)^(1/n)
-    (physics.hunt_crossley_hop_tolerance), 0 with alpha = 0.
+    (contact_laws.hunt_crossley_hop_tolerance), 0 with alpha = 0.
     """
-    if ball.hunt_crossley:  # its own, from its energy (physics.hunt_crossley_hop_tolerance)
+    if ball.hunt_crossley:  # its own, from its energy (contact_laws.hunt_crossley_hop_tolerance)
         tolerance = hunt_crossley_hop_tolerance(load_value(F_ext, ball.m, ball.g), ball.m, ball.k, ball.n, ball.alpha,
                                                 HOP_RESOLUTION * rtol)
         return tolerance if atol is None else min(tolerance, HOP_RESOLUTION * atol)

@@ -9,7 +9,9 @@ import math
 from dataclasses import dataclass
 
 from .. import limits, validation
-from ..physics import Ball, Mode, gap_acceleration, load_value, summed_bounce_state
+from ..contact_laws import summed_bounce_state
+from ..equations import gap_acceleration, load_value
+from ..physics import Ball, Mode
 from . import layout, machine
 from .phases import REST, decide_phase
 from .settings import hop_tolerance
@@ -70,7 +72,7 @@ class IntegratorState:
     steps: int = 0
     gap: float | None = None  # h - R [m] to every digit (h rounds a deflection to ulp(R)); None: h - R
     restart: RestartPoint | None = None
-    zeno_time: float | None = None  # a rigid ball's summed bounces end then [s] (physics.rigid_rebound); None: none
+    zeno_time: float | None = None  # when a rigid ball's summed bounces end [s] (contact_laws.rigid_rebound), or None
 
     def __post_init__(self) -> None:
         """Take the restart point from a dict of its fields (a deserialized state); TypeError names a bad one."""
@@ -174,7 +176,7 @@ class IntegratorView:
             self._sync_F_ext()
 
     def _summed_bounce(self) -> tuple[float, float] | None:
-        """(x [m], v [m/s]) now where a rigid ball's summed bounces (physics.rigid_rebound) go on until REST_T; or None.
+        """(x [m], v [m/s]) now where a rigid ball's summed bounces (rigid_rebound) go on until REST_T; or None.
 
         The ball is taken on R while they last (each lower than ZENO_APEX R), but a change of F_ext there
         starts from where the bounce truly is: a lift from rest would lose its speed (up to 1e-6 m/s after
@@ -212,8 +214,8 @@ class IntegratorView:
         """Start of the current contact if it can never again lift the ball above R + hop_tolerance, else None.
 
         F_ext is taken as held constant from now on. A rigid ball's rest starts at the Zeno time where
-        its last bounces were summed (physics.rigid_rebound). A Hunt-Crossley ball's rest starts where
-        its energy criterion (physics.hunt_crossley_rest_margin) became true in its current contact, found
+        its last bounces were summed (contact_laws.rigid_rebound). A Hunt-Crossley ball's rest starts where
+        its energy criterion (contact_laws.hunt_crossley_rest_margin) became true in its current contact, found
         since CVODE last restarted (layout.HC_REST_T): CVODE integrates on through it, there being no
         closed form of the rest flow.
         """

@@ -10,7 +10,9 @@ import numbers
 from dataclasses import dataclass
 
 from .. import validation
-from ..physics import HUNT_CROSSLEY, NO_PULL, Ball, Mode, load_value
+from ..contact_laws import HUNT_CROSSLEY, NO_PULL
+from ..equations import load_value
+from ..physics import Ball, Mode
 from .phases import frame, on_wrong_side, side_margin
 from .settings import CvodeSettings, hop_tolerance
 from .state import IntegratorState, RestartPoint
