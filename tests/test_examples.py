@@ -322,6 +322,7 @@ def test_hunt_crossley_restitution_example_against_the_truth_and_the_separable_i
     """Its table: e from simulate against the mpmath truth at three (alpha, impact speed) pairs, from gravity's
     domain to the fast end; its separable column against G(-e v) = G(v) solved here in mpmath."""
     pytest.importorskip("matplotlib")
+    pytest.importorskip("scipy")
     import mpmath
 
     from hunt_crossley_truth import HuntCrossleyTruth
