@@ -100,7 +100,10 @@ def _build_parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="benchmark error against run time (or, with --stability, the stability "
                                          "matrix) and write the results")
     bench.add_argument("--quick", action="store_true", help="a small run that CI can afford")
-    bench.add_argument("--stability", action="store_true", help="run every scene with every solver under a time "
+    study = bench.add_mutually_exclusive_group()
+    study.add_argument("--hunt-crossley", action="store_true", help="the Hunt-Crossley law against DOP853 at a "
+                                                                    "matched error, and write hunt_crossley.md")
+    study.add_argument("--stability", action="store_true", help="run every scene with every solver under a time "
                                                                 "cap and write stability.md")
     bench.add_argument("--output-dir", default="bench-results",
                        help="where to write the results (default: bench-results; docs regenerates the committed ones)")
@@ -366,7 +369,7 @@ def _command(args: argparse.Namespace) -> int:
     if args.command == "bench":
         from .bench import bench_command
 
-        return bench_command(args.output_dir, args.quick, args.stability)
+        return bench_command(args.output_dir, args.quick, args.stability, hunt_crossley=args.hunt_crossley)
     if args.command == "sweep":
         from .sweep.command import sweep_command
 

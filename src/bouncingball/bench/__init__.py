@@ -12,14 +12,20 @@ import time
 from pathlib import Path
 
 
-def bench_command(output_dir: str | Path = "bench-results", quick: bool = False, stability: bool = False) -> int:
-    """`bouncingball bench`: run the work-precision study (or, with stability, the stability matrix)."""
+def bench_command(output_dir: str | Path = "bench-results", quick: bool = False, stability: bool = False,
+                  hunt_crossley: bool = False) -> int:
+    """`bouncingball bench`: run the work-precision study (or, with stability, the stability matrix; with
+    hunt_crossley, that law against DOP853)."""
     from ..output import check_output_folder
 
     output_dir = check_output_folder("--output-dir", output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    if stability:
+    if hunt_crossley:
+        from . import hunt_crossley as study
+
+        written = study.run(output_dir, quick=quick)
+    elif stability:
         from .studies import run_stability_study
 
         written = run_stability_study(output_dir, quick=quick)
