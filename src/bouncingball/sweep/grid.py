@@ -34,8 +34,8 @@ MAPPED_CONTACT_LAWS = ("linear", "linear-no-pull", "hunt-crossley")
 HUNT_CROSSLEY = "hunt-crossley"
 # Its grid: k [N/m^1.5] and alpha [s/m] (alpha = 0 the undamped Hertz contact); n held at Hertz's 1.5 for spheres.
 HC_N = 1.5
-DEFAULT_HC_K = (1e3, 1e9, 7)  # N/m^1.5
-DEFAULT_ALPHA = (0.0, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)  # s/m
+DEFAULT_HC_K = (1e3, 1e9, 13)  # N/m^1.5, half decades
+DEFAULT_ALPHA_TEXT = "0,1e-4:1:9"  # s/m: 0 and half decades (DEFAULT_ALPHA, below)
 QUICK_HC_K = (1e3, 1e9, 3)
 QUICK_ALPHA = (0.0, 1e-2, 1.0)
 
@@ -180,6 +180,9 @@ def log_points(low: float, high: float, points: int) -> tuple[float, ...]:
     values = np.logspace(math.log10(low), math.log10(high), points)
     values[0], values[-1] = low, high
     return tuple(float(x) for x in values)
+
+
+DEFAULT_ALPHA = parse_alpha(DEFAULT_ALPHA_TEXT)
 
 
 @dataclass(frozen=True)
