@@ -67,11 +67,14 @@ def write_heat_maps(frame, grid: Grid, output_dir: Path) -> list[Path]:
 
 
 def _tick(value: float) -> str:
-    """1e+04 as 1e4; a value between powers of ten with 2 digits; 0 as 0."""
+    """1e+04 as 1e4; a value between powers of ten as 3.2e3 (2 digits, the same form on every axis); 0 as 0."""
     if value == 0.0:
         return "0"
     exponent = math.log10(value)
-    return f"1e{round(exponent)}" if abs(exponent - round(exponent)) < 1e-9 else f"{value:.2g}"
+    if abs(exponent - round(exponent)) < 1e-9:
+        return f"1e{round(exponent)}"
+    power = math.floor(exponent)
+    return f"{value / 10.0 ** power:.2g}e{power}"
 
 
 def _truth(grid: Grid) -> str:
