@@ -107,12 +107,16 @@ def _build_parser() -> argparse.ArgumentParser:
                                                                 "cap and write stability.md")
     bench.add_argument("--output-dir", default="bench-results",
                        help="where to write the results (default: bench-results; docs regenerates the committed ones)")
-    sweep = sub.add_parser("sweep", help="a stability map over (k, damping ratio, m, h0) for each solver, run on "
+    sweep = sub.add_parser("sweep", help="a stability map over (k, damping, m, h0) for each solver, run on "
                                          "Dask (needs the [sweep] extra)")
-    for name, default in (("k", "1e2:1e14:13"), ("zeta", "1e-4:1e2:7"), ("m", "1"), ("h0", "2")):
+    for name, default in (("k", "1e2:1e14:13 [N/m]; hunt-crossley: 1e3:1e9:13 [N/m^1.5]"),
+                          ("zeta", "1e-4:1e2:7, the linear laws' damping ratio"), ("m", "1 [kg]"), ("h0", "2 [m]")):
         sweep.add_argument(f"--{name}", metavar="LO:HI:N", help=f"log-spaced values (default: {default})")
-    sweep.add_argument("--contact", metavar="LAW", help="the balls' contact law: linear (default) or linear-no-pull "
-                       "(then CVODE alone by default: the article's and SciPy's algorithms model the linear law)")
+    sweep.add_argument("--alpha", metavar="VALUES", help="the Hunt-Crossley law's damping [s/m] (n = 1.5): values "
+                       "and LO:HI:N log-spaced ranges, comma-separated (default: 0,1e-4:1:9)")
+    sweep.add_argument("--contact", metavar="LAW", help="the balls' contact law: linear (default), linear-no-pull "
+                       "(then CVODE alone by default: the article's and SciPy's algorithms model a force that is a "
+                       "function of the state) or hunt-crossley (errors against a reference run per cell)")
     sweep.add_argument("--t-end", type=float, help="end time of each run [s] (default: 8)")
     sweep.add_argument("--solvers", help="comma-separated: cvode, cvode:Adams, cvode:BDF, article, scipy:METHOD "
                                          "(default: cvode,article,scipy:DOP853)")
