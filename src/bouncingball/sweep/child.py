@@ -13,7 +13,7 @@ import socket
 
 from ..accuracy import event_mismatches, reference_event_mismatches
 from ..bench import runners
-from ..bench.hunt_crossley import REFERENCE_RTOL, against
+from ..bench.hunt_crossley import REFERENCE_ATOL, REFERENCE_RTOL, against
 from ..capped import FINISHED, run_capped
 from ..solvers.settings import DEFAULT_RTOL, merged_hop_limit
 from .grid import HUNT_CROSSLEY, Cell, cell_of, solver_spec, tolerances
@@ -24,7 +24,6 @@ MEASURES = {"events_found": -1, "events_exact": -1, "event_mismatches": -1, "fir
             "max_height_error": math.nan, "max_event_time_error": math.nan, "wall_time": math.nan, "rhs_calls": -1,
             "steps": -1}
 HEIGHT_TOLERANCE = 1e-6  # m: an event must be within the time the ball takes to move this far
-REFERENCE_ATOL = 0.0  # with REFERENCE_RTOL: bench --hunt-crossley's reference run
 
 
 def measure(spec: dict) -> dict:
@@ -82,7 +81,7 @@ def measure(spec: dict) -> dict:
 
 @functools.lru_cache(maxsize=4)
 def reference_run(cell: Cell, t_end: float, output_interval: float) -> runners.Run:
-    """A Hunt-Crossley cell's truth: the compiled engine at REFERENCE_RTOL, atol 0, on the same output grid [s].
+    """A Hunt-Crossley cell's truth: the compiled engine at REFERENCE_RTOL, REFERENCE_ATOL, on the same output grid [s].
 
     bench --hunt-crossley's reference (tests/test_hunt_crossley.py and tests/test_sweep.py hold it to the mpmath
     truth). Kept for the cell's next solvers: a batch runs a cell's solvers one after another in one child.
