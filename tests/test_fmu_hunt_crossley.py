@@ -78,3 +78,18 @@ def test_model_exchange_sees_every_impact_and_departure(unzipped3, name):
     assert len(run.events) == run.restarts == len(events) and run.step_events == 0
     times = np.array([time for time, _, _ in run.events])
     assert np.max(np.abs(times - [float(time) for time, _, _ in events])) <= 1e-6
+
+
+def test_check_refuses_a_hunt_crossley_run_by_name_it_has_no_exact_solution(fmu, capsys, tmp_path):
+    from bouncingball.cli import main
+    from bouncingball.testing import check_result
+
+    result = _simulate(fmu, "benchmark")
+    columns = {"time": result["time"], "h": result["h"], "impacts": result["impacts"]}
+    with pytest.raises(ValueError, match="check judges a run against the exact solution, and contact_law = "
+                                         "'hunt-crossley' has none"):
+        check_result(columns, "article", {"contact_law": "hunt-crossley"})
+    table = tmp_path / "out.csv"
+    np.savetxt(table, np.column_stack([result["time"], result["h"]]), delimiter=",", header="time,h", comments="")
+    assert main(["check", str(table), "--start-value", "contact_law=hunt-crossley"]) == 2
+    assert "contact_law = 'hunt-crossley' has none" in capsys.readouterr().err

@@ -128,6 +128,18 @@ def fmu_scene(scene):
     return scene
 
 
+def judged_scene(scene, judge: str):
+    """The scene (fmu_scene's), if the exact solution can judge a run of it; else ValueError saying why (judge: who).
+
+    Every law the FMU runs has one but Hunt and Crossley's, whose contact has no closed form.
+    """
+    if fmu_scene(scene).ball.hunt_crossley:
+        raise ValueError(f"{judge} judges a run against the exact solution, and contact_law = 'hunt-crossley' has none "
+                         "(its contact has no closed form); compare the run with bouncingball.simulate at a tight "
+                         "rtol (1e-13) instead")
+    return scene
+
+
 def ball_fields_of(start_values) -> dict[str, float | str]:
     """physics.Ball's keyword arguments from the FMU's start values (a mapping that has all of them)."""
     return {field: start_values[name] for name, field in SCENE_FIELD_OF_START_VALUE.items()
