@@ -298,3 +298,17 @@ def test_bench_takes_one_study_at_a_time(capsys):
         main(["bench", "--stability", "--first-use"])
     assert raised.value.code == 2
     assert "not allowed with argument" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # a quick run of the study: a few dozen runs of 8 s of bouncing
+def test_the_hunt_crossley_study_matches_both_solvers_to_the_target_against_its_reference(tmp_path):
+    assert main(["bench", "--hunt-crossley", "--quick", "--output-dir", str(tmp_path)]) == 0
+    page = (tmp_path / "hunt_crossley.md").read_text(encoding="utf-8")
+    assert "a QUICK run" in page and "REFERENCE_RTOL" not in page
+    rows = {cells[0]: cells for cells in ([c.strip() for c in line.strip("|").split("|")]
+                                          for line in page.splitlines() if line.startswith("|"))}
+    for label in ("CVODE auto (compiled)", "solve_ivp DOP853"):
+        _, rtol, error, events, *_ = rows[label]
+        assert float(error) <= 1e-6 and events == "38/38", rows[label]
+    reference = re.search(r"DOP853 at rtol 2.3e-14 is within (\S+) m of it on the grid", page)
+    assert reference and float(reference.group(1)) < 1e-8

@@ -316,3 +316,36 @@ def test_contact_laws_example_against_the_three_laws_independent_truths(tmp_path
     assert (tmp_path / "out" / "contact_laws.png").stat().st_size > 10_000
     readme = " ".join((EXAMPLES.parent / "README.md").read_text(encoding="utf-8").split())
     assert f"first restitution, {e:.3f})" in readme and f"negative ({float(rows['linear'][2]):.0f} N)" in readme
+
+
+@pytest.mark.slow  # the mpmath truth of three bounces (about 4 s each)
+def test_hunt_crossley_restitution_example_against_the_truth_and_the_separable_impact(tmp_path):
+    """Its table: e from simulate against the mpmath truth at three (alpha, impact speed) pairs, from gravity's
+    domain to the fast end; its separable column against G(-e v) = G(v) solved here in mpmath."""
+    pytest.importorskip("matplotlib")
+    pytest.importorskip("scipy")
+    import mpmath
+
+    from hunt_crossley_truth import HuntCrossleyTruth
+
+    out = run_example([sys.executable, EXAMPLES / "hunt_crossley_restitution.py", tmp_path / "out"], tmp_path)
+    rows = {(float(alpha), float(v)): (float(e), float(separable), float(linear)) for alpha, v, e, separable, linear
+            in re.findall(rf"^ *({NUMBER}) +({NUMBER}) +({NUMBER}) +({NUMBER}) +({NUMBER})$", out, re.M)}
+    assert len(rows) == 39, out
+    m, R, k, n, g = 1.0, 0.06, 1e6, 1.5, 9.81
+    for alpha, v in ((0.2, 0.05), (0.05, 1.0), (0.02, 10.0)):
+        truth = HuntCrossleyTruth(m, k, n, alpha, R, g, R + v * v / (2 * g), 0.0, v / g + 0.1, max_events=2)
+        (_, impact, v_in), (_, departure, v_out) = truth.events
+        assert (impact, departure) == ("impact", "departure")
+        assert abs(rows[alpha, v][0] - float(v_out / -v_in)) < 1.5e-6, (alpha, v)
+    for (alpha, v), (_, separable, linear) in rows.items():
+        c = mpmath.mpf(1.5) * alpha
+
+        def G(u, c=c):
+            return u / c - mpmath.log(1 + c * u) / c**2
+
+        with mpmath.workdps(40):  # G's two terms cancel to c v's order
+            e = mpmath.findroot(lambda e, v=v, c=c: G(-e * v, c) - G(mpmath.mpf(v), c),
+                                (0.0, min(1.0, 1.0 / (c * v) - 1e-12)), solver="anderson")
+        assert abs(separable - float(e)) < 1.5e-6 and linear == pytest.approx(1.0 - alpha * v, abs=1e-6), (alpha, v)
+    assert (tmp_path / "out" / "hunt_crossley_restitution.png").stat().st_size > 10_000

@@ -122,11 +122,26 @@ def test_truth_elastic_contact_conserves_speed_and_takes_hertz_time():
     assert abs(constant - mp.mpf("3.2180654597190430845")) < mp.mpf(10) ** -18
 
 
-def test_refused_by_exact_and_scipy():
-    ball = ball_of("elastic")
-    for solver in ("exact", "scipy"):
-        with pytest.raises(ValueError, match="hunt-crossley"):
-            simulate(ball, 0.5, 0.0, 0.1, 1e-3, solver=solver)
+def test_refused_by_exact():
+    with pytest.raises(ValueError, match="hunt-crossley"):
+        simulate(ball_of("elastic"), 0.5, 0.0, 0.1, 1e-3, solver="exact")
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_the_articles_algorithm_with_dop853_follows_the_truth(name):
+    """solve_ivp (DOP853, the benchmark's peer) with a terminal event per phase: its contact's right-hand side clips
+    the force, so the clip's free sub-mode is no phase of its own (no release or engage event) and the lifted ball
+    leaves at the same departure."""
+    pytest.importorskip("scipy")
+    k, n, alpha, m, R, g, h0, v0, t_end, F_ext = CASES[name]
+    result = simulate(ball_of(name), h0, v0, t_end, 1e-3, solver="scipy", F_ext=F_ext, method="DOP853", rtol=1e-12,
+                      atol=1e-12 * max(abs(h0), R), max_step=0.0)
+    tr = truth(name)
+    h_true = np.array([float(tr.state(ti)[0]) for ti in result.t])
+    assert float(np.max(np.abs(result.h - h_true))) / max(float(np.max(np.abs(h_true))), R) < TOLERANCE
+    crossings = [(float(te), kind) for te, kind, _ in tr.events if kind in ("impact", "departure")]
+    assert [str(e.kind) for e in result.events] == [kind for _, kind in crossings]
+    assert max((abs(e.time - te) for e, (te, _) in zip(result.events, crossings, strict=True)), default=0.0) < 1e-8
 
 
 @pytest.mark.parametrize(("field", "value"), [("n", 0.5), ("n", 3.0), ("alpha", -1.0), ("alpha", math.inf)])
@@ -328,3 +343,19 @@ def test_hops_above_the_tolerance_are_kept_and_below_it_within_the_estimate(engi
     result, tr, rise = _hop_from_rest(1e-17, engine)
     error = float(np.max(np.abs(result.h - np.array([float(tr.state(t)[0]) for t in result.t]))))
     assert error <= result.error_estimate
+
+
+def test_the_benchmarks_scene_and_reference_follow_the_truth():
+    """bench --hunt-crossley measures errors against the compiled engine at REFERENCE_RTOL: over the truth's first
+    3 s of the same scene it is within REFERENCE_HELD_WITHIN (measured 3.0e-10 m), its events within 1e-9 s
+    (7.6e-11 s)."""
+    from bouncingball.bench.hunt_crossley import REFERENCE_ATOL, REFERENCE_HELD_WITHIN, REFERENCE_RTOL, SCENE
+
+    k, n, alpha, m, R, g, h0, v0, t_end, F_ext = CASES["benchmark"]
+    assert (SCENE.ball, SCENE.h0, SCENE.v0, SCENE.F_ext) == (ball_of("benchmark"), h0, v0, F_ext)
+    result = simulate(SCENE.ball, h0, v0, t_end, 1e-3, rtol=REFERENCE_RTOL, atol=REFERENCE_ATOL)
+    tr = truth("benchmark")
+    h_true = np.array([float(tr.state(ti)[0]) for ti in result.t])
+    assert float(np.max(np.abs(result.h - h_true))) < REFERENCE_HELD_WITHIN
+    assert [str(e.kind) for e in result.events] == [kind for _, kind, _ in tr.events]
+    assert max(abs(e.time - float(te)) for e, (te, _, _) in zip(result.events, tr.events, strict=True)) < 1e-9

@@ -416,3 +416,93 @@ def test_a_no_pull_cell_is_measured_with_the_no_pull_truths_events():
     assert row["status"] == "finished" and row["event_mismatches"] == 0
     assert row["events_found"] == row["events_exact"] == len(truth.events) == 9
     assert row["max_height_error"] <= 1e-9
+
+
+# --- the Hunt-Crossley law: k [N/m^1.5] by alpha [s/m], against a reference run per cell ------------------------
+def test_the_hunt_crossley_grid_maps_k_and_alpha_with_their_own_checks():
+    from bouncingball.sweep.command import build_grid
+    from bouncingball.sweep.grid import Cell, Grid, parse_alpha
+
+    grid = build_grid(contact="hunt-crossley")
+    assert grid.damping == "alpha" and grid.zeta is None and grid.solvers == ("cvode", "article", "scipy:DOP853")
+    np.testing.assert_allclose(grid.axis("k"), 10.0 ** np.arange(3.0, 9.01, 0.5), rtol=1e-12)
+    assert grid.axis("alpha")[0] == 0.0 and grid.axis("alpha")[1] == 1e-4 and grid.axis("alpha")[-1] == 1.0
+    np.testing.assert_allclose(np.diff(np.log10(grid.axis("alpha")[1:])), 0.5, rtol=1e-12)
+    runs = grid.runs()
+    assert len(runs) == 13 * 10 * 3 and len({run["key"] for run in runs}) == len(runs)
+    run = runs[3 * 13 * 5]  # k = 1e3 N/m^1.5, alpha = 1e-2 s/m, cvode
+    assert (run["k"], run["alpha"], run["n"], run["solver"]) == (1e3, 1e-2, 1.5, "cvode")
+    assert math.isnan(run["zeta"]) and math.isnan(run["b"])
+    assert run["key"] == "cvode|1000.0|alpha=0.01|1.0|2.0|8.0|0.001|hunt-crossley"
+    ball = Cell(1e3, None, 1.0, 2.0, "hunt-crossley", 1e-2).scene(1.0, 1e-3).ball
+    assert (ball.contact, ball.k, ball.n, ball.alpha, ball.m, ball.R, ball.g) == \
+        ("hunt-crossley", 1e3, 1.5, 1e-2, 1.0, 0.06, 9.81)
+    # the linear laws' runs carry NaN for alpha and n, their keys as before
+    linear = build_grid(k="1e4", zeta="0.05", solvers="cvode").runs()[0]
+    assert linear["key"] == "cvode|10000.0|0.05|1.0|2.0|8.0|0.001" and math.isnan(linear["alpha"])
+    assert parse_alpha("0,1e-2:1:3") == (0.0, 0.01, 0.1, 1.0) and parse_alpha("0.5,0") == (0.0, 0.5)
+    for text, words in (("-1", "-1 s/m is not finite and >= 0"), ("1:1e-2:3", "'1:1e-2:3' is not LO:HI:N"),
+                        ("0:1:3", "'0:1:3' is not LO:HI:N"), ("inf", "inf s/m is not finite"), ("a", "values >= 0")):
+        with pytest.raises(ValueError, match=f"^--alpha = {text!r} is not allowed: .*" + words.replace("(", r"\(")):
+            parse_alpha(text)
+    with pytest.raises(ValueError, match=r"^zeta = \(0.1, 0.1, 1\) is not allowed with contact = 'hunt-crossley'"):
+        Grid(zeta=(0.1, 0.1, 1), contact="hunt-crossley")
+    with pytest.raises(ValueError, match=r"^alpha = \(0.1,\) is not allowed with contact = 'linear'"):
+        Grid(alpha=(0.1,))
+    with pytest.raises(ValueError, match=r"^alpha = -0.5 s/m is not allowed: it must be finite and >= 0"):
+        Cell(1e6, None, 1.0, 2.0, "hunt-crossley", -0.5)
+    with pytest.raises(ValueError, match=r"^alpha = 0.1 s/m is not allowed with contact = 'linear-no-pull'"):
+        Cell(1e6, 0.1, 1.0, 2.0, "linear-no-pull", 0.1)
+    with pytest.raises(ValueError, match="^contact = 'rigid' is not allowed: it must be one of linear, linear-no-pull, "
+                                         r"hunt-crossley \(the rigid law has no k or damping to map\)"):
+        Grid(contact="rigid")
+    with pytest.raises(ValueError, match="^--zeta = '0.1' is not allowed with --contact hunt-crossley: .* use --alpha"):
+        build_grid(zeta="0.1", contact="hunt-crossley")
+    with pytest.raises(ValueError, match="^--alpha = '0.1' is not allowed with --contact linear: .* use --zeta"):
+        build_grid(alpha="0.1")
+
+
+@pytest.mark.parametrize(("args", "names"), [
+    (["--contact", "hunt-crossley", "--zeta", "0.1"], ["--zeta", "'0.1'", "--alpha"]),
+    (["--contact", "hunt-crossley", "--alpha=-1"], ["--alpha", "'-1'", ">= 0"]),
+    (["--alpha", "0.1"], ["--alpha", "'0.1'", "--contact linear"]),
+    (["--contact", "rigid"], ["--contact", "'rigid'", "hunt-crossley", "no k or damping"]),
+])
+def test_bad_hunt_crossley_input_is_one_line_before_any_cluster(args, names):
+    test_bad_input_is_one_line_and_exit_2_before_any_cluster(args, names)
+
+
+HC_CELL = {"k": 1e6, "zeta": math.nan, "alpha": 0.2, "n": 1.5, "m": 1.0, "h0": 0.5, "t_end": 1.0,
+           "output_interval": 1e-2, "contact": "hunt-crossley"}
+
+
+@pytest.mark.slow  # the mpmath truth: seconds
+def test_a_hunt_crossley_cell_is_measured_against_a_reference_that_follows_the_mpmath_truth():
+    """Its reference within REFERENCE_HELD_WITHIN of the truth with every event to 1e-9 s; each row's error within
+    that of the solver's own distance from the truth (triangle inequality), and under 1e-6 m."""
+    from bouncingball.bench.hunt_crossley import REFERENCE_HELD_WITHIN
+    from bouncingball.sweep.child import measure, reference_run
+    from bouncingball.sweep.grid import cell_of
+    from hunt_crossley_truth import HuntCrossleyTruth
+
+    truth = HuntCrossleyTruth(1.0, 1e6, 1.5, 0.2, 0.06, 9.81, 0.5, 0.0, 1.0)
+    assert [kind for _, kind, _ in truth.events] == ["impact", "departure"] * 3
+    reference = reference_run(cell_of(HC_CELL), 1.0, 1e-2)
+    h_true = np.array([float(truth.state(t)[0]) for t in reference.t])
+    reference_error = float(np.max(np.abs(reference.h - h_true)))
+    assert reference_error < REFERENCE_HELD_WITHIN
+    assert [str(e.kind) for e in reference.events] == [kind for _, kind, _ in truth.events]
+    assert max(abs(e.time - float(t)) for e, (t, _, _) in zip(reference.events, truth.events, strict=True)) < 1e-9
+    ball = bb.Ball(m=1.0, k=1e6, contact="hunt-crossley", n=1.5, alpha=0.2)
+    for solver, options in (("cvode", {"rtol": DEFAULT_RTOL, "atol": DEFAULT_ATOL}),
+                            ("scipy:DOP853", {"solver": "scipy", "method": "DOP853", "rtol": DEFAULT_RTOL,
+                                              "atol": DEFAULT_RTOL * 0.5, "max_step": 0.0})):
+        row = measure({**HC_CELL, "solver": solver})
+        result = bb.simulate(ball, 0.5, 0.0, 1.0, 1e-2, **options)
+        solver_error = float(np.max(np.abs(result.h - h_true)))
+        assert row["status"] == "finished" and row["event_mismatches"] == 0, row
+        assert row["events_found"] == row["events_exact"] == len(truth.events) == 6
+        assert abs(row["max_height_error"] - solver_error) <= reference_error, (solver, row, solver_error)
+        assert row["max_height_error"] < 1e-6
+        paired = max(abs(e.time - float(t)) for e, (t, _, _) in zip(result.events, truth.events, strict=True))
+        assert row["max_event_time_error"] <= paired + 1e-9

@@ -246,10 +246,14 @@ def flight_apex(exact: ExactSolution, t0: float, h0: float, v0: float, F_ext: fl
     flight that never comes back (the external force lifts the ball) is measured by how high it gets
     by exact.t_end.
     """
-    g_eff = exact.ball.effective_gravity(exact.F_ext if F_ext is None else F_ext)
+    return _apex(exact.ball, exact.F_ext if F_ext is None else F_ext, exact.t_end, t0, h0, v0)
+
+
+def _apex(ball: Ball, F_ext: float, t_end: float, t0: float, h0: float, v0: float) -> float:
+    g_eff = ball.effective_gravity(F_ext)
     if v0 > 0.0 and not g_eff > 0.0:
-        return h0 - exact.ball.R + v0 * (exact.t_end - t0)
-    return h0 - exact.ball.R + (0.5 * v0 * v0 / g_eff if v0 > 0.0 else 0.0)
+        return h0 - ball.R + v0 * (t_end - t0)
+    return h0 - ball.R + (0.5 * v0 * v0 / g_eff if v0 > 0.0 else 0.0)
 
 
 def event_hops(exact: ExactSolution) -> list[float]:
@@ -306,15 +310,46 @@ def event_mismatches(events: list[Event], exact: ExactSolution, height_tolerance
     contact then goes on through the hop) or, the other way round, present in events alone. An
     event within its time tolerance of the end may be in one list only: the other falls past it.
     """
-    R = exact.ball.R
-    bounded_hop = event_hops(exact)
-    wanted, found = exact.events, events
+    return _mismatches(events, exact.events, event_hops(exact),
+                       lambda event: flight_apex(exact, event.time, exact.ball.R, event.velocity), exact.t_end,
+                       height_tolerance, min_hop, "exact")
 
+
+def reference_event_mismatches(events: list[Event], reference: list[Event], ball: Ball, h0: float, v0: float,
+                               t_end: float, height_tolerance: float, min_hop: float,
+                               F_ext: float = 0.0) -> list[str]:
+    """event_mismatches' rule against a reference run's events, for a law without an exact solution.
+
+    Only the crossings of R (impacts and departures) are compared: a solver that clips the contact force in
+    its right-hand side (SciPy's methods under the Hunt-Crossley law) has no release or engage events. The hop
+    each reference event bounds is its flight's apex under the constant F_ext [N]: from (h0 [m], v0 [m/s])
+    for a first impact, from the departure's speed for every other.
+    """
+    found = [event for event in events if event.kind in (IMPACT, DEPARTURE)]
+    wanted = [event for event in reference if event.kind in (IMPACT, DEPARTURE)]
+
+    def apex(event: Event) -> float:
+        return _apex(ball, F_ext, t_end, event.time, ball.R, event.velocity)
+
+    hops = []
+    for i, event in enumerate(wanted):
+        if event.kind == DEPARTURE:
+            hops.append(apex(event))
+        elif i > 0 and wanted[i - 1].kind == DEPARTURE:
+            hops.append(hops[-1])
+        else:  # the first impact (or one after a contact that ended without a departure): the drop's own flight
+            hops.append(_apex(ball, F_ext, t_end, 0.0, h0, v0) if i == 0 else math.inf)
+    return _mismatches(found, wanted, hops, apex, t_end, height_tolerance, min_hop, "reference")
+
+
+def _mismatches(found: list[Event], wanted: list[Event], bounded_hop: list[float], apex, t_end: float,
+                height_tolerance: float, min_hop: float, source: str) -> list[str]:
+    """event_mismatches' rule: wanted events (from source) with the hop each bounds; apex(event) a found departure's."""
     def allowed(event: Event) -> float:
         return height_tolerance / abs(event.velocity) if event.velocity else math.inf
 
     def at_the_end(event: Event) -> bool:
-        return exact.t_end - event.time <= allowed(event)
+        return t_end - event.time <= allowed(event)
 
     problems: list[str] = []
     i = j = 0
@@ -326,8 +361,7 @@ def event_mismatches(events: list[Event], exact: ExactSolution, height_tolerance
         if i < len(wanted) and bounded_hop[i] <= min_hop:
             i += 2 if wanted[i].kind == DEPARTURE else 1  # a departure and its impact, or a first impact
             continue
-        if (j < len(found) and found[j].kind == DEPARTURE
-                and flight_apex(exact, found[j].time, R, found[j].velocity) <= min_hop
+        if (j < len(found) and found[j].kind == DEPARTURE and apex(found[j]) <= min_hop
                 and (j + 1 == len(found) or found[j + 1].kind == IMPACT)):
             j += 2
             continue
@@ -339,7 +373,8 @@ def event_mismatches(events: list[Event], exact: ExactSolution, height_tolerance
             continue
         if i < len(wanted):
             got = f"found {found[j].kind} at t = {found[j].time!r} s" if j < len(found) else "found nothing"
-            problems.append(f"exact {wanted[i].kind} at t = {wanted[i].time!r} s (hop {bounded_hop[i]:.3g} m): {got}")
+            problems.append(f"{source} {wanted[i].kind} at t = {wanted[i].time!r} s (hop {bounded_hop[i]:.3g} m): "
+                            f"{got}")
             i += 1
         else:
             problems.append(f"extra {found[j].kind} at t = {found[j].time!r} s")

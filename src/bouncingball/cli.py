@@ -85,9 +85,11 @@ def _build_parser() -> argparse.ArgumentParser:
                                                           "checked too, parameter columns are taken)")
     judge.add_argument("scene", nargs="?", default="article", help="the scene the master ran: a built-in scene "
                                                                    "name or a .toml file (default: article)")
+    from .fmu.variables import SCENE_FIELD_OF_START_VALUE
+
     judge.add_argument("--start-value", action="append", default=[], metavar="NAME=VALUE",
-                       help="a start value the master set on the FMU (m, k, b, R, g, h, v, F_ext, rtol, atol; "
-                            "repeatable)")
+                       help=f"a start value the master set on the FMU ({', '.join(SCENE_FIELD_OF_START_VALUE)}, "
+                            "rtol, atol; repeatable)")
     judge.add_argument("--tolerance", type=float, default=1e-6, help="allowed max |h - h_exact| [m] (default: 1e-6)")
     judge.add_argument("--input-file", metavar="F.csv", help="the FMPy input file (time,F_ext) the master drove F_ext "
                        "with: F_ext is held over each communication step at the value FMPy applies at its start")
@@ -101,18 +103,24 @@ def _build_parser() -> argparse.ArgumentParser:
                                          "matrix) and write the results")
     bench.add_argument("--quick", action="store_true", help="a small run that CI can afford")
     study = bench.add_mutually_exclusive_group()
+    study.add_argument("--hunt-crossley", action="store_true", help="the Hunt-Crossley law against DOP853 at a "
+                                                                    "matched error, and write hunt_crossley.md")
     study.add_argument("--stability", action="store_true", help="run every scene with every solver under a time "
                                                                 "cap and write stability.md")
     study.add_argument("--first-use", action="store_true", help="time the compiled engine's first use from a wheel "
                                                                 "installed in a fresh venv, and write first_use.md")
     bench.add_argument("--output-dir", default="bench-results",
                        help="where to write the results (default: bench-results; docs regenerates the committed ones)")
-    sweep = sub.add_parser("sweep", help="a stability map over (k, damping ratio, m, h0) for each solver, run on "
+    sweep = sub.add_parser("sweep", help="a stability map over (k, damping, m, h0) for each solver, run on "
                                          "Dask (needs the [sweep] extra)")
-    for name, default in (("k", "1e2:1e14:13"), ("zeta", "1e-4:1e2:7"), ("m", "1"), ("h0", "2")):
+    for name, default in (("k", "1e2:1e14:13 [N/m]; hunt-crossley: 1e3:1e9:13 [N/m^1.5]"),
+                          ("zeta", "1e-4:1e2:7, the linear laws' damping ratio"), ("m", "1 [kg]"), ("h0", "2 [m]")):
         sweep.add_argument(f"--{name}", metavar="LO:HI:N", help=f"log-spaced values (default: {default})")
-    sweep.add_argument("--contact", metavar="LAW", help="the balls' contact law: linear (default) or linear-no-pull "
-                       "(then CVODE alone by default: the article's and SciPy's algorithms model the linear law)")
+    sweep.add_argument("--alpha", metavar="VALUES", help="the Hunt-Crossley law's damping [s/m] (n = 1.5): values "
+                       "and LO:HI:N log-spaced ranges, comma-separated (default: 0,1e-4:1:9)")
+    sweep.add_argument("--contact", metavar="LAW", help="the balls' contact law: linear (default), linear-no-pull "
+                       "(then CVODE alone by default: the article's and SciPy's algorithms model a force that is a "
+                       "function of the state) or hunt-crossley (errors against a reference run per cell)")
     sweep.add_argument("--t-end", type=float, help="end time of each run [s] (default: 8)")
     sweep.add_argument("--solvers", help="comma-separated: cvode, cvode:Adams, cvode:BDF, article, scipy:METHOD "
                                          "(default: cvode,article,scipy:DOP853)")
@@ -369,7 +377,8 @@ def _command(args: argparse.Namespace) -> int:
     if args.command == "bench":
         from .bench import bench_command
 
-        return bench_command(args.output_dir, args.quick, args.stability, args.first_use)
+        return bench_command(args.output_dir, args.quick, args.stability, args.first_use,
+                             hunt_crossley=args.hunt_crossley)
     if args.command == "sweep":
         from .sweep.command import sweep_command
 

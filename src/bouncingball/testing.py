@@ -39,6 +39,7 @@ from .fmu.variables import (
     VARIABLES,
     ball_fields_of,
     fmu_scene,
+    judged_scene,
     start_values_of,
 )
 from .input_files import applied_force
@@ -223,7 +224,7 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
     if file_parameters:
         file_parameters += ": " + "; ".join([*(["; ".join(taken) + " taken from it"] if taken else []), *defaults]
                                             or ["as the scene and the FMU's defaults have them"])
-    ball = scene.ball
+    ball = judged_scene(scene, "check").ball
     t, h, t_res, h_res = file.time, file.h, file.time_resolution, file.h_resolution
     if t[0] < start_time - t_res[0]:
         raise BadResultError(f"{source}: its first time, {float(t[0])!r} s, is before the start time {start_time!r} s "

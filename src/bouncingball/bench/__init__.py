@@ -14,9 +14,9 @@ from pathlib import Path
 
 
 def bench_command(output_dir: str | Path = "bench-results", quick: bool = False, stability: bool = False,
-                  first_use: bool = False) -> int:
+                  first_use: bool = False, hunt_crossley: bool = False) -> int:
     """`bouncingball bench`: run the work-precision study (or, with stability, the stability matrix; with first_use,
-    the compiled engine's first use from a wheel)."""
+    the compiled engine's first use from a wheel; with hunt_crossley, that law against DOP853)."""
     from ..output import check_output_folder
 
     output_dir = check_output_folder("--output-dir", output_dir)
@@ -26,6 +26,10 @@ def bench_command(output_dir: str | Path = "bench-results", quick: bool = False,
         from . import first_use as study
 
         written = study.run(output_dir, repeats=2 if quick else study.REPEATS)
+    elif hunt_crossley:
+        from . import hunt_crossley as study
+
+        written = study.run(output_dir, quick=quick)
     elif stability:
         from .studies import run_stability_study
 

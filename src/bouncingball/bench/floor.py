@@ -73,15 +73,15 @@ class FloorStudy:
                 self.compiled.median / statistics.median(self.floor.times_in_c))
 
 
-def _run(case: Timed, scene: Scene, record: bool = True):
+def _run(case: Timed, scene: Scene, record: bool = True, errors=runners.errors_against_exact):
     run = runners.run_solver(case.solver, scene, DENSE, case.rtol, case.atol)
     if record:
-        case.status, case.errors = "ok", runners.errors_against_exact(scene, run)
+        case.status, case.errors = "ok", errors(scene, run)
         case.events, case.steps, case.rhs_calls = run.events, run.steps, run.rhs_calls
     return run
 
 
-def _interleave(cases: list[Timed], scene: Scene, repeats: int, bar) -> None:
+def interleave(cases: list[Timed], scene: Scene, repeats: int, bar) -> None:
     for case in cases:  # warm-up, untimed
         _run(case, scene, record=False)
     for _ in range(repeats):
@@ -94,10 +94,11 @@ def _interleave(cases: list[Timed], scene: Scene, repeats: int, bar) -> None:
 
 
 def match(solver: runners.Solver, scene: Scene, target: float, loosest: float, tightest: float,
-          steps: int) -> Timed | None:
+          steps: int, errors=runners.errors_against_exact) -> Timed | None:
     """The loosest rtol in [tightest, loosest] whose run's max height error is <= target, by bisection in log10 rtol.
 
     None if even tightest does not reach it; loosest if already it does. Each rtol is run, not interpolated.
+    errors(scene, run): the run's Accuracy (against the exact solution unless said otherwise).
     Where the error does not grow with rtol (DOP853's jumps with its event times), the rtol found reaches the
     target and a looser one within the last bisection step does not; a looser one further away may.
     """
@@ -107,7 +108,7 @@ def match(solver: runners.Solver, scene: Scene, target: float, loosest: float, t
         nonlocal runs
         runs += 1
         case = _case(solver, 10.0**log_rtol)
-        _run(case, scene)
+        _run(case, scene, errors=errors)
         return case
 
     bad, good = math.log10(loosest), math.log10(tightest)
@@ -158,8 +159,8 @@ def measure(scene: Scene, settings: Settings, errors: tuple[float, ...]) -> Floo
         _run(case, scene)
     with tqdm(total=settings.matched_repeats + settings.floor_repeats, desc="C floor, matched DOP853",
               unit="round") as bar:
-        _interleave(timed, scene, settings.matched_repeats, bar)
-        _interleave(floors, scene, settings.floor_repeats if floors else 0, bar)
+        interleave(timed, scene, settings.matched_repeats, bar)
+        interleave(floors, scene, settings.floor_repeats if floors else 0, bar)
     if reason is not None:
         return FloorStudy(None, None, False, False, matched, 0, f"the C floor cannot run here: {reason}")
     compiled, floor = floors

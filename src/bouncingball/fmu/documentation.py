@@ -178,7 +178,13 @@ rest.</p>
 <p>With <code>contact_law</code> = linear-no-pull the spring and damper's force max(0, k (R - h) - b v)
 never pulls: below R the ball is pressed while that force is positive and free (the flight's parabola)
 where it would pull, switching where the force crosses 0 (a release, an engagement) and departing where a
-free ball reaches R. <code>contact</code> is true while the ground pushes.</p>"""
+free ball reaches R. <code>contact</code> is true while the ground pushes.</p>
+<p>With <code>contact_law</code> = hunt-crossley the ground's force is Hunt and Crossley's
+k delta^n (1 + 3/2 alpha delta') for the penetration delta = R - h (<code>n</code>: 1.5 for Hertz's sphere;
+<code>k</code> then in N/m^n; b plays no part), clipped at 0 where it would pull: no jump of the force at
+an impact or a departure, and a restitution that falls with impact speed (1 - alpha v to first order). In
+co-simulation the FMU's CVODE integrates each contact; in model exchange the master does, the event
+indicator h - R as under the linear law (the clip is in the derivative).</p>"""
 
 
 def _variables_section(root: ET.Element, fmi3: bool) -> str:

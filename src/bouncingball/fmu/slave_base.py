@@ -32,7 +32,7 @@ from .engine_cache import first_use
 from .variables import FMU_CONTACT_LAWS, SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES, ball_fields_of
 
 # 7: the contact law's parameters; 6: the restart time's rounding error, model exchange's nominals; 5: the restart point
-STATE_FORMAT = "bouncingball-fmu-state-7"
+STATE_FORMAT = "bouncingball-fmu-state-8"
 DEFAULT_ENGINE = "auto"  # the compiled engine where numba is installed, loaded from the cache the FMU ships
 SETTABLE_AFTER_INITIALISATION = ("F_ext",)
 # Outputs the slave computes: a master may set the start values of h and v (initial="exact"), not these.

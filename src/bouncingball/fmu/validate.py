@@ -17,7 +17,7 @@ from ..accuracy import Accuracy, accuracy_of, accuracy_of_result, exact_on_grid,
 from ..capped import FINISHED, Capped, run_capped
 from ..scenes import Scene, load_scene
 from ..solvers import ARTICLE_LABEL
-from .variables import fmu_scene, start_values_of
+from .variables import judged_scene, start_values_of
 
 CVODE_LABEL = "CVODE (in-process)"
 NAME_WIDTH = 31
@@ -101,7 +101,7 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
         raise ValueError(f"fmi_version = {fmi_version!r} is not allowed: it must be 2 or 3")
     skip = {validation.choice("--skip", stage, STAGES) for stage in skip}
     time_cap = validation.positive("--time-cap", time_cap, "s")
-    scene = fmu_scene(load_scene(scene_name))
+    scene = judged_scene(load_scene(scene_name), "validate")
     if scene.ball.contact != "linear" and "scipy" not in skip:
         skip.add("scipy")
         progress("the article's SciPy algorithm is not run: it models the linear contact law, not "

@@ -23,6 +23,7 @@ UNITS = {
     "N": {"kg": 1, "m": 1, "s": -2},
     "N/m": {"kg": 1, "s": -2},
     "N.s/m": {"kg": 1, "s": -1},
+    "s/m": {"m": -1, "s": 1},
 }
 
 
@@ -44,7 +45,8 @@ class FmuVariable:
 
 VARIABLES = (
     FmuVariable("m", "Real", "parameter", "fixed", "mass of the ball (> 0)", "kg", SMALLEST_POSITIVE),
-    FmuVariable("k", "Real", "parameter", "fixed", "contact spring stiffness (> 0)", "N/m", SMALLEST_POSITIVE),
+    FmuVariable("k", "Real", "parameter", "fixed", "contact spring stiffness (> 0; contact_law hunt-crossley: "
+                "in N/m^n)", "N/m", SMALLEST_POSITIVE),
     FmuVariable("b", "Real", "parameter", "fixed", "contact damping coefficient (>= 0)", "N.s/m", 0.0),
     FmuVariable("R", "Real", "parameter", "fixed", "radius of the ball: contact while h < R (> 0)", "m",
                 SMALLEST_POSITIVE),
@@ -82,12 +84,17 @@ VARIABLES = (
     # After the seed's variables, so that theirs keep their value references.
     FmuVariable("contact_law", "String", "parameter", "fixed", "the contact law: linear (the spring k and damper "
                 "b, the default), rigid (an instantaneous impact on h = R with restitution e; k and b play no "
-                "part) or linear-no-pull (the spring and damper whose force max(0, k (R - h) - b v) never pulls)"),
+                "part), linear-no-pull (the spring and damper whose force max(0, k (R - h) - b v) never pulls) or "
+                "hunt-crossley (k delta^n (1 + 3/2 alpha delta'), delta = R - h, clipped at 0; b plays no part)"),
     FmuVariable("e", "Real", "parameter", "fixed", "contact_law rigid: coefficient of restitution, v+ = -e v- at "
                 "each impact, in [0, 1]", min=0.0, max=1.0),
     FmuVariable("v_min", "Real", "parameter", "fixed", "contact_law rigid: a bounce that would leave slower "
                 "than v_min ends at rest on the ground (>= 0; 0: every bounce, the infinitely many before the Zeno "
                 "time summed exactly)", "m/s", 0.0),
+    FmuVariable("n", "Real", "parameter", "fixed", "contact_law hunt-crossley: exponent of the penetration delta "
+                "= R - h in the force, in [1, 2.5] (1.5: Hertz's sphere on a flat)", min=1.0, max=2.5),
+    FmuVariable("alpha", "Real", "parameter", "fixed", "contact_law hunt-crossley: damping of the force, its "
+                "restitution about 1 - alpha v at impact speed v (>= 0)", "s/m", 0.0),
 )
 
 
@@ -99,10 +106,10 @@ SOLUTION_OUTPUTS = tuple(name for name in OUTPUTS if name != "error_estimate")
 # scene's start state and force as h, v and F_ext. The one mapping of the slave's defaults, validate,
 # the bench and `check` (testing.scene_with_start_values).
 # The contact laws (contact_laws.CONTACT_LAWS) the FMU runs, in co-simulation and in model exchange (slave3's events).
-FMU_CONTACT_LAWS = ("linear", "rigid", "linear-no-pull")
+FMU_CONTACT_LAWS = ("linear", "rigid", "linear-no-pull", "hunt-crossley")
 
 SCENE_FIELD_OF_START_VALUE = {"m": "m", "k": "k", "b": "b", "R": "R", "g": "g", "contact_law": "contact", "e": "e",
-                              "v_min": "v_min", "h": "h0", "v": "v0", "F_ext": "F_ext"}
+                              "v_min": "v_min", "n": "n", "alpha": "alpha", "h": "h0", "v": "v0", "F_ext": "F_ext"}
 SCENE_OWN_FIELDS = ("h0", "v0", "F_ext")  # the others are the ball's (physics.Ball's fields)
 TEXT_START_VALUES = ("contact_law",)  # the others are numbers
 
@@ -118,6 +125,18 @@ def fmu_scene(scene):
     if scene.ball.contact not in FMU_CONTACT_LAWS:
         raise ValueError(f"scene {scene.name!r} has contact = {scene.ball.contact!r}: the FMU models the contact laws "
                          f"{', '.join(FMU_CONTACT_LAWS)}; run the scene with `bouncingball run`")
+    return scene
+
+
+def judged_scene(scene, judge: str):
+    """The scene (fmu_scene's), if the exact solution can judge a run of it; else ValueError saying why (judge: who).
+
+    Every law the FMU runs has one but Hunt and Crossley's, whose contact has no closed form.
+    """
+    if fmu_scene(scene).ball.hunt_crossley:
+        raise ValueError(f"{judge} judges a run against the exact solution, and contact_law = 'hunt-crossley' has none "
+                         "(its contact has no closed form); compare the run with bouncingball.simulate at a tight "
+                         "rtol (1e-13) instead")
     return scene
 
 

@@ -28,11 +28,15 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     piece of constant force (solve_ivp restarts at each change, the state continuous, the mode held).
     A run that reports more than max_events events stops there
     (explicit methods chatter through false events on stiff scenes). progress: called with the time
-    reached [s] at each restart, for a progress display. The linear contact law only (ValueError else).
+    reached [s] at each restart, for a progress display. The linear and Hunt-Crossley contact laws (ValueError
+    else): the contact's right-hand side is Ball.acceleration, which clips the Hunt-Crossley force at 0 (its
+    free sub-mode is the same phase here, ended by the same crossing of R); the implicit methods take the
+    linear law's constant Jacobian, and estimate the Hunt-Crossley one by finite differences.
     """
-    if ball.contact != "linear":  # its terminal events switch between the linear law's two modes
+    if ball.contact not in ("linear", "hunt-crossley"):  # its terminal events switch between flight and contact
         raise ValueError(f"solver = 'scipy' is not allowed with contact = {ball.contact!r}: the reference "
-                         "article's algorithm models the linear contact law only; use cvode or exact")
+                         "article's algorithm models a contact whose force is a function of the state (linear, "
+                         "hunt-crossley); use cvode or exact")
     method = validation.choice("method", method, METHODS)
     rtol = validation.in_range("rtol", rtol, 0.0, 1.0)
     atol = validation.positive("atol", atol)
@@ -71,7 +75,7 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
 
         sol = solve_ivp(rhs, (t, t_stop), y, method=method, rtol=rtol, atol=atol,
                         max_step=max_step or np.inf, events=crossing, dense_output=True,
-                        **({"jac": jac} if method in IMPLICIT else {}))
+                        **({"jac": jac} if method in IMPLICIT and not ball.hunt_crossley else {}))
         stats.steps += len(sol.t) - 1
         stats.rhs_calls += sol.nfev
         if sol.status == -1:
@@ -91,7 +95,8 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     stats.events = len(events)
     stats.wall_time = time.perf_counter() - started
     rest_time = None
-    if mode == Mode.CONTACT and ball.contact_is_permanent(y[0], y[1], constant_pieces[-1][2]):
+    if mode == Mode.CONTACT and not ball.hunt_crossley and ball.contact_is_permanent(y[0], y[1],
+                                                                                      constant_pieces[-1][2]):
         rest_time = last_impact
     options = {"method": method, "rtol": rtol, "atol": atol, "max_step": max_step}
     return SimulationResult("scipy", ball, grid, h_out, v_out, events, rest_time, stats, F_ext, options)

@@ -6,15 +6,17 @@ long-lived child per thread, killed past the cap), so a run that hangs or crashe
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import socket
 
-from ..accuracy import event_mismatches
+from ..accuracy import event_mismatches, reference_event_mismatches
 from ..bench import runners
+from ..bench.hunt_crossley import REFERENCE_ATOL, REFERENCE_RTOL, against
 from ..capped import FINISHED, run_capped
 from ..solvers.settings import DEFAULT_RTOL, merged_hop_limit
-from .grid import Cell, solver_spec, tolerances
+from .grid import HUNT_CROSSLEY, Cell, cell_of, solver_spec, tolerances
 
 DEFAULT_TIME_CAP = 2.0  # s per run
 WORKER_NAME = f"{socket.gethostname()}:{os.getpid()}"
@@ -27,12 +29,14 @@ HEIGHT_TOLERANCE = 1e-6  # m: an event must be within the time the ball takes to
 def measure(spec: dict) -> dict:
     """Run one (cell, solver) and compare it with the exact solution on the run's own output grid.
 
-    The only place the sweep calls the bench's runner and the comparison with the exact solution.
+    The only place the sweep calls the bench's runner and the comparison with the exact solution. The
+    Hunt-Crossley law has none: its runs are compared with the cell's reference run (reference_run), the
+    events_exact and the event times being the reference's.
 
     Parameters
     ----------
     spec : dict
-        A run from Grid.runs(): k, zeta, m, h0, t_end, output_interval and solver.
+        A run from Grid.runs(): k, zeta (or alpha), m, h0, t_end, output_interval, solver and contact.
 
     Returns
     -------
@@ -51,14 +55,20 @@ def measure(spec: dict) -> dict:
     ('finished', 4, True)
     """
     try:
-        scene = Cell(spec["k"], spec["zeta"], spec["m"], spec["h0"], spec.get("contact", "linear")).scene(
-            spec["t_end"], spec["output_interval"])
+        cell = cell_of(spec)
+        scene = cell.scene(spec["t_end"], spec["output_interval"])
         run = runners.run_solver(solver_spec(spec["solver"]), scene, scene.output_interval,
                                  *tolerances(spec["solver"]))
-        exact, errors = runners.exact_and_errors(scene, run)
         rtol, atol = tolerances(spec["solver"])
-        mismatches = event_mismatches(run.events, exact.solution, HEIGHT_TOLERANCE,
-                                      merged_hop_limit(scene.ball, rtol or DEFAULT_RTOL, atol, scene.F_ext))
+        min_hop = merged_hop_limit(scene.ball, rtol or DEFAULT_RTOL, atol, scene.F_ext)
+        if cell.contact == HUNT_CROSSLEY:
+            reference = reference_run(cell, scene.t_end, scene.output_interval)
+            errors = against(reference)(scene, run)
+            mismatches = reference_event_mismatches(run.events, reference.events, scene.ball, scene.h0, scene.v0,
+                                                    scene.t_end, HEIGHT_TOLERANCE, min_hop, scene.F_ext)
+        else:
+            exact, errors = runners.exact_and_errors(scene, run)
+            mismatches = event_mismatches(run.events, exact.solution, HEIGHT_TOLERANCE, min_hop)
     except Exception as error:  # a failed run is a row of the map, not a crash of the sweep
         reason = f"{type(error).__name__}: {error}".splitlines()[0][:300]
         return {"status": "failed", "reason": reason, **MEASURES}
@@ -67,6 +77,17 @@ def measure(spec: dict) -> dict:
             "first_mismatch": mismatches[0] if mismatches else "", "max_height_error": errors.max_height_error,
             "max_event_time_error": errors.max_event_time_error, "wall_time": run.wall_time,
             "rhs_calls": -1 if run.rhs_calls is None else int(run.rhs_calls), "steps": int(run.steps)}
+
+
+@functools.lru_cache(maxsize=4)
+def reference_run(cell: Cell, t_end: float, output_interval: float) -> runners.Run:
+    """A Hunt-Crossley cell's truth: the compiled engine at REFERENCE_RTOL, REFERENCE_ATOL, on the same output grid [s].
+
+    bench --hunt-crossley's reference (tests/test_hunt_crossley.py and tests/test_sweep.py hold it to the mpmath
+    truth). Kept for the cell's next solvers: a batch runs a cell's solvers one after another in one child.
+    """
+    return runners.run_solver(runners.CVODE_COMPILED, cell.scene(t_end, output_interval), output_interval,
+                              REFERENCE_RTOL, REFERENCE_ATOL)
 
 
 def run_batch(specs: list[dict], time_cap: float) -> list[dict]:

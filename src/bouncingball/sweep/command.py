@@ -15,10 +15,12 @@ QUICK_TIME_CAP = 1.0  # s
 
 def build_grid(k: str | None = None, zeta: str | None = None, m: str | None = None, h0: str | None = None,
                t_end: float | None = None, solvers: str | None = None, quick: bool = False,
-               contact: str | None = None) -> grids.Grid:
+               contact: str | None = None, alpha: str | None = None) -> grids.Grid:
     """The Grid from the command line's text (None: the default, or with quick the small grid).
 
-    contact: the contact law (default linear); another runs CVODE alone unless solvers says otherwise.
+    contact: the contact law (default linear); the no-pull law runs CVODE alone unless solvers says otherwise.
+    The Hunt-Crossley law's damping axis is alpha [s/m] (grid.parse_alpha's text), k in N/m^1.5; the linear
+    laws' is zeta. Each refuses the other's.
 
     Raises
     ------
@@ -30,12 +32,26 @@ def build_grid(k: str | None = None, zeta: str | None = None, m: str | None = No
     >>> build_grid(k="1e2:1e6:3", zeta="0.1", solvers="cvode,article").runs()[0]["solver"]
     'cvode'
     """
-    defaults = {"k": grids.QUICK_K if quick else grids.DEFAULT_K, "zeta": grids.QUICK_ZETA if quick else
-                grids.DEFAULT_ZETA, "m": grids.DEFAULT_M, "h0": grids.DEFAULT_H0}
+    contact = "linear" if contact is None else grids.check_contact("--contact", contact)
+    hunt_crossley = contact == grids.HUNT_CROSSLEY
+    if hunt_crossley and zeta is not None:
+        raise ValueError(f"--zeta = {zeta!r} is not allowed with --contact hunt-crossley: its damping is alpha "
+                         "[s/m]; use --alpha")
+    if not hunt_crossley and alpha is not None:
+        raise ValueError(f"--alpha = {alpha!r} is not allowed with --contact {contact}: it is the Hunt-Crossley "
+                         "law's damping; use --zeta")
+    if hunt_crossley:
+        defaults = {"k": grids.QUICK_HC_K if quick else grids.DEFAULT_HC_K}
+    else:
+        defaults = {"k": grids.QUICK_K if quick else grids.DEFAULT_K, "zeta": grids.QUICK_ZETA if quick else
+                    grids.DEFAULT_ZETA}
+    defaults.update(m=grids.DEFAULT_M, h0=grids.DEFAULT_H0)
     axes = {field: defaults[field] if text is None else grids.parse_range(field, text)
-            for field, text in (("k", k), ("zeta", zeta), ("m", m), ("h0", h0))}
-    contact = "linear" if contact is None else validation.choice("--contact", contact, grids.MAPPED_CONTACT_LAWS)
-    default = grids.DEFAULT_SOLVERS if contact == "linear" else ("cvode",)
+            for field, text in (("k", k), ("zeta", zeta), ("m", m), ("h0", h0)) if field in defaults}
+    if hunt_crossley:
+        axes["alpha"] = (grids.QUICK_ALPHA if quick else grids.DEFAULT_ALPHA) if alpha is None else \
+            grids.parse_alpha(alpha)
+    default = ("cvode",) if contact == "linear-no-pull" else grids.DEFAULT_SOLVERS
     names = default if solvers is None else tuple(name.strip() for name in solvers.split(","))
     for name in names:
         if name.lower() not in (known.lower() for known in grids.solver_names()):
@@ -50,7 +66,8 @@ def sweep_command(args) -> int:
     """Run `bouncingball sweep` from parsed arguments; every input is checked before a cluster starts."""
     from .run import check_settings
 
-    grid = build_grid(args.k, args.zeta, args.m, args.h0, args.t_end, args.solvers, args.quick, args.contact)
+    grid = build_grid(args.k, args.zeta, args.m, args.h0, args.t_end, args.solvers, args.quick, args.contact,
+                      args.alpha)
     time_cap = args.time_cap if args.time_cap is not None else QUICK_TIME_CAP if args.quick else DEFAULT_TIME_CAP
     check_settings(time_cap, args.workers, args.batch_size)
     connect_timeout = validation.positive("--connect-timeout", args.connect_timeout, "s")

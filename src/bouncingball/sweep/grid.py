@@ -1,4 +1,4 @@
-"""The sweep's parameter grid: log-spaced ranges of k, damping ratio, m and h0, and the solvers to run.
+"""The sweep's parameter grid: ranges of k, the damping (zeta, or alpha for Hunt-Crossley), m and h0; the solvers.
 
 No Dask, pandas or pyarrow here: the grid is checked before any cluster starts.
 """
@@ -28,9 +28,35 @@ QUICK_K = (1e2, 1e14, 4)
 QUICK_ZETA = (1e-4, 1e2, 3)
 MAX_POINTS = 1000  # per axis: a bigger grid is a typo, not a study
 MAX_RUNS = 1_000_000
-UNITS = {"k": "N/m", "zeta": "", "m": "kg", "h0": "m"}
-# The contact laws whose balls the (k, zeta) grid describes: the rigid law has neither.
-MAPPED_CONTACT_LAWS = ("linear", "linear-no-pull")
+UNITS = {"k": "N/m", "zeta": "", "alpha": "s/m", "m": "kg", "h0": "m"}
+# The contact laws whose balls the grid describes: the rigid law has no k or damping.
+MAPPED_CONTACT_LAWS = ("linear", "linear-no-pull", "hunt-crossley")
+HUNT_CROSSLEY = "hunt-crossley"
+# Its grid: k [N/m^1.5] and alpha [s/m] (alpha = 0 the undamped Hertz contact); n held at Hertz's 1.5 for spheres.
+HC_N = 1.5
+DEFAULT_HC_K = (1e3, 1e9, 13)  # N/m^1.5, half decades
+DEFAULT_ALPHA_TEXT = "0,1e-4:1:9"  # s/m: 0 and half decades (DEFAULT_ALPHA, below)
+QUICK_HC_K = (1e3, 1e9, 3)
+QUICK_ALPHA = (0.0, 1e-2, 1.0)
+
+
+def check_contact(name: str, value: object) -> str:
+    """The contact law, spelled as in MAPPED_CONTACT_LAWS; ValueError naming name and the laws (the rigid law: why)."""
+    try:
+        return validation.choice(name, value, MAPPED_CONTACT_LAWS)
+    except ValueError as error:
+        why = " (the rigid law has no k or damping to map)" if str(value).lower() == "rigid" else ""
+        raise ValueError(f"{error}{why}") from None
+
+
+def damping_field(contact: str) -> str:
+    """The grid's damping axis for a contact law: "alpha" for the Hunt-Crossley law, "zeta" for the linear laws."""
+    return "alpha" if contact == HUNT_CROSSLEY else "zeta"
+
+
+def k_unit(contact: str) -> str:
+    """The unit of k under a contact law: N/m, or N/m^n for the Hunt-Crossley law (n = HC_N)."""
+    return f"N/m^{HC_N:g}" if contact == HUNT_CROSSLEY else "N/m"
 
 
 def solver_names() -> tuple[str, ...]:
@@ -103,6 +129,50 @@ def parse_range(field: str, text: str) -> tuple[float, float, int]:
     return low, high, points
 
 
+ALPHA_FORM = "comma-separated values >= 0 and LO:HI:N log-spaced ranges (0 < LO <= HI), e.g. 0,1e-4:1:5"
+
+
+def parse_alpha(text: str) -> tuple[float, ...]:
+    """Parse the Hunt-Crossley damping axis, "0,1e-4:1:5" (0 and 5 log-spaced values), into sorted values [s/m].
+
+    Raises
+    ------
+    ValueError
+        Naming --alpha, the value and the allowed form, if an item is malformed, negative or not finite.
+
+    Examples
+    --------
+    >>> parse_alpha("0,1e-2:1:3")
+    (0.0, 0.01, 0.1, 1.0)
+    """
+    values: list[float] = []
+    for item in text.split(","):
+        if ":" in item:
+            try:
+                values += log_points(*parse_range("alpha", item.strip()))
+            except ValueError:
+                raise ValueError(f"--alpha = {text!r} is not allowed: {item.strip()!r} is not LO:HI:N with "
+                                 f"0 < LO <= HI and 1 <= N <= {MAX_POINTS}; it must be {ALPHA_FORM}") from None
+            continue
+        try:
+            value = float(item)
+        except ValueError:
+            raise ValueError(f"--alpha = {text!r} is not allowed: it must be {ALPHA_FORM}") from None
+        if not (math.isfinite(value) and value >= 0.0):
+            raise ValueError(f"--alpha = {text!r} is not allowed: {item.strip()} s/m is not finite and >= 0; "
+                             f"it must be {ALPHA_FORM}")
+        values.append(value)
+    return check_alpha(values)
+
+
+def check_alpha(values) -> tuple[float, ...]:
+    """The alpha axis as sorted distinct floats [s/m]; ValueError naming alpha unless each is finite and >= 0."""
+    if isinstance(values, str) or not 1 <= len(values) <= MAX_POINTS:
+        raise ValueError(f"alpha = {values!r} is not allowed: it must be 1 to {MAX_POINTS} values [s/m], "
+                         "each finite and >= 0")
+    return tuple(sorted({validation.non_negative("alpha", value, "s/m") for value in values}))
+
+
 def log_points(low: float, high: float, points: int) -> tuple[float, ...]:
     """points log-spaced values from low to high, both included (exactly)."""
     if points == 1:
@@ -112,34 +182,78 @@ def log_points(low: float, high: float, points: int) -> tuple[float, ...]:
     return tuple(float(x) for x in values)
 
 
+DEFAULT_ALPHA = parse_alpha(DEFAULT_ALPHA_TEXT)
+
+
 @dataclass(frozen=True)
 class Cell:
-    """One point of the parameter space: stiffness k [N/m], damping ratio zeta, mass m [kg], drop height h0 [m].
+    """One point of the parameter space: stiffness k, damping, mass m [kg], drop height h0 [m].
 
-    contact: the ball's contact law, one of MAPPED_CONTACT_LAWS.
+    contact: the ball's contact law, one of MAPPED_CONTACT_LAWS. Under the linear laws k is in N/m and the
+    damping is the damping ratio zeta (alpha None); under the Hunt-Crossley law k is in N/m^1.5, n = HC_N,
+    and the damping is alpha [s/m] (zeta None).
     """
 
     k: float
-    zeta: float
+    zeta: float | None
     m: float
     h0: float
     contact: str = "linear"
+    alpha: float | None = None
+
+    def __post_init__(self) -> None:
+        contact = check_contact("contact", self.contact)
+        object.__setattr__(self, "contact", contact)
+        if contact == HUNT_CROSSLEY:
+            if self.zeta is not None:
+                raise ValueError(f"zeta = {self.zeta!r} is not allowed with contact = 'hunt-crossley': its damping "
+                                 "is alpha [s/m], not a damping ratio")
+            if self.alpha is None:
+                raise ValueError("alpha = None is not allowed with contact = 'hunt-crossley': it must be finite "
+                                 "and >= 0 [s/m]")
+            object.__setattr__(self, "alpha", validation.non_negative("alpha", self.alpha, "s/m"))
+        elif self.alpha is not None:
+            raise ValueError(f"alpha = {self.alpha!r} s/m is not allowed with contact = {contact!r}: its damping is "
+                             "the damping ratio zeta")
 
     @property
-    def b(self) -> float:
-        """The damping coefficient b = 2 zeta sqrt(k m) [N s/m]."""
-        return 2.0 * self.zeta * math.sqrt(self.k * self.m)
+    def damping(self) -> float:
+        """The value on the grid's damping axis: alpha [s/m] under the Hunt-Crossley law, else zeta."""
+        return self.alpha if self.contact == HUNT_CROSSLEY else self.zeta
+
+    @property
+    def b(self) -> float | None:
+        """The damping coefficient b = 2 zeta sqrt(k m) [N s/m]; None under the Hunt-Crossley law (no linear damper)."""
+        return None if self.zeta is None else 2.0 * self.zeta * math.sqrt(self.k * self.m)
 
     def scene(self, t_end: float, output_interval: float) -> Scene:
         """The cell as a Scene: the article's R and g, dropped at rest from h0."""
-        ball = Ball(m=self.m, k=self.k, b=self.b, R=ARTICLE_BALL.R, g=ARTICLE_BALL.g, contact=self.contact)
-        return Scene(f"k={self.k:.3g},zeta={self.zeta:.3g},m={self.m:.3g},h0={self.h0:.3g}", "sweep cell",
+        if self.contact == HUNT_CROSSLEY:
+            ball = Ball(m=self.m, k=self.k, R=ARTICLE_BALL.R, g=ARTICLE_BALL.g, contact=self.contact, n=HC_N,
+                        alpha=self.alpha)
+        else:
+            ball = Ball(m=self.m, k=self.k, b=self.b, R=ARTICLE_BALL.R, g=ARTICLE_BALL.g, contact=self.contact)
+        damping = damping_field(self.contact)
+        return Scene(f"k={self.k:.3g},{damping}={self.damping:.3g},m={self.m:.3g},h0={self.h0:.3g}", "sweep cell",
                      ball, self.h0, 0.0, t_end, output_interval)
+
+
+def cell_of(run: dict) -> Cell:
+    """The Cell of a run from Grid.runs() (or a table's row): its zeta or alpha, the other NaN or absent."""
+    def given(field):
+        value = run.get(field)
+        return None if value is None or (isinstance(value, float) and math.isnan(value)) else value
+
+    return Cell(run["k"], given("zeta"), run["m"], run["h0"], run.get("contact", "linear"), given("alpha"))
 
 
 @dataclass(frozen=True)
 class Grid:
     """A log-spaced grid: each axis a (low, high, points) triple; every cell is run by every solver.
+
+    The damping axis is zeta under the linear laws (default DEFAULT_ZETA) and alpha [s/m] under the Hunt-Crossley
+    law (its values, default DEFAULT_ALPHA: 0 is on no log scale); the other is None. k defaults to DEFAULT_K
+    [N/m], or DEFAULT_HC_K [N/m^1.5] under the Hunt-Crossley law.
 
     Examples
     --------
@@ -148,17 +262,32 @@ class Grid:
     (6, 12)
     """
 
-    k: tuple[float, float, int] = DEFAULT_K
-    zeta: tuple[float, float, int] = DEFAULT_ZETA
+    k: tuple[float, float, int] | None = None
+    zeta: tuple[float, float, int] | None = None
     m: tuple[float, float, int] = DEFAULT_M
     h0: tuple[float, float, int] = DEFAULT_H0
     t_end: float = DEFAULT_T_END
     output_interval: float = DEFAULT_OUTPUT_INTERVAL
     solvers: tuple[str, ...] = DEFAULT_SOLVERS
     contact: str = "linear"
+    alpha: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
-        for field in ("k", "zeta", "m", "h0"):
+        contact = check_contact("contact", self.contact)
+        object.__setattr__(self, "contact", contact)
+        if contact == HUNT_CROSSLEY:
+            if self.zeta is not None:
+                raise ValueError(f"zeta = {self.zeta!r} is not allowed with contact = 'hunt-crossley': its damping "
+                                 "axis is alpha [s/m], not a damping ratio")
+            object.__setattr__(self, "alpha", check_alpha(DEFAULT_ALPHA if self.alpha is None else self.alpha))
+        else:
+            if self.alpha is not None:
+                raise ValueError(f"alpha = {self.alpha!r} is not allowed with contact = {contact!r}: its damping "
+                                 "axis is the damping ratio zeta")
+            object.__setattr__(self, "zeta", DEFAULT_ZETA if self.zeta is None else self.zeta)
+        if self.k is None:
+            object.__setattr__(self, "k", DEFAULT_HC_K if contact == HUNT_CROSSLEY else DEFAULT_K)
+        for field in ("k", "m", "h0") if contact == HUNT_CROSSLEY else ("k", "zeta", "m", "h0"):
             low, high, points = getattr(self, field)
             text = f"{low!r}:{high!r}:{points!r}"
             if isinstance(points, bool) or not isinstance(points, int):
@@ -173,35 +302,55 @@ class Grid:
                              f"{', '.join(solver_names())}")
         names = tuple(dict.fromkeys(validation.choice("solver", name, solver_names()) for name in self.solvers))
         object.__setattr__(self, "solvers", names)
-        contact = validation.choice("contact", self.contact, MAPPED_CONTACT_LAWS)
-        object.__setattr__(self, "contact", contact)
         other = next((name for name in names if not name.startswith("cvode")), None)
-        if contact != "linear" and other is not None:
+        if contact == "linear-no-pull" and other is not None:
             raise ValueError(f"solver = {other!r} is not allowed with contact = {contact!r}: the article's algorithm "
-                             "and SciPy's methods model the linear contact law only; use cvode, cvode:Adams or "
-                             "cvode:BDF")
+                             "and SciPy's methods model a contact force that is a function of the state (the linear "
+                             "and Hunt-Crossley laws); use cvode, cvode:Adams or cvode:BDF")
         runs = len(self.cells()) * len(names)
         if runs > MAX_RUNS:
             raise ValueError(f"the grid = {runs} runs is not allowed: at most {MAX_RUNS}")
 
+    @property
+    def damping(self) -> str:
+        """The damping axis' field: "zeta", or "alpha" under the Hunt-Crossley law."""
+        return damping_field(self.contact)
+
     def axis(self, field: str) -> tuple[float, ...]:
-        """The values of one axis ("k", "zeta", "m" or "h0")."""
+        """The values of one axis ("k", "zeta" or "alpha" as the law has, "m" or "h0")."""
+        if field == "alpha" and self.alpha is not None:
+            return self.alpha
+        if getattr(self, field, None) is None:
+            raise ValueError(f"axis = {field!r} is not allowed with contact = {self.contact!r}: its axes are k, "
+                             f"{self.damping}, m and h0")
         return log_points(*getattr(self, field))
 
     def cells(self) -> list[Cell]:
         """Every cell of the grid, k varying fastest."""
-        return [Cell(k, zeta, m, h0, self.contact) for m in self.axis("m") for h0 in self.axis("h0")
-                for zeta in self.axis("zeta") for k in self.axis("k")]
+        hunt_crossley = self.contact == HUNT_CROSSLEY
+        return [Cell(k, None if hunt_crossley else damping, m, h0, self.contact, damping if hunt_crossley else None)
+                for m in self.axis("m") for h0 in self.axis("h0") for damping in self.axis(self.damping)
+                for k in self.axis("k")]
 
     def runs(self) -> list[dict]:
-        """Every (cell, solver) as the plain dict a worker receives; key identifies it for --resume."""
-        return [{"key": run_key(cell, solver, self.t_end, self.output_interval), "k": cell.k, "zeta": cell.zeta,
-                 "m": cell.m, "h0": cell.h0, "b": cell.b, "t_end": self.t_end,
+        """Every (cell, solver) as the plain dict a worker receives; key identifies it for --resume.
+
+        A field the law has not (zeta and b, or alpha and n) is NaN, so that each table column is of floats.
+        """
+        hunt_crossley = self.contact == HUNT_CROSSLEY
+        return [{"key": run_key(cell, solver, self.t_end, self.output_interval), "k": cell.k,
+                 "zeta": math.nan if hunt_crossley else cell.zeta, "m": cell.m, "h0": cell.h0,
+                 "b": math.nan if hunt_crossley else cell.b, "alpha": cell.alpha if hunt_crossley else math.nan,
+                 "n": HC_N if hunt_crossley else math.nan, "t_end": self.t_end,
                  "output_interval": self.output_interval, "solver": solver, "contact": cell.contact}
                 for cell in self.cells() for solver in self.solvers]
 
 
 def run_key(cell: Cell, solver: str, t_end: float, output_interval: float) -> str:
-    """A text key that identifies one run exactly (floats as repr); the linear law's keys name no law (as before)."""
+    """A text key that identifies one run exactly (floats as repr); the linear law's keys name no law (as before).
+
+    A Hunt-Crossley cell's key names its alpha where the linear laws' hold zeta.
+    """
     law = "" if cell.contact == "linear" else f"|{cell.contact}"
-    return f"{solver}|{cell.k!r}|{cell.zeta!r}|{cell.m!r}|{cell.h0!r}|{t_end!r}|{output_interval!r}{law}"
+    damping = f"alpha={cell.alpha!r}" if cell.contact == HUNT_CROSSLEY else repr(cell.zeta)
+    return f"{solver}|{cell.k!r}|{damping}|{cell.m!r}|{cell.h0!r}|{t_end!r}|{output_interval!r}{law}"

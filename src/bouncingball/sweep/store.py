@@ -18,9 +18,10 @@ from ..output import atomic_write
 
 PARTS = "sweep_parts"
 TABLE = "stability_map.parquet"
-COLUMNS = ("key", "k", "zeta", "m", "h0", "b", "t_end", "output_interval", "solver", "contact", "status", "reason",
-           "events_found", "events_exact", "event_mismatches", "first_mismatch", "max_height_error",
-           "max_event_time_error", "wall_time", "rhs_calls", "steps", "worker", "batch")
+# alpha and n: the Hunt-Crossley law's (NaN under the linear laws, whose zeta and b are NaN under it).
+COLUMNS = ("key", "k", "zeta", "m", "h0", "b", "alpha", "n", "t_end", "output_interval", "solver", "contact",
+           "status", "reason", "events_found", "events_exact", "event_mismatches", "first_mismatch",
+           "max_height_error", "max_event_time_error", "wall_time", "rhs_calls", "steps", "worker", "batch")
 
 
 _TABLE_TEMPORARY = f".{TABLE}.tmp"
