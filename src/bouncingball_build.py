@@ -12,6 +12,7 @@ then compiles at first use, and says so).
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import tomllib
@@ -39,9 +40,23 @@ class BuildPy(build_py):
     """setuptools' build_py, then, for a wheel, the compiled engine of the package just built compiled into it."""
 
     def run(self):
-        """Build the package, then compile its engine into it (not for an editable install)."""
+        """Build the package, then compile its engine into it (not for an editable install).
+
+        The package built is put first on the path the build environment already has (pip's isolated
+        environment reaches its child processes through PYTHONPATH), and writes no bytecode into the
+        wheel. A compile that fails leaves a wheel without the cache, said on stderr.
+        """
         super().run()
-        if self.editable_mode or not _ships_cache():
+        if self.editable_mode:
             return
-        environment = {**os.environ, "PYTHONPATH": os.path.abspath(self.build_lib)}
-        subprocess.run([sys.executable, "-m", "bouncingball.solvers.engine_cache"], env=environment, check=True)
+        from_earlier_build = os.path.join(self.build_lib, "bouncingball", "numba-cache")  # engine_cache.SHIPPED
+        shutil.rmtree(from_earlier_build, ignore_errors=True)  # a kept build folder's: not this build's code
+        if not _ships_cache():
+            return
+        path = os.pathsep.join(filter(None, (os.path.abspath(self.build_lib), os.environ.get("PYTHONPATH"))))
+        environment = {**os.environ, "PYTHONPATH": path, "PYTHONDONTWRITEBYTECODE": "1"}
+        completed = subprocess.run([sys.executable, "-m", "bouncingball.solvers.engine_cache"], env=environment,
+                                   check=False)
+        if completed.returncode != 0:
+            print("bouncingball: the wheel ships no cache of its compiled engine (its compile exited with status "
+                  f"{completed.returncode}): it compiles at its first use where it runs", file=sys.stderr)

@@ -681,3 +681,14 @@ def test_a_cache_folder_that_cannot_be_used_is_said_before_numba_compiles_in_the
     [line] = completed.stderr.splitlines()
     assert line.startswith("bouncingball: numba compiles the compiled engine in this process (about 15 s), and cannot "
                            f"keep it: its cache folder {blocker}/bouncingball/numba-")
+
+
+def test_an_index_that_cannot_be_read_is_a_misfit_the_shipped_cache_replaces(tmp_path):
+    """A truncated index in the user-wide cache (a full disk, a killed copy) is named as a misfit, not an error that
+    leaves numba compiling in every process: a shipped cache that fits is copied over it."""
+    from bouncingball.solvers import jit
+
+    digest = jit.sources_digest(jit.engine_sources())
+    index = tmp_path / f"m.f-1{_python_tag()}.nbi"
+    index.write_bytes(b"\x80\x04\x95")
+    assert jit.cache_misfit(str(tmp_path), digest) == f"its index {index.name} cannot be read (UnpicklingError)"

@@ -37,6 +37,8 @@ CASES = {
     "stiff-n": (1e7, 2.5, 0.5, 0.5, 0.06, 9.81, 0.3, -1.0, 0.6, 0.0),
     # resting at its static deflection, then lifted by 3 m g: the clip engages (a release, free, a departure)
     "lifted": (1e6, 1.5, 20.0, 1.0, 0.06, 9.81, 0.06 - (9.81 / 1e6) ** (1 / 1.5), 0.0, 0.1, 3 * 9.81),
+    # 5 cm deep, rising at 1 m/s past the release speed 2/3 m/s: it starts free, and is pressed again below R
+    "free-start": (1e4, 1.5, 1.0, 1.0, 0.06, 9.81, 0.01, 1.0, 0.3, 0.0),
 }
 
 

@@ -17,7 +17,7 @@ import pytest
 
 import bouncingball
 from bouncingball import limits
-from bouncingball.physics import Ball
+from bouncingball.physics import Ball, Mode
 from bouncingball.scenes import BUILTIN_SCENES, load_scene
 from bouncingball.solvers.result import output_grid
 
@@ -207,3 +207,13 @@ def test_a_heavy_ball_on_a_stiff_spring_names_the_combination_and_what_to_change
         beyond = value * (1.0 + 1e-9) if relation == "<=" else value * (1.0 - 1e-9)
         with pytest.raises(ValueError, match="are not allowed together|is not allowed for this ball"):
             limits.check_scene(Ball(**{"m": 1e300, "k": 1e300, name: beyond}), 0.06, 0.0)
+
+
+@pytest.mark.parametrize("ball, v0", [(Ball(contact="hunt-crossley", alpha=1.0), 0.8),
+                                      (Ball(contact="linear-no-pull", k=1e4, b=1e4), 0.1)])
+def test_a_ball_starting_free_below_R_is_checked_as_the_contact_it_is_in(ball, v0):
+    """Below R in the free sub-mode (rising past the release speed; the no-pull force would pull), the range check
+    measured its start as a flight's fall from below R: a negative energy, and a bare math domain error."""
+    assert ball.initial_mode(0.01, v0) == Mode.FREE
+    result = bouncingball.simulate(ball, 0.01, v0, 0.05, 1e-3)
+    assert result.h[-1] > 0.01 and result.stats.engine in ("compiled", "sksundae")

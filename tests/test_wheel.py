@@ -27,12 +27,15 @@ def run(command, cwd, timeout=600) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory) -> Path:
-    """The bin folder of a fresh venv with the wheel installed with its [fmu] and [fast] extras."""
+    """The bin folder of a fresh venv with the wheel installed with its [fmu] and [fast] extras.
+
+    The wheel is built by that venv's pip while it holds nothing: the build's requirements (the engine's,
+    for its compiled cache) come from pip's isolated build environment alone."""
     folder = tmp_path_factory.mktemp("wheel")
-    run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", folder / "dist", ROOT], cwd=folder)
-    [wheel] = (folder / "dist").glob("bouncingball-*.whl")
     run([sys.executable, "-m", "venv", folder / "venv"], cwd=folder)
     bin_dir = folder / "venv" / "bin"
+    run([bin_dir / "python", "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", folder / "dist", ROOT], cwd=folder)
+    [wheel] = (folder / "dist").glob("bouncingball-*.whl")
     run([bin_dir / "python", "-m", "pip", "install", "--quiet", f"{wheel}[fmu,fast]"], cwd=folder)
     return bin_dir
 
@@ -77,6 +80,10 @@ def test_the_wheel_carries_its_compiled_engine_and_a_first_use_compiles_nothing(
     site = run([installed / "python", "-c", "import bouncingball, os; print(os.path.dirname(bouncingball.__file__))"],
                cwd=tmp_path).stdout.strip()
     assert len(list(Path(site, "numba-cache").glob("*.nbi"))) > 10
+    import zipfile
+
+    [wheel] = (installed.parent.parent / "dist").glob("bouncingball-*.whl")
+    assert not [name for name in zipfile.ZipFile(wheel).namelist() if "__pycache__" in name]  # the compile's bytecode
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "empty-cache")}
     env.pop("NUMBA_CACHE_DIR", None)
     completed = subprocess.run([installed / "python", "-c", _FIRST_COMPILED_RUN], cwd=tmp_path, env=env,

@@ -240,7 +240,7 @@ def _energy_of_height(ball: Ball, h0: float, v0: float, F_ext: float, w2: float,
     In contact (k/m) y0^2, y0 = h0 - R + d the deflection from the rest height; in flight the energy at
     the next impact, 2 g_eff (h0 - R) + (k/m) d^2 (the fall's kinetic energy, the spring's at R).
     """
-    if ball.initial_mode(h0, v0, F_ext) == 1:  # Mode.CONTACT
+    if h0 < ball.R or ball.initial_mode(h0, v0, F_ext) == 1:  # below R (pressed or free), or Mode.CONTACT
         y0 = (h0 - ball.R) + d
         return w2 * y0 * y0 if abs(y0) <= SCALE_LIMIT else math.inf
     fall = 2.0 * g_eff * (h0 - ball.R) if g_eff > 0.0 else 0.0

@@ -66,7 +66,7 @@ struct run {
     long message_size;
 };
 
-/* --- physics (physics.py) ------------------------------------------------------------------------- */
+/* --- physics (equations.py) ----------------------------------------------------------------------- */
 static double gap_acceleration(double x, double v, int mode, double load, double m, double k, double b) {
     if (mode == FLIGHT) return -load / m;
     return (-b * v - k * x - load) / m;
@@ -76,7 +76,7 @@ static double rest_margin_value(double x, double v, double d, double hop, double
     return w2 * (2.0 * d * hop - x * (x + 2.0 * d)) - v * v;
 }
 
-static double load_value(double F_ext, double m, double g) { /* Dekker's two-product, as physics.load_value */
+static double load_value(double F_ext, double m, double g) { /* Dekker's two-product, as equations.load_value */
     double product = m * g, split_m = 134217729.0 * m, split_g = 134217729.0 * g;
     if (!(fabs(split_m) < 1e300 && fabs(split_g) < 1e300 && fabs(product) < 1e300)) return product - F_ext;
     double m_high = split_m - (split_m - m), g_high = split_g - (split_g - g);
@@ -329,7 +329,7 @@ static double later(double t, double t_low, double tau, double *low) {
 }
 
 /* The crossing of x = 0 CVODE located at (tau, x, v): Newton on the exact flow (phases.polish_event); the speed
- * -v_start where the phase started on R at (x_start, v_start) and conserves it (physics.conserved_speed). */
+ * -v_start where the phase started on R at (x_start, v_start) and conserves it (contact_laws.conserved_speed). */
 static void polish(const struct run *r, double length, double tau_before, double *tau_root, double x_root,
                    double *v_root, double x_start, double v_start) {
     double tau = 0.0, x = x_root, v = *v_root, v0 = *v_root;

@@ -100,7 +100,8 @@ def write_page(study: Study, quick: bool, path: Path) -> Path:
         __doc__.split("\n\n", 1)[1].replace("\n", " ").strip().replace("REFERENCE_RTOL", f"rtol {REFERENCE_RTOL:g}"),
         "",
         f"Scene: {SCENE.description}. Reference: the compiled engine at rtol {REFERENCE_RTOL:g}, atol "
-        f"{REFERENCE_ATOL:g} (held within {REFERENCE_HELD_WITHIN:g} m of the mpmath truth by the tests): "
+        f"{REFERENCE_ATOL:g} (the tests hold it within {REFERENCE_HELD_WITHIN:g} m of the mpmath truth over the "
+        "scene's first 3 s): "
         f"{len(reference.events)} events, {reference.steps} steps; DOP853 at rtol {SCIPY_TIGHTEST:g} is within "
         f"{study.check.max_height_error:.2g} m of it on the grid, its {study.check.events_found} events within "
         f"{study.check.max_event_time_error:.2g} s.",

@@ -2,7 +2,7 @@
 
 scikit-sundae wraps SUNDIALS' vectors into new numpy arrays on every callback, which costs far
 more than the ball's equations. Here the right-hand side, the root functions and the Jacobian are
-numba ``cfunc`` s compiled from physics.py's own plain-float definitions. The phase machine of a
+numba ``cfunc`` s compiled from equations.py's and contact_laws.py's own plain-float definitions. The phase machine of a
 grid run (solvers/machine.py, with phases.py's decisions and the grid fill of dense_output.py) is
 compiled from the very source the scikit-sundae engine runs interpreted (``run_phases``,
 ``advance``, ``fill_grid``), its engine calls (solvers/engine_protocol.py) bound to CVODE's here

@@ -56,7 +56,10 @@ def compile_portable(package: Path, into: Path, shipped_by: str) -> Path | None:
     and the engine compiles at its first use where it runs.
     """
     environment = {key: value for key, value in os.environ.items() if key != "NUMBA_CPU_FEATURES"}
-    environment.update(PYTHONPATH=str(package.parent), NUMBA_CACHE_DIR=str(into), NUMBA_CPU_NAME=PORTABLE_CPU)
+    # The package's copy first on the path the caller has (a build environment's reaches its children that way).
+    path = os.pathsep.join(filter(None, (str(package.parent), os.environ.get("PYTHONPATH"))))
+    environment.update(PYTHONPATH=path, PYTHONDONTWRITEBYTECODE="1", NUMBA_CACHE_DIR=str(into),
+                       NUMBA_CPU_NAME=PORTABLE_CPU)
     completed = subprocess.run([sys.executable, "-c", _COMPILE, package.name], cwd=package.parent, env=environment,
                                capture_output=True, text=True, check=False)
     folders = sorted((into / "bouncingball").glob("numba-*"))

@@ -191,7 +191,10 @@ def cache_misfit(folder: str, digest: str, portable: bool = False) -> str | None
     host = _host_key()
     fits = {host, (host[0], PORTABLE_CPU, "")} if portable else {host}
     for path in indexes:
-        version, stamp, keys = _index(path)
+        try:
+            version, stamp, keys = _index(path)
+        except Exception as error:  # cut short or garbled (a full disk, a killed copy): a misfit, copied over
+            return f"its index {os.path.basename(path)} cannot be read ({type(error).__name__})"
         if version != numba.__version__:
             return f"its code was compiled by numba {version}, this is numba {numba.__version__}"
         if stamp != digest:

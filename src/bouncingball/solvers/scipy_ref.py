@@ -50,6 +50,8 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
 
     t, y = t_start, np.array([h0, v0], dtype=float)
     mode = ball.initial_mode(h0, v0, F_ext)
+    if mode == Mode.FREE:  # a Hunt-Crossley ball below R rising past its release speed: the clip is in its contact
+        mode = Mode.CONTACT
     h_out[0], v_out[0] = y
     filled = 1
     last_impact = t_start if mode == Mode.CONTACT else None
