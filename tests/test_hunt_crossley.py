@@ -238,15 +238,15 @@ def test_follows_its_truth_over_decades_of_impact_speed(log_speed, n, alpha, eng
 
 ESTIMATE_RATIO_CAP = 1e4
 # The property's scenes (log10 impact speed, n, alpha) drawn once (random.Random(1)) plus its corner: the estimate
-# against the true error measured over them (both engines alike): min 5.3, median 59, 1 of 25 above 1000 (1230).
-SAMPLED_SCENES = ((1.0, 1.0, 1.0), (-1.5, 1.854, 0.802), (-2.0, 1.383, 0.495), (-0.5, 1.708, 0.380),
-                  (-1.5, 1.141, 0.028), (1.0, 1.585, 0.607), (1.0, 1.003, 0.445), (0.5, 2.203, 0.591),
-                  (0.5, 1.044, 0.222), (-1.0, 1.881, 0.882), (1.0, 2.411, 0.393), (1.0, 1.052, 0.243))
+# against the true error measured over 25 of them (both engines alike): min 5.3, median 59, 1 above 1000 (1230).
+# Four of them here: each costs ~30 s of the truth's time.
+SAMPLED_SCENES = ((1.0, 1.0, 1.0), (-1.5, 1.854, 0.802), (-2.0, 1.383, 0.495), (-0.5, 1.708, 0.380))
 
 
-@pytest.mark.slow  # ~15 s a scene, the truth's
+@pytest.mark.slow  # ~30 s a scene, the truth's
 def test_estimate_over_sampled_scenes():
-    """Over SAMPLED_SCENES, both engines: the estimate >= the true max height error in all, <= 1000 x it in 90%."""
+    """Over SAMPLED_SCENES, both engines: the estimate >= the true max height error in every run, and <= 1000 x it
+    in every scene but one at most."""
     k, m, R, g = 1e6, 1.0, 0.06, 9.81
     ratios = []
     for log_speed, n, alpha in SAMPLED_SCENES:
@@ -254,12 +254,14 @@ def test_estimate_over_sampled_scenes():
         t_end = math.sqrt(2.0 * drop / g) + 0.02
         tr = HuntCrossleyTruth(m, k, n, alpha, R, g, R + drop, 0.0, t_end)
         ball = Ball(m=m, k=k, R=R, g=g, contact="hunt-crossley", n=n, alpha=alpha)
+        scene = []
         for engine in ("sksundae", "compiled"):
             result = simulate(ball, R + drop, 0.0, t_end, t_end / 100, engine=engine)
             error = float(np.max(np.abs(result.h - np.array([float(tr.state(ti)[0]) for ti in result.t]))))
-            ratios.append(result.error_estimate / error)
-    assert min(ratios) >= 1.0, ratios
-    assert sum(ratio <= 1e3 for ratio in ratios) >= 0.9 * len(ratios), ratios
+            scene.append(result.error_estimate / error)
+        ratios.append(scene)
+    assert min(min(scene) for scene in ratios) >= 1.0, ratios
+    assert sum(max(scene) > 1e3 for scene in ratios) <= 1, ratios
 
 
 @pytest.mark.parametrize("engine", ["sksundae", "compiled"])
