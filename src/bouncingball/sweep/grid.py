@@ -185,6 +185,20 @@ def log_points(low: float, high: float, points: int) -> tuple[float, ...]:
 DEFAULT_ALPHA = parse_alpha(DEFAULT_ALPHA_TEXT)
 
 
+def refuse_other_damping(contact: str, zeta, alpha, alpha_unit: str, what: str) -> None:
+    """ValueError if the damping field that contact does not use is given.
+
+    That is zeta under the Hunt-Crossley law, alpha under the linear laws. what: "damping" for a cell,
+    "damping axis" for a grid; alpha_unit: how alpha's value is shown (" s/m" for a number).
+    """
+    if contact == HUNT_CROSSLEY and zeta is not None:
+        raise ValueError(f"zeta = {zeta!r} is not allowed with contact = 'hunt-crossley': its {what} is alpha [s/m], "
+                         "not a damping ratio")
+    if contact != HUNT_CROSSLEY and alpha is not None:
+        raise ValueError(f"alpha = {alpha!r}{alpha_unit} is not allowed with contact = {contact!r}: its {what} is the "
+                         "damping ratio zeta")
+
+
 @dataclass(frozen=True)
 class Cell:
     """One point of the parameter space: stiffness k, damping, mass m [kg], drop height h0 [m].
@@ -204,17 +218,12 @@ class Cell:
     def __post_init__(self) -> None:
         contact = check_contact("contact", self.contact)
         object.__setattr__(self, "contact", contact)
+        refuse_other_damping(contact, self.zeta, self.alpha, " s/m", "damping")
         if contact == HUNT_CROSSLEY:
-            if self.zeta is not None:
-                raise ValueError(f"zeta = {self.zeta!r} is not allowed with contact = 'hunt-crossley': its damping "
-                                 "is alpha [s/m], not a damping ratio")
             if self.alpha is None:
                 raise ValueError("alpha = None is not allowed with contact = 'hunt-crossley': it must be finite "
                                  "and >= 0 [s/m]")
             object.__setattr__(self, "alpha", validation.non_negative("alpha", self.alpha, "s/m"))
-        elif self.alpha is not None:
-            raise ValueError(f"alpha = {self.alpha!r} s/m is not allowed with contact = {contact!r}: its damping is "
-                             "the damping ratio zeta")
 
     @property
     def damping(self) -> float:
@@ -275,15 +284,10 @@ class Grid:
     def __post_init__(self) -> None:
         contact = check_contact("contact", self.contact)
         object.__setattr__(self, "contact", contact)
+        refuse_other_damping(contact, self.zeta, self.alpha, "", "damping axis")
         if contact == HUNT_CROSSLEY:
-            if self.zeta is not None:
-                raise ValueError(f"zeta = {self.zeta!r} is not allowed with contact = 'hunt-crossley': its damping "
-                                 "axis is alpha [s/m], not a damping ratio")
             object.__setattr__(self, "alpha", check_alpha(DEFAULT_ALPHA if self.alpha is None else self.alpha))
         else:
-            if self.alpha is not None:
-                raise ValueError(f"alpha = {self.alpha!r} is not allowed with contact = {contact!r}: its damping "
-                                 "axis is the damping ratio zeta")
             object.__setattr__(self, "zeta", DEFAULT_ZETA if self.zeta is None else self.zeta)
         if self.k is None:
             object.__setattr__(self, "k", DEFAULT_HC_K if contact == HUNT_CROSSLEY else DEFAULT_K)
