@@ -238,14 +238,16 @@ def _indexes(folder: str) -> list[str]:
 
 def _copy_cache(source: str, folder: str) -> None:
     """Copy numba's cache files from source into folder, each written whole, the data before the indexes that name
-    it; an index's code compiled for PORTABLE_CPU is filed under this host's CPU, where numba looks for it."""
+    it; in this Python's indexes (the ones cache_misfit read) the code compiled for PORTABLE_CPU is filed under
+    this host's CPU, where numba looks for it. Other files are copied byte for byte."""
     from numba.core.serialize import dumps
 
     host = _host_key()
     portable = (host[0], PORTABLE_CPU, "")
+    retargeted = set(_indexes(source))
     for path in sorted(glob.glob(os.path.join(source, "*.nb[ci]")), key=lambda p: p.endswith(".nbi")):
         written = os.path.join(folder, f".{os.path.basename(path)}.{os.getpid()}")
-        if path.endswith(".nbi"):
+        if path in retargeted:
             version, stamp, overloads = _index(path)
             overloads = {(key[0], host if key[1] == portable else key[1], *key[2:]): data
                          for key, data in overloads.items()}
