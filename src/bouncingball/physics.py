@@ -283,3 +283,14 @@ class Ball:
             return hunt_crossley_rest_margin(h - self.R, v, load_value(F_ext, self.m, self.g), self.m, self.k, self.n,
                                              hop_tolerance)
         return law_rest_margin(self.parameters, h - self.R, v, self.static_deflection(F_ext), hop_tolerance)
+
+
+def clipped_contact_mode(ball: Ball, mode: Mode) -> Mode:
+    """The mode for an integrator whose contact's right-hand side is Ball.acceleration (FREE is CONTACT there).
+
+    A Hunt-Crossley ball's free sub-mode is its contact there: Ball.acceleration clips the force at 0
+    (contact_force's max), so that contact covers both sub-modes, ended by h crossing R alone; FREE's own
+    right-hand side, the bare parabola, would never engage again. Model exchange and SciPy's solve_ivp
+    integrate so; the phase machine takes the clip as events instead.
+    """
+    return Mode.CONTACT if ball.hunt_crossley and mode == Mode.FREE else mode

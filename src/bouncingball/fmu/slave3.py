@@ -22,7 +22,7 @@ from pythonfmu3.modelexchange import ModelExchange
 from .. import validation
 from ..contact_laws import NO_PULL, free_gap_rate, pressed_gap, rigid_rebound_above
 from ..equations import load_value
-from ..physics import Ball, Mode
+from ..physics import Ball, Mode, clipped_contact_mode
 from ..solvers.phases import phase_scales
 from .slave_base import BallSlave
 from .variables import EVENT_INDICATOR, FMI3_VARIABLES, SMALLEST_POSITIVE, VARIABLES
@@ -98,15 +98,6 @@ def event_indicator(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) ->
         return x
     z = x + (ball.b / ball.k) * v
     return z if mode == Mode.CONTACT else min(z, -x)
-
-
-def exchange_mode(ball: Ball, mode: Mode) -> Mode:
-    """The mode model exchange holds for the integrator's: a Hunt-Crossley ball's free sub-mode is its contact's.
-
-    Its clip is in the derivative (Ball.acceleration, contact_force's max(0, ...)), so its contact covers both
-    sub-modes, ended by h - R alone; FREE's own derivative, the bare parabola, would never engage again.
-    """
-    return Mode.CONTACT if ball.hunt_crossley and mode == Mode.FREE else mode
 
 
 def switched_mode(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> Mode | None:
@@ -208,7 +199,7 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         integrator's at the first call that needs it."""
         if self._exchange is None:
             integrator = self._integrator
-            self._exchange = [integrator.h, integrator.v, exchange_mode(integrator.ball, integrator.mode),
+            self._exchange = [integrator.h, integrator.v, clipped_contact_mode(integrator.ball, integrator.mode),
                               integrator.impacts,
                               *phase_nominals(integrator.ball, integrator.h, integrator.v, integrator.mode,
                                               self._values["F_ext"])]
@@ -354,7 +345,7 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         if any(message.status >= Fmi3Status.error for message in self.log_queue[before:]):
             return
         if exchange is not None:
-            exchange[2] = exchange_mode(self._integrator.ball, exchange[2])
+            exchange[2] = clipped_contact_mode(self._integrator.ball, exchange[2])
         self._exchange = None if exchange is None else [*exchange[:4], *exchange[5:7]]
         if exchange is not None:
             self.time = exchange[4]

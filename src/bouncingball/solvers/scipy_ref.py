@@ -9,7 +9,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .. import validation
-from ..physics import Ball, Mode
+from ..physics import Ball, Mode, clipped_contact_mode
 from . import ARTICLE_ATOL, ARTICLE_MAX_STEP, ARTICLE_METHOD, ARTICLE_RTOL, forcing
 from .forcing import ForceTable
 from .result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
@@ -49,9 +49,7 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     started = time.perf_counter()
 
     t, y = t_start, np.array([h0, v0], dtype=float)
-    mode = ball.initial_mode(h0, v0, F_ext)
-    if mode == Mode.FREE:  # a Hunt-Crossley ball below R rising past its release speed: the clip is in its contact
-        mode = Mode.CONTACT
+    mode = clipped_contact_mode(ball, ball.initial_mode(h0, v0, F_ext))
     h_out[0], v_out[0] = y
     filled = 1
     last_impact = t_start if mode == Mode.CONTACT else None
