@@ -17,15 +17,16 @@ import os
 import sys
 from pathlib import Path
 
-from ..solvers.engine_cache import SHIPPED, compile_portable
+from ..solvers.engine_cache import SHIPPED, compile_kept
 
 
 def compile_cache(package: Path, into: Path) -> Path | None:
-    """The FMU's copy of the package (folder package) compiled into into (compile_portable), or None where it cannot
-    be (no numba here: nothing said, the FMU's log says it where it runs; no engine: said on stderr)."""
+    """The FMU's copy of the package (folder package) compiled for any CPU of the host's architecture (compile_kept:
+    a build of the same sources before it is taken, else compiled into into), or None where it cannot be (no numba
+    here: nothing said, the FMU's log says it where it runs; no engine: said on stderr)."""
     if importlib.util.find_spec("numba") is None:
         return None
-    return compile_portable(package, into, "the FMU")
+    return compile_kept(package, into, "the FMU")
 
 
 def shipped_files(cache: Path | None) -> list[tuple[Path, str]]:

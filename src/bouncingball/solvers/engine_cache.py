@@ -9,6 +9,10 @@ the FMU's resources. At the engine's first use, solvers/jit.py's ``cache_allowed
 the user-wide cache where they fit (this numba, Python and architecture, the sources' digest), else
 numba compiles for the host, saying so before it does.
 
+``compile_kept`` is compile_portable kept in the user-wide cache (what build-fmu runs): a second
+build of the same sources, on the same Python, numba and architecture, takes the kept compile
+instead of compiling again.
+
 ``python -m bouncingball.solvers.engine_cache`` compiles the package it is run from and puts the
 files in its SHIPPED folder (what the wheel's build runs in the package it built). Imports neither
 numba nor the engine: the compile runs in a child process.
@@ -16,11 +20,17 @@ numba nor the engine: the compile runs in a child process.
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
+import hashlib
+import importlib.metadata
 import os
+import platform
 import shutil
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 SHIPPED = "numba-cache"  # the folder of the shipped cache files: inside the package (a wheel), in an FMU's resources
@@ -69,6 +79,85 @@ def compile_portable(package: Path, into: Path, shipped_by: str) -> Path | None:
                       " it compiles at its first use where it runs")
         return None
     return folders[0]
+
+
+def user_cache_root() -> str:
+    """The user-wide folder of the compiled code's caches.
+
+    $NUMBA_CACHE_DIR/bouncingball if set, else $XDG_CACHE_HOME/bouncingball (default
+    ~/.cache/bouncingball): one sub-folder numba-<digest> per set of sources (solvers/jit.py's
+    cache_folder), and one portable-<key> per kept compile (compile_kept).
+    """
+    told = os.environ.get("NUMBA_CACHE_DIR")
+    if told:
+        return os.path.join(told, "bouncingball")
+    return os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"),
+                        "bouncingball")
+
+
+KEPT_COMPILES = 4  # compile_kept keeps the compiles of this many sets of sources, the most recently used
+
+
+def compile_kept(package: Path, into: Path, shipped_by: str) -> Path | None:
+    """compile_portable, kept in the user-wide cache: the folder of numba's cache files, or None (as compile_portable).
+
+    The compile (about 15 s) is kept in user_cache_root's portable-<key>, the key a digest of all it
+    depends on: the package's name and every file of it, the compiling script, this Python and its
+    path, the versions of numba, llvmlite, numpy and scikit-sundae, the architecture and numba's
+    settings in the environment. So a second build of the same sources takes it instead of
+    compiling again; any change compiles anew. Builds at once take turns under a lock file per key;
+    a compile is kept whole (renamed into place) or not at all. Where the user-wide cache cannot
+    be written, compile_portable compiles into into.
+    """
+    root = Path(user_cache_root())
+    kept = root / f"portable-{_compile_key(package)[:24]}"
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        with open(f"{kept}.lock", "a") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+            if not kept.is_dir():
+                with tempfile.TemporaryDirectory(dir=root, prefix=".portable-") as temp:
+                    cache = compile_portable(package, Path(temp), shipped_by)
+                    if cache is None:
+                        return None
+                    cache.rename(kept)
+            os.utime(kept)  # its last use, for _forget_old_compiles
+    except OSError:  # a user-wide cache that cannot be written
+        return compile_portable(package, into, shipped_by)
+    _forget_old_compiles(root)
+    return kept
+
+
+def _compile_key(package: Path) -> str:
+    """The digest of everything compile_portable's result depends on (compile_kept)."""
+    digest = hashlib.sha256()
+    for path in sorted(path for path in package.rglob("*") if path.is_file() and "__pycache__" not in path.parts):
+        digest.update(path.relative_to(package.parent).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    versions = []
+    for distribution in ("numba", "llvmlite", "numpy", "scikit-sundae"):
+        with contextlib.suppress(importlib.metadata.PackageNotFoundError):
+            versions.append(f"{distribution} {importlib.metadata.version(distribution)}")
+    numba_settings = sorted(f"{key}={value}" for key, value in os.environ.items()
+                            if key.startswith("NUMBA_") and key not in ("NUMBA_CACHE_DIR", "NUMBA_CPU_FEATURES"))
+    where = (sys.executable, os.environ.get("PYTHONPATH", ""))  # the Python, and the numba, the child runs
+    for part in (_COMPILE, sys.version, *where, platform.machine(), PORTABLE_CPU, *versions, *numba_settings):
+        digest.update(part.encode() + b"\0")
+    return digest.hexdigest()
+
+
+def _forget_old_compiles(root: Path) -> None:
+    """Remove the kept compiles beyond the KEPT_COMPILES most recently used, if unused for an hour.
+
+    An hour unused: no build is reading it. Their lock files stay: a build may be waiting on one.
+    """
+    used = []
+    for path in root.glob("portable-*"):
+        with contextlib.suppress(OSError):  # removed meanwhile by another build
+            if path.is_dir():
+                used.append((path.stat().st_mtime, path))
+    for last_use, path in sorted(used, reverse=True)[KEPT_COMPILES:]:
+        if time.time() - last_use > 3600:
+            shutil.rmtree(path, ignore_errors=True)
 
 
 PACKAGE = Path(__file__).resolve().parents[1]  # this copy of the package

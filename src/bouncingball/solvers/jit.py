@@ -66,7 +66,7 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-from .engine_cache import PORTABLE_CPU, package_shipped, say_on_stderr
+from .engine_cache import PORTABLE_CPU, package_shipped, say_on_stderr, user_cache_root
 
 # Every source the compiled code is compiled from, relative to the package: the modules whose functions
 # compiled.py gives compiled_together, those whose constants they read (rule 5), jit.py and compiled.py.
@@ -96,16 +96,6 @@ def sources_digest(files) -> str:
         with open(file, "rb") as source:
             digest.update(source.read())
     return digest.hexdigest()
-
-
-def user_cache_root() -> str:
-    """The user-wide folder of the compiled code's caches: $NUMBA_CACHE_DIR/bouncingball if set, else
-    $XDG_CACHE_HOME/bouncingball (default ~/.cache/bouncingball), one sub-folder numba-<digest> per set of sources."""
-    told = os.environ.get("NUMBA_CACHE_DIR")
-    if told:
-        return os.path.join(told, "bouncingball")
-    return os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"),
-                        "bouncingball")
 
 
 def cache_folder(digest: str) -> str:
