@@ -443,16 +443,13 @@ def _compiled_run_of_a_copy(package: Path) -> dict:
     return report
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize(("source", "callbacks_too"), [("physics.py", True), ("solvers/machine.py", False)])
-def test_a_change_to_a_compiled_source_recompiles_the_code_numbas_disk_cache_held(tmp_path, source, callbacks_too):
-    """numba keys each cached function by its own file, but the compiled code inlines functions of other files: after
-    a change to physics.py alone it loaded compiled.py's old callbacks (the engines then disagreed). A change made by
-    appending a function no one calls (so that it does not depend on the source's text) must be compiled anew, in
-    the callbacks and the phase machine alike, where an unchanged source is read from the cache."""
+@pytest.fixture(scope="module")
+def compiled_copy(tmp_path_factory) -> Path:
+    """A copy of the package beside its own numba cache (folder cache), compiled and cached once by a first run, then
+    read from the cache by a second: the first two stages of the test below, which each of its cases starts from."""
     import shutil
 
-    package = tmp_path / "bouncingball"
+    package = tmp_path_factory.mktemp("compiled-copy") / "bouncingball"
     shutil.copytree(Path(bb.__file__).parent, package, ignore=shutil.ignore_patterns("__pycache__"))
     first = _compiled_run_of_a_copy(package)  # compiles and caches
     assert first["machine_misses"] > 0 and first["machine_hits"] == 0 and first["rhs_hits"] == 0
@@ -462,6 +459,23 @@ def test_a_change_to_a_compiled_source_recompiles_the_code_numbas_disk_cache_hel
     again = _compiled_run_of_a_copy(package)
     assert again["machine_hits"] > 0 and again["machine_misses"] == 0 and again["rhs_hits"] == 1  # the cache works
     assert again["stderr"] == ""
+    return package
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("source", "callbacks_too"), [("physics.py", True), ("solvers/machine.py", False)])
+def test_a_change_to_a_compiled_source_recompiles_the_code_numbas_disk_cache_held(compiled_copy, tmp_path, source,
+                                                                                  callbacks_too):
+    """numba keys each cached function by its own file, but the compiled code inlines functions of other files: after
+    a change to physics.py alone it loaded compiled.py's old callbacks (the engines then disagreed). A change made by
+    appending a function no one calls (so that it does not depend on the source's text) must be compiled anew, in
+    the callbacks and the phase machine alike, where an unchanged source is read from the cache (compiled_copy)."""
+    import shutil
+
+    shutil.copytree(compiled_copy.parent, tmp_path, dirs_exist_ok=True)  # the copy and its cache, moved elsewhere
+    package = tmp_path / "bouncingball"
+    unchanged = _compiled_run_of_a_copy(package)  # the cache is named after the sources, wherever they are
+    assert unchanged["machine_misses"] == 0 and unchanged["stderr"] == ""
     changed = package / source
     with changed.open("a") as file:
         file.write("\n\ndef _appended_by_a_test(x):\n    return 2.0 * x\n")
@@ -469,7 +483,7 @@ def test_a_change_to_a_compiled_source_recompiles_the_code_numbas_disk_cache_hel
     assert after["machine_misses"] > 0 and after["machine_hits"] == 0 and "numba compiles" in after["stderr"]
     if callbacks_too:  # the right-hand side inlines physics.py's equations, not the machine
         assert after["rhs_hits"] == 0
-    assert after["impact"] == first["impact"]  # the change is harmless: the code compiled anew is the same
+    assert after["impact"] == unchanged["impact"]  # the change is harmless: the code compiled anew is the same
 
 
 @pytest.mark.slow

@@ -119,7 +119,8 @@ def test_fmpy_cli_script(tmp_path):
 @pytest.mark.slow
 def test_regression_test_example(fmu, tmp_path):
     pytest.importorskip("fmpy")
-    out = run_example([sys.executable, "-m", "pytest", "-q", "-s", "-p", "no:cacheprovider",
+    # -o addopts=: pytest as a user runs the example, without the checkout's options (its xdist workers hid the prints)
+    out = run_example([sys.executable, "-m", "pytest", "-q", "-s", "-p", "no:cacheprovider", "-o", "addopts=",
                        EXAMPLES / "regression_test.py"], tmp_path, BOUNCINGBALL_FMU=str(fmu))
     assert "3 passed" in out
     cases = {"article": (Ball(), 2.0, 0.0, 8.0, 8001), "moon": (Ball(g=1.62), 1.0, 0.0, 6.0, 601),
