@@ -1,3 +1,4 @@
+import math
 import os
 import subprocess
 import sys
@@ -41,6 +42,20 @@ def test_run_article_prints_summary_and_writes_files(tmp_path, capsys):
     printed = " ".join(text.split())
     missing = [line for line in readme_run_article() if line not in printed]
     assert missing == [], f"README.md's `bouncingball run article` shows lines this run does not print: {missing}"
+
+
+def test_run_a_hunt_crossley_ball_says_its_law_and_its_own_error_estimate(capsys):
+    """No exact solution to measure it against: the summary gives the run's own error estimate, and the events."""
+    assert main(["run", "article", "--contact", "hunt-crossley", "--n", "1.2", "--alpha", "0.05", "--t-end", "1"]) == 0
+    text = capsys.readouterr().out
+    assert "Hunt-Crossley contact, k = 10000 N/m^1.2, n = 1.2, alpha = 0.05 s/m" in text
+    assert "exact" not in text.replace("without the exact solution", "")
+    estimate = float(text.split("error estimate")[1].split()[0])
+    assert 0 < estimate <= 1e-6
+    # the first impact ends a free fall from 2 m onto R: at sqrt(2 (2 - R) / g), at sqrt(2 g (2 - R))
+    impact = text.split("#1")[1].split("\n")[0].split()
+    assert impact[4] == "impact" and abs(float(impact[2]) - math.sqrt(2 * 1.94 / 9.81)) < 1e-9
+    assert abs(float(impact[7]) + math.sqrt(2 * 9.81 * 1.94)) < 1e-5
 
 
 def readme_run_article() -> list[str]:
@@ -115,6 +130,8 @@ def test_bad_input_is_one_line_and_exit_code_2():
         (["run", "--engine", "fast"], "engine = 'fast' is not allowed"),
         (["run", "--t-end", "0"], "t_end = 0.0 s is not allowed"),
         (["run", "--output-interval", "100"], "output_interval = 100.0 s is not allowed"),
+        (["run", "--contact", "hunt-crossley", "--n", "3"], "n = 3.0 is not allowed: it must be in [1, 2.5]"),
+        (["run", "--contact", "hunt-crossley", "--alpha", "-1"], "alpha = -1.0 s/m is not allowed"),
     ]:
         completed = _cli(*args)
         assert completed.returncode == 2, args
