@@ -298,3 +298,37 @@ def test_a_shipped_cache_that_does_not_fit_is_compiled_once_and_said_first(fmu, 
         "(its code was compiled by numba 0.1.0, this is numba "), first["log"]
     again = _first_run(changed, tmp_path / "again", tmp_path / "cache")
     assert again["misses"] == 0 and again["hits"] > 0 and again["log"] == [], again
+
+
+_SECOND_INSTANCE = """
+    import json, sys
+    from fmpy import simulate_fmu
+    logs = []
+    def logger(*arguments):
+        logs[-1].append(arguments[-1].decode("utf-8"))
+    for engine in ("sksundae", "compiled"):  # simulate_fmu unzips the FMU afresh each time, and deletes it after
+        logs.append([])
+        result = simulate_fmu(sys.argv[1], stop_time=1.0, output_interval=1e-3, logger=logger, debug_logging=True,
+                              start_values={"engine": engine})
+    [compiled] = [module for name, module in sys.modules.items() if name.endswith(".solvers.compiled")]
+    dispatchers = [value for value in vars(compiled).values() if hasattr(value, "stats")]
+    dispatchers += list(compiled._compiled.values())
+    print(json.dumps({"logs": logs, "h": float(result["h"][-1]),
+                      "misses": sum(sum(d.stats.cache_misses.values()) for d in dispatchers)}))
+"""
+
+
+def test_a_second_instance_whose_first_unzip_is_deleted_reads_the_shipped_cache(fmu, tmp_path):
+    """A first instance on the scikit-sundae engine imports the package's copy from its unzipped folder, which FMPy
+    deletes after the run; the second, on the compiled engine, imports the engine from its own unzip: it reads the
+    engine's sources there, so numba's cache is used (it compiled for 16 s, in every such process, keeping nothing)."""
+    import json
+
+    completed = subprocess.run([sys.executable, "-c", textwrap.dedent(_SECOND_INSTANCE), str(fmu)],
+                               capture_output=True, text=True, timeout=300, check=False,
+                               env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")})
+    assert completed.returncode == 0, completed.stderr
+    report = json.loads(completed.stdout.splitlines()[-1])
+    h, _, _ = exact_at(np.array([1.0]))
+    assert abs(report["h"] - h[0]) < 1e-6
+    assert report["misses"] == 0 and report["logs"] == [[], []], report

@@ -88,6 +88,19 @@ def engine_sources() -> list[str]:
     return files
 
 
+def readable_sources(files) -> list[str]:
+    """files (engine_sources'), each one gone from disk replaced by its source in this module's copy of the package.
+
+    An FMU's modules imported by an earlier instance come from its unzipped copy, which the master
+    (FMPy) may have deleted since; this module then comes from the copy of the instance at hand
+    (fmu/slave_base.py's _search_package_in), whose sources are the same: the copy's package is named
+    after their digest. A package imported from one folder finds a gone file gone here too.
+    """
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    return [file if os.path.isfile(file) else os.path.join(package, *relative.split("/"))
+            for file, relative in zip(files, ENGINE_SOURCES, strict=True)]
+
+
 def sources_digest(files) -> str:
     """The SHA-256 of the files' contents, in their order, and of the package's name (the compiled code names its
     modules): what the compiled code's disk cache is keyed by."""
@@ -134,17 +147,19 @@ def cache_allowed(files) -> bool:
     it is first taken from the shipped cache (the package's own, a wheel's; or first_use's, an
     FMU's: engine_cache.py compiled it for any CPU of its architecture) if that fits, its code filed
     under this host's CPU as it is copied; else numba compiles, said through first_use's say (on
-    stderr unless first_use says otherwise) before it does. Where a file is gone (the master
-    deleted the unzipped FMU after the process imported it) or the folder cannot be written, nothing
+    stderr unless first_use says otherwise) before it does. A file gone from disk (the master deleted
+    the unzipped FMU an earlier instance imported it from) is read in this module's copy
+    (readable_sources). Where it is gone from there too, or the folder cannot be written, nothing
     is cached: numba compiles in every such process, said the same way.
     Processes importing at once (Dask's workers) take turns under one lock file, and every file is
     written whole (a temporary file renamed) or not at all.
     """
-    if not all(os.path.isfile(file) for file in files):
+    readable = readable_sources(files)
+    if not all(os.path.isfile(file) for file in readable):
         _say("numba compiles the compiled engine in this process (about 15 s), and cannot keep it: its sources are "
              "gone from disk")
         return False
-    digest = sources_digest(files)
+    digest = sources_digest(readable)
     folder = cache_folder(digest)
     try:
         os.makedirs(folder, exist_ok=True)
@@ -160,7 +175,7 @@ def cache_allowed(files) -> bool:
                     misfit = f"the cache shipped with it does not fit ({unfit})"
             if misfit is not None:
                 _say(f"numba compiles the compiled engine for this host, once (about 15 s; {misfit}), into {folder}")
-        _use_folder(files, folder, digest)
+        _use_folder([*files, *readable], folder, digest)  # numba names a function's source as it was imported
     except Exception as error:  # a numba without these internals, or a cache folder we cannot write
         _say(f"numba compiles the compiled engine in this process (about 15 s), and cannot keep it: its cache folder "
              f"{folder} cannot be used ({type(error).__name__}: {error})")
