@@ -23,9 +23,6 @@ fmpy = pytest.importorskip("fmpy")
 
 # a drop with its bounces; a stiffer law (n = 2.5) thrown down from near R; a start below R in the free sub-mode
 NAMES = ("benchmark", "stiff-n", "free-start")
-# benchmark's and stiff-n's truths take 10 to 15 s each (tests/test_hunt_crossley.py's fast subset checks both engines
-# against them): the FMU's tests of them run in the full run only (slow), free-start's in the fast subset too.
-NAME_PARAMS = [name if name == "free-start" else pytest.param(name, marks=pytest.mark.slow) for name in NAMES]
 
 
 def _start_values(name, engine="sksundae"):
@@ -55,12 +52,12 @@ def _assert_follows_truth(result, name):
 
 
 @pytest.mark.parametrize("engine", ["sksundae", "compiled"])
-@pytest.mark.parametrize("name", NAME_PARAMS)
+@pytest.mark.parametrize("name", NAMES)
 def test_fmi2_co_simulation_follows_the_hunt_crossley_truth(fmu, name, engine):
     _assert_follows_truth(_simulate(fmu, name, engine=engine), name)
 
 
-@pytest.mark.parametrize("name", NAME_PARAMS)
+@pytest.mark.parametrize("name", NAMES)
 def test_fmi3_co_simulation_returns_early_at_each_event_of_the_hunt_crossley_truth(fmu3, name):
     result = _simulate(fmu3, name, early_return_allowed=True)
     _assert_follows_truth(result, name)
@@ -72,7 +69,7 @@ def test_fmi3_co_simulation_returns_early_at_each_event_of_the_hunt_crossley_tru
     assert np.max(np.abs(early - events)) <= 1e-9
 
 
-@pytest.mark.parametrize("name", NAME_PARAMS)
+@pytest.mark.parametrize("name", NAMES)
 def test_model_exchange_sees_every_impact_and_departure(unzipped3, name):
     """The master restarting only when told, at rtol 1e-10: at each of the truth's events, within 1e-5 m."""
     values = {key: value for key, value in _start_values(name).items() if key != "engine"}
