@@ -297,11 +297,12 @@ def test_ctrl_c_on_a_sweep_is_one_line_without_worker_tracebacks(tmp_path):
     import os
     import time
 
-    # The default grid (273 runs, minutes): the Ctrl-C lands while batches are still running. The quick grid's 36 runs
-    # could all be done by the time the first part was seen on a loaded machine, and the sweep then ended with 0.
-    process = subprocess.Popen([sys.executable, "-m", "bouncingball.cli", "sweep", "--workers", "2",
+    # Ctrl-C live in the sweep, as at a terminal: a test run started in the background of a shell (cmd &) has SIGINT
+    # ignored, which its children inherit, and the sweep then ran to its end (exit 0, or minutes on a larger grid).
+    process = subprocess.Popen([sys.executable, "-m", "bouncingball.cli", "sweep", "--quick", "--workers", "2",
                                 "--output-dir", str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True, start_new_session=True)
+                               text=True, start_new_session=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 120
         while not list((tmp_path / "sweep_parts").glob("*.parquet")):  # a batch done: the sweep is under way
