@@ -10,6 +10,19 @@ settings.register_profile("replay", derandomize=True)
 settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("BOUNCINGBALL_HYPOTHESIS", "replay"))
 
+# The modules that take a minute or more (builds, compiles, mpmath truths), run first: pytest-xdist hands each module
+# to one worker in this order (--no-loadscope-reorder), so no worker starts one of them while the others are done.
+LONG_MODULES = ("test_hunt_crossley.py", "test_bench.py", "test_wheel.py", "test_compiled.py", "test_fmu_masters.py",
+                "test_fmu_engine.py", "test_examples.py", "test_sweep.py")
+
+
+def pytest_collection_modifyitems(config, items):
+    def rank(item):
+        name = item.path.name
+        return LONG_MODULES.index(name) if name in LONG_MODULES else len(LONG_MODULES)
+
+    items.sort(key=rank)  # stable: each module's own order kept
+
 
 @pytest.fixture(scope="session")
 def fmu(tmp_path_factory) -> Path:

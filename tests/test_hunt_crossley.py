@@ -239,9 +239,8 @@ def test_follows_its_truth_over_decades_of_impact_speed(log_speed, n, alpha, eng
 ESTIMATE_RATIO_CAP = 1e4
 # The property's scenes (log10 impact speed, n, alpha) drawn once (random.Random(1)) plus its corner: the estimate
 # against the true error measured over 25 of them (both engines alike): min 5.3, median 59, 1 above 1000 (1230).
-SAMPLED_SCENES = ((1.0, 1.0, 1.0), (-1.5, 1.854, 0.802), (-2.0, 1.383, 0.495), (-0.5, 1.708, 0.380),
-                  (-1.5, 1.141, 0.028), (1.0, 1.585, 0.607), (1.0, 1.003, 0.445), (0.5, 2.203, 0.591),
-                  (0.5, 1.044, 0.222), (-1.0, 1.881, 0.882), (1.0, 2.411, 0.393), (1.0, 1.052, 0.243))
+# Four of them here (11 s; the twelve first, 65 s, passed too).
+SAMPLED_SCENES = ((1.0, 1.0, 1.0), (-1.5, 1.854, 0.802), (-2.0, 1.383, 0.495), (-0.5, 1.708, 0.380))
 
 
 @pytest.mark.slow  # ~3 s a scene, the truth's

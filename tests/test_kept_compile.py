@@ -90,3 +90,22 @@ def test_only_the_most_recently_used_compiles_are_kept_and_none_used_within_the_
     left = sorted(path for path in kept if path.is_dir())
     # kept[0] just used, and the next most recent KEPT_COMPILES - 1: the two oldest removed
     assert left == sorted([kept[0], *kept[-(engine_cache.KEPT_COMPILES - 1):]])
+
+
+def test_a_compile_whose_lock_a_build_holds_stays_and_a_killed_builds_leftovers_go(compiles, tmp_path):
+    import fcntl
+
+    kept = [engine_cache.compile_kept(_package(tmp_path / "p", f"x = {i}\n"), tmp_path / "into", "the FMU")
+            for i in range(engine_cache.KEPT_COMPILES + 1)]
+    root = kept[0].parent
+    leftover = root / ".portable-killed"
+    leftover.mkdir()
+    for path in (*kept, leftover):
+        os.utime(path, (0, os.path.getmtime(path) - 7200))
+    with open(f"{kept[0]}.lock", "a") as lock:  # a build of kept[0] is under way (the oldest, beyond the four)
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        engine_cache._forget_old_compiles(root)
+        assert kept[0].is_dir()
+    engine_cache._forget_old_compiles(root)
+    assert not kept[0].is_dir() and not leftover.exists() and all(path.is_dir() for path in kept[1:])
+    assert not list(root.glob(".removed-*"))

@@ -299,10 +299,11 @@ def test_ctrl_c_on_a_sweep_is_one_line_without_worker_tracebacks(tmp_path):
 
     # Ctrl-C live in the sweep, as at a terminal: a test run started in the background of a shell (cmd &) has SIGINT
     # ignored, which its children inherit, and the sweep then ran to its end (exit 0, or minutes on a larger grid).
-    process = subprocess.Popen([sys.executable, "-m", "bouncingball.cli", "sweep", "--quick", "--workers", "2",
+    live_ctrl_c = ("import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+                   "sys.argv[0] = 'bouncingball'; runpy.run_module('bouncingball.cli', run_name='__main__')")
+    process = subprocess.Popen([sys.executable, "-c", live_ctrl_c, "sweep", "--quick", "--workers", "2",
                                 "--output-dir", str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True, start_new_session=True,
-                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                               text=True, start_new_session=True)
     try:
         deadline = time.monotonic() + 120
         while not list((tmp_path / "sweep_parts").glob("*.parquet")):  # a batch done: the sweep is under way

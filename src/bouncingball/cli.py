@@ -52,9 +52,9 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--v-min", type=float, help="the rigid law's speed [m/s] below which a bounce ends on the ground "
                      "(default: the scene's, 0)")
     run.add_argument("--n", type=float, help="the Hunt-Crossley law's exponent of the penetration, in [1, 2.5] "
-                     "(default: the scene's, 1.5)")
+                     "(default: the scene's, 1.5; the other laws do not read it)")
     run.add_argument("--alpha", type=float, help="the Hunt-Crossley law's damping [s/m], >= 0 (default: the "
-                     "scene's, 0)")
+                     "scene's, 0; the other laws do not read it)")
     run.add_argument("--t-end", type=float, help="end time [s] (default: the scene's)")
     run.add_argument("--output-interval", type=float, help="output interval [s] (default: the scene's)")
     run.add_argument("--output", metavar="CSV", help="write time,h,v to this file (-: to stdout, the summary then "

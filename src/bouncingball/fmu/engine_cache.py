@@ -22,8 +22,9 @@ from ..solvers.engine_cache import SHIPPED, compile_kept
 
 def compile_cache(package: Path, into: Path) -> Path | None:
     """The FMU's copy of the package (folder package) compiled for any CPU of the host's architecture (compile_kept:
-    a build of the same sources before it is taken, else compiled into into), or None where it cannot be (no numba
-    here: nothing said, the FMU's log says it where it runs; no engine: said on stderr)."""
+    kept in the user-wide cache, a build of the same sources before it taken; into only where that cache cannot be
+    written), or None where it cannot be (no numba here: nothing said, the FMU's log says it where it runs; no
+    engine: said on stderr)."""
     if importlib.util.find_spec("numba") is None:
         return None
     return compile_kept(package, into, "the FMU")

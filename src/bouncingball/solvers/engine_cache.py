@@ -103,7 +103,8 @@ def compile_kept(package: Path, into: Path, shipped_by: str) -> Path | None:
 
     The compile (about 15 s) is kept in user_cache_root's portable-<key>, the key a digest of all it
     depends on: the package's name and every file of it, the compiling script, this Python and its
-    path, the versions of numba, llvmlite, numpy and scikit-sundae, the architecture and numba's
+    path, the versions of numba, llvmlite, numpy and scikit-sundae this process sees (the child runs
+    the same Python, its path the same but for the package's folder first), the architecture and numba's
     settings in the environment. So a second build of the same sources takes it instead of
     compiling again; any change compiles anew. Builds at once take turns under a lock file per key;
     a compile is kept whole (renamed into place) or not at all. Where the user-wide cache cannot
@@ -146,18 +147,32 @@ def _compile_key(package: Path) -> str:
 
 
 def _forget_old_compiles(root: Path) -> None:
-    """Remove the kept compiles beyond the KEPT_COMPILES most recently used, if unused for an hour.
+    """Remove the kept compiles beyond the KEPT_COMPILES most recently used, once unused for an hour.
 
-    An hour unused: no build is reading it. Their lock files stay: a build may be waiting on one.
+    Each under its key's lock, taken without waiting (a build holding it keeps it), renamed away
+    before it is deleted: a build finds a kept compile whole or not at all. The folders of a build
+    killed while it compiled or deleted (.portable-*, .removed-*) go too, once an hour old. Lock files
+    stay: a build may be waiting on one.
     """
+    hour_ago = time.time() - 3600
     used = []
     for path in root.glob("portable-*"):
         with contextlib.suppress(OSError):  # removed meanwhile by another build
             if path.is_dir():
                 used.append((path.stat().st_mtime, path))
     for last_use, path in sorted(used, reverse=True)[KEPT_COMPILES:]:
-        if time.time() - last_use > 3600:
-            shutil.rmtree(path, ignore_errors=True)
+        if last_use > hour_ago:
+            continue
+        with contextlib.suppress(OSError), open(f"{path}.lock", "a") as lock:  # BlockingIOError: a build has it
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            if path.stat().st_mtime <= hour_ago:
+                removed = root / f".removed-{path.name}-{os.getpid()}"
+                path.rename(removed)
+                shutil.rmtree(removed, ignore_errors=True)
+    for path in [*root.glob(".portable-*"), *root.glob(".removed-*")]:
+        with contextlib.suppress(OSError):
+            if path.stat().st_mtime <= hour_ago:
+                shutil.rmtree(path, ignore_errors=True)
 
 
 PACKAGE = Path(__file__).resolve().parents[1]  # this copy of the package
