@@ -344,8 +344,9 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         super()._set_fmu_state(state)
         if any(message.status >= Fmi3Status.error for message in self.log_queue[before:]):
             return
-        if exchange is not None:
-            exchange[2] = clipped_contact_mode(self._integrator.ball, exchange[2])
-        self._exchange = None if exchange is None else [*exchange[:4], *exchange[5:7]]
-        if exchange is not None:
-            self.time = exchange[4]
+        if exchange is None:
+            self._exchange = None
+            return
+        h, v, mode, impacts, time, *nominals = exchange
+        self._exchange = [h, v, clipped_contact_mode(self._integrator.ball, mode), impacts, *nominals]
+        self.time = time

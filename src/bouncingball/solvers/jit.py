@@ -75,16 +75,17 @@ ENGINE_SOURCES = ("rounding.py", "oscillator.py", "equations.py", "contact_laws.
                   "solvers/engine_protocol.py", "solvers/machine.py", "solvers/drivers.py",
                   "solvers/dense_output.py", "solvers/exact.py", "solvers/jit.py", "solvers/compiled.py")
 
+_PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # this module's copy of the package
+
 
 def engine_sources() -> list[str]:
     """The files numba compiles the compiled engine from (ENGINE_SOURCES): an imported module's own file (in an FMU,
     maybe that of a copy the master deleted since), else the one in this module's copy of the package."""
-    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     root = __name__.split(".")[0]
     files = []
     for relative in ENGINE_SOURCES:
         module = sys.modules.get(".".join((root, *relative.removesuffix(".py").split("/"))))
-        files.append(getattr(module, "__file__", None) or os.path.join(package, *relative.split("/")))
+        files.append(getattr(module, "__file__", None) or os.path.join(_PACKAGE_DIR, *relative.split("/")))
     return files
 
 
@@ -96,8 +97,7 @@ def readable_sources(files) -> list[str]:
     (fmu/slave_base.py's _search_package_in), whose sources are the same: the copy's package is named
     after their digest. A package imported from one folder finds a gone file gone here too.
     """
-    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    return [file if os.path.isfile(file) else os.path.join(package, *relative.split("/"))
+    return [file if os.path.isfile(file) else os.path.join(_PACKAGE_DIR, *relative.split("/"))
             for file, relative in zip(files, ENGINE_SOURCES, strict=True)]
 
 
