@@ -13,13 +13,14 @@
 - hunt-crossley: Hunt and Crossley's k delta^n (1 + 3/2 alpha delta'), delta = R - h, clipped at 0 (free
   above the release speed 2 / (3 alpha)); no closed form, so CVODE integrates every contact.
 
-The functions take Ball.parameters (the law's code at [5]), a state and the load, and return floats: run
-interpreted and compiled alike (solvers/jit.py's rules), they dispatch on the law where the laws differ.
+The functions take Ball.parameters (a BallParameters: the law's code in .law), a state and the load, and return
+floats: run interpreted and compiled alike (solvers/jit.py's rules), they dispatch on the law where the laws differ.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 from .equations import gap_acceleration, gap_flow_value, rest_margin_value
 
@@ -29,6 +30,24 @@ LINEAR, RIGID, NO_PULL, HUNT_CROSSLEY = 0, 1, 2, 3
 # The Hunt-Crossley law's exponent n: 1 (a linear spring) .. 2.5 (beyond Hertz's 1.5 for spheres, as fitted
 # to soft and granular materials); its release speed is 2 / (3 alpha).
 HC_N_RANGE = (1.0, 2.5)
+
+
+class BallParameters(NamedTuple):
+    """The ball as plain floats, by name, as the phase machine takes it (Ball.parameters; numba compiles it as a tuple).
+
+    law is the contact law's code as a float (LINEAR .. HUNT_CROSSLEY); the rest are Ball's fields in SI units.
+    """
+
+    m: float
+    k: float
+    b: float
+    R: float
+    g: float
+    law: float
+    e: float
+    v_min: float
+    n: float
+    alpha: float
 
 
 ZENO_APEX = 2.0**-40
@@ -42,16 +61,16 @@ def rigid_rebound(parameters, v_impact, load):
     take zeno = 2 v / (g_eff (1 - e)) [s] in all (v = -e v_impact, g_eff = load / m), after which the
     ball rests on R: the Zeno time is the impact's time + zeno. zeno is 0 where none are summed.
     """
-    return rigid_rebound_above(parameters, v_impact, load, ZENO_APEX * parameters[3])
+    return rigid_rebound_above(parameters, v_impact, load, ZENO_APEX * parameters.R)
 
 
 def rigid_rebound_above(parameters, v_impact, load, apex_floor):
     """rigid_rebound, with the bounces that rise less than apex_floor [m] (rather than ZENO_APEX R) summed."""
-    e, v_min = parameters[6], parameters[7]
+    e, v_min = parameters.e, parameters.v_min
     v_after = -e * v_impact
     if v_after < v_min:
         return 0.0, 0.0
-    g_eff = load / parameters[0]
+    g_eff = load / parameters.m
     if g_eff > 0.0 and e < 1.0 and v_after * v_after <= 2.0 * g_eff * apex_floor:
         return 0.0, 2.0 * v_after / (g_eff * (1.0 - e))
     return v_after, 0.0
@@ -65,7 +84,7 @@ def summed_bounce_state(parameters, v_first, load, tau):
     lower than ZENO_APEX R, so the ball is taken on R while they last; this is where it truly is, for a change
     of F_ext inside that time: a lift there leaves with the bounce's speed, not from rest.
     """
-    e, g_eff = parameters[6], load / parameters[0]
+    e, g_eff = parameters.e, load / parameters.m
     scale = 2.0 * v_first / (g_eff * (1.0 - e))  # S_inf
     if not tau < scale:
         return 0.0, 0.0
@@ -173,11 +192,11 @@ def law_flow_value(parameters, mode, x0, v0, tau, load):
 
     Under the rigid law the contact mode is the ball resting on R, where it stays (x0, v0 = 0, 0).
     """
-    if mode == 1 and parameters[5] == RIGID:
+    if mode == 1 and parameters.law == RIGID:
         return x0 + 0.0 * tau, v0 + 0.0 * tau
-    if mode == 1 and parameters[5] == HUNT_CROSSLEY:  # no closed form: never asked for (NaN if it were)
+    if mode == 1 and parameters.law == HUNT_CROSSLEY:  # no closed form: never asked for (NaN if it were)
         return x0 + math.nan * tau, v0 + math.nan * tau
-    return gap_flow_value(mode, x0, v0, tau, load, parameters[0], parameters[1], parameters[2])
+    return gap_flow_value(mode, x0, v0, tau, load, parameters.m, parameters.k, parameters.b)
 
 
 # Under the rigid law with v_min = 0, the bounces after one whose apex is below ZENO_APEX R are summed as
@@ -192,9 +211,9 @@ def conserved_speed(parameters, mode, x_start, v_start):
     """
     if x_start != 0.0:
         return False
-    if parameters[5] == HUNT_CROSSLEY:  # alpha = 0: the Hertz contact conserves energy, its force 0 on R
-        return v_start > 0.0 if mode == 0 else (v_start < 0.0 and parameters[9] == 0.0)
-    return v_start > 0.0 if mode == 0 else (v_start < 0.0 and parameters[2] == 0.0)
+    if parameters.law == HUNT_CROSSLEY:  # alpha = 0: the Hertz contact conserves energy, its force 0 on R
+        return v_start > 0.0 if mode == 0 else (v_start < 0.0 and parameters.alpha == 0.0)
+    return v_start > 0.0 if mode == 0 else (v_start < 0.0 and parameters.b == 0.0)
 
 
 def pressed_gap(parameters, x, v, load):
@@ -207,21 +226,21 @@ def pressed_gap(parameters, x, v, load):
     from (z, dz/dt) too, and its crossing downwards is an impact's. dz/dt = v + (b / k) a, with a the
     pressed contact's acceleration. parameters: Ball.parameters.
     """
-    m, k, b = parameters[0], parameters[1], parameters[2]
+    m, k, b = parameters.m, parameters.k, parameters.b
     c = b / k
     return x + c * v, v + c * gap_acceleration(x, v, 1, load, m, k, b)
 
 
 def free_gap_rate(parameters, v, load):
     """dz/dt [m/s] in the free sub-mode at v [m/s]: v - (b / k) g_eff (pressed_gap's z on the parabola)."""
-    return v - (parameters[2] / parameters[1]) * (load / parameters[0])
+    return v - (parameters.b / parameters.k) * (load / parameters.m)
 
 
 def law_rest_margin(parameters, x, v, d, hop_tolerance):
     """The rest margin under the ball's contact law (parameters: Ball.parameters); see rest_margin_value."""
-    m, k = parameters[0], parameters[1]
-    if parameters[5] == NO_PULL:
-        return no_pull_rest_margin_value(x, v, d, hop_tolerance, k / m, parameters[2] / (2.0 * m))
+    m, k = parameters.m, parameters.k
+    if parameters.law == NO_PULL:
+        return no_pull_rest_margin_value(x, v, d, hop_tolerance, k / m, parameters.b / (2.0 * m))
     return rest_margin_value(x, v, d, hop_tolerance, k / m)
 
 
@@ -232,10 +251,10 @@ def starts_free(parameters, x, v, load):
     Hunt-Crossley law where 1 - 3/2 alpha v < 0 (rising faster than the release speed), or = 0 with the
     load [N] < 0 (a lift past the weight: v grows past it). Never under the other laws.
     """
-    if parameters[5] == HUNT_CROSSLEY:
-        factor = 1.0 - 1.5 * parameters[9] * v
+    if parameters.law == HUNT_CROSSLEY:
+        factor = 1.0 - 1.5 * parameters.alpha * v
         return factor < 0.0 or (factor == 0.0 and load < 0.0)
-    if parameters[5] != NO_PULL:
+    if parameters.law != NO_PULL:
         return False
     z, rate = pressed_gap(parameters, x, v, load)
     return z > 0.0 or (z == 0.0 and rate > 0.0)

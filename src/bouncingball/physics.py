@@ -20,6 +20,7 @@ from .contact_laws import (
     LINEAR,
     NO_PULL,
     RIGID,
+    BallParameters,
     hunt_crossley_force,
     hunt_crossley_rest_margin,
     hunt_crossley_static_deflection,
@@ -133,17 +134,19 @@ class Ball:
         return self.contact == "hunt-crossley"
 
     @property
-    def parameters(self) -> tuple[float, float, float, float, float, float, float, float, float, float]:
-        """(m, k, b, R, g, law, e, v_min, n, alpha): the ball as plain floats, as the phase machine takes it.
+    def parameters(self) -> BallParameters:
+        """BallParameters(m, k, b, R, g, law, e, v_min, n, alpha): the ball as plain floats, as the machine takes it.
 
         law: LINEAR (0), RIGID (1), NO_PULL (2) or HUNT_CROSSLEY (3), the code of the contact law. A no-pull
         ball with b = 0 is the linear law's (its force k (R - h) never pulls below R), and has its code: the
         same run. Under the Hunt-Crossley law b is 0.0 here (its damping is alpha's: no linear damper).
         """
         if self.hunt_crossley:
-            return self.m, self.k, 0.0, self.R, self.g, float(HUNT_CROSSLEY), self.e, self.v_min, self.n, self.alpha
+            return BallParameters(self.m, self.k, 0.0, self.R, self.g, float(HUNT_CROSSLEY), self.e, self.v_min, self.n,
+                                  self.alpha)
         law = RIGID if self.rigid else (NO_PULL if self.no_pull and self.b > 0.0 else LINEAR)
-        return self.m, self.k, self.b, self.R, self.g, float(law), self.e, self.v_min, self.n, self.alpha
+        return BallParameters(self.m, self.k, self.b, self.R, self.g, float(law), self.e, self.v_min, self.n,
+                              self.alpha)
 
     @property
     def natural_frequency(self) -> float:

@@ -112,7 +112,7 @@ def switched_mode(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> M
     if mode == Mode.FLIGHT:
         return Mode.CONTACT if down else None
     parameters = ball.parameters
-    if parameters[5] != NO_PULL:
+    if parameters.law != NO_PULL:
         return Mode.FLIGHT if up else None
     load = load_value(F_ext, ball.m, ball.g)
     if mode == Mode.CONTACT:

@@ -323,8 +323,8 @@ class PhaseSolver:
     def bind(self, ball) -> None:
         """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
         parameters = ball.parameters  # b is 0 there under the Hunt-Crossley law (no linear damper)
-        self.parameters[[_P_M, _P_K, _P_B, _P_LAW, _P_N, _P_ALPHA]] = (ball.m, ball.k, parameters[2], parameters[5],
-                                                                       parameters[8], parameters[9])
+        self.parameters[[_P_M, _P_K, _P_B, _P_LAW, _P_N, _P_ALPHA]] = (ball.m, ball.k, parameters.b, parameters.law,
+                                                                       parameters.n, parameters.alpha)
 
     def handle(self) -> np.ndarray:
         """This solver's row of the compiled machine's engine (see _H_*; its CVODE made on first use)."""

@@ -33,7 +33,7 @@ def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
     t0 <= t <= t1. A step of zero length gives its start. A Hunt-Crossley contact (no closed form) is
     read off hunt_crossley_state's quintic Hermite interpolant, floats only.
     """
-    if mode == 1 and parameters[5] == HUNT_CROSSLEY:
+    if mode == 1 and parameters.law == HUNT_CROSSLEY:
         return hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t)
     dt, dx, dv = step_mismatch(parameters, load, mode, t0, x0, v0, t1, x1, v1)
     return blended_state(parameters, load, mode, t0, x0, v0, dt, dx, dv, t)
@@ -46,7 +46,7 @@ def hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t):
     partials for da/dt = a_x v + a_v a: sixth order, so its error inside a step (~h^6 y^(6) / 46080)
     stays below what CVODE controlled over it. Floats.
     """
-    m, k, n, alpha = parameters[0], parameters[1], parameters[8], parameters[9]
+    m, k, n, alpha = parameters.m, parameters.k, parameters.n, parameters.alpha
     h = t1 - t0
     if not h > 0.0:
         return x0, v0
@@ -102,7 +102,7 @@ def interpolate(parameters, load: float, points: np.ndarray, t: np.ndarray) -> t
     v = np.empty_like(t)
     for mode in (0, 1, 2):  # 2: the no-pull law's free sub-mode
         sel = modes[i] == mode
-        if mode == 1 and parameters[5] == HUNT_CROSSLEY:  # floats only (its interpolant)
+        if mode == 1 and parameters.law == HUNT_CROSSLEY:  # floats only (its interpolant)
             for p in np.flatnonzero(sel):
                 a, b = i[p], j[p]
                 x[p], v[p] = hunt_crossley_state(parameters, load, ts[a], xs[a], vs[a], ts[b], xs[b], vs[b], t[p])
@@ -127,7 +127,7 @@ def fill_grid(parameters, load, points, n_points, t, x, v):
             step, mode, t0, x0, v0 = i, int(points[i, 3]), points[i, 0], points[i, 1], points[i, 2]
             dt, dx, dv = step_mismatch(parameters, load, mode, t0, x0, v0, points[i + 1, 0], points[i + 1, 1],
                                        points[i + 1, 2])
-        if mode == 1 and parameters[5] == HUNT_CROSSLEY:
+        if mode == 1 and parameters.law == HUNT_CROSSLEY:
             x[n], v[n] = hunt_crossley_state(parameters, load, t0, x0, v0, points[i + 1, 0], points[i + 1, 1],
                                              points[i + 1, 2], t[n])
         else:

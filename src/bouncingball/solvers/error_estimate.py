@@ -95,8 +95,8 @@ def phase_error(parameters, rtol, atol, state):
     counted as ERROR_WITHIN_PHASE rtol its length scale; and the hop tolerance in contact, the hops
     it may merge.
     """
-    m, k, R = parameters[0], parameters[1], parameters[3]
-    if parameters[5] == HUNT_CROSSLEY:
+    m, k, R = parameters.m, parameters.k, parameters.R
+    if parameters.law == HUNT_CROSSLEY:
         ax, av, a_rho, _, _, _, bound, height = hunt_crossley_errors(parameters, rtol, atol, state)
         return ax, av, a_rho, bound, height
     mode, load = int(state[RS_MODE]), state[LOAD]
@@ -157,7 +157,7 @@ def carry_error(parameters, rtol, atol, state, jump, reflection):
     reflection -e and jump -(1 + e) g_eff / v- (contact_laws.rigid_rebound's caller), or both 0 where the ball
     stays on R.
     """
-    if parameters[5] == HUNT_CROSSLEY:  # its events keep the state and the field (its force is 0 there): no saltation
+    if parameters.law == HUNT_CROSSLEY:  # its events keep the state and the field (its force is 0 there): no saltation
         ax, av, a_rho, bx, bv, b_rho, bound, height = hunt_crossley_errors(parameters, rtol, atol, state)
         state[ERR_X], state[ERR_V], state[ERR_XV] = ax, av, a_rho
         state[ERR2_X], state[ERR2_V], state[ERR2_XV] = bx, bv, b_rho
@@ -165,7 +165,7 @@ def carry_error(parameters, rtol, atol, state, jump, reflection):
         ex, ev, _, bound, height = phase_error(parameters, rtol, atol, state)
     state[SCALE], state[ERR_MAX] = max(state[SCALE], height), max(state[ERR_MAX], bound)
     state[ERR_FROM] = _untrusted_from(state[ERR_MAX], state[SCALE], state[ERR_FROM], state[RS_T])
-    if parameters[5] != HUNT_CROSSLEY:
+    if parameters.law != HUNT_CROSSLEY:
         state[ERR_X], state[ERR_V] = reflection * ex, reflection * ev + jump * ex
 
 
@@ -212,7 +212,7 @@ def hunt_crossley_transition(parameters, load, t0, x0, v0, t1, x1, v1, t):
     both >= 0 pressed), whose flow of the unit vectors is exact (oscillator.oscillator_basis). Second order in the
     step: the error it carries is first order itself, so a few per cent on it are within ESTIMATE_SAFETY.
     """
-    m, k, n, alpha = parameters[0], parameters[1], parameters[8], parameters[9]
+    m, k, n, alpha = parameters.m, parameters.k, parameters.n, parameters.alpha
     tau = t - t0
     xm, vm = hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t0 + 0.5 * tau)
     a_x, a_v = hunt_crossley_partials(xm, vm, load, m, k, n, alpha)
@@ -298,7 +298,7 @@ def hunt_crossley_errors(parameters, rtol, atol, state):
     tolerance. A flight or a free spell (parabolas, exact) carries both by its transition matrix and adds its own
     error to b, measured against the exact flow from its start as under the other laws.
     """
-    R, mode, load = parameters[3], int(state[RS_MODE]), state[LOAD]
+    R, mode, load = parameters.R, int(state[RS_MODE]), state[LOAD]
     x0, v0 = state[RS_X], state[RS_V]
     ax, av, a_rho = abs(state[ERR_X]), abs(state[ERR_V]), state[ERR_XV]
     bx, bv, b_rho = abs(state[ERR2_X]), abs(state[ERR2_V]), state[ERR2_XV]

@@ -104,7 +104,7 @@ class ExactSolution:
                     tau, x_next, v_next, departs = free_event(parameters, h - R, v, load)
                     kind, next_mode = (DEPARTURE, Mode.FLIGHT) if departs else (ENGAGE, Mode.CONTACT)
                 else:
-                    no_pull = parameters[5] == NO_PULL
+                    no_pull = parameters.law == NO_PULL
                     tau = (release_time if no_pull else departure_time)(parameters, h - R, v, load)
                     if math.isinf(tau):
                         if last:
@@ -191,9 +191,9 @@ def departure_time(parameters, x0, v0, load):
     compiled phase machine runs this very search. A rigid ball resting on R leaves it at once where
     F_ext lifts it (load < 0), else never.
     """
-    if parameters[5] == RIGID:
+    if parameters.law == RIGID:
         return math.inf if load >= 0.0 else 0.0
-    m, k, b = parameters[0], parameters[1], parameters[2]
+    m, k, b = parameters.m, parameters.k, parameters.b
     sigma, w2 = b / (2.0 * m), k / m
     d, g_eff = load / k, load / m
     q = sigma * v0 + w2 * x0 + g_eff  # v = v0 C - q S (q = sigma v0 + w2 y0, y0 = x0 + d the deflection from rest)
@@ -261,9 +261,9 @@ def departure_speed(parameters, x0, v0, tau, load):
     """
     if conserved_speed(parameters, 1, x0, v0):
         return -v0
-    if parameters[5] == RIGID:
+    if parameters.law == RIGID:
         return max(v0, 0.0)
-    m, k, b = parameters[0], parameters[1], parameters[2]
+    m, k, b = parameters.m, parameters.k, parameters.b
     return max(contact_gap_flow(b / (2.0 * m), k / m, load / m, x0, v0, tau)[1], 0.0)
 
 
@@ -284,7 +284,7 @@ def release_state(parameters, x0, v0, tau, load):
     The force is 0 there, k x = -b v: below R the ball rises (v >= 0; the flow may round a grazing
     release's speed below 0).
     """
-    m, k, b = parameters[0], parameters[1], parameters[2]
+    m, k, b = parameters.m, parameters.k, parameters.b
     x, v = contact_gap_flow(b / (2.0 * m), k / m, load / m, x0, v0, tau)
     return x, max(v, 0.0)
 
@@ -298,7 +298,7 @@ def free_event(parameters, x0, v0, load):
     falls back to 0: time_to_impact of z. The first of the two; (inf, x0, v0, True) where neither comes
     (a weightless ball at rest on R). departs: whether it is the departure (x = 0 there exactly).
     """
-    g_eff = load / parameters[0]
+    g_eff = load / parameters.m
     z, rate = pressed_gap(parameters, x0, v0, load)[0], free_gap_rate(parameters, v0, load)
     disc = v0 * v0 + 2.0 * g_eff * x0
     tau_departure, s = math.inf, 0.0

@@ -171,7 +171,7 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
             return CVODE_FAILED, scratch, 0
         state[NEEDS_INIT] = 0.0
         state[STEP_T], state[STEP_X], state[STEP_V] = state[T], state[X], state[V]
-        if parameters[5] == HUNT_CROSSLEY and mode == CONTACT:
+        if parameters.law == HUNT_CROSSLEY and mode == CONTACT:
             start_contact_ellipses(state)
     origin, length, speed = state[ORIGIN], state[LENGTH], state[SPEED]
     tau_before = state[STEP_T] - origin
@@ -183,12 +183,12 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
         return TOO_MANY_STEPS if engine_exceeded(engine, mode) else CVODE_FAILED, rows, 0
     state[NFEV] = rhs_calls
     last = count - 1
-    no_pull = parameters[5] == NO_PULL and mode == CONTACT  # a pressed contact: its event is the release
+    no_pull = parameters.law == NO_PULL and mode == CONTACT  # a pressed contact: its event is the release
     # A Hunt-Crossley contact's third root is its release (the force's clip engaging), taken where CVODE located
     # it (no closed form to polish on), at the release speed exactly; a departure on the same step comes first.
-    hc_release = parameters[5] == HUNT_CROSSLEY and mode == CONTACT and rest_root != 0 and gap_root == 0
+    hc_release = parameters.law == HUNT_CROSSLEY and mode == CONTACT and rest_root != 0 and gap_root == 0
     if hc_release:
-        state[PENDING], state[PEND_V], state[PEND_KIND] = 1.0, release_speed(parameters[9]), RELEASE
+        state[PENDING], state[PEND_V], state[PEND_KIND] = 1.0, release_speed(parameters.alpha), RELEASE
         state[PEND_X] = min(length * rows[last, 1], 0.0)
         state[PEND_T], state[PEND_T_LOW] = later(origin, state[ORIGIN_LOW], rows[last, 0])
         rest_root = 0
@@ -215,13 +215,13 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     checked = count - 1 if gap_root != 0 or hc_release else count
     if checked > 0:
         if no_pull:  # the step ends' z = -force / k (contact_laws.pressed_gap), which a missed release leaves above 0
-            extreme = (rows[:checked, 1] + (parameters[2] / parameters[1]) * rows[:checked, 2]).max()
+            extreme = (rows[:checked, 1] + (parameters.b / parameters.k) * rows[:checked, 2]).max()
         else:
             extreme = rows[:checked, 1].min() if mode == FLIGHT else rows[:checked, 1].max()
         if on_wrong_side(mode, extreme, side_margin(hop, rtol, length)):
             state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = rows[checked - 1, 0], extreme, 0.0
             return STEPPED_OVER, rows, 0
-    if parameters[5] == HUNT_CROSSLEY and mode == CONTACT:  # no closed form: its error carried step by step
+    if parameters.law == HUNT_CROSSLEY and mode == CONTACT:  # no closed form: its error carried step by step
         contact_steps_ellipse(parameters, rtol, state, rows, count)
         if math.isnan(state[HC_REST_T]):
             _hunt_crossley_rest(parameters, state, rows, count)
@@ -249,7 +249,7 @@ def _hunt_crossley_rest(parameters, state, rows, count):
     flow under this law, so the rest is only reported: CVODE integrates on through it (the ball never
     leaves, or by a hop below HOP). A margin already positive at a restart dates the rest there.
     """
-    m, k, n, load, hop = parameters[0], parameters[1], parameters[8], state[LOAD], state[HOP]
+    m, k, n, load, hop = parameters.m, parameters.k, parameters.n, state[LOAD], state[HOP]
     t0, x0, v0 = state[STEP_T], state[STEP_X], state[STEP_V]
     if hunt_crossley_rest_margin(x0, v0, load, m, k, n, hop) > 0.0:
         state[HC_REST_T] = t0
@@ -279,12 +279,12 @@ def _take_event(parameters, rtol, atol, state, events, n_events):
         events = grown(events)
     kind, mode = int(state[PEND_KIND]), int(state[MODE])
     events[n_events, 0], events[n_events, 1], events[n_events, 2] = state[T], kind, state[V]
-    if kind == IMPACT and parameters[5] == RIGID:
+    if kind == IMPACT and parameters.law == RIGID:
         _bounce(parameters, rtol, atol, state)
         return events, n_events + 1
     # the saltation's jump: the field's, -+ b/m at an impact or a departure from the pressed contact; none at the
     # no-pull law's switches below R, where the force is 0 on either side, nor at a departure from its free sub-mode
-    damping = parameters[2] / parameters[0]
+    damping = parameters.b / parameters.m
     if kind == IMPACT:
         state[MODE], state[IMPACTS], state[LAST_IMPACT] = CONTACT, state[IMPACTS] + 1.0, state[T]
         jump = -damping
@@ -307,8 +307,8 @@ def _bounce(parameters, rtol, atol, state):
     """
     v_impact = state[V]
     v_after, zeno = rigid_rebound(parameters, v_impact, state[LOAD])
-    e = parameters[6] if v_after > 0.0 else 0.0  # on R at rest no error of x or v is left
-    jump = -(1.0 + e) * (state[LOAD] / parameters[0]) / v_impact if v_after > 0.0 else 0.0
+    e = parameters.e if v_after > 0.0 else 0.0  # on R at rest no error of x or v is left
+    jump = -(1.0 + e) * (state[LOAD] / parameters.m) / v_impact if v_after > 0.0 else 0.0
     carry_error(parameters, rtol, atol, state, jump, -e)  # the error of the state before the impact
     state[IMPACTS], state[LAST_IMPACT], state[V] = state[IMPACTS] + 1.0, state[T], v_after
     state[MODE] = FLIGHT if v_after > 0.0 else CONTACT

@@ -61,8 +61,8 @@ def phase_scales(parameters, mode, x, v, load):
     (its contact) is scaled by R, at rest. The no-pull law's free sub-mode (always in closed form) by its
     depth below R and its rise.
     """
-    m, k, R = parameters[0], parameters[1], parameters[3]
-    if mode != FLIGHT and parameters[5] == RIGID:
+    m, k, R = parameters.m, parameters.k, parameters.R
+    if mode != FLIGHT and parameters.law == RIGID:
         return R, 0.0
     if mode == FREE:
         g_eff = load / m
@@ -77,7 +77,7 @@ def phase_scales(parameters, mode, x, v, load):
             return length, math.sqrt(2.0 * g_eff * length)
         length = max(abs(x), R)
         return length, max(abs(v), math.sqrt(2.0 * abs(g_eff) * length), length)
-    if parameters[5] == HUNT_CROSSLEY:
+    if parameters.law == HUNT_CROSSLEY:
         return hunt_crossley_scales(parameters, x, v, load)
     w = math.sqrt(k / m)
     amplitude = hypot(x + load / k, v / w)
@@ -98,7 +98,7 @@ def hunt_crossley_scales(parameters, x, v, load):
     sqrt(2 (e + g_eff delta_max)), and at least w delta_max with w^2 = n (k/m) delta_max^(n-1), the contact's
     own rate there.
     """
-    m, k, R, n = parameters[0], parameters[1], parameters[3], parameters[8]
+    m, k, R, n = parameters.m, parameters.k, parameters.R, parameters.n
     w2, g_eff = k / m, load / m
     depth = max(-x, 0.0)
     energy = 0.5 * (v * v) - g_eff * depth + w2 * depth ** (n + 1.0) / (n + 1.0)
@@ -117,8 +117,8 @@ def hunt_crossley_free_event(parameters, x, v, load):
     on R (x = 0, at sqrt(v^2 + 2 g_eff x), energy's) unless its speed falls back to the release speed first
     (g_eff > 0): then it is pressed again there (an engagement).
     """
-    g_eff = load / parameters[0]
-    v_release = release_speed(parameters[9])
+    g_eff = load / parameters.m
+    v_release = release_speed(parameters.alpha)
     disc = v * v + 2.0 * g_eff * x
     tau_departure = -2.0 * x / (v + math.sqrt(disc)) if disc >= 0.0 and v > 0.0 else math.inf
     tau_engage = (v - v_release) / g_eff if g_eff > 0.0 else math.inf
@@ -148,7 +148,7 @@ def contact_unresolved(parameters, x, v, load, rtol):
     length, speed = phase_scales(parameters, CONTACT, x, v, load)
     if not (length >= MIN_PHASE_SCALE and speed > 0.0):
         return True
-    return abs(load / parameters[1]) < HOP_RESOLUTION * rtol * length
+    return abs(load / parameters.k) < HOP_RESOLUTION * rtol * length
 
 
 def decide_phase(parameters, mode, x, v, load, hop, rtol):
@@ -177,7 +177,7 @@ def decide_phase(parameters, mode, x, v, load, hop, rtol):
     is always taken in closed form (a parabola: exact.free_event).
     """
     if mode == FLIGHT:
-        if x < 0.0 or not load / parameters[0] > 0.0:
+        if x < 0.0 or not load / parameters.m > 0.0:
             return BY_CVODE, 0.0, 0.0, 0.0, IMPACT
         apex, _ = phase_scales(parameters, FLIGHT, x, v, load)
         if apex >= max(hop, MIN_PHASE_SCALE):
@@ -185,20 +185,20 @@ def decide_phase(parameters, mode, x, v, load, hop, rtol):
         tau, v_impact = flight_impact(parameters, x, v, load)
         return IN_CLOSED_FORM, tau, 0.0, v_impact, IMPACT
     if mode == FREE:
-        if parameters[5] == HUNT_CROSSLEY:
+        if parameters.law == HUNT_CROSSLEY:
             tau, x_event, v_event, departs = hunt_crossley_free_event(parameters, x, v, load)
         else:
             tau, x_event, v_event, departs = free_event(parameters, x, v, load)
         return IN_CLOSED_FORM, tau, x_event, v_event, DEPARTURE if departs else ENGAGE
-    if parameters[5] == HUNT_CROSSLEY:  # no closed form: CVODE takes every contact, a rest only reported (HC_REST_T)
+    if parameters.law == HUNT_CROSSLEY:  # no closed form: CVODE takes every contact, a rest only reported (HC_REST_T)
         return BY_CVODE, 0.0, 0.0, 0.0, DEPARTURE
-    if parameters[5] == RIGID:  # a rigid ball resting on R: it stays, or F_ext lifts it at once
+    if parameters.law == RIGID:  # a rigid ball resting on R: it stays, or F_ext lifts it at once
         tau = departure_time(parameters, x, v, load)
         if math.isinf(tau):
             return REST, 0.0, 0.0, 0.0, DEPARTURE
         return IN_CLOSED_FORM, tau, 0.0, departure_speed(parameters, x, v, tau, load), DEPARTURE
-    m, k, b = parameters[0], parameters[1], parameters[2]
-    no_pull = parameters[5] == NO_PULL
+    m, k, b = parameters.m, parameters.k, parameters.b
+    no_pull = parameters.law == NO_PULL
     kind = RELEASE if no_pull else DEPARTURE
     d = load / k
     if d > 0.0 and law_rest_margin(parameters, x, v, d, hop) > 0.0:
@@ -221,7 +221,7 @@ def decide_phase(parameters, mode, x, v, load, hop, rtol):
 
 def flight_impact(parameters, x, v, load):
     """(tau [s], v [m/s]) of the impact ending a flight from (x, v) on its parabola; (inf, nan) if it never comes."""
-    return time_to_impact(x, v, load / parameters[0])
+    return time_to_impact(x, v, load / parameters.m)
 
 
 def polish_event(parameters, mode, load, length, tau_before, tau_root, x_root, v_root, x_start, v_start):
@@ -241,10 +241,10 @@ def polish_event(parameters, mode, load, length, tau_before, tau_root, x_root, v
     not CVODE's: each bounce's small error would otherwise add up to an energy drift, and the drift
     to an error of the bounces' times growing with the square of their count.
     """
-    m, k, b = parameters[0], parameters[1], parameters[2]
+    m, k, b = parameters.m, parameters.k, parameters.b
     # A Hunt-Crossley contact has no closed form, but its force k delta^n is 0 on R: within the root's few
     # ulps of R the flight's parabola is its flow to within k |x|^n tau / m.
-    flow_mode = FLIGHT if parameters[5] == HUNT_CROSSLEY else mode
+    flow_mode = FLIGHT if parameters.law == HUNT_CROSSLEY else mode
     tau, x, v = 0.0, x_root, v_root
     for _ in range(8):
         if x == 0.0 or v == 0.0:
@@ -267,7 +267,7 @@ def polish_release(parameters, load, length, tau_before, tau_root, x_root, v_roo
     polish_event's Newton on contact_laws.pressed_gap's z (which obeys the contact's own equation) instead of
     x, then the state moved on the contact's exact flow to the polished time. v >= 0 (the ball rises).
     """
-    m, k, b = parameters[0], parameters[1], parameters[2]
+    m, k, b = parameters.m, parameters.k, parameters.b
     z, rate = pressed_gap(parameters, x_root, v_root, load)
     tau, _ = polish_event(parameters, CONTACT, load, length, tau_before, tau_root, z, rate, 1.0, 0.0)
     x, v = gap_flow_value(CONTACT, x_root, v_root, tau - tau_root, load, m, k, b)
@@ -289,9 +289,9 @@ def on_wrong_side(mode, x, margin):
 
 def taylor_step(parameters, mode, x, v, load, dt):
     """(x, v) after dt [s] by a second-order Taylor step: where dt is a few ulps of t, too short for CVODE."""
-    m, k, b = parameters[0], parameters[1], parameters[2]
-    if parameters[5] == HUNT_CROSSLEY and mode == CONTACT:
-        a = hunt_crossley_acceleration(x, v, load, m, k, parameters[8], parameters[9])
+    m, k, b = parameters.m, parameters.k, parameters.b
+    if parameters.law == HUNT_CROSSLEY and mode == CONTACT:
+        a = hunt_crossley_acceleration(x, v, load, m, k, parameters.n, parameters.alpha)
     else:
         a = gap_acceleration(x, v, mode, load, m, k, b)
     return x + dt * (v + 0.5 * dt * a), v + dt * a

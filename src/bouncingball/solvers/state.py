@@ -186,7 +186,7 @@ class IntegratorView:
         if rest is None or not t < rest:
             return None
         impact, parameters = float(self._state[layout.LAST_IMPACT]), self.ball.parameters
-        e, g_eff = parameters[6], self._load / parameters[0]
+        e, g_eff = parameters.e, self._load / parameters.m
         v_first = 0.5 * (rest - impact) * g_eff * (1.0 - e)  # from the Zeno time rigid_rebound gave
         return summed_bounce_state(parameters, v_first, self._load, t - impact)
 

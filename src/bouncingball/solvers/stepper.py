@@ -113,8 +113,8 @@ class SksundaePhaseSolver:
     def bind(self, ball: Ball) -> None:
         """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
         parameters = ball.parameters  # b is 0 there under the Hunt-Crossley law (no linear damper)
-        self._m, self._k, self._b, self._law = ball.m, ball.k, parameters[2], parameters[5]
-        self._n, self._alpha = parameters[8], parameters[9]
+        self._m, self._k, self._b, self._law = ball.m, ball.k, parameters.b, parameters.law
+        self._n, self._alpha = parameters.n, parameters.alpha
         # load [N], m, k, b, the contact law's code, the Hunt-Crossley law's n and alpha
         self._constants = (0.0, ball.m, ball.k, self._b, self._law, self._n, self._alpha)
         self.set_frame(1.0, 1.0, 0.0)
