@@ -20,6 +20,7 @@ import pytest
 compiled = pytest.importorskip("bouncingball.solvers.compiled", reason="the compiled engine needs numba ([fast])")
 from numba.core.dispatcher import Dispatcher  # noqa: E402  (numba is there once compiled imports)
 
+from bouncingball.contact_laws import BallParameters  # noqa: E402
 from bouncingball.solvers import jit  # noqa: E402
 
 GIVEN = tuple(compiled._compiled)  # every plain function compiled.py gave compiled_together
@@ -30,6 +31,7 @@ ALLOWED_MODULES = (math, np)
 NUMBA_BUILTINS = {"abs", "bool", "divmod", "enumerate", "float", "int", "isinstance", "len", "max", "min", "pow",
                   "range", "round", "tuple", "zip"}
 ARRAY_ATTRIBUTES = {"shape", "size", "ndim", "dtype", "ctypes", "T", "copy", "fill", "sum"}
+PARAMETER_FIELDS = set(BallParameters._fields)  # the ball's parameters travel as a namedtuple, read by name
 # Nodes numba cannot compile (rule 4).
 REFUSED_NODES = (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda, ast.ClassDef, ast.Try, ast.With, ast.Yield,
                  ast.YieldFrom, ast.Global, ast.Nonlocal, ast.JoinedStr)
@@ -115,9 +117,11 @@ def compiled_rule_violations(function, namespace) -> list[str]:
     local = set(function.__code__.co_varnames)
     for node in ast.walk(tree):
         if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in local:
+            if node.attr in PARAMETER_FIELDS and node.value.id == "parameters":
+                continue
             if node.attr not in ARRAY_ATTRIBUTES and not all(hasattr(module, node.attr) for module in ALLOWED_MODULES):
                 found.append(f"{where(function, node)}: {ast.unparse(node)}, an object's attribute (arguments are "
-                             "floats, ints, tuples and arrays, or math / numpy as xp)")
+                             "floats, ints, tuples, arrays, the ball's parameters, or math / numpy as xp)")
     return found
 
 

@@ -12,21 +12,24 @@ import bouncingball
 
 PACKAGE = Path(bouncingball.__file__).parent
 MODULES = sorted(m.name for m in pkgutil.walk_packages([str(PACKAGE)], "bouncingball."))
-# What each layer may import from this package: rounding, oscillator <- equations <- contact_laws <- physics <- limits
-# <- solvers <- the rest.
-MODEL = {"bouncingball.rounding", "bouncingball.oscillator", "bouncingball.equations", "bouncingball.contact_laws",
-         "bouncingball.physics"}
+# What each layer may import from this package: codes, rounding, oscillator <- equations <- contact_laws <- physics
+# <- limits <- solvers <- the rest.
+MODEL = {"bouncingball.codes", "bouncingball.rounding", "bouncingball.oscillator", "bouncingball.equations",
+         "bouncingball.contact_laws", "bouncingball.physics"}
 LOWER_LAYERS = {
+    "bouncingball.codes": set(),
     "bouncingball.rounding": set(),
     "bouncingball.oscillator": set(),
-    "bouncingball.equations": {"bouncingball.rounding", "bouncingball.oscillator"},
-    "bouncingball.contact_laws": {"bouncingball.equations"},
-    "bouncingball.physics": {"bouncingball.validation", "bouncingball.equations", "bouncingball.contact_laws"},
+    "bouncingball.equations": {"bouncingball.codes", "bouncingball.rounding", "bouncingball.oscillator"},
+    "bouncingball.contact_laws": {"bouncingball.codes", "bouncingball.equations"},
+    "bouncingball.physics": {"bouncingball.codes", "bouncingball.validation", "bouncingball.equations",
+                             "bouncingball.contact_laws"},
     "bouncingball.limits": {*MODEL, "bouncingball.validation"},
     "bouncingball.solvers": {*MODEL, "bouncingball.validation", "bouncingball.limits", "bouncingball.solvers"},
 }
-SINGLE_FILE_LAYERS = ("bouncingball.rounding", "bouncingball.oscillator", "bouncingball.equations",
-                      "bouncingball.contact_laws", "bouncingball.physics", "bouncingball.limits")
+SINGLE_FILE_LAYERS = ("bouncingball.codes", "bouncingball.rounding", "bouncingball.oscillator",
+                      "bouncingball.equations", "bouncingball.contact_laws", "bouncingball.physics",
+                      "bouncingball.limits")
 
 
 @pytest.mark.slow

@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+from .codes import CONTACT, FLIGHT
 from .equations import gap_acceleration, gap_flow_value, rest_margin_value
 
 # The contact laws (Ball.contact) and the codes the phase machine knows them by (Ball.parameters).
@@ -192,9 +193,9 @@ def law_flow_value(parameters, mode, x0, v0, tau, load):
 
     Under the rigid law the contact mode is the ball resting on R, where it stays (x0, v0 = 0, 0).
     """
-    if mode == 1 and parameters.law == RIGID:
+    if mode == CONTACT and parameters.law == RIGID:
         return x0 + 0.0 * tau, v0 + 0.0 * tau
-    if mode == 1 and parameters.law == HUNT_CROSSLEY:  # no closed form: never asked for (NaN if it were)
+    if mode == CONTACT and parameters.law == HUNT_CROSSLEY:  # no closed form: never asked for (NaN if it were)
         return x0 + math.nan * tau, v0 + math.nan * tau
     return gap_flow_value(mode, x0, v0, tau, load, parameters.m, parameters.k, parameters.b)
 
@@ -212,8 +213,8 @@ def conserved_speed(parameters, mode, x_start, v_start):
     if x_start != 0.0:
         return False
     if parameters.law == HUNT_CROSSLEY:  # alpha = 0: the Hertz contact conserves energy, its force 0 on R
-        return v_start > 0.0 if mode == 0 else (v_start < 0.0 and parameters.alpha == 0.0)
-    return v_start > 0.0 if mode == 0 else (v_start < 0.0 and parameters.b == 0.0)
+        return v_start > 0.0 if mode == FLIGHT else (v_start < 0.0 and parameters.alpha == 0.0)
+    return v_start > 0.0 if mode == FLIGHT else (v_start < 0.0 and parameters.b == 0.0)
 
 
 def pressed_gap(parameters, x, v, load):

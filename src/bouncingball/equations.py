@@ -8,6 +8,7 @@ on them.
 
 from __future__ import annotations
 
+from .codes import CONTACT
 from .oscillator import contact_gap_flow
 from .rounding import product_error
 
@@ -26,7 +27,7 @@ def gap_acceleration(x, v, mode, load, m, k, b):
     would bury its deflection in their round-off. The load, not g - F_ext/m, which rounds
     differently: a ball creeping to a rest height of exactly R felt a residual 2e-15 m/s2.
     """
-    if mode != 1:  # flight, or free below R under the no-pull law
+    if mode != CONTACT:  # flight, or free below R under the no-pull law
         return -load / m
     return (-b * v - k * x - load) / m
 
@@ -71,6 +72,6 @@ def gap_flow_value(mode, x0, v0, tau, load, m, k, b):
     no-pull law) is the flight's parabola.
     """
     g_eff = load / m
-    if mode != 1:
+    if mode != CONTACT:
         return x0 + tau * (v0 - 0.5 * g_eff * tau), v0 - g_eff * tau
     return contact_gap_flow(b / (2.0 * m), k / m, g_eff, x0, v0, tau)

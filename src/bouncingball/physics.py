@@ -9,10 +9,11 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
-from . import validation
+from . import codes, validation
 from .contact_laws import (
     CONTACT_LAWS,
     HC_N_RANGE,
@@ -38,9 +39,9 @@ class Mode(enum.IntEnum):
     would pull, so there is none, and the ball moves on its flight's parabola below R.
     """
 
-    FLIGHT = 0
-    CONTACT = 1
-    FREE = 2
+    FLIGHT = codes.FLIGHT
+    CONTACT = codes.CONTACT
+    FREE = codes.FREE
 
 
 @dataclass(frozen=True)
@@ -133,7 +134,7 @@ class Ball:
         """Whether the contact law is Hunt and Crossley's (k delta^n (1 + 3/2 alpha delta'), clipped at 0)."""
         return self.contact == "hunt-crossley"
 
-    @property
+    @cached_property
     def parameters(self) -> BallParameters:
         """BallParameters(m, k, b, R, g, law, e, v_min, n, alpha): the ball as plain floats, as the machine takes it.
 

@@ -29,7 +29,9 @@ import numpy as np
 from numba import carray, cfunc, njit, types
 
 from .. import contact_laws, equations, oscillator, physics, rounding
+from ..codes import CONTACT
 from . import dense_output, drivers, engine_protocol, error_estimate, exact, machine, phases
+from .engine_protocol import CV_ROOT_RETURN, CV_SUCCESS
 from .jit import (
     addresses,
     cache_allowed,
@@ -50,7 +52,6 @@ from .sundials_log import SundialsLog
 
 CV_ADAMS, CV_BDF = 1, 2
 CV_ONE_STEP = 2
-CV_SUCCESS, CV_ROOT_RETURN = 0, 2
 # cvode.py's defaults for scikit-sundae's options that CVODE would otherwise take from itself.
 _MAX_NONLIN_ITERS = 3
 _MAX_CONV_FAILS = 10
@@ -207,7 +208,7 @@ def _jacobian(t, y, fy, matrix, user_data, tmp1, tmp2, tmp3):
     p = carray(doubles(u[_U_PARAMETERS]), _P_SIZE)
     columns = carray(addresses(call_p1(u[_U_COLUMNS], matrix)), 2)
     first, second = carray(doubles(columns[0]), 2), carray(doubles(columns[1]), 2)
-    if p[_P_LAW] == _HUNT_CROSSLEY and p[_P_MODE] == 1.0:  # the Hunt-Crossley contact's, where it changes
+    if p[_P_LAW] == _HUNT_CROSSLEY and p[_P_MODE] == CONTACT:  # the Hunt-Crossley contact's, where it changes
         state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
         j00, j01, j10, j11 = _hunt_crossley_jacobian(state[0], state[1], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD],
                                                      p[_P_M], p[_P_K], p[_P_N], p[_P_ALPHA])

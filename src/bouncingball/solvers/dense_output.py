@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..codes import CONTACT
 from ..contact_laws import HUNT_CROSSLEY, hunt_crossley_acceleration, hunt_crossley_partials, law_flow_value
 
 
@@ -33,7 +34,7 @@ def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
     t0 <= t <= t1. A step of zero length gives its start. A Hunt-Crossley contact (no closed form) is
     read off hunt_crossley_state's quintic Hermite interpolant, floats only.
     """
-    if mode == 1 and parameters.law == HUNT_CROSSLEY:
+    if mode == CONTACT and parameters.law == HUNT_CROSSLEY:
         return hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t)
     dt, dx, dv = step_mismatch(parameters, load, mode, t0, x0, v0, t1, x1, v1)
     return blended_state(parameters, load, mode, t0, x0, v0, dt, dx, dv, t)
@@ -102,7 +103,7 @@ def interpolate(parameters, load: float, points: np.ndarray, t: np.ndarray) -> t
     v = np.empty_like(t)
     for mode in (0, 1, 2):  # 2: the no-pull law's free sub-mode
         sel = modes[i] == mode
-        if mode == 1 and parameters.law == HUNT_CROSSLEY:  # floats only (its interpolant)
+        if mode == CONTACT and parameters.law == HUNT_CROSSLEY:  # floats only (its interpolant)
             for p in np.flatnonzero(sel):
                 a, b = i[p], j[p]
                 x[p], v[p] = hunt_crossley_state(parameters, load, ts[a], xs[a], vs[a], ts[b], xs[b], vs[b], t[p])
@@ -127,7 +128,7 @@ def fill_grid(parameters, load, points, n_points, t, x, v):
             step, mode, t0, x0, v0 = i, int(points[i, 3]), points[i, 0], points[i, 1], points[i, 2]
             dt, dx, dv = step_mismatch(parameters, load, mode, t0, x0, v0, points[i + 1, 0], points[i + 1, 1],
                                        points[i + 1, 2])
-        if mode == 1 and parameters.law == HUNT_CROSSLEY:
+        if mode == CONTACT and parameters.law == HUNT_CROSSLEY:
             x[n], v[n] = hunt_crossley_state(parameters, load, t0, x0, v0, points[i + 1, 0], points[i + 1, 1],
                                              points[i + 1, 2], t[n])
         else:

@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from ..codes import CONTACT
 from ..contact_laws import law_flow_value
 from .dense_output import step_state
 from .layout import (
@@ -45,7 +46,7 @@ from .layout import (
     X,
 )
 from .machine import DONE, RETURNED, _take_event, closed_form_phase, grown, phase_steps
-from .phases import BY_CVODE, CONTACT, IN_CLOSED_FORM, REST, decide_phase, taylor_step
+from .phases import BY_CVODE, IN_CLOSED_FORM, REST, decide_phase, taylor_step
 
 
 def _decided_by_cvode(parameters, rtol, state):

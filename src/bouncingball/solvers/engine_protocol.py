@@ -29,6 +29,7 @@ functions over SUNDIALS (compiled.py: ``_engine_start``, ``_engine_steps``, ``_e
 
 from __future__ import annotations
 
+CV_SUCCESS, CV_TSTOP_RETURN, CV_ROOT_RETURN = 0, 1, 2  # CVode's return flags (cvode.h)
 BUFFER_FULL = 99  # engine_steps' flag: the buffer is full, call again for the phase's further steps
 
 

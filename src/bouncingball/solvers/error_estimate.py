@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 
+from ..codes import CONTACT, FLIGHT
 from ..contact_laws import HUNT_CROSSLEY, hunt_crossley_partials, law_flow_value
 from ..oscillator import oscillator_basis
 from ..rounding import hypot
@@ -71,7 +72,7 @@ from .layout import (
     V,
     X,
 )
-from .phases import CONTACT, FLIGHT, frame
+from .phases import frame
 from .settings import ERROR_WITHIN_PHASE, ESTIMATE_CAP, ESTIMATE_SAFETY, LOCAL_ERROR_SAFETY, PROMISE
 
 _EPS = 2.0**-52

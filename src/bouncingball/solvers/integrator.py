@@ -34,7 +34,7 @@ from ..physics import Ball, Mode
 from . import engines, layout, machine, state_checks, stepper
 from .dense_output import interpolate
 from .engines import choose_engine
-from .result import DEPARTURE, ENGAGE, IMPACT, RELEASE, Event, accuracy_warning
+from .result import EVENT_KINDS, Event, accuracy_warning
 from .settings import CvodeSettings, choose_method, too_many_steps_cause
 from .state import IntegratorState, IntegratorView
 from .stepper import SolverError
@@ -327,5 +327,4 @@ def _events(rows: np.ndarray, count: int) -> list[Event]:
     """The machine's event rows (t, kind, v) as Events."""
     if count == 0:  # most of an FMU's advances
         return []
-    kinds = (IMPACT, DEPARTURE, RELEASE, ENGAGE)
-    return [Event(t, kinds[int(kind)], v) for t, kind, v in rows[:count].tolist()]  # tolist: Python floats
+    return [Event(t, EVENT_KINDS[int(kind)], v) for t, kind, v in rows[:count].tolist()]  # tolist: Python floats

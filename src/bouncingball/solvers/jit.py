@@ -27,7 +27,8 @@ interpreted. A function so reached:
    max, float, int, range, ...). numba freezes a global number into the code it compiles: changing
    it at run time (a monkeypatch) reaches the interpreted engine, not the compiled one.
 3. Takes and returns floats, ints, bools, tuples of them and numpy arrays: no Python object (a Ball,
-   a Mode, a settings dataclass); the ball travels as the tuple Ball.parameters. The one exception
+   a Mode, a settings dataclass); the ball travels as the namedtuple Ball.parameters, read by field
+   (``parameters.m``). The one exception
    is the module ``math`` or ``numpy`` as an argument (``xp``), for code written once for floats and
    arrays; an argument's attributes are an array's (shape, ctypes, ...) or that module's functions.
 4. Uses nothing numba cannot compile: no keyword-only or variadic parameters (``*args``,
@@ -70,7 +71,7 @@ from .engine_cache import PORTABLE_CPU, package_shipped, say_on_stderr, user_cac
 
 # Every source the compiled code is compiled from, relative to the package: the modules whose functions
 # compiled.py gives compiled_together, those whose constants they read (rule 5), jit.py and compiled.py.
-ENGINE_SOURCES = ("rounding.py", "oscillator.py", "equations.py", "contact_laws.py", "physics.py",
+ENGINE_SOURCES = ("codes.py", "rounding.py", "oscillator.py", "equations.py", "contact_laws.py", "physics.py",
                   "solvers/settings.py", "solvers/phases.py", "solvers/layout.py", "solvers/error_estimate.py",
                   "solvers/engine_protocol.py", "solvers/machine.py", "solvers/drivers.py",
                   "solvers/dense_output.py", "solvers/exact.py", "solvers/jit.py", "solvers/compiled.py")

@@ -16,8 +16,8 @@ drift by an ulp of t per event (rounding.later). ERR_X, ERR_V: the run's error o
 restart point (error_estimate.phase_error); ERR_MAX: the bound on |h - h_true| over the phases
 before it; ERR_FROM: the start of the first phase whose bound passed the promise (NaN: none);
 SCALE: the largest height [m] of the phases so far (max(|h|, R)). PEND_X, PEND_KIND: the pending
-event's gap (0 on R; below R for the no-pull law's release and engagement) and kind (phases.IMPACT ..
-phases.ENGAGE). HC_REST_T: under the Hunt-Crossley law, when the pressed contact's rest criterion
+event's gap (0 on R; below R for the no-pull law's release and engagement) and kind (codes.IMPACT ..
+codes.ENGAGE). HC_REST_T: under the Hunt-Crossley law, when the pressed contact's rest criterion
 (contact_laws.hunt_crossley_rest_margin) became true; CVODE integrates on through that rest (NaN: not at rest).
 Under the Hunt-Crossley law the run's error of (x, v) is the sum of two ellipses (error_estimate.py): the one
 of the phases before the last contact (ERR_X and ERR_V its half-widths [m, m/s], ERR_XV its correlation in [-1, 1])

@@ -22,10 +22,11 @@ import math
 
 import numpy as np
 
+from ..codes import CONTACT, DEPARTURE, FLIGHT, FREE, IMPACT, RELEASE
 from ..contact_laws import HUNT_CROSSLEY, NO_PULL, RIGID, hunt_crossley_rest_margin, release_speed, rigid_rebound
 from ..rounding import later
 from .dense_output import step_state
-from .engine_protocol import BUFFER_FULL, engine_exceeded, engine_start, engine_steps
+from .engine_protocol import BUFFER_FULL, CV_ROOT_RETURN, engine_exceeded, engine_start, engine_steps
 from .error_estimate import carry_error, contact_steps_ellipse, start_contact_ellipses
 from .layout import (
     DEPARTURES,
@@ -84,12 +85,6 @@ from .layout import (
     X,
 )
 from .phases import (
-    CONTACT,
-    DEPARTURE,
-    FLIGHT,
-    FREE,
-    IMPACT,
-    RELEASE,
     frame,
     on_wrong_side,
     polish_event,
@@ -99,8 +94,6 @@ from .phases import (
 
 # What run_phases returns.
 DONE, RETURNED, CVODE_FAILED, TOO_MANY_STEPS, STEPPED_OVER = range(5)
-# An event row's kind, (t, kind, v): phases.IMPACT, DEPARTURE, and the no-pull law's RELEASE, ENGAGE.
-CV_ROOT_RETURN = 2
 STEP_HORIZON = 1.0  # s: how far ahead advance's CVODE steps aim (see drivers.advance)
 
 

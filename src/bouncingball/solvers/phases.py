@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 
+from ..codes import CONTACT, DEPARTURE, ENGAGE, FLIGHT, FREE, IMPACT, RELEASE
 from ..contact_laws import (
     HUNT_CROSSLEY,
     NO_PULL,
@@ -36,10 +37,6 @@ from ..rounding import hypot
 from .exact import departure_speed, departure_time, free_event, release_state, release_time, time_to_impact
 from .settings import HOP_RESOLUTION
 
-FLIGHT, CONTACT, FREE = 0, 1, 2  # FREE: the no-pull law's free sub-mode below R (physics.Mode)
-# The kinds of event (an event row's (t, kind, v), and PEND_KIND): the no-pull law's release and engagement
-# switch its sub-modes below R (result.EventKind).
-IMPACT, DEPARTURE, RELEASE, ENGAGE = 0, 1, 2, 3
 _EPS = 2.0**-52
 # A phase whose length scale [m] is below this (a hop or contact of 1e-200 m) is taken on the exact
 # flow: its scaled state would leave the range of double precision.

@@ -8,6 +8,7 @@ from enum import StrEnum
 
 import numpy as np
 
+from .. import codes
 from ..limits import check_output_interval
 from ..physics import Ball
 from .forcing import ForceTable
@@ -23,16 +24,17 @@ class EventKind(StrEnum):
     an engagement (free to pressed); a departure there leaves the free sub-mode.
     """
 
-    IMPACT = "impact"
-    DEPARTURE = "departure"
-    RELEASE = "release"
-    ENGAGE = "engage"
+    IMPACT = codes.EVENT_KIND_NAMES[codes.IMPACT]
+    DEPARTURE = codes.EVENT_KIND_NAMES[codes.DEPARTURE]
+    RELEASE = codes.EVENT_KIND_NAMES[codes.RELEASE]
+    ENGAGE = codes.EVENT_KIND_NAMES[codes.ENGAGE]
 
 
 IMPACT = EventKind.IMPACT
 DEPARTURE = EventKind.DEPARTURE
 RELEASE = EventKind.RELEASE
 ENGAGE = EventKind.ENGAGE
+EVENT_KINDS = tuple(EventKind(name) for name in codes.EVENT_KIND_NAMES)  # by the machine's code (codes.IMPACT ..)
 
 
 @dataclass(frozen=True)

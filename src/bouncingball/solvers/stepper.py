@@ -29,10 +29,10 @@ import numpy as np
 
 from ..physics import Ball, Mode
 from . import drivers, error_estimate, machine, phases, sksundae_events
+from .engine_protocol import CV_ROOT_RETURN, CV_TSTOP_RETURN
 from .sundials_log import ErrorsOffStdout, SundialsLog
 
 CV_RTFUNC_FAIL = -12
-CV_TSTOP_RETURN, CV_ROOT_RETURN = 1, 2
 _POOL_SIZE = 4  # solvers kept per kind: the sweep's worker threads each hold one integrator at a time
 
 
