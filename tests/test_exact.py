@@ -190,10 +190,10 @@ def test_state_at_the_events_is_the_event_and_continuous_across_it():
 def test_departure_search_converges_by_newton(monkeypatch):
     """Newton's last ulp-sized step once landed on the bracket's end and set off ~50 bisections per departure;
     from the half-cosine start Newton needs 3 steps and one evaluation that confirms."""
-    from bouncingball.solvers import exact
+    from bouncingball.contact_laws import linear
 
     evaluations, inside = [], []  # the flow's evaluations per search: counted inside _departure_root
-    flow, search = exact.contact_gap_flow, exact._departure_root
+    flow, search = linear.contact_gap_flow, linear._departure_root
 
     def counting_flow(*args):
         if inside:
@@ -207,8 +207,8 @@ def test_departure_search_converges_by_newton(monkeypatch):
         finally:
             evaluations.append(inside.pop())
 
-    monkeypatch.setattr(exact, "contact_gap_flow", counting_flow)
-    monkeypatch.setattr(exact, "_departure_root", counting_search)
+    monkeypatch.setattr(linear, "contact_gap_flow", counting_flow)
+    monkeypatch.setattr(linear, "_departure_root", counting_search)
     solution = ExactSolution(Ball(), 2.0, 0.0, 0.0, 8.0)
     assert len(evaluations) == len(solution.events) // 2 + 1  # each departure, and the search that finds none
     assert max(evaluations) <= 5, evaluations

@@ -2,7 +2,7 @@
 
 scikit-sundae wraps SUNDIALS' vectors into new numpy arrays on every callback, which costs far
 more than the ball's equations. Here the right-hand side, the root functions and the Jacobian are
-numba ``cfunc`` s compiled from equations.py's and contact_laws.py's own plain-float definitions. The phase machine of a
+numba ``cfunc`` s compiled from equations.py's and contact_laws/' own plain-float definitions. The phase machine of a
 grid run (solvers/machine.py, with phases.py's decisions and the grid fill of dense_output.py) is
 compiled from the very source the scikit-sundae engine runs interpreted (``run_phases``,
 ``advance``, ``fill_grid``), its engine calls (solvers/engine_protocol.py) bound to CVODE's here
@@ -29,7 +29,11 @@ import numpy as np
 from numba import carray, cfunc, njit, types
 
 from .. import contact_laws, equations, oscillator, physics, rounding
-from ..codes import CONTACT
+from ..contact_laws import common as laws_common
+from ..contact_laws import hunt_crossley as hunt_crossley_law
+from ..contact_laws import linear as linear_law
+from ..contact_laws import no_pull as no_pull_law
+from ..contact_laws import rigid as rigid_law
 from . import dense_output, drivers, engine_protocol, error_estimate, exact, machine, phases
 from .engine_protocol import CV_ROOT_RETURN, CV_SUCCESS
 from .jit import (
@@ -64,7 +68,6 @@ _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_
 # CVODE integrates x / length and v / speed (x = h - R), the phase's frame set by _engine_start.
 (_P_M, _P_K, _P_B, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
  _P_LENGTH, _P_SPEED, _P_LOAD, _P_LAW, _P_N, _P_ALPHA, _P_SIZE) = range(17)
-_HUNT_CROSSLEY = float(contact_laws.HUNT_CROSSLEY)
 
 
 
@@ -158,8 +161,8 @@ def _engine_exceeded(engine, mode):
 # Lazily: numba compiles a function at its first call from compiled code, so only what the machine and
 # the callbacks reach is ever compiled (and cached).
 _compiled = compiled_together(
-    functions_of(rounding, oscillator, equations, contact_laws, physics, exact, phases, error_estimate, machine,
-                 drivers, dense_output),
+    functions_of(rounding, oscillator, equations, laws_common, linear_law, rigid_law, no_pull_law, hunt_crossley_law,
+                 contact_laws, physics, exact, phases, error_estimate, machine, drivers, dense_output),
     {oscillator.oscillator_basis: oscillator.oscillator_basis_value,
      oscillator.unit_response: oscillator.unit_response_value,
      rounding.hypot: rounding.hypot_value, engine_protocol.engine_start: _engine_start,
@@ -171,7 +174,7 @@ advance_in_step = _compiled[drivers.advance_in_step]
 phase_ends, run_estimate = _compiled[machine.phase_ends], _compiled[error_estimate.run_estimate]
 _scaled_rates, _root_values = _compiled[phases.scaled_rates], _compiled[phases.root_values]
 _scaled_jacobian = _compiled[phases.scaled_jacobian]
-_hunt_crossley_jacobian = _compiled[phases.hunt_crossley_jacobian]
+_jacobian_varies, _varying_jacobian = _compiled[phases.jacobian_varies], _compiled[phases.varying_jacobian]
 
 
 _callback_data = types.CPointer(types.intp)
@@ -208,10 +211,10 @@ def _jacobian(t, y, fy, matrix, user_data, tmp1, tmp2, tmp3):
     p = carray(doubles(u[_U_PARAMETERS]), _P_SIZE)
     columns = carray(addresses(call_p1(u[_U_COLUMNS], matrix)), 2)
     first, second = carray(doubles(columns[0]), 2), carray(doubles(columns[1]), 2)
-    if p[_P_LAW] == _HUNT_CROSSLEY and p[_P_MODE] == CONTACT:  # the Hunt-Crossley contact's, where it changes
+    if _jacobian_varies(p[_P_LAW], p[_P_MODE]):  # evaluated where it changes
         state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
-        j00, j01, j10, j11 = _hunt_crossley_jacobian(state[0], state[1], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD],
-                                                     p[_P_M], p[_P_K], p[_P_N], p[_P_ALPHA])
+        j00, j01, j10, j11 = _varying_jacobian(state[0], state[1], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD], p[_P_M],
+                                               p[_P_K], p[_P_N], p[_P_ALPHA], p[_P_LAW])
         first[0], first[1] = j00, j10  # SUNDIALS' dense matrices are stored by columns
         second[0], second[1] = j01, j11
         return 0

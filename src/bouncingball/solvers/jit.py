@@ -71,7 +71,9 @@ from .engine_cache import PORTABLE_CPU, package_shipped, say_on_stderr, user_cac
 
 # Every source the compiled code is compiled from, relative to the package: the modules whose functions
 # compiled.py gives compiled_together, those whose constants they read (rule 5), jit.py and compiled.py.
-ENGINE_SOURCES = ("codes.py", "rounding.py", "oscillator.py", "equations.py", "contact_laws.py", "physics.py",
+ENGINE_SOURCES = ("codes.py", "rounding.py", "oscillator.py", "equations.py", "contact_laws/__init__.py",
+                  "contact_laws/common.py", "contact_laws/linear.py", "contact_laws/rigid.py",
+                  "contact_laws/no_pull.py", "contact_laws/hunt_crossley.py", "physics.py",
                   "solvers/settings.py", "solvers/phases.py", "solvers/layout.py", "solvers/error_estimate.py",
                   "solvers/engine_protocol.py", "solvers/machine.py", "solvers/drivers.py",
                   "solvers/dense_output.py", "solvers/exact.py", "solvers/jit.py", "solvers/compiled.py")
@@ -85,7 +87,7 @@ def engine_sources() -> list[str]:
     root = __name__.split(".")[0]
     files = []
     for relative in ENGINE_SOURCES:
-        module = sys.modules.get(".".join((root, *relative.removesuffix(".py").split("/"))))
+        module = sys.modules.get(".".join((root, *relative.removesuffix(".py").removesuffix("/__init__").split("/"))))
         files.append(getattr(module, "__file__", None) or os.path.join(_PACKAGE_DIR, *relative.split("/")))
     return files
 

@@ -75,7 +75,7 @@ class SksundaePhaseSolver:
         # The frame and the ball's constants are read from self._frame and self._constants (one lookup each):
         # these run for every right-hand side and root evaluation, ~5000 times a run.
         rates, jacobian, roots = phases.scaled_rates, phases.scaled_jacobian, phases.root_values
-        hc_jacobian, hunt_crossley = phases.hunt_crossley_jacobian, float(phases.HUNT_CROSSLEY)
+        varies, varying = phases.jacobian_varies, phases.varying_jacobian
 
         def rhs(t, y, yp):
             length, speed, _ = self._frame
@@ -85,8 +85,8 @@ class SksundaePhaseSolver:
         def jac(t, y, yp, JJ):
             length, speed, _ = self._frame
             load, m, k, b, law, n, alpha = self._constants
-            if law == hunt_crossley and mode == Mode.CONTACT:  # evaluated where it changes
-                JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = hc_jacobian(y[0], y[1], length, speed, load, m, k, n, alpha)
+            if varies(law, mode):  # evaluated where it changes
+                JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = varying(y[0], y[1], length, speed, load, m, k, n, alpha, law)
             else:
                 JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = jacobian(mode, length, speed, m, k, b)
 

@@ -1,0 +1,55 @@
+"""What every contact law shares: the ball's parameters by name, the laws' codes, the flight, the machine's answers.
+
+Imported by each law's module and by the dispatch in contact_laws/__init__.py; it knows no law.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+# The codes the phase machine knows the contact laws by (BallParameters.law; contact_laws.LAWS maps names to them).
+LINEAR, RIGID, NO_PULL, HUNT_CROSSLEY = 0, 1, 2, 3
+
+# How a phase is taken (a law's decide_contact, phases.decide_phase): CVODE integrates it, the contact is a rest
+# (taken on its exact flow), or its event comes from the exact flow.
+BY_CVODE, REST, IN_CLOSED_FORM = range(3)
+# A phase whose length scale [m] is below this (a hop or contact of 1e-200 m) is taken on the exact
+# flow: its scaled state would leave the range of double precision.
+MIN_PHASE_SCALE = 1e-200
+SOFT_CONTACT_CAP = 1e3  # a contact's length scale is at most this many max(R, |gap|): see phases.phase_scales
+
+
+class BallParameters(NamedTuple):
+    """The ball as plain floats, by name, as the phase machine takes it (Ball.parameters; numba compiles it as a tuple).
+
+    law is the contact law's code as a float (LINEAR .. HUNT_CROSSLEY); the rest are Ball's fields in SI units.
+    """
+
+    m: float
+    k: float
+    b: float
+    R: float
+    g: float
+    law: float
+    e: float
+    v_min: float
+    n: float
+    alpha: float
+
+
+def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tuple[float, float]:
+    """Flight time [s] until h falls to R, and the impact velocity [m/s]; (inf, nan) if never.
+
+    With D = v0^2 + 2 g (h0 - R) and s = sqrt(D), t = (v0 + s)/g when rising and
+    2 (h0 - R)/(s - v0) when falling, which has no cancellation; the impact speed is s.
+    """
+    dh = height_above_contact
+    disc = v0 * v0 + 2.0 * g_eff * dh
+    if v0 < 0.0 and disc >= 0.0:
+        s = math.sqrt(disc)
+        return 2.0 * dh / (s - v0), -s
+    if v0 >= 0.0 and g_eff > 0.0:
+        s = math.sqrt(disc)
+        return (v0 + s) / g_eff, -s
+    return math.inf, math.nan

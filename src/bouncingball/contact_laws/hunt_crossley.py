@@ -1,0 +1,147 @@
+"""The hunt-crossley law: Hunt and Crossley's k delta^n (1 + 3/2 alpha delta'), delta = R - h, clipped at 0.
+
+Free (Mode.FREE, the flight's parabola below R) above the release speed 2 / (3 alpha), where the force would pull;
+pressed (Mode.CONTACT) below it. No closed form: CVODE integrates every pressed contact, with the law's own
+right-hand side and state-dependent Jacobian; its rest is only reported (hunt_crossley_rest_margin), and its
+error carried step by step (solvers/error_estimate.py).
+"""
+
+from __future__ import annotations
+
+import math
+
+from .common import SOFT_CONTACT_CAP
+
+# The Hunt-Crossley law's exponent n: 1 (a linear spring) .. 2.5 (beyond Hertz's 1.5 for spheres, as fitted
+# to soft and granular materials); its release speed is 2 / (3 alpha).
+HC_N_RANGE = (1.0, 2.5)
+
+
+def hunt_crossley_force(x, v, k, n, alpha):
+    """k delta^n (1 + 3/2 alpha delta') [N], delta = -x the penetration, delta' = -v: the pressed force, unclipped.
+
+    delta^n continued as sign(delta) |delta|^n beyond R (x > 0), where CVODE's trial steps may look past
+    a departure: smooth there (for n > 1 its derivative is 0), as the linear law's k x continues.
+    """
+    return k * math.copysign(abs(x) ** n, -x) * (1.0 - 1.5 * alpha * v)
+
+
+def hunt_crossley_acceleration(x, v, load, m, k, n, alpha):
+    """dv/dt [m/s2] in the Hunt-Crossley pressed contact (Mode.CONTACT): (force - load) / m."""
+    return (hunt_crossley_force(x, v, k, n, alpha) - load) / m
+
+
+def hunt_crossley_partials(x, v, load, m, k, n, alpha):
+    """(da/dx [1/s2], da/dv [1/s]) of hunt_crossley_acceleration: the Jacobian's second row, state-dependent."""
+    power = abs(x) ** (n - 1.0)  # |x|^0 = 1 at n = 1 (and at x = 0)
+    return -(k / m) * n * power * (1.0 - 1.5 * alpha * v), -(k / m) * math.copysign(abs(x) ** n, -x) * 1.5 * alpha
+
+
+def hunt_crossley_rest_margin(x, v, load, m, k, n, hop):
+    """g_eff (hop + delta) - v^2 / 2 - (k/m) delta^(n+1) / (n + 1) [m2/s2]: positive once it never rises hop above R.
+
+    delta = max(-x, 0); positive once a pressed Hunt-Crossley ball can never again rise more than hop [m] above R.
+
+    It is L hop - E per mass, with the load L = m g - F_ext (held constant) and the energy
+    E = m v^2 / 2 - L delta + k delta^(n+1) / (n + 1). Proof: with delta' = -v, dE/dt = v (m v' + L - k delta^n).
+    Pressed, m v' = k delta^n (1 - 3/2 alpha v) - L, so dE/dt = -3/2 alpha k delta^n v^2 <= 0; free (the force's
+    clip engaged: v above the release speed 2 / (3 alpha) > 0), m v' = -L, so dE/dt = -k delta^n v < 0. So E never
+    grows while delta > 0. On R (delta = 0) E = m v^2 / 2 >= 0, and a ball leaving R rising at v reaches
+    v^2 / (2 g_eff) = E / L above it. Hence once E < L hop (the margin positive) the ball either never reaches
+    R again, or (E in [0, L hop)) leaves it by a hop lower than hop; with hop = 0 it never leaves: E < 0 at
+    delta > 0 and E >= 0 at delta = 0 cannot both hold on a path along which E does not grow. (E < 0 needs
+    L delta > 0: a lifted ball, L <= 0, is never at rest.)
+    """
+    delta = max(-x, 0.0)
+    return (load / m) * (hop + delta) - 0.5 * (v * v) - (k / m) * delta ** (n + 1.0) / (n + 1.0)
+
+
+def hunt_crossley_static_deflection(load, k, n):
+    """(load / k)^(1/n) [m], its sign the load's: the penetration at which k delta^n carries the load [N]."""
+    return math.copysign((abs(load) / k) ** (1.0 / n), load)
+
+
+def hunt_crossley_rest_depth(load, m, k, n):
+    """(2 (n + 1) g_eff / (k/m))^(1/n) [m], g_eff = load / m > 0: the length scale of a Hunt-Crossley contact near rest.
+
+    A contact of energy per mass e = v^2 / 2 - g_eff delta + (k/m) delta^(n+1) / (n + 1) <= 0 (one that leaves R no
+    higher than it hops, e = g_eff hop, for hop -> 0) stays shallower than this: past it the spring's energy
+    (k/m) delta^(n+1) / (n + 1) exceeds 2 g_eff delta. It is (2 (n + 1))^(1/n) times the static deflection
+    (hunt_crossley_static_deflection): 4 at n = 1, 2.9 at n = 3/2, 2.2 at n = 5/2. The contact's frame
+    (phases.hunt_crossley_scales) is never smaller.
+    """
+    return (2.0 * (n + 1.0) * (load / m) / (k / m)) ** (1.0 / n)
+
+
+def hunt_crossley_hop_tolerance(load, m, k, n, alpha, resolution):
+    """The highest hop [m] a Hunt-Crossley run may merge: resolution (HOP_RESOLUTION rtol) hunt_crossley_rest_depth.
+
+    From the law's energy (hunt_crossley_rest_margin): a ball leaving R rising at v hops H = v^2 / (2 g_eff) above
+    it, its energy on R E = m v^2 / 2 = L H (L = m g - F_ext, the load). Near rest CVODE integrates the contact
+    to rtol of its frame, whose length is at least hunt_crossley_rest_depth: its error of x, resolution times
+    that, is an error of L resolution depth in E at R, that of a hop of resolution depth, which no run can tell
+    from a rest. 0 where the contact never rests: undamped (alpha = 0, E kept), or a load <= 0 (lifted).
+    """
+    if not (alpha > 0.0 and load > 0.0):
+        return 0.0
+    return resolution * hunt_crossley_rest_depth(load, m, k, n)
+
+
+def release_speed(alpha):
+    """2 / (3 alpha) [m/s]: the speed above which the Hunt-Crossley force would pull (inf for alpha = 0)."""
+    return 2.0 / (3.0 * alpha) if alpha > 0.0 else math.inf
+
+
+def hunt_crossley_scales(parameters, x, v, load):
+    """phase_scales of a Hunt-Crossley contact: a bound on its deepest penetration [m] and on its speed [m/s].
+
+    With delta = -x and the energy per mass e = v^2 / 2 - g_eff delta + (k/m) delta^(n+1) / (n + 1), which
+    never grows in contact, the penetration stays below the larger of ((n + 1) 2 e / (k/m))^(1/(n+1)) and
+    (2 (n + 1) g_eff / (k/m))^(1/n) (past both, the spring's energy exceeds e + g_eff delta); the speed below
+    sqrt(2 (e + g_eff delta_max)), and at least w delta_max with w^2 = n (k/m) delta_max^(n-1), the contact's
+    own rate there.
+    """
+    m, k, R, n = parameters.m, parameters.k, parameters.R, parameters.n
+    w2, g_eff = k / m, load / m
+    depth = max(-x, 0.0)
+    energy = 0.5 * (v * v) - g_eff * depth + w2 * depth ** (n + 1.0) / (n + 1.0)
+    deepest = max(abs(x), (2.0 * (n + 1.0) * max(energy, 0.0) / w2) ** (1.0 / (n + 1.0)))
+    if g_eff > 0.0:
+        deepest = max(deepest, hunt_crossley_rest_depth(load, m, k, n))
+    length = min(deepest, SOFT_CONTACT_CAP * max(R, abs(x)))
+    fastest = math.sqrt(2.0 * max(energy + max(g_eff, 0.0) * length, 0.0))
+    return length, max(abs(v), fastest, math.sqrt(n * w2 * length ** (n - 1.0)) * length)
+
+
+def hunt_crossley_free_event(parameters, x, v, load):
+    """(tau [s], x [m], v [m/s], departs): how the Hunt-Crossley free sub-mode from (x < 0, v) ends, on its parabola.
+
+    Free, the ball rises faster than the release speed 2 / (3 alpha) (its force would pull). It departs
+    on R (x = 0, at sqrt(v^2 + 2 g_eff x), energy's) unless its speed falls back to the release speed first
+    (g_eff > 0): then it is pressed again there (an engagement).
+    """
+    g_eff = load / parameters.m
+    v_release = release_speed(parameters.alpha)
+    disc = v * v + 2.0 * g_eff * x
+    tau_departure = -2.0 * x / (v + math.sqrt(disc)) if disc >= 0.0 and v > 0.0 else math.inf
+    tau_engage = (v - v_release) / g_eff if g_eff > 0.0 else math.inf
+    if tau_departure <= tau_engage:
+        return tau_departure, 0.0, math.sqrt(disc), True
+    tau_engage = max(tau_engage, 0.0)
+    return tau_engage, min(x + (v * v - v_release * v_release) / (2.0 * g_eff), 0.0), v_release, False
+
+
+def hunt_crossley_jacobian(y0, y1, length, speed, load, m, k, n, alpha):
+    """(j00, j01, j10, j11): the Jacobian of scaled_rates in a Hunt-Crossley contact at (y0, y1), where it changes."""
+    a_x, a_v = hunt_crossley_partials(length * y0, speed * y1, load, m, k, n, alpha)
+    return 0.0, 1.0 * speed / length, a_x * length / speed, a_v
+
+
+def contact_roots(y0, y1, speed, own_side, alpha):
+    """CVODE's three root functions in a pressed contact, in the phase's frame (phases.root_values).
+
+    The gap (departure), v, and 3/2 alpha v - 1, whose crossing upwards is the release (the force's clip
+    engaging: 1 + 3/2 alpha delta' turning negative); no rest root: CVODE integrates a contact to its end.
+    """
+    release = 1.5 * alpha * (speed * y1) - 1.0 if alpha > 0.0 else -1.0
+    return y0 if y0 != 0.0 else own_side, y1, release

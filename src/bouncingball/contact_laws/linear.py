@@ -1,0 +1,209 @@
+"""The linear law (the default, the reference article's): a spring k and a damper b in contact; the damper may pull.
+
+In contact the gap x = h - R obeys x'' + 2 sigma x' + w2 (x + d) = 0 (sigma = b / 2m, w2 = k / m,
+d = (m g - F_ext) / k): a damped oscillator about the rest height, in closed form (equations.gap_flow_value).
+Its departure is the first upward crossing of x = 0, searched on that flow (departure_time); a contact the
+energy bound proves permanent is a rest (equations.rest_margin_value). The no-pull law builds on these searches.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..equations import rest_margin_value
+from ..oscillator import contact_gap_flow
+from ..rounding import hypot
+from .common import BY_CVODE, IN_CLOSED_FORM, MIN_PHASE_SCALE, REST, SOFT_CONTACT_CAP
+
+
+def contact_scales(parameters, x, v, load):
+    """(length [m], speed [m/s]) of a contact from (x, v): its amplitude about the rest height, and w times it.
+
+    At most SOFT_CONTACT_CAP max(R, |x|): see phases.phase_scales.
+    """
+    m, k, R = parameters.m, parameters.k, parameters.R
+    w = math.sqrt(k / m)
+    amplitude = hypot(x + load / k, v / w)
+    # Never far beyond the scene's own scale: a contact so soft that its amplitude dwarfs R (k/m = 7e-12
+    # 1/s2, 6e120 m against R = 3e97 m) is left long before it gets there, and rtol times the amplitude
+    # was 4e-6 of the ball's whole motion. (A cap at max(R, |x|) itself cost an R = 1 um ball, whose
+    # contact swings 1.3 R, 17 times its accuracy.)
+    length = min(amplitude, SOFT_CONTACT_CAP * max(R, abs(x)))
+    return length, w * length
+
+
+def contact_unresolved(parameters, x, v, load, resolution):
+    """In a contact CVODE cannot decide: smaller than MIN_PHASE_SCALE, or resting too close to R.
+
+    Below MIN_PHASE_SCALE its scaled state would not be representable. A rest height closer to R
+    than CVODE resolves (resolution = HOP_RESOLUTION rtol, times the contact's amplitude) makes CVODE's x cross 0 or
+    not by its own error: a ball creeping to a rest height 1e-23 m below R (F_ext within 2e-16 N of its
+    weight), integrated to 5e-19 m, left the ground and came back.
+    """
+    length, speed = contact_scales(parameters, x, v, load)
+    if not (length >= MIN_PHASE_SCALE and speed > 0.0):
+        return True
+    return abs(load / parameters.k) < resolution * length
+
+
+def searches(parameters, x, v, load, resolution):
+    """(rest_by_search, in_closed_form): whether a contact's exact-flow search decides a rest, and its event.
+
+    A critically or over-damped ball (or one with no weight on the spring) creeps towards its rest height for many
+    spring time constants, which CVODE would crawl through at the spring's time scale (500,000 steps for k/m =
+    8e12 1/s); such a contact has at most one extremum, so the exact flow's search decides at once whether it ever
+    reaches R; so it does for a contact CVODE cannot resolve (contact_unresolved), and for one that cannot hold
+    the ball (F_ext lifts more than its weight), whose event then comes from the exact flow.
+    """
+    m, k, b = parameters.m, parameters.k, parameters.b
+    d = load / k
+    unresolved = contact_unresolved(parameters, x, v, load, resolution)
+    return b / (2.0 * math.sqrt(k * m)) >= 1.0 or d <= 0.0 or unresolved, d < 0.0 or unresolved
+
+
+def decide_contact(parameters, x, v, load, hop, resolution):
+    """(answer, tau, x_event, v_event) of a contact from (x, v): phases.decide_phase's, for this law.
+
+    A rest once the energy bound proves it (rest_margin_value > 0 with the hop tolerance hop [m]); else the
+    exact flow's departure search where searches() says so; else CVODE.
+    """
+    d = load / parameters.k
+    if d > 0.0 and rest_margin_value(x, v, d, hop, parameters.k / parameters.m) > 0.0:
+        return REST, 0.0, 0.0, 0.0
+    rest_by_search, in_closed_form = searches(parameters, x, v, load, resolution)
+    if not (rest_by_search or in_closed_form):
+        return BY_CVODE, 0.0, 0.0, 0.0
+    tau = departure_time(parameters, x, v, load)
+    if math.isinf(tau):
+        return (REST if rest_by_search else BY_CVODE), 0.0, 0.0, 0.0
+    if in_closed_form:
+        return IN_CLOSED_FORM, tau, 0.0, departure_speed(parameters, x, v, tau, load)
+    return BY_CVODE, 0.0, 0.0, 0.0
+
+
+def departure_time(parameters, x0, v0, load):
+    """Time [s] from the gap x0 = h0 - R [m] and v0 [m/s] in contact to the first upward crossing of h = R; inf if none.
+
+    parameters: Ball.parameters; load: m g - F_ext [N] (equations.load_value). Plain floats, so that the
+    compiled phase machine runs this very search.
+    """
+    m, k, b = parameters.m, parameters.k, parameters.b
+    sigma, w2 = b / (2.0 * m), k / m
+    d, g_eff = load / k, load / m
+    q = sigma * v0 + w2 * x0 + g_eff  # v = v0 C - q S (q = sigma v0 + w2 y0, y0 = x0 + d the deflection from rest)
+    rising = v0 > 0.0 or (v0 == 0.0 and q < 0.0)
+    disc = sigma * sigma - w2
+    guess, at_a = math.nan, math.nan  # NaN: none known
+    if disc < 0.0:
+        # Under-damped: extrema every pi/omega; maxima are positive and decay, so the
+        # first maximum decides whether the ball ever leaves.
+        omega = math.sqrt(-disc)
+        # The phase angle of the next extremum, in [0, pi], from the quadrant that holds it: atan2(a, b)
+        # - pi rounds an extremum just ahead (a minimum at v0 = -1e-38) to pi instead of ~0.
+        # (|omega v0|: the sign of a zero, -0.0, would turn atan2's pi into -pi)
+        tau1 = math.atan2(abs(omega * v0), q if rising else -q) / omega
+        # Between two extrema v keeps its sign, so the first one is a maximum when the ball starts
+        # rising and a minimum when it starts falling. Decided on the direction, never on the
+        # value y(tau1): near critical damping that extremum lies many decay times away, and y(tau1)
+        # is below the rounding of d (a lifted ball was held at R for ever).
+        if rising:
+            a, b = 0.0, tau1
+        else:
+            at_a = contact_gap_flow(sigma, w2, g_eff, x0, v0, tau1)[0]
+            a, b = tau1, tau1 + math.pi / omega
+            at_b = contact_gap_flow(sigma, w2, g_eff, x0, v0, b)[0]
+            if at_b <= 0.0:
+                return math.inf
+            # Between a minimum and the next maximum y is close to half a cosine: its crossing
+            # is Newton's start, a few iterations from the root when the damping is light.
+            half = 0.5 * (at_b - at_a)
+            if half > 0.0:  # else the ball does not move (y constant): Newton starts in the middle
+                cosine = min(1.0, max(-1.0, (0.5 * (at_b + at_a)) / half))
+                guess = a + (b - a) * math.acos(cosine) / math.pi
+    else:
+        # Critically or over-damped: at most one extremum, then a monotone approach to rest.
+        mu = math.sqrt(disc)
+        tau_ext = _overdamped_extremum(v0, q, mu)
+        slow_rate = w2 / (sigma + mu)
+        if rising and not math.isnan(tau_ext):
+            a, b = 0.0, tau_ext
+        elif d < 0.0 and (rising or not math.isnan(tau_ext)):
+            a = 0.0 if rising else tau_ext
+            b = a + 1.0 / slow_rate
+            found = False
+            for _ in range(2000):
+                if contact_gap_flow(sigma, w2, g_eff, x0, v0, b)[0] > 0.0:
+                    found = True
+                    break
+                b = a + 2.0 * (b - a)
+            if not found:
+                return math.inf
+        else:
+            return math.inf
+    if math.isnan(guess) and contact_gap_flow(sigma, w2, g_eff, x0, v0, b)[0] <= 0.0:
+        return math.inf
+    return _departure_root(sigma, w2, g_eff, x0, v0, a, b, guess, at_a)
+
+
+def departure_speed(parameters, x0, v0, tau, load):
+    """v [m/s] where a contact from the gap x0 = h0 - R [m] and v0 ends after tau (departure_time): never < 0.
+
+    A departure crosses R upwards; where the ball barely moves (at R with v0 = -1e-112) the flow can
+    round it to a tiny downward speed, and the flight would end at once in an impact at R, and so on
+    for ever. An undamped contact from R leaves at the speed it came with, exactly
+    (contact_laws.conserved_speed). Arguments as departure_time's.
+    """
+    if x0 == 0.0 and v0 < 0.0 and parameters.b == 0.0:  # contact_laws.conserved_speed's undamped contact
+        return -v0
+    m, k, b = parameters.m, parameters.k, parameters.b
+    return max(contact_gap_flow(b / (2.0 * m), k / m, load / m, x0, v0, tau)[1], 0.0)
+
+
+def _overdamped_extremum(v0, q, mu):
+    """The one time > 0 where v0 C = q S (critical or over-damped), or NaN."""
+    if v0 == 0.0:
+        return math.nan
+    if mu == 0.0:
+        tau = v0 / q if q != 0.0 else -1.0
+        return tau if tau > 0.0 else math.nan
+    denominator = q - v0 * mu
+    if denominator == 0.0:
+        return math.nan
+    x = 2.0 * v0 * mu / denominator
+    if not x > 0.0:
+        return math.nan
+    return math.log1p(x) / (2.0 * mu)
+
+
+def _departure_root(sigma, w2, g_eff, x0, v0, a, b, guess, at_a):
+    """The root of the gap x(tau) (contact_gap_flow, increasing on [a, b]) with x(a) <= 0 < x(b).
+
+    Newton from guess (NaN: the middle), safeguarded by bisection of the bracket; at_a is x(a) if
+    known, else NaN.
+    """
+    if (contact_gap_flow(sigma, w2, g_eff, x0, v0, a)[0] if math.isnan(at_a) else at_a) >= 0.0:
+        return a
+    tau = guess if a < guess < b else 0.5 * (a + b)
+    best, best_abs = b, math.inf
+    for _ in range(200):
+        x, v = contact_gap_flow(sigma, w2, g_eff, x0, v0, tau)
+        if abs(x) < best_abs:
+            best, best_abs = tau, abs(x)
+        if x == 0.0:
+            return tau
+        if x < 0.0:
+            a = tau
+        else:
+            b = tau
+        step = x / v if v > 0.0 else math.inf
+        # Converged when Newton moves by ulps: checked before the bracket test, since such a step
+        # lands on the bracket's end just moved to tau, and bisecting from there would take ~50 steps.
+        if abs(step) <= 2.0 * np.spacing(tau) or b - a <= 2.0 * np.spacing(b):
+            break
+        tau_new = tau - step
+        if not a < tau_new < b:
+            tau_new = 0.5 * (a + b)
+        tau = tau_new
+    return best
