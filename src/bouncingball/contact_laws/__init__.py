@@ -62,6 +62,7 @@ from .hunt_crossley import (
     hunt_crossley_rest_depth,
     hunt_crossley_rest_margin,
     hunt_crossley_scales,
+    hunt_crossley_state,
     hunt_crossley_static_deflection,
     release_speed,
 )
@@ -88,16 +89,16 @@ from .rigid import departure_speed as rigid_departure_speed
 from .rigid import departure_time as rigid_departure_time
 
 __all__ = [
-    "BY_CVODE", "CONTACT_LAWS", "HC_N_RANGE", "HUNT_CROSSLEY", "IN_CLOSED_FORM", "LAWS", "LINEAR", "MIN_PHASE_SCALE",
-    "NO_PULL", "REST", "RIGID", "SOFT_CONTACT_CAP", "ZENO_APEX", "BallParameters", "ContactLaw", "conserved_speed",
-    "contact_scales", "contact_unresolved", "decide_contact", "departure_speed", "departure_time", "free_event",
-    "free_gap_rate", "hunt_crossley_acceleration", "hunt_crossley_force", "hunt_crossley_free_event",
-    "hunt_crossley_hop_tolerance", "hunt_crossley_jacobian", "hunt_crossley_partials", "hunt_crossley_rest_depth",
-    "hunt_crossley_rest_margin", "hunt_crossley_scales", "hunt_crossley_static_deflection", "jacobian_varies",
-    "law_acceleration",
-    "law_flow_value", "law_rest_margin", "no_pull_rest_margin_value", "polish_flow_mode", "pressed_gap",
-    "release_speed", "release_state", "release_time", "rigid_rebound", "rigid_rebound_above", "root_values",
-    "starts_free", "summed_bounce_state", "time_to_impact", "varying_jacobian",
+    "BY_CVODE", "BallParameters", "CONTACT_LAWS", "ContactLaw", "HC_N_RANGE", "HUNT_CROSSLEY", "IN_CLOSED_FORM",
+    "LAWS", "LINEAR", "MIN_PHASE_SCALE", "NO_PULL", "REST", "RIGID", "SOFT_CONTACT_CAP", "ZENO_APEX",
+    "conserved_speed", "contact_event", "contact_scales", "contact_unresolved", "decide_contact", "departure_speed",
+    "departure_time", "free_event", "free_gap_rate", "has_free_sub_mode", "hunt_crossley_acceleration",
+    "hunt_crossley_force", "hunt_crossley_free_event", "hunt_crossley_hop_tolerance", "hunt_crossley_jacobian",
+    "hunt_crossley_partials", "hunt_crossley_rest_depth", "hunt_crossley_rest_margin", "hunt_crossley_scales",
+    "hunt_crossley_state", "hunt_crossley_static_deflection", "jacobian_varies", "law_acceleration",
+    "law_flow_value", "law_interpolant", "law_rest_margin", "no_pull_rest_margin_value", "own_interpolant",
+    "polish_flow_mode", "pressed_gap", "release_speed", "release_state", "release_time", "rigid_rebound",
+    "rigid_rebound_above", "root_values", "starts_free", "summed_bounce_state", "time_to_impact", "varying_jacobian",
 ]
 
 
@@ -225,6 +226,28 @@ def decide_contact(parameters, mode, x, v, load, hop, resolution):
     return answer, tau, x_event, v_event, DEPARTURE
 
 
+def contact_event(parameters, x, v, load):
+    """(tau [s], x_event [m], v_event [m/s], kind) ending a contact from (x, v) on its exact flow; tau = inf if none.
+
+    The exact solver's: a departure on R (the linear and rigid laws), or the no-pull law's release below it.
+    """
+    if parameters.law == NO_PULL:
+        tau = release_time(parameters, x, v, load)
+        if math.isinf(tau):
+            return tau, 0.0, math.nan, RELEASE
+        x_event, v_event = release_state(parameters, x, v, tau, load)
+        return tau, x_event, v_event, RELEASE
+    tau = departure_time(parameters, x, v, load)
+    if math.isinf(tau):
+        return tau, 0.0, math.nan, DEPARTURE
+    return tau, 0.0, departure_speed(parameters, x, v, tau, load), DEPARTURE
+
+
+def has_free_sub_mode(parameters):
+    """Whether the law has a free sub-mode below R (Mode.FREE): where its force would pull (no-pull, Hunt-Crossley)."""
+    return parameters.law == NO_PULL or parameters.law == HUNT_CROSSLEY
+
+
 def polish_flow_mode(parameters, mode):
     """The mode whose exact flow polishes an event CVODE located in mode (phases.polish_event).
 
@@ -243,6 +266,19 @@ def law_acceleration(x, v, mode, load, m, k, b, law, n, alpha):
     if law == HUNT_CROSSLEY and mode == CONTACT:
         return hunt_crossley_acceleration(x, v, load, m, k, n, alpha)
     return gap_acceleration(x, v, mode, load, m, k, b)
+
+
+def own_interpolant(parameters, mode):
+    """Whether the law reads a step in mode off an interpolant of its own (law_interpolant), having no closed form.
+
+    Elsewhere the dense output blends the mode's exact flow (solvers/dense_output.py).
+    """
+    return mode == CONTACT and parameters.law == HUNT_CROSSLEY
+
+
+def law_interpolant(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
+    """(x [m], v [m/s]) at t on a step from (t0, x0, v0) to (t1, x1, v1) in mode, where own_interpolant. Floats."""
+    return hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t)
 
 
 def jacobian_varies(law, mode):

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..codes import CONTACT
-from ..contact_laws import HUNT_CROSSLEY, hunt_crossley_acceleration, hunt_crossley_partials, law_flow_value
+from ..codes import CONTACT, FLIGHT, FREE
+from ..contact_laws import law_flow_value, law_interpolant, own_interpolant
 
 
 def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
@@ -31,45 +31,13 @@ def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
 
     parameters: Ball.parameters; load: m g - F_ext [N]. In the gap, which carries the
     digits of a deflection that h = R + x rounds away. Floats, or arrays with one step per element;
-    t0 <= t <= t1. A step of zero length gives its start. A Hunt-Crossley contact (no closed form) is
-    read off hunt_crossley_state's quintic Hermite interpolant, floats only.
+    t0 <= t <= t1. A step of zero length gives its start. A mode with no closed form (a Hunt-Crossley contact) is
+    read off its law's own interpolant (contact_laws.law_interpolant), floats only.
     """
-    if mode == CONTACT and parameters.law == HUNT_CROSSLEY:
-        return hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t)
+    if own_interpolant(parameters, mode):
+        return law_interpolant(parameters, load, mode, t0, x0, v0, t1, x1, v1, t)
     dt, dx, dv = step_mismatch(parameters, load, mode, t0, x0, v0, t1, x1, v1)
     return blended_state(parameters, load, mode, t0, x0, v0, dt, dx, dv, t)
-
-
-def hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t):
-    """(x [m], v [m/s]) at t in a Hunt-Crossley contact's step: the quintic Hermite interpolant of its ends.
-
-    x from (x, v, a) at both ends, v from (v, a, da/dt), with the contact's own equation for a and its
-    partials for da/dt = a_x v + a_v a: sixth order, so its error inside a step (~h^6 y^(6) / 46080)
-    stays below what CVODE controlled over it. Floats.
-    """
-    m, k, n, alpha = parameters.m, parameters.k, parameters.n, parameters.alpha
-    h = t1 - t0
-    if not h > 0.0:
-        return x0, v0
-    s = (t - t0) / h
-    s2 = s * s
-    s3 = s2 * s
-    s4 = s3 * s
-    s5 = s4 * s
-    b0 = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5
-    b1 = h * (s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5)
-    b2 = 0.5 * h * h * (s2 - 3.0 * s3 + 3.0 * s4 - s5)
-    b3 = 10.0 * s3 - 15.0 * s4 + 6.0 * s5
-    b4 = h * (-4.0 * s3 + 7.0 * s4 - 3.0 * s5)
-    b5 = 0.5 * h * h * (s3 - 2.0 * s4 + s5)
-    a0 = hunt_crossley_acceleration(x0, v0, load, m, k, n, alpha)
-    a1 = hunt_crossley_acceleration(x1, v1, load, m, k, n, alpha)
-    ax0, av0 = hunt_crossley_partials(x0, v0, load, m, k, n, alpha)
-    ax1, av1 = hunt_crossley_partials(x1, v1, load, m, k, n, alpha)
-    j0, j1 = ax0 * v0 + av0 * a0, ax1 * v1 + av1 * a1
-    x = b0 * x0 + b1 * v0 + b2 * a0 + b3 * x1 + b4 * v1 + b5 * a1
-    v = b0 * v0 + b1 * a0 + b2 * j0 + b3 * v1 + b4 * a1 + b5 * j1
-    return x, v
 
 
 def step_mismatch(parameters, load, mode, t0, x0, v0, t1, x1, v1):
@@ -101,12 +69,12 @@ def interpolate(parameters, load: float, points: np.ndarray, t: np.ndarray) -> t
     j = i + 1
     x = np.empty_like(t)
     v = np.empty_like(t)
-    for mode in (0, 1, 2):  # 2: the no-pull law's free sub-mode
+    for mode in (FLIGHT, CONTACT, FREE):
         sel = modes[i] == mode
-        if mode == CONTACT and parameters.law == HUNT_CROSSLEY:  # floats only (its interpolant)
+        if own_interpolant(parameters, mode):  # floats only
             for p in np.flatnonzero(sel):
                 a, b = i[p], j[p]
-                x[p], v[p] = hunt_crossley_state(parameters, load, ts[a], xs[a], vs[a], ts[b], xs[b], vs[b], t[p])
+                x[p], v[p] = law_interpolant(parameters, load, mode, ts[a], xs[a], vs[a], ts[b], xs[b], vs[b], t[p])
             continue
         if np.any(sel):
             a, b = i[sel], j[sel]
@@ -128,8 +96,8 @@ def fill_grid(parameters, load, points, n_points, t, x, v):
             step, mode, t0, x0, v0 = i, int(points[i, 3]), points[i, 0], points[i, 1], points[i, 2]
             dt, dx, dv = step_mismatch(parameters, load, mode, t0, x0, v0, points[i + 1, 0], points[i + 1, 1],
                                        points[i + 1, 2])
-        if mode == CONTACT and parameters.law == HUNT_CROSSLEY:
-            x[n], v[n] = hunt_crossley_state(parameters, load, t0, x0, v0, points[i + 1, 0], points[i + 1, 1],
-                                             points[i + 1, 2], t[n])
+        if own_interpolant(parameters, mode):
+            x[n], v[n] = law_interpolant(parameters, load, mode, t0, x0, v0, points[i + 1, 0], points[i + 1, 1],
+                                         points[i + 1, 2], t[n])
         else:
             x[n], v[n] = blended_state(parameters, load, mode, t0, x0, v0, dt, dx, dv, t[n])

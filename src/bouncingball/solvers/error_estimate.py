@@ -21,10 +21,9 @@ from __future__ import annotations
 import math
 
 from ..codes import CONTACT, FLIGHT
-from ..contact_laws import HUNT_CROSSLEY, hunt_crossley_partials, law_flow_value
+from ..contact_laws import HUNT_CROSSLEY, hunt_crossley_partials, hunt_crossley_state, law_flow_value
 from ..oscillator import oscillator_basis
 from ..rounding import hypot
-from .dense_output import hunt_crossley_state
 from .layout import (
     ERR2_V,
     ERR2_X,
@@ -208,7 +207,7 @@ def widths_of(p00, p01, p11):
 def hunt_crossley_transition(parameters, load, t0, x0, v0, t1, x1, v1, t):
     """(p00, p01, p10, p11): the transition matrix of (x, v) over a Hunt-Crossley contact's step, from t0 to t <= t1.
 
-    The contact's equation linearised at the state halfway (its interpolant, dense_output.hunt_crossley_state):
+    The contact's equation linearised at the state halfway (its interpolant, contact_laws.hunt_crossley_state):
     the oscillator x'' + 2 sigma x' + w2 x = 0 with sigma = -a_v / 2 and w2 = -a_x (contact_laws.hunt_crossley_partials,
     both >= 0 pressed), whose flow of the unit vectors is exact (oscillator.oscillator_basis). Second order in the
     step: the error it carries is first order itself, so a few per cent on it are within ESTIMATE_SAFETY.

@@ -17,12 +17,8 @@ import numpy as np
 
 from .. import limits
 from ..contact_laws import (
-    NO_PULL,
-    departure_speed,
-    departure_time,
+    contact_event,
     free_event,
-    release_state,
-    release_time,
     rigid_rebound,
     summed_bounce_state,
     time_to_impact,
@@ -105,18 +101,12 @@ class ExactSolution:
                     tau, x_next, v_next, departs = free_event(parameters, h - R, v, load)
                     kind, next_mode = (DEPARTURE, Mode.FLIGHT) if departs else (ENGAGE, Mode.CONTACT)
                 else:
-                    no_pull = parameters.law == NO_PULL
-                    tau = (release_time if no_pull else departure_time)(parameters, h - R, v, load)
+                    tau, x_next, v_next, kind = contact_event(parameters, h - R, v, load)
                     if math.isinf(tau):
-                        if last:
-                            self.rest_time = max(contact_start if no_pull else t, zeno_end)
+                        if last:  # a no-pull ball pressed for good rests from its contact's start
+                            self.rest_time = max(contact_start if kind == RELEASE else t, zeno_end)
                         break
-                    if no_pull:
-                        x_next, v_next = release_state(parameters, h - R, v, tau, load)
-                        kind, next_mode = RELEASE, Mode.FREE
-                    else:
-                        v_next = departure_speed(parameters, h - R, v, tau, load)
-                        kind, next_mode = DEPARTURE, Mode.FLIGHT
+                    next_mode = Mode.FREE if kind == RELEASE else Mode.FLIGHT
                 t_event, t_event_low = later(t, t_low, tau)
                 if not t_event <= piece_end:
                     break

@@ -10,7 +10,7 @@ import numbers
 from dataclasses import dataclass
 
 from .. import validation
-from ..contact_laws import HUNT_CROSSLEY, NO_PULL
+from ..contact_laws import has_free_sub_mode
 from ..equations import load_value
 from ..physics import Ball, Mode
 from .phases import frame, on_wrong_side, side_margin
@@ -39,7 +39,7 @@ def checked(ball: Ball, state: IntegratorState, settings: CvodeSettings) -> Chec
         raise ValueError(f"state = {validation.shown(state)} is not allowed: it must be an IntegratorState "
                          "(one of get_state())")
     point = _point(ball, "state", state.t, state.gap, state.h, state.v, state.mode, state.F_ext)
-    if point[3] == Mode.FREE and ball.parameters.law not in (NO_PULL, HUNT_CROSSLEY):
+    if point[3] == Mode.FREE and not has_free_sub_mode(ball.parameters):
         raise ValueError(f"state mode = {Mode.FREE.value} (FREE) is not allowed for contact = {ball.contact!r} "
                          f"(b = {ball.b!r} N s/m): it is the free sub-mode of the linear-no-pull law (with b > 0) "
                          "and of the hunt-crossley law")
