@@ -28,7 +28,7 @@ from ..physics import Ball, Mode
 from ..rounding import later
 from . import forcing
 from .forcing import ForceTable
-from .result import DEPARTURE, ENGAGE, IMPACT, RELEASE, Event, SimulationResult, SolverStats, output_grid
+from .result import DEPARTURE, ENGAGE, EVENT_KINDS, IMPACT, RELEASE, Event, SimulationResult, SolverStats, output_grid
 
 
 class Phase(NamedTuple):
@@ -101,7 +101,8 @@ class ExactSolution:
                     tau, x_next, v_next, departs = free_event(parameters, h - R, v, load)
                     kind, next_mode = (DEPARTURE, Mode.FLIGHT) if departs else (ENGAGE, Mode.CONTACT)
                 else:
-                    tau, x_next, v_next, kind = contact_event(parameters, h - R, v, load)
+                    tau, x_next, v_next, code = contact_event(parameters, h - R, v, load)
+                    kind = EVENT_KINDS[code]
                     if math.isinf(tau):
                         if last:  # a no-pull ball pressed for good rests from its contact's start
                             self.rest_time = max(contact_start if kind == RELEASE else t, zeno_end)
