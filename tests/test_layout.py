@@ -23,7 +23,9 @@ LOWER_LAYERS = {
     "bouncingball.contact_laws": {"bouncingball.equations"},
     "bouncingball.physics": {"bouncingball.validation", "bouncingball.equations", "bouncingball.contact_laws"},
     "bouncingball.limits": {*MODEL, "bouncingball.validation"},
-    "bouncingball.solvers": {*MODEL, "bouncingball.validation", "bouncingball.limits", "bouncingball.solvers"},
+    # extras: the install hint of a missing extra's message (standard library only)
+    "bouncingball.solvers": {*MODEL, "bouncingball.validation", "bouncingball.limits", "bouncingball.solvers",
+                             "bouncingball.extras"},
 }
 SINGLE_FILE_LAYERS = ("bouncingball.rounding", "bouncingball.oscillator", "bouncingball.equations",
                       "bouncingball.contact_laws", "bouncingball.physics", "bouncingball.limits")

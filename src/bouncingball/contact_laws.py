@@ -26,6 +26,12 @@ from .equations import gap_acceleration, gap_flow_value, rest_margin_value
 # The contact laws (Ball.contact) and the codes the phase machine knows them by (Ball.parameters).
 CONTACT_LAWS = ("linear", "rigid", "linear-no-pull", "hunt-crossley")
 LINEAR, RIGID, NO_PULL, HUNT_CROSSLEY = 0, 1, 2, 3
+# The parameters each law reads besides the ball's m, R and g (physics.Ball's fields): another law's parameter set
+# to a value other than Ball's default is refused by name (Ball, the CLI, scene files), logged by the FMU. The
+# rigid law reads neither k nor b (its scales are R and the flight's); Hunt-Crossley's damping is alpha, not b.
+LAW_PARAMETERS = {"linear": ("k", "b"), "rigid": ("e", "v_min"), "linear-no-pull": ("k", "b"),
+                  "hunt-crossley": ("k", "n", "alpha")}
+CONTACT_PARAMETERS = ("k", "b", "e", "v_min", "n", "alpha")  # every law's, in Ball's order
 # The Hunt-Crossley law's exponent n: 1 (a linear spring) .. 2.5 (beyond Hertz's 1.5 for spheres, as fitted
 # to soft and granular materials); its release speed is 2 / (3 alpha).
 HC_N_RANGE = (1.0, 2.5)

@@ -30,6 +30,7 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
+from ..extras import install_command
 from ..output import atomic_write, check_output_path
 from .documentation import index_html
 from .engine_cache import compile_cache, shipped_files
@@ -73,8 +74,7 @@ def build_fmu(output: str | Path | None = None, fmi_version: int = 2) -> Path:
         import fmpy  # noqa: F401  (its FMI headers compile the loader)
         FmuBuilder = importlib.import_module(library).FmuBuilder
     except ImportError as error:
-        raise ImportError(f"build-fmu needs {library} and FMPy ({error}): pip install "
-                          "'bouncingball[fmu]'") from None
+        raise ImportError(f"build-fmu needs {library} and FMPy ({error}): {install_command('fmu')}") from None
 
     with tempfile.TemporaryDirectory(prefix="bouncingball_fmu_") as temp:
         temp = Path(temp)
@@ -227,7 +227,7 @@ def _check_build_host() -> None:
     for path in (SLAVE_SCRIPT, LOADER_SOURCE, LOADER3_SOURCE, LOADER_HEADER):
         if not path.is_file():
             raise FmuBuildError(f"{path} not found: this installation of bouncingball is incomplete; "
-                                "reinstall it with pip install 'bouncingball[fmu]'")
+                                f"reinstall it: {install_command('fmu')}")
 
 
 def _compiler() -> list[str]:

@@ -23,7 +23,7 @@ import warnings
 from dataclasses import fields, replace
 
 from .. import limits, validation
-from ..physics import Ball, Mode
+from ..physics import Ball, Mode, unread_message, without_unread
 from ..scenes import SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
 from ..solvers.settings import MIN_RTOL, RTOL_RANGE_WHY
@@ -72,6 +72,7 @@ class BallSlave:
         self._stop_time: float | None = None
         self._tolerance: float | None = None
         self._tolerance_told = False  # the master's tolerance and the rtol used are logged once per instance
+        self._unread_told = set()  # the warnings of parameters the contact law does not read, logged once each
         self._integrator: BallIntegrator | None = None
         for variable in VARIABLES:
             if variable.causality == "output":  # each output is read by the method of its name
@@ -233,13 +234,26 @@ class BallSlave:
         """The ball and CVODE settings from values (default: the current ones); ValueError names a bad value."""
         if values is None:
             values, tolerance = self._values, self._tolerance
-        validation.choice("contact_law", values["contact_law"], FMU_CONTACT_LAWS)
-        ball = Ball(**ball_fields_of(values))
+        contact = validation.choice("contact_law", values["contact_law"], FMU_CONTACT_LAWS)
+        ball = Ball(**self._read_fields(contact, ball_fields_of(values)))
         rtol = values["rtol"]
         if tolerance is not None:  # the master's tolerance may tighten rtol, never loosen it
             rtol = min(CvodeSettings(rtol=rtol).rtol, validation.in_closed_range(
                 f"tolerance ({self.CALLS['setup']})", tolerance, MIN_RTOL, 1.0, why=RTOL_RANGE_WHY))
         return ball, CvodeSettings(rtol=rtol, atol=values["atol"], method=values["method"], engine=values["engine"])
+
+    def _read_fields(self, contact: str, ball_fields: dict) -> dict:
+        """ball_fields with the parameters the contact law does not read at their defaults, each logged once.
+
+        A warning, not a refusal: a master may set every parameter to its start value.
+        """
+        ball_fields, unread = without_unread(ball_fields)
+        if unread:
+            message = unread_message(contact, unread, law="contact_law", verdict="is ignored (taken at its default)")
+            if message not in self._unread_told:
+                self._unread_told.add(message)
+                self.log(message, self.STATUS.warning)
+        return ball_fields
 
     def _tell_tolerance(self, used: float) -> None:
         """Once per instance: a warning if the master asked for a looser tolerance than rtol, a note if tighter."""
