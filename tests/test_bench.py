@@ -1,7 +1,9 @@
 """`bouncingball bench --quick` writes complete, consistent results; errors are recomputed from the saved h values."""
 
+import contextlib
 import csv
 import dataclasses
+import io
 import re
 import subprocess
 import sys
@@ -25,7 +27,10 @@ ARTICLE = load_scene("article")
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
-    assert main(["bench", "--quick", "--output-dir", str(out)]) == 0
+    said, told = io.StringIO(), io.StringIO()  # what the terminal would show (FMPy's logger prints with print())
+    with contextlib.redirect_stdout(said), contextlib.redirect_stderr(told):
+        assert main(["bench", "--quick", "--output-dir", str(out)]) == 0
+    (out / "terminal.txt").write_text(said.getvalue() + told.getvalue(), encoding="utf-8")
     return out
 
 
@@ -45,6 +50,24 @@ def expected_labels(section):
 
 
 @pytest.mark.slow
+def test_quick_ends_with_a_headline_and_keeps_the_fmu_warnings_out_of_the_terminal(quick, markdown):
+    """Every goal of the report, met or not, in the terminal's last lines; the FMU's warnings counted in one line,
+    their text in the report, none printed one by one."""
+    terminal = (quick / "terminal.txt").read_text(encoding="utf-8")
+    assert "[WARNING]" not in terminal and "past the promise" not in terminal
+    goals = re.findall(r"^- \*\*\((\w+)\)\*\* (.*?): \*\*(met|not met)\*\*", markdown, re.MULTILINE)
+    lines = terminal.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("headline (a quick run"))
+    shown = [re.match(r"  \((\w+)\) (met    |NOT MET)  (.*)", line).groups() for line in lines[start + 1:]
+             if line.startswith("  (")]
+    assert len(goals) > 5 and [(tag, state.strip().lower(), goal) for tag, state, goal in shown] == \
+        [(tag, state, goal) for tag, goal, state in goals]
+    kept = re.findall(r"^- (.*past the promise.*)$", markdown.split("## Warnings the FMU logged")[-1], re.MULTILINE)
+    counted = re.search(r"bench: the FMU runs logged (\d+) warning\(s\), (\d+) of them", terminal)
+    assert (counted is None and "## Warnings the FMU logged" not in markdown) or \
+        (counted is not None and int(counted[2]) == len(kept) > 0)
+
+
 def test_writes_every_file(quick):
     for name in ("benchmarks.md", CSV_FILE, H_FILE, "work_precision.png", "floor.csv"):
         assert (quick / name).stat().st_size > 0, name

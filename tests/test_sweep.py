@@ -561,3 +561,18 @@ def test_a_hunt_crossley_cell_is_measured_against_a_reference_that_follows_the_m
         assert row["max_height_error"] < 1e-6
         paired = max(abs(e.time - float(t)) for e, (t, _, _) in zip(result.events, truth.events, strict=True))
         assert row["max_event_time_error"] <= paired + 1e-9
+
+
+def test_the_sweep_says_what_its_timeouts_are():
+    from bouncingball.sweep.command import timeouts_line
+
+    frame = pd.DataFrame({"solver": ["cvode", "scipy:DOP853", "scipy:DOP853", "article", "cvode"],
+                          "k": [1e12, 1e10, 1e12, 1e14, 1e4], "status": ["finished", "timed out", "timed out",
+                                                                          "timed out", "finished"]})
+    assert timeouts_line(frame, 2.0) == ("timed out (past --time-cap = 2 s): scipy:DOP853 2 (k 1e+10 to 1e+12), "
+                                         "article 1 (k 1e+14): the SciPy peers on stiff cells, whose explicit "
+                                         "steps shrink with the contact (expected)")
+    frame.loc[0, "status"] = "timed out"
+    assert timeouts_line(frame, 2.0).endswith("1 of them CVODE's, which is not expected: see the timed-out cells in "
+                                              "stability_map.md")
+    assert timeouts_line(frame[frame["status"] == "finished"], 2.0) == ""

@@ -146,7 +146,8 @@ def timeouts_line(frame, time_cap: float) -> str:
         return ""
     parts = []
     for solver, rows in out.groupby("solver", sort=False):
-        parts.append(f"{solver} {len(rows)} (k {rows['k'].min():.3g} to {rows['k'].max():.3g})")
+        low, high = rows["k"].min(), rows["k"].max()
+        parts.append(f"{solver} {len(rows)} (k {low:.3g}{'' if low == high else f' to {high:.3g}'})")
     cvode = out["solver"].str.startswith("cvode")
     verdict = ("the SciPy peers on stiff cells, whose explicit steps shrink with the contact (expected)"
                if not cvode.any() else f"{int(cvode.sum())} of them CVODE's, which is not expected: see the "
