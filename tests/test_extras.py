@@ -33,9 +33,10 @@ def test_every_extra_the_hints_name_is_in_pyproject():
     for path in sorted((ROOT / "src" / "bouncingball").rglob("*.py")):
         for node in ast.walk(ast.parse(path.read_text("utf-8"))):
             if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "install_command":
-                named.update(argument.value for argument in node.args)
+                # the CLI's is EXTRA_OF_MODULE's, checked below
+                named.update(argument.value for argument in node.args if isinstance(argument, ast.Constant))
         # no message writes its own install command
-        assert "pip install 'bouncingball[" not in path.read_text("utf-8"), path
+        assert path.name == "extras.py" or "pip install 'bouncingball[" not in path.read_text("utf-8"), path
     assert named == {"plot", "reference", "fmu", "fast"}
     from bouncingball.cli import EXTRA_OF_MODULE
 

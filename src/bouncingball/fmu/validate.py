@@ -115,7 +115,7 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
 
         if fmu == default and is_stale(fmu):
             progress(f"building {fmu}")
-            build_fmu(None, fmi_version)  # the default path: its folder is made
+            build_fmu(None, fmi_version, lambda step: progress(f"building {fmu}: {step}"))  # its folder is made
         else:
             check_fmu_file(fmu)
 
