@@ -257,7 +257,8 @@ def _run_batches(client, todo: list[dict], size: int, time_cap: float, output_di
     futures = client.map(child.run_batch, batches, time_cap=time_cap, pure=False)
     pending = as_completed(futures)
     rows: list[dict] = []
-    shown = progress and sys.stderr.isatty()  # a bar redirected into a file is a mess of \r lines
+    shown = progress and sys.stderr.isatty()  # a bar redirected into a file is a mess of \r lines: step lines there
+    told = 0  # the tenths of the runs said as step lines so far
     with tqdm(total=len(todo), desc="sweep", unit="run", file=sys.stderr, disable=not shown) as bar, \
             _ctrl_c_between_results() as interrupted:
         while not pending.is_empty():
@@ -270,6 +271,9 @@ def _run_batches(client, todo: list[dict], size: int, time_cap: float, output_di
                     store.write_part(output_dir, batch)
                 rows += batch
                 bar.update(len(batch))
+                if progress and not shown and len(rows) * 10 // len(todo) > told:
+                    told = len(rows) * 10 // len(todo)
+                    print(f"sweep: {len(rows)} of {len(todo)} runs done", file=sys.stderr, flush=True)
                 if on_batch is not None:
                     on_batch(batch)
             if interrupted.is_set():
