@@ -335,3 +335,39 @@ def test_the_hunt_crossley_study_matches_both_solvers_to_the_target_against_its_
         assert float(error) <= 1e-6 and events == "38/38", rows[label]
     reference = re.search(r"DOP853 at rtol 2.3e-14 is within (\S+) m of it on the grid", page)
     assert reference and float(reference.group(1)) < 1e-8
+
+
+def test_the_fmu_warnings_are_one_line_on_the_terminal_and_their_text_in_the_report(tmp_path, capsys, monkeypatch):
+    from bouncingball.bench import _report_fmu_warnings
+
+    kept = ["by t = 0.6 s the run's error estimate is 0.002 m, 0.001 of its height scale 2 m: past the promise of "
+            "1e-06 from t = 0 s on; rtol = 0.0001 is looser than the default 1e-12, which the promise is made at: "
+            "tighten rtol to 1e-12 or below"] * 3 + ["SUNDIALS something else"]
+    monkeypatch.setattr(runners, "FMU_WARNINGS", kept)
+    report = tmp_path / "benchmarks.md"
+    report.write_text("# Benchmarks\n", encoding="utf-8")
+    _report_fmu_warnings(report)
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.splitlines() == [
+        f"bench: the FMU runs logged 4 warning(s), 3 of them the accuracy warning of an rtol loosened on purpose "
+        f"(expected); their text at the end of {report}", "bench: warning: SUNDIALS something else"]
+    text = report.read_text(encoding="utf-8")
+    assert text.startswith("# Benchmarks\n\n## Warnings the FMU logged\n") and text.count("\n- ") == 4
+
+
+def test_bench_ends_with_the_headline_of_its_goals(tmp_path, capsys, monkeypatch):
+    from bouncingball import bench
+    from bouncingball.bench import studies
+    from bouncingball.bench.targets import Target
+
+    goals = [Target("a", "CVODE beats its peers at 1e-6 m", True, "1.0x"),
+             Target("b", "the FMU within 1e-6", False, "")]
+    report = tmp_path / "benchmarks.md"
+    report.write_text("# Benchmarks\n", encoding="utf-8")
+    monkeypatch.setattr(studies, "run_benchmark", lambda output_dir, quick: ([report], goals))
+    monkeypatch.setattr(runners, "FMU_WARNINGS", [])
+    assert bench.bench_command(tmp_path, quick=True) == 0
+    assert capsys.readouterr().out.splitlines()[-3:] == [
+        f"headline (a quick run: few tolerances and repeats); the numbers in {report}:",
+        "  (a) met      CVODE beats its peers at 1e-6 m", "  (b) NOT MET  the FMU within 1e-6"]
