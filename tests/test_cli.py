@@ -318,7 +318,7 @@ def test_a_missing_extra_names_the_pip_install_that_adds_it(tmp_path):
     [line] = completed.stderr.strip().splitlines()  # before any work: no progress line either
     from bouncingball.extras import install_command
 
-    assert "fmpy" in line and line.endswith(install_command("fmu")), line
+    assert "fmpy" in line and line.endswith(f"({install_command('fmu')})"), line
 
 
 def _read_until(stream, text: str, timeout: float) -> str:

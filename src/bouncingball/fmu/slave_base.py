@@ -235,25 +235,12 @@ class BallSlave:
         if values is None:
             values, tolerance = self._values, self._tolerance
         contact = validation.choice("contact_law", values["contact_law"], FMU_CONTACT_LAWS)
-        ball = Ball(**self._read_fields(contact, ball_fields_of(values)))
+        ball = Ball(**_read_fields(contact, ball_fields_of(values), self._unread_told, self.log, self.STATUS.warning))
         rtol = values["rtol"]
         if tolerance is not None:  # the master's tolerance may tighten rtol, never loosen it
             rtol = min(CvodeSettings(rtol=rtol).rtol, validation.in_closed_range(
                 f"tolerance ({self.CALLS['setup']})", tolerance, MIN_RTOL, 1.0, why=RTOL_RANGE_WHY))
         return ball, CvodeSettings(rtol=rtol, atol=values["atol"], method=values["method"], engine=values["engine"])
-
-    def _read_fields(self, contact: str, ball_fields: dict) -> dict:
-        """ball_fields with the parameters the contact law does not read at their defaults, each logged once.
-
-        A warning, not a refusal: a master may set every parameter to its start value.
-        """
-        ball_fields, unread = without_unread(ball_fields)
-        if unread:
-            message = unread_message(contact, unread, law="contact_law", verdict="is ignored (taken at its default)")
-            if message not in self._unread_told:
-                self._unread_told.add(message)
-                self.log(message, self.STATUS.warning)
-        return ball_fields
 
     def _tell_tolerance(self, used: float) -> None:
         """Once per instance: a warning if the master asked for a looser tolerance than rtol, a note if tighter."""
@@ -300,6 +287,18 @@ class BallSlave:
 
     def _error(self, error) -> None:
         self.log(str(error), self.STATUS.error)
+
+
+def _read_fields(contact: str, ball_fields: dict, told: set, log, warning) -> dict:
+    """ball_fields with the parameters the contact law does not read at their defaults, each logged once (log's
+    status warning; told: the messages said), not refused: a master may set every parameter to its start value."""
+    ball_fields, unread = without_unread(ball_fields)
+    if unread:
+        message = unread_message(contact, unread, law="contact_law", verdict="is ignored (taken at its default)")
+        if message not in told:
+            told.add(message)
+            log(message, warning)
+    return ball_fields
 
 
 # dataclasses.asdict's deep copy costs ~22 us per fmi2GetFMUstate, three quarters of it; every field is a number, a
