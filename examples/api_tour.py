@@ -1,6 +1,6 @@
 """The Python API in one page: simulate a scene with cvode, exact and scipy, compare, plot.
 
-Needs: pip install 'bouncingball[reference,plot]' (SciPy for the article's algorithm, matplotlib for the plot).
+Needs: pip install -e '.[reference,plot]' in the checkout (SciPy for the article's algorithm, matplotlib for the plot).
 Usage: python api_tour.py [OUTPUT_DIR]      (writes api_tour.png there; default: the current directory)
 """
 

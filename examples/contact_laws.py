@@ -1,6 +1,6 @@
 """One drop under the three contact laws: the article's spring-damper, the same without its pull, and a rigid impact.
 
-Needs: pip install 'bouncingball[plot]' (matplotlib for the figure).
+Needs: pip install -e '.[plot]' in the checkout (matplotlib for the figure).
 Usage: python contact_laws.py [OUTPUT_DIR]   (writes contact_laws.png there; default: the current directory)
 
 The article's ball from 2 m. The rigid ball's restitution e is the linear law's first bounce's (departure

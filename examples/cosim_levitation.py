@@ -1,6 +1,6 @@
 """Co-simulation: the ball FMU and a PD controller FMU (pd_controller.py) coupled by a master loop on FMPy's FMU2Slave.
 
-Needs: pip install 'bouncingball[fmu]' (pythonfmu, FMPy; building the ball FMU needs a C compiler).
+Needs: pip install -e '.[fmu]' in the checkout (pythonfmu, FMPy; building the ball FMU needs a C compiler).
 Usage: python cosim_levitation.py [OUTPUT_DIR]      (builds both FMUs there; default: the current directory)
 
 The ball is dropped from 2 m and bounces; from t_on = 2.25 s the controller holds it at 1 m, and at

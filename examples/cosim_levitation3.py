@@ -1,5 +1,5 @@
 """cosim_levitation.py's coupling with the ball as an FMI 3.0 FMU returning early at each impact and departure, where
-the master sets F_ext (in event mode). Needs: pip install 'bouncingball[fmu]' tqdm (and a C compiler).
+the master sets F_ext (in event mode). Needs: pip install -e '.[fmu]' tqdm (and a C compiler).
 Usage: python cosim_levitation3.py [OUTPUT_DIR]      (builds the FMUs there; default: the current directory)
 Two cases against one fine-step reference (the FMI 2.0 coupling at 2^-12 s, most of the time this takes: a bar shows
 it): levitation, cosim_levitation.py's (controller on from 2.25 s to 5 s, no impact then), and catch: a softer one from

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The FMU from a shell: build it, read its interface with `fmpy info`, run it with `fmpy simulate`
 # (start values, output file), and judge the result with `bouncingball check`.
-# Needs: pip install 'bouncingball[fmu]' (pythonfmu and FMPy; the build also needs a C compiler).
+# Needs: pip install -e '.[fmu]' in the checkout (pythonfmu and FMPy; the build also needs a C compiler).
 # Usage: bash fmpy_cli.sh [OUTPUT_DIR]      (default: the current directory)
 set -euo pipefail
 out="${1:-.}"

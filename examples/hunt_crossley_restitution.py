@@ -1,6 +1,7 @@
 """The Hunt-Crossley ball's coefficient of restitution against impact speed, beside its analytic approximations.
 
-Needs: pip install 'bouncingball[plot,reference]' (matplotlib for the figure, SciPy's brentq for the separable impact).
+Needs: pip install -e '.[plot,reference]' in the checkout (matplotlib for the figure, SciPy's brentq for the
+separable impact).
 Usage: python hunt_crossley_restitution.py [OUTPUT_DIR]   (writes hunt_crossley_restitution.png there)
 
 The benchmark's ball (m = 1 kg, R = 6 cm, k = 1e6 N/m^1.5, n = 1.5) dropped so that it meets the ground at

@@ -1,6 +1,6 @@
 """A regression test to copy: run the BouncingBall FMU in your master, assert it matches the exact solution.
 
-Needs: pip install 'bouncingball[fmu]' pytest (FMPy stands in for your master here).
+Needs: pip install -e '.[fmu]' pytest (FMPy stands in for your master here).
 Usage: pytest regression_test.py      (BOUNCINGBALL_FMU=path/to/BouncingBall.fmu to test a given build;
        else the FMU is built into pytest's temporary directory)
 

@@ -1,6 +1,6 @@
 """A parameter study on Dask: CVODE against the exact solution over a small (k, damping ratio) grid.
 
-Needs: pip install 'bouncingball[sweep]' (dask.distributed, pandas, pyarrow).
+Needs: pip install -e '.[sweep]' in the checkout (dask.distributed, pandas, pyarrow).
 Usage: python sweep.py [OUTPUT_DIR] [SCHEDULER]   (results stream to OUTPUT_DIR/sweep_parts as they
        arrive; SCHEDULER, e.g. tcp://host:8786, runs on your cluster instead of a local one)
 """
@@ -24,7 +24,8 @@ def main() -> None:
         from distributed import Client
 
         client = Client(scheduler)
-    frame = run_sweep(grid, client, output_dir=out_dir, time_cap=20.0, progress=False)
+    # resume: the runs an earlier run of this example left in out_dir are kept, only the others run
+    frame = run_sweep(grid, client, output_dir=out_dir, resume=True, time_cap=20.0, progress=False)
 
     print(f"{'solver':8s}{'k [N/m]':>10s}{'zeta':>7s}  {'status':9s}{'events':>9s}{'max |h - h_exact| [m]':>24s}")
     for row in frame.itertuples():

@@ -26,11 +26,17 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.fixture(scope="session")
 def fmu(tmp_path_factory) -> Path:
-    """The FMU, built once per session through `bouncingball build-fmu -o`."""
+    """The FMU, built once per session through `bouncingball build-fmu -o`; what it printed beside it (build.txt)."""
+    import contextlib
+    import io
+
     from bouncingball.cli import main
 
     path = tmp_path_factory.mktemp("fmu") / "BouncingBall.fmu"
-    assert main(["build-fmu", "-o", str(path)]) == 0
+    said = io.StringIO()
+    with contextlib.redirect_stderr(said), contextlib.redirect_stdout(said):
+        assert main(["build-fmu", "-o", str(path)]) == 0
+    path.with_name("build.txt").write_text(said.getvalue(), encoding="utf-8")
     return path
 
 

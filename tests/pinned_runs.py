@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 import bouncingball as bb
+from bouncingball.contact_laws import LAW_PARAMETERS
 from bouncingball.scenes import BUILTIN_SCENES, load_scene
 
 PINS = Path(__file__).parent / "data" / "pinned_runs.json"
@@ -29,7 +30,10 @@ def _hex(values) -> list[str]:
 
 
 def _ball(scene, law):
-    fields = {name: getattr(scene.ball, name) for name in ("m", "k", "b", "R", "g")}
+    # the law's own parameters only (a rigid ball reads neither k nor b, a Hunt-Crossley one not b: Ball refuses
+    # them set, and the runs pinned with them set are the same bit for bit)
+    own = tuple(name for name in ("k", "b") if name in LAW_PARAMETERS[law])
+    fields = {name: getattr(scene.ball, name) for name in ("m", "R", "g", *own)}
     if law == "rigid":
         fields.update(e=0.7, v_min=0.0)
     if law == "hunt-crossley":

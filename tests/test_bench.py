@@ -1,7 +1,9 @@
 """`bouncingball bench --quick` writes complete, consistent results; errors are recomputed from the saved h values."""
 
+import contextlib
 import csv
 import dataclasses
+import io
 import re
 import subprocess
 import sys
@@ -25,7 +27,10 @@ ARTICLE = load_scene("article")
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
-    assert main(["bench", "--quick", "--output-dir", str(out)]) == 0
+    said, told = io.StringIO(), io.StringIO()  # what the terminal would show (FMPy's logger prints with print())
+    with contextlib.redirect_stdout(said), contextlib.redirect_stderr(told):
+        assert main(["bench", "--quick", "--output-dir", str(out)]) == 0
+    (out / "terminal.txt").write_text(said.getvalue() + told.getvalue(), encoding="utf-8")
     return out
 
 
@@ -45,6 +50,24 @@ def expected_labels(section):
 
 
 @pytest.mark.slow
+def test_quick_ends_with_a_headline_and_keeps_the_fmu_warnings_out_of_the_terminal(quick, markdown):
+    """Every goal of the report, met or not, in the terminal's last lines; the FMU's warnings counted in one line,
+    their text in the report, none printed one by one."""
+    terminal = (quick / "terminal.txt").read_text(encoding="utf-8")
+    assert "[WARNING]" not in terminal and "past the promise" not in terminal
+    goals = re.findall(r"^- \*\*\((\w+)\)\*\* (.*?): \*\*(met|not met)\*\*", markdown, re.MULTILINE)
+    lines = terminal.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("headline (a quick run"))
+    shown = [re.match(r"  \((\w+)\) (met    |NOT MET)  (.*)", line).groups() for line in lines[start + 1:]
+             if line.startswith("  (")]
+    assert len(goals) > 5 and [(tag, state.strip().lower(), goal) for tag, state, goal in shown] == \
+        [(tag, state, goal) for tag, goal, state in goals]
+    kept = re.findall(r"^- (.*past the promise.*)$", markdown.split("## Warnings the FMU logged")[-1], re.MULTILINE)
+    counted = re.search(r"bench: the FMU runs logged (\d+) warning\(s\), (\d+) of them", terminal)
+    assert (counted is None and "## Warnings the FMU logged" not in markdown) or \
+        (counted is not None and int(counted[2]) == len(kept) > 0)
+
+
 def test_writes_every_file(quick):
     for name in ("benchmarks.md", CSV_FILE, H_FILE, "work_precision.png", "floor.csv"):
         assert (quick / name).stat().st_size > 0, name
@@ -312,3 +335,39 @@ def test_the_hunt_crossley_study_matches_both_solvers_to_the_target_against_its_
         assert float(error) <= 1e-6 and events == "38/38", rows[label]
     reference = re.search(r"DOP853 at rtol 2.3e-14 is within (\S+) m of it on the grid", page)
     assert reference and float(reference.group(1)) < 1e-8
+
+
+def test_the_fmu_warnings_are_one_line_on_the_terminal_and_their_text_in_the_report(tmp_path, capsys, monkeypatch):
+    from bouncingball.bench import _report_fmu_warnings
+
+    kept = ["by t = 0.6 s the run's error estimate is 0.002 m, 0.001 of its height scale 2 m: past the promise of "
+            "1e-06 from t = 0 s on; rtol = 0.0001 is looser than the default 1e-12, which the promise is made at: "
+            "tighten rtol to 1e-12 or below"] * 3 + ["SUNDIALS something else"]
+    monkeypatch.setattr(runners, "FMU_WARNINGS", kept)
+    report = tmp_path / "benchmarks.md"
+    report.write_text("# Benchmarks\n", encoding="utf-8")
+    _report_fmu_warnings(report)
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.splitlines() == [
+        f"bench: the FMU runs logged 4 warning(s), 3 of them the accuracy warning of an rtol loosened on purpose "
+        f"(expected); their text at the end of {report}", "bench: warning: SUNDIALS something else"]
+    text = report.read_text(encoding="utf-8")
+    assert text.startswith("# Benchmarks\n\n## Warnings the FMU logged\n") and text.count("\n- ") == 4
+
+
+def test_bench_ends_with_the_headline_of_its_goals(tmp_path, capsys, monkeypatch):
+    from bouncingball import bench
+    from bouncingball.bench import studies
+    from bouncingball.bench.targets import Target
+
+    goals = [Target("a", "CVODE beats its peers at 1e-6 m", True, "1.0x"),
+             Target("b", "the FMU within 1e-6", False, "")]
+    report = tmp_path / "benchmarks.md"
+    report.write_text("# Benchmarks\n", encoding="utf-8")
+    monkeypatch.setattr(studies, "run_benchmark", lambda output_dir, quick: ([report], goals))
+    monkeypatch.setattr(runners, "FMU_WARNINGS", [])
+    assert bench.bench_command(tmp_path, quick=True) == 0
+    assert capsys.readouterr().out.splitlines()[-3:] == [
+        f"headline (a quick run: few tolerances and repeats); the numbers in {report}:",
+        "  (a) met      CVODE beats its peers at 1e-6 m", "  (b) NOT MET  the FMU within 1e-6"]

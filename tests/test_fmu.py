@@ -560,3 +560,17 @@ def test_a_build_host_that_cannot_compile_the_engine_ships_no_cache_and_says_why
     assert capsys.readouterr().err == ("bouncingball: the FMU ships no cache of its compiled engine, which could not "
                                        "be compiled here (ImportError: no engine on this host): it compiles at its "
                                        "first use where it runs\n")
+
+
+def test_build_fmu_says_each_step_as_it_starts_and_the_time_so_far(fmu):
+    """A build takes seconds to minutes (numba's compile): never silent, each step a line on stderr."""
+    import re
+
+    from bouncingball.fmu.build import BUILD_STEPS
+
+    lines = fmu.with_name("build.txt").read_text(encoding="utf-8").splitlines()
+    steps = [re.fullmatch(r"build-fmu: \[(\d)/(\d)\] (.*) \((\d+) s so far\)", line) for line in lines[:-1]]
+    assert [(int(m[1]), int(m[2]), m[3]) for m in steps] == [(i + 1, 5, name) for i, name in enumerate(BUILD_STEPS)]
+    seconds = [int(m[4]) for m in steps]
+    assert seconds == sorted(seconds)
+    assert re.fullmatch(rf"wrote {re.escape(str(fmu))} and its reference result .*_ref.csv in \d+ s", lines[-1])

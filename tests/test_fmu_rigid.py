@@ -223,3 +223,20 @@ def test_validate_runs_a_rigid_scene_file_without_the_articles_algorithm(fmu, tm
     fmu_row = rows["FMU (FMPy)"].accuracy
     assert fmu_row.max_height_error <= HEIGHT_TOLERANCE and fmu_row.events_found == fmu_row.events_exact == 11
     assert report.impacts_match_at_every_point
+
+
+def test_a_parameter_the_law_does_not_read_is_logged_as_a_warning_and_ignored(fmu):
+    """A master may set every parameter to its start value (SSP): the FMU cannot refuse alpha on a rigid ball, so it
+    says so in its log, once, and runs the rigid ball as if alpha and k were at their defaults."""
+    messages = []
+    values = _start_values(0.7, 0.1, 1.0)
+    result = fmpy.simulate_fmu(str(fmu), start_values={**values, "alpha": 0.3, "k": 1e12}, stop_time=2.0,
+                               output_interval=1e-3, output=["h"], debug_logging=True,
+                               logger=lambda *args: messages.append((args[-3], args[-1].decode())))
+    plain = fmpy.simulate_fmu(str(fmu), start_values=values, stop_time=2.0, output_interval=1e-3, output=["h"])
+    assert np.array_equal(result["h"], plain["h"])
+    said = [(status, text) for status, text in messages if "is ignored" in text]
+    assert said == [(1, "k = 1000000000000.0, alpha = 0.3 is ignored (taken at its default) with contact_law = "
+                        "'rigid': that law reads only e, v_min (besides m, R and g); leave it at its default (k = "
+                        "10000.0, alpha = 0.0) or choose a contact law that reads it (hunt-crossley, linear, "
+                        "linear-no-pull)")], messages

@@ -26,7 +26,9 @@ LOWER_LAYERS = {
     "bouncingball.physics": {"bouncingball.codes", "bouncingball.validation", "bouncingball.equations",
                              "bouncingball.contact_laws"},
     "bouncingball.limits": {*MODEL, "bouncingball.validation"},
-    "bouncingball.solvers": {*MODEL, "bouncingball.validation", "bouncingball.limits", "bouncingball.solvers"},
+    # extras: the install hint of a missing extra's message (standard library only)
+    "bouncingball.solvers": {*MODEL, "bouncingball.validation", "bouncingball.limits", "bouncingball.solvers",
+                             "bouncingball.extras"},
 }
 SINGLE_FILE_LAYERS = ("bouncingball.codes", "bouncingball.rounding", "bouncingball.oscillator",
                       "bouncingball.equations", "bouncingball.physics", "bouncingball.limits")

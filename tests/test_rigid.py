@@ -157,7 +157,7 @@ def test_check_judges_a_file_against_a_rigid_scene_file(tmp_path):
     passed = check_result(result, scene)
     assert passed.passed and passed.max_height_error <= 1e-12
     linear = tmp_path / "linear.toml"
-    linear.write_text(REFERENCE_SCENE.replace('contact = "rigid"\n', ""))
+    linear.write_text(REFERENCE_SCENE.replace('contact = "rigid"\ne = 0.7\nv_min = 0.1\n', ""))
     assert not check_result(result, linear).passed
 
 

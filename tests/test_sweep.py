@@ -7,6 +7,7 @@ Everything that starts a cluster runs in a subprocess with a timeout, so that a 
 import contextlib
 import json
 import math
+import shlex
 import signal
 import socket
 import subprocess
@@ -24,6 +25,7 @@ from bouncingball.solvers.cvode import DEFAULT_ATOL, DEFAULT_RTOL
 from bouncingball.solvers.exact import ExactSolution
 from bouncingball.sweep import Grid, parse_range
 from bouncingball.sweep.child import run_batch
+from bouncingball.sweep.store import COLUMNS as STORE_COLUMNS
 
 SWEEP = ["--k", "1e2:1e8:4", "--zeta", "1e-3:1:3", "--solvers", "cvode,article", "--t-end", "1",
          "--batch-size", "2", "--time-cap", "30"]
@@ -314,8 +316,57 @@ def test_ctrl_c_on_a_sweep_is_one_line_without_worker_tracebacks(tmp_path):
     finally:
         process.kill()
     assert process.returncode == 130, err
-    assert err.strip().splitlines()[-1] == "bouncingball: interrupted"
+    last = err.strip().splitlines()[-1]
     assert "Traceback" not in err and "KeyboardInterrupt" not in err and " ERROR " not in err, err
+    # One line: what is kept, where, and the exact command that goes on from it (run here as printed).
+    kept = sorted((tmp_path / "sweep_parts").glob("*.parquet"))
+    command = (f"bouncingball sweep --quick --workers 2 --output-dir {tmp_path} --resume")
+    assert last == f"bouncingball: interrupted: {len(kept)} finished batch(es) kept in {tmp_path}; to run only the " \
+                   f"rest: {command}", last
+    kept_keys = set(pd.concat([pd.read_parquet(path) for path in kept])["key"])
+    resumed = subprocess.run([str(BIN / "bouncingball"), *shlex.split(command)[1:]], capture_output=True, text=True,
+                             timeout=900)  # the rest of the quick grid: minutes on a busy machine
+    assert resumed.returncode == 0, resumed.stderr
+    table = _table(tmp_path)
+    assert f"{len(table)} runs ({len(table) - len(kept_keys)} run now)" in resumed.stderr
+    assert kept_keys < set(table["key"]) and table["key"].is_unique
+
+
+def test_a_sweep_where_results_are_refuses_to_start_without_resume_or_overwrite(tmp_path):
+    """Never delete a result unasked: the store named, both options offered, every file left as it was."""
+    from bouncingball.sweep.store import write_part
+
+    rows = [{column: None for column in STORE_COLUMNS} | {"key": f"k{i}", "status": "finished"} for i in range(3)]
+    part = write_part(tmp_path, rows)
+    (tmp_path / "stability_map.parquet").write_bytes(b"a table")
+    before = {path: path.read_bytes() for path in tmp_path.rglob("*") if path.is_file()}
+    completed = _sweep("--quick", "--output-dir", str(tmp_path))
+    assert completed.returncode == EXIT_BAD_INPUT, completed.stderr
+    [line] = completed.stderr.strip().splitlines()
+    assert line == (f"bouncingball: error: --output-dir = {str(tmp_path)!r} holds an earlier sweep's results (the "
+                    f"table {tmp_path / 'stability_map.parquet'} and 1 finished batch(es) in {part.parent}), which a "
+                    "sweep does not delete unasked: add --resume to keep them and run only the missing runs, or "
+                    "--overwrite to delete them and start over (or choose another --output-dir)")
+    both = _sweep("--quick", "--output-dir", str(tmp_path), "--resume", "--overwrite")
+    assert both.returncode == EXIT_BAD_INPUT and "--resume and --overwrite are not allowed together" in both.stderr
+    assert {path: path.read_bytes() for path in tmp_path.rglob("*") if path.is_file()} == before
+    from bouncingball.sweep import Grid, run_sweep
+
+    with pytest.raises(ValueError, match="add resume=True to keep them .* or overwrite=True to delete them"):
+        run_sweep(Grid(k=(1e3, 1e4, 2), zeta=(0.1, 0.1, 1)), output_dir=tmp_path)
+    assert {path: path.read_bytes() for path in tmp_path.rglob("*") if path.is_file()} == before
+
+
+@pytest.mark.slow
+def test_overwrite_deletes_the_earlier_results_and_runs_everything(tmp_path):
+    from bouncingball.sweep.store import write_part
+
+    write_part(tmp_path, [{column: None for column in STORE_COLUMNS} | {"key": "stale", "status": "finished"}])
+    tiny = ["--k", "1e2:1e3:2", "--zeta", "0.1", "--solvers", "cvode", "--t-end", "0.5", "--time-cap", "30",
+            "--workers", "1", "--output-dir", str(tmp_path)]
+    completed = _sweep(*tiny, "--overwrite")
+    assert completed.returncode == 0, completed.stderr
+    assert "2 runs (2 run now): 2 finished" in completed.stderr and "stale" not in set(_table(tmp_path)["key"])
 
 
 def test_the_map_page_formats_every_constant_from_the_code(tmp_path, monkeypatch):
@@ -510,3 +561,18 @@ def test_a_hunt_crossley_cell_is_measured_against_a_reference_that_follows_the_m
         assert row["max_height_error"] < 1e-6
         paired = max(abs(e.time - float(t)) for e, (t, _, _) in zip(result.events, truth.events, strict=True))
         assert row["max_event_time_error"] <= paired + 1e-9
+
+
+def test_the_sweep_says_what_its_timeouts_are():
+    from bouncingball.sweep.command import timeouts_line
+
+    frame = pd.DataFrame({"solver": ["cvode", "scipy:DOP853", "scipy:DOP853", "article", "cvode"],
+                          "k": [1e12, 1e10, 1e12, 1e14, 1e4], "status": ["finished", "timed out", "timed out",
+                                                                          "timed out", "finished"]})
+    assert timeouts_line(frame, 2.0) == ("timed out (past --time-cap = 2 s): scipy:DOP853 2 (k 1e+10 to 1e+12), "
+                                         "article 1 (k 1e+14): the SciPy peers on stiff cells, whose explicit "
+                                         "steps shrink with the contact (expected)")
+    frame.loc[0, "status"] = "timed out"
+    assert timeouts_line(frame, 2.0).endswith("1 of them CVODE's, which is not expected: see the timed-out cells in "
+                                              "stability_map.md")
+    assert timeouts_line(frame[frame["status"] == "finished"], 2.0) == ""

@@ -1,6 +1,6 @@
 """The ball and the PD controller as an OSP system (OspSystemStructure.xml), run by libcosim through libcosimpy.
 
-Needs: pip install 'bouncingball[fmu]' libcosimpy (pythonfmu builds the controller; the ball FMU needs a C compiler).
+Needs: pip install -e '.[fmu]' libcosimpy (pythonfmu builds the controller; the ball FMU needs a C compiler).
 Usage: python run.py [OUTPUT_DIR]      (builds both FMUs there, runs 8 s, writes libcosim_levitation.csv)
 
 libcosim's fixed-step algorithm steps both FMUs, then passes h and v to the controller and its F to the

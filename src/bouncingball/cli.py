@@ -11,138 +11,19 @@ import sys
 import warnings
 from collections.abc import Sequence
 
-from . import SOLVERS, AccuracyWarning, __version__
-from .contact_laws import CONTACT_LAWS
+from . import AccuracyWarning
+from .cli_parser import build_parser as _build_parser
 from .output import STANDARD_OUTPUT
 
 EXIT_BAD_INPUT = 2
 EXIT_SOLVER_FAILED = 1
 EXIT_CHECK_FAILED = 1  # `check`: the result is not within the tolerance of the exact solution
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
-CONNECT_TIMEOUT = 10.0  # s: how long `sweep --scheduler` waits for the scheduler to answer
 PROGRESS_AFTER = 2.0  # s: `run` shows a progress bar once it has taken this long (on a terminal, with tqdm)
 EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE: the reader (`| head`) stopped reading
 # The optional modules a command may need, and the extra that installs each.
 EXTRA_OF_MODULE = {"fmpy": "fmu", "pythonfmu": "fmu", "docutils": "fmu", "scipy": "reference", "matplotlib": "plot",
                    "tqdm": "bench", "dask": "sweep", "distributed": "sweep", "pandas": "sweep", "pyarrow": "sweep"}
-
-
-def _build_parser() -> argparse.ArgumentParser:
-    from .fmu.validate import SCIPY_CAP, STAGES
-
-    parser = argparse.ArgumentParser(prog="bouncingball", description=__doc__)
-    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
-
-    run = sub.add_parser("run", help="simulate a scene and print a summary")
-    run.add_argument("scene", nargs="?", default="article",
-                     help="built-in scene name or a .toml file (default: article)")
-    run.add_argument("--solver", default="cvode", help=f"one of {', '.join(SOLVERS)} (default: cvode)")
-    run.add_argument("--method", help="cvode: auto, Adams or BDF; scipy: RK45, DOP853, LSODA, Radau, BDF, ...")
-    run.add_argument("--rtol", type=float, help="relative tolerance")
-    run.add_argument("--atol", type=float, help="upper bound on the absolute error of h [m] (default: none, the "
-                     "error is controlled relative to each phase's scale)")
-    run.add_argument("--max-step", type=float, help="maximum step size [s] (0: unbounded)")
-    run.add_argument("--engine", help="cvode: auto (default), compiled (needs numba: pip install "
-                                      "'bouncingball[fast]') or sksundae")
-    run.add_argument("--contact", metavar="LAW", help=f"the contact law: {' or '.join(CONTACT_LAWS)} (default: the "
-                     "scene's; see the README's Contact laws)")
-    run.add_argument("--e", type=float, help="the rigid law's coefficient of restitution, in [0, 1] (default: the "
-                     "scene's, 0.7)")
-    run.add_argument("--v-min", type=float, help="the rigid law's speed [m/s] below which a bounce ends on the ground "
-                     "(default: the scene's, 0)")
-    run.add_argument("--n", type=float, help="the Hunt-Crossley law's exponent of the penetration, in [1, 2.5] "
-                     "(default: the scene's, 1.5; the other laws do not read it)")
-    run.add_argument("--alpha", type=float, help="the Hunt-Crossley law's damping [s/m], >= 0 (default: the "
-                     "scene's, 0; the other laws do not read it)")
-    run.add_argument("--t-end", type=float, help="end time [s] (default: the scene's)")
-    run.add_argument("--output-interval", type=float, help="output interval [s] (default: the scene's)")
-    run.add_argument("--output", metavar="CSV", help="write time,h,v to this file (-: to stdout, the summary then "
-                                                     "goes to stderr)")
-    run.add_argument("--events", metavar="CSV", help="write time,kind,v of each event to this file")
-    run.add_argument("--plot", metavar="PNG", help="draw height against time with the events marked, its error "
-                     "against the exact solution and, for an undamped ball, its energy")
-    run.add_argument("--plot-range", metavar="T0:T1", help="draw only from T0 to T1 [s] (default: the whole run)")
-
-    sub.add_parser("scenes", help="list the built-in scenes")
-
-    build = sub.add_parser("build-fmu", help="build the FMU: FMI 2.0 co-simulation, or FMI 3.0 co-simulation and "
-                                             "model exchange")
-    build.add_argument("-o", "--output", help="where to write it (default: dist/BouncingBall.fmu, "
-                                              "dist/BouncingBall3.fmu for --fmi-version 3)")
-    build.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version (default: 2)")
-    check = sub.add_parser("validate", help="run the FMU through FMPy and compare it with CVODE, SciPy and the "
-                                            "exact solution")
-    check.add_argument("scene", nargs="?", default="article", help="built-in scene name or a .toml file "
-                                                                   "(default: article)")
-    check.add_argument("--fmu", help="the FMU to run (default: dist/BouncingBall.fmu, or dist/BouncingBall3.fmu for "
-                                     "--fmi-version 3, built if missing or stale)")
-    check.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version (default: 2)")
-    check.add_argument("--skip", action="append", default=[], metavar="STAGE",
-                       help=f"a stage not to run: {', '.join(STAGES)} (repeatable; without exact, its row is left "
-                            "out, the others are still judged by the exact solution)")
-    check.add_argument("--time-cap", type=float, default=SCIPY_CAP, metavar="S",
-                       help=f"wall time the SciPy stage may take before it is stopped [s] (default: {SCIPY_CAP:g})")
-    judge = sub.add_parser("check", help="compare a master's result (CSV) with the exact solution at its own times")
-    judge.add_argument("result", metavar="RESULT.csv", help="the CSV a master wrote (FMPy, OMSimulator, libcosim, "
-                                                          "ecos, ...): a time and an h column (an impacts column is "
-                                                          "checked too, parameter columns are taken)")
-    judge.add_argument("scene", nargs="?", default="article", help="the scene the master ran: a built-in scene "
-                                                                   "name or a .toml file (default: article)")
-    from .fmu.variables import SCENE_FIELD_OF_START_VALUE
-
-    judge.add_argument("--start-value", action="append", default=[], metavar="NAME=VALUE",
-                       help=f"a start value the master set on the FMU ({', '.join(SCENE_FIELD_OF_START_VALUE)}, "
-                            "rtol, atol; repeatable)")
-    judge.add_argument("--tolerance", type=float, default=1e-6, help="allowed max |h - h_exact| [m] (default: 1e-6)")
-    judge.add_argument("--input-file", metavar="F.csv", help="the FMPy input file (time,F_ext) the master drove F_ext "
-                       "with: F_ext is held over each communication step at the value FMPy applies at its start")
-    judge.add_argument("--step-size", type=float, metavar="DT", help="with --input-file: the master's communication "
-                       "step [s] (default: the result's times are the communication points)")
-    judge.add_argument("--start-time", type=float, default=0.0, help="when the master started the run [s] "
-                                                                     "(default: 0)")
-    judge.add_argument("--instance", metavar="NAME", help="the instance of the ball to check when the file holds "
-                                                          "several (ball for ball::h or model.root.ball.h)")
-    bench = sub.add_parser("bench", help="benchmark error against run time (or, with --stability, the stability "
-                                         "matrix) and write the results")
-    bench.add_argument("--quick", action="store_true", help="a small run that CI can afford")
-    study = bench.add_mutually_exclusive_group()
-    study.add_argument("--hunt-crossley", action="store_true", help="the Hunt-Crossley law against DOP853 at a "
-                                                                    "matched error, and write hunt_crossley.md")
-    study.add_argument("--stability", action="store_true", help="run every scene with every solver under a time "
-                                                                "cap and write stability.md")
-    study.add_argument("--first-use", action="store_true", help="time the compiled engine's first use from a wheel "
-                                                                "installed in a fresh venv, and write first_use.md")
-    bench.add_argument("--output-dir", default="bench-results",
-                       help="where to write the results (default: bench-results; docs regenerates the committed ones)")
-    sweep = sub.add_parser("sweep", help="a stability map over (k, damping, m, h0) for each solver, run on "
-                                         "Dask (needs the [sweep] extra)")
-    for name, default in (("k", "1e2:1e14:13 [N/m]; hunt-crossley: 1e3:1e9:13 [N/m^1.5]"),
-                          ("zeta", "1e-4:1e2:7, the linear laws' damping ratio"), ("m", "1 [kg]"), ("h0", "2 [m]")):
-        sweep.add_argument(f"--{name}", metavar="LO:HI:N", help=f"log-spaced values (default: {default})")
-    sweep.add_argument("--alpha", metavar="VALUES", help="the Hunt-Crossley law's damping [s/m] (n = 1.5): values "
-                       "and LO:HI:N log-spaced ranges, comma-separated (default: 0,1e-4:1:9)")
-    sweep.add_argument("--contact", metavar="LAW", help="the balls' contact law: linear (default), linear-no-pull "
-                       "(then CVODE alone by default: the article's and SciPy's algorithms model a force that is a "
-                       "function of the state) or hunt-crossley (errors against a reference run per cell)")
-    sweep.add_argument("--t-end", type=float, help="end time of each run [s] (default: 8)")
-    sweep.add_argument("--solvers", help="comma-separated: cvode, cvode:Adams, cvode:BDF, article, scipy:METHOD "
-                                         "(default: cvode,article,scipy:DOP853)")
-    sweep.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786 "
-                                                              "(default: a LocalCluster)")
-    sweep.add_argument("--connect-timeout", type=float, default=CONNECT_TIMEOUT, metavar="S",
-                       help=f"how long to wait for --scheduler to answer [s] (default: {CONNECT_TIMEOUT:g})")
-    sweep.add_argument("--workers", type=int, help="LocalCluster worker processes (default: one per core)")
-    sweep.add_argument("--time-cap", type=float, help="wall time a run may take [s] (default: 2; --quick: 1)")
-    sweep.add_argument("--batch-size", type=int, help="runs per Dask task (default: from the measured overhead)")
-    sweep.add_argument("--output-dir", default="sweep-results", help="where to write (default: sweep-results; "
-                                                                     "docs regenerates the committed map)")
-    sweep.add_argument("--resume", action="store_true", help="keep the runs already in --output-dir, run the rest")
-    sweep.add_argument("--scaling", action="store_true", help="also time the grid on 1 worker and on as many as "
-                                                              "the sweep used, for the doc's scaling line")
-    sweep.add_argument("--quick", action="store_true", help="a 4 x 3 grid with a 1 s cap")
-    parser.commands = sub.choices  # each command's parser, to refuse an unknown option in its own words
-    return parser
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -182,11 +63,7 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
     from .run_report import first_use_note, plural, restitution_line
     from .scenes import load_scene
 
-    scene = load_scene(args.scene)
-    law = {name: getattr(args, name) for name in ("contact", "e", "v_min", "n", "alpha")
-           if getattr(args, name) is not None}
-    if law:
-        scene = dataclasses.replace(scene, ball=dataclasses.replace(scene.ball, **law))
+    scene = _with_law_options(load_scene(args.scene), args)
     _check_outputs(args)
     plot_range = None
     if args.plot_range is not None:
@@ -264,6 +141,29 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
     return 0
 
 
+def _with_law_options(scene, args: argparse.Namespace):
+    """The scene with the command line's contact law and its parameters (--contact, --e, --v-min, --n, --alpha).
+
+    A law given with --contact keeps the scene's values of the parameters it reads and drops the others (they
+    were the scene's law's); a parameter given here that the law does not read is refused by its option.
+    """
+    from . import validation
+    from .contact_laws import CONTACT_LAWS, LAW_PARAMETERS
+    from .physics import Ball, unread_message, unread_parameters
+
+    given = {name: getattr(args, name) for name in ("e", "v_min", "n", "alpha") if getattr(args, name) is not None}
+    if args.contact is None and not given:
+        return scene
+    ball = scene.ball
+    contact = ball.contact if args.contact is None else validation.choice("--contact", args.contact, CONTACT_LAWS)
+    unread = unread_parameters(contact, given)
+    if unread:
+        raise ValueError(unread_message(contact, unread, option="--"))
+    kept = {name: getattr(ball, name) for name in LAW_PARAMETERS[contact]}
+    law_ball = Ball(m=ball.m, R=ball.R, g=ball.g, contact=contact, **{**kept, **given})
+    return dataclasses.replace(scene, ball=law_ball)
+
+
 def _print_events(result, exact, exact_on_grid) -> None:
     """The events line, the first and last events, how they differ from the exact ones and why, the rest."""
     from .accuracy import max_height_error
@@ -334,6 +234,7 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     """The arguments; an unknown option is refused by its command's parser, with the option it may have meant."""
     parser = _build_parser()
     args, unknown = parser.parse_known_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # as typed: `sweep` repeats it to say how to resume
     if unknown:
         command = parser.commands[args.command]
         known = [option for action in command._actions for option in action.option_strings]
@@ -356,15 +257,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_BROKEN_PIPE
     except ImportError as error:
+        from .extras import install_command
+
         extra = EXTRA_OF_MODULE.get((error.name or "").split(".")[0])
-        hint = f" (pip install 'bouncingball[{extra}]')" if extra and "pip install" not in str(error) else ""
+        hint = f" ({install_command(extra)})" if extra and "pip install" not in str(error) else ""
         print(f"bouncingball: error: {error}{hint}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except ValueError as error:
         print(f"bouncingball: error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("bouncingball: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as interrupt:  # a command that keeps work says where, and how to go on
+        print("bouncingball: interrupted" + (f": {interrupt}" if str(interrupt) else ""), file=sys.stderr)
         return EXIT_INTERRUPTED
     except RuntimeError as error:  # a solver that failed says why
         print(f"bouncingball: solver failed: {error}", file=sys.stderr)

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
 from functools import cached_property
 
 import numpy as np
@@ -16,8 +17,10 @@ import numpy as np
 from . import codes, validation
 from .contact_laws import (
     CONTACT_LAWS,
+    CONTACT_PARAMETERS,
     HC_N_RANGE,
     HUNT_CROSSLEY,
+    LAW_PARAMETERS,
     LINEAR,
     NO_PULL,
     RIGID,
@@ -69,9 +72,9 @@ class Ball:
         The contact law: "linear" (the spring-damper, the default), "rigid", "linear-no-pull" (the
         spring-damper whose force never pulls) or "hunt-crossley" (k delta^n (1 + 3/2 alpha delta')).
     e : float
-        The rigid law's coefficient of restitution, in [0, 1] (ignored by "linear").
+        The rigid law's coefficient of restitution, in [0, 1].
     v_min : float
-        The rigid law's speed [m/s] below which a bounce ends on R, finite and >= 0 (ignored by "linear").
+        The rigid law's speed [m/s] below which a bounce ends on R, finite and >= 0.
     n : float
         The Hunt-Crossley law's exponent, in [1, 2.5] (1.5: Hertz; k is then in N/m^n).
     alpha : float
@@ -80,7 +83,9 @@ class Ball:
     Raises
     ------
     ValueError
-        A parameter outside its range; the message names it, its value and the allowed range.
+        A parameter outside its range; the message names it, its value and the allowed range. Or a
+        parameter the contact law does not read (contact_laws.LAW_PARAMETERS: rigid reads neither k nor
+        b, hunt-crossley not b) set to another value than its default, which would be silently ignored.
 
     Examples
     --------
@@ -117,6 +122,9 @@ class Ball:
         object.__setattr__(self, "v_min", validation.non_negative("v_min", self.v_min, "m/s"))
         object.__setattr__(self, "n", validation.in_closed_range("n", self.n, *HC_N_RANGE))
         object.__setattr__(self, "alpha", validation.non_negative("alpha", self.alpha, "s/m"))
+        unread = unread_parameters(self.contact, {name: getattr(self, name) for name in CONTACT_PARAMETERS})
+        if unread:
+            raise ValueError(unread_message(self.contact, unread))
 
     # --- derived quantities -------------------------------------------------------------
     @property
@@ -298,3 +306,52 @@ def clipped_contact_mode(ball: Ball, mode: Mode) -> Mode:
     integrate so; the phase machine takes the clip as events instead.
     """
     return Mode.CONTACT if ball.hunt_crossley and mode == Mode.FREE else mode
+
+
+def unread_parameters(contact: str, values: Mapping[str, float]) -> dict[str, float]:
+    """The parameters in values that the contact law does not read, set to other values than Ball's defaults.
+
+    What a user set for nothing, by name; the laws' own parameters are contact_laws.LAW_PARAMETERS, and
+    Ball's defaults mean "not set".
+
+    Examples
+    --------
+    >>> unread_parameters("rigid", {"k": 1e12, "b": 10.0, "e": 0.5})
+    {'k': 1000000000000.0}
+    """
+    own = LAW_PARAMETERS[contact]
+    return {name: value for name, value in values.items()
+            if name in CONTACT_PARAMETERS and name not in own and value != BALL_DEFAULTS[name]}
+
+
+def without_unread(ball_fields: Mapping[str, object]) -> tuple[dict, dict[str, float]]:
+    """(Ball's keyword arguments with the parameters their contact law does not read at Ball's defaults, those).
+
+    What the FMU runs from a master's start values, which may set every parameter (it logs the second), and
+    what `check` judges its result by. ValueError names a contact law that does not exist.
+    """
+    contact = validation.choice("contact", ball_fields.get("contact", "linear"), CONTACT_LAWS)
+    unread = unread_parameters(contact, ball_fields)
+    return {**ball_fields, "contact": contact, **{name: BALL_DEFAULTS[name] for name in unread}}, unread
+
+
+def unread_message(contact: str, unread: Mapping[str, float], option: str = "", law: str = "contact",
+                   verdict: str = "is not allowed") -> str:
+    """What unread_parameters found, for a ValueError or the FMU's log: each name, its value and what to do.
+
+    option: "--" names them as the command line's options (--v-min), "" as Ball's fields; law: the contact
+    law's own name there (the FMU's contact_law); verdict: "is not allowed", or what the FMU does instead.
+    """
+    def name_of(field: str) -> str:
+        return option + field.replace("_", "-") if option else field
+
+    named = ", ".join(f"{name_of(name)} = {value!r}" for name, value in unread.items())
+    defaults = ", ".join(f"{name_of(name)} = {BALL_DEFAULTS[name]!r}" for name in unread)
+    readers = sorted({other for name in unread for other, own in LAW_PARAMETERS.items() if name in own})
+    return (f"{named} {verdict} with {name_of(law)} = {contact!r}: that law reads only "
+            f"{', '.join(name_of(name) for name in LAW_PARAMETERS[contact])} (besides m, R and g); leave it at its "
+            f"default ({defaults}) or choose a contact law that reads it ({', '.join(readers)})")
+
+
+# Ball's defaults: for a contact law's parameters they mean "not set" (unread_parameters).
+BALL_DEFAULTS = {field.name: field.default for field in fields(Ball)}

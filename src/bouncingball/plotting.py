@@ -240,4 +240,6 @@ def require_matplotlib() -> None:
     from importlib.util import find_spec
 
     if find_spec("matplotlib") is None:
-        raise ImportError("plotting needs matplotlib: pip install 'bouncingball[plot]'")
+        from .extras import install_command
+
+        raise ImportError(f"plotting needs matplotlib: {install_command('plot')}")

@@ -22,6 +22,7 @@ def bench_command(output_dir: str | Path = "bench-results", quick: bool = False,
     output_dir = check_output_folder("--output-dir", output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
+    headline = []
     if first_use:
         from . import first_use as study
 
@@ -37,8 +38,37 @@ def bench_command(output_dir: str | Path = "bench-results", quick: bool = False,
     else:
         from .studies import run_benchmark
 
-        written = run_benchmark(output_dir, quick=quick)
+        written, headline = run_benchmark(output_dir, quick=quick)
     for path in written:
         print(f"wrote {path}")
+    report = next((path for path in written if path.suffix == ".md"), None)
+    _report_fmu_warnings(report)
+    if headline:
+        print(f"\nheadline{' (a quick run: few tolerances and repeats)' if quick else ''}; the numbers in {report}:")
+        for target in headline:
+            print(f"  ({target.tag}) {'met    ' if target.met else 'NOT MET'}  {target.goal}")
     print(f"bench finished in {time.perf_counter() - started:.0f} s", file=sys.stderr)
     return 0
+
+
+def _report_fmu_warnings(report: Path | None) -> None:
+    """The FMU runs' warnings as one line here, their text at the end of the report (the runs loosen rtol past
+    the promise on purpose, to measure the error it gives: each such run's FMU says so once)."""
+    from .runners import FMU_WARNINGS
+
+    if not FMU_WARNINGS:
+        return
+    expected = sum("past the promise" in message for message in FMU_WARNINGS)
+    where = f"their text at the end of {report}" if report is not None else "not kept"
+    print(f"bench: the FMU runs logged {len(FMU_WARNINGS)} warning(s), {expected} of them the accuracy warning "
+          f"of an rtol loosened on purpose (expected); {where}", file=sys.stderr)
+    if report is not None:
+        lines = ["", "## Warnings the FMU logged", "",
+                 "Each run whose rtol is looser than the FMU's default logs once that its error estimate passes "
+                 "the promise: expected in a work-precision sweep, which measures that error.", "",
+                 *(f"- {message}" for message in FMU_WARNINGS), ""]
+        with report.open("a", encoding="utf-8") as file:
+            file.write("\n".join(lines))
+    unexpected = [message for message in FMU_WARNINGS if "past the promise" not in message]
+    for message in unexpected[:3]:
+        print(f"bench: warning: {message}", file=sys.stderr)

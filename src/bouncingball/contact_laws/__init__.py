@@ -89,16 +89,17 @@ from .rigid import departure_speed as rigid_departure_speed
 from .rigid import departure_time as rigid_departure_time
 
 __all__ = [
-    "BY_CVODE", "BallParameters", "CONTACT_LAWS", "ContactLaw", "HC_N_RANGE", "HUNT_CROSSLEY", "IN_CLOSED_FORM",
-    "LAWS", "LINEAR", "MIN_PHASE_SCALE", "NO_PULL", "REST", "RIGID", "SOFT_CONTACT_CAP", "ZENO_APEX",
-    "conserved_speed", "contact_event", "contact_scales", "contact_unresolved", "decide_contact", "departure_speed",
-    "departure_time", "free_event", "free_gap_rate", "has_free_sub_mode", "hunt_crossley_acceleration",
-    "hunt_crossley_force", "hunt_crossley_free_event", "hunt_crossley_hop_tolerance", "hunt_crossley_jacobian",
-    "hunt_crossley_partials", "hunt_crossley_rest_depth", "hunt_crossley_rest_margin", "hunt_crossley_scales",
-    "hunt_crossley_state", "hunt_crossley_static_deflection", "jacobian_varies", "law_acceleration",
-    "law_flow_value", "law_interpolant", "law_rest_margin", "no_pull_rest_margin_value", "own_interpolant",
-    "polish_flow_mode", "pressed_gap", "release_speed", "release_state", "release_time", "rigid_rebound",
-    "rigid_rebound_above", "root_values", "starts_free", "summed_bounce_state", "time_to_impact", "varying_jacobian",
+    "BY_CVODE", "BallParameters", "CONTACT_LAWS", "CONTACT_PARAMETERS", "ContactLaw", "HC_N_RANGE", "HUNT_CROSSLEY",
+    "IN_CLOSED_FORM", "LAWS", "LAW_PARAMETERS", "LINEAR", "MIN_PHASE_SCALE", "NO_PULL", "REST", "RIGID",
+    "SOFT_CONTACT_CAP", "ZENO_APEX", "conserved_speed", "contact_event", "contact_scales", "contact_unresolved",
+    "decide_contact", "departure_speed", "departure_time", "free_event", "free_gap_rate", "has_free_sub_mode",
+    "hunt_crossley_acceleration", "hunt_crossley_force", "hunt_crossley_free_event", "hunt_crossley_hop_tolerance",
+    "hunt_crossley_jacobian", "hunt_crossley_partials", "hunt_crossley_rest_depth", "hunt_crossley_rest_margin",
+    "hunt_crossley_scales", "hunt_crossley_state", "hunt_crossley_static_deflection", "jacobian_varies",
+    "law_acceleration", "law_flow_value", "law_interpolant", "law_rest_margin", "no_pull_rest_margin_value",
+    "own_interpolant", "polish_flow_mode", "pressed_gap", "release_speed", "release_state", "release_time",
+    "rigid_rebound", "rigid_rebound_above", "root_values", "starts_free", "summed_bounce_state", "time_to_impact",
+    "varying_jacobian",
 ]
 
 
@@ -126,6 +127,10 @@ LAWS = {law.name: law for law in (
                "k delta^n (1 + 3/2 alpha delta'), clipped at 0"),
 )}
 CONTACT_LAWS = tuple(LAWS)  # their names, the default first
+# The parameters each law reads besides the ball's m, R and g, by its name: another law's parameter set to a
+# value other than Ball's default is refused by name (Ball, CLI, scene files), logged by the FMU (physics.py).
+LAW_PARAMETERS = {name: law.parameters for name, law in LAWS.items()}
+CONTACT_PARAMETERS = ("k", "b", "e", "v_min", "n", "alpha")  # every law's, in Ball's order
 
 
 # --- the dispatch: each hook decides on the law once ---------------------------------------------------------------

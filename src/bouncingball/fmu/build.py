@@ -26,14 +26,17 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
+import time
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
+from ..extras import install_command
 from ..output import atomic_write, check_output_path
 from .documentation import index_html
 from .engine_cache import compile_cache, shipped_files
 from .host_check import check_source
+from .reference import reference_path, write_reference_csv
 from .variables import MODEL_NAME, UNITS, VARIABLES
 
 DEFAULT_OUTPUT = Path("dist") / f"{MODEL_NAME}.fmu"
@@ -45,6 +48,10 @@ LOADER3_SOURCE = HERE / "bouncingball_fmu3_loader.c"
 LOADER_HEADER = HERE / "bouncingball_fmu_python.h"  # what the FMI 2.0 and 3.0 loaders share
 PACKAGE_DIR = HERE.parent  # the bouncingball package, copied into the FMU
 PACKAGE_FILES = ("*.py", "data/*.toml")
+# What build_fmu says it is doing, in order (the compile of the engine's code is most of a build's time).
+BUILD_STEPS = ("compiling the C loader and staging the package", "pythonfmu builds the FMU",
+               "numba compiles the engine's code into the FMU (most of the build; none where a build of the same "
+               "sources is kept)", "packing the FMU", "writing the reference result (the exact solution)")
 PLATFORM = "linux64"
 PYTHONFMU_BINARY = f"{MODEL_NAME}_pythonfmu.so"  # pythonfmu's binary, loaded by ours
 
@@ -53,12 +60,14 @@ class FmuBuildError(RuntimeError):
     """The FMU cannot be built here; the message says what is missing."""
 
 
-def build_fmu(output: str | Path | None = None, fmi_version: int = 2) -> Path:
+def build_fmu(output: str | Path | None = None, fmi_version: int = 2, step=None) -> Path:
     """Build the FMU of FMI version fmi_version (2 or 3) into output [.fmu] (default DEFAULT_OUTPUTS) and return it.
 
     The default's folder (dist/) is created; an output given in a folder that does not exist is refused, as
-    every other output path is (a typo in a path must not become a new folder).
+    every other output path is (a typo in a path must not become a new folder). step, if given, is called
+    with the name of each build step as it starts (BUILD_STEPS, in order), for a progress display.
     """
+    step = step or (lambda name: None)
     if fmi_version not in DEFAULT_OUTPUTS:
         raise ValueError(f"fmi_version = {fmi_version!r} is not allowed: it must be 2 or 3")
     make_folders = output is None
@@ -73,13 +82,14 @@ def build_fmu(output: str | Path | None = None, fmi_version: int = 2) -> Path:
         import fmpy  # noqa: F401  (its FMI headers compile the loader)
         FmuBuilder = importlib.import_module(library).FmuBuilder
     except ImportError as error:
-        raise ImportError(f"build-fmu needs {library} and FMPy ({error}): pip install "
-                          "'bouncingball[fmu]'") from None
+        raise ImportError(f"build-fmu needs {library} and FMPy ({error}): {install_command('fmu')}") from None
 
     with tempfile.TemporaryDirectory(prefix="bouncingball_fmu_") as temp:
         temp = Path(temp)
+        step(BUILD_STEPS[0])
         loader = _compile_loader(compiler, temp / f"{MODEL_NAME}.so", fmi_version)
         script, package = _stage(temp / "stage", fmi_version)
+        step(BUILD_STEPS[1])
         # pythonfmu imports the script, and with it the package's copy, into this process to read
         # its variables, and leaves its folder on sys.path: undo both once it is done.
         path, modules = list(sys.path), set(sys.modules)
@@ -94,71 +104,16 @@ def build_fmu(output: str | Path | None = None, fmi_version: int = 2) -> Path:
             for name in set(sys.modules) - modules:
                 if name == script.stem or name.split(".")[0] == package.name:
                     del sys.modules[name]
+        step(BUILD_STEPS[2])
         cache = shipped_files(compile_cache(package, temp / "numba"))
+        step(BUILD_STEPS[3])
         if make_folders:
             output.parent.mkdir(parents=True, exist_ok=True)
         with atomic_write(output) as partial:
             _repack(Path(built), loader, partial, fmi_version, cache)
+    step(BUILD_STEPS[4])
     write_reference_csv(reference_path(output))
     return output
-
-
-def reference_path(fmu: str | Path) -> Path:
-    """Where the build writes the FMU's reference result: beside it, <name>_ref.csv (BouncingBall_ref.csv)."""
-    fmu = Path(fmu)
-    return fmu.with_name(f"{fmu.stem}_ref.csv")
-
-
-def write_reference_csv(path: str | Path) -> Path:
-    """The exact solution of the FMU's default experiment, on its output grid, in the columns the FMU outputs.
-
-    As the FMI cross-check convention does, the FMU's result for its default experiment (the
-    article scene, 0 to 8 s, every 1 ms) is shipped beside it: time and the outputs h, v, a,
-    contact (0 or 1), contact_force, impacts, from the exact solution.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        The CSV to write (whole or not at all).
-
-    Returns
-    -------
-    pathlib.Path
-        path.
-
-    Examples
-    --------
-    >>> write_reference_csv("BouncingBall_ref.csv")  # doctest: +SKIP
-    PosixPath('BouncingBall_ref.csv')
-    """
-    import numpy as np
-
-    from ..physics import Mode
-    from ..scenes import load_scene
-    from ..solvers.exact import ExactSolution
-    from ..solvers.result import IMPACT, output_grid
-    from .variables import SOLUTION_OUTPUTS as OUTPUTS
-
-    scene = load_scene("article")
-    ball = scene.ball
-    t = output_grid(0.0, scene.t_end, scene.output_interval)
-    solution = ExactSolution(ball, scene.h0, scene.v0, 0.0, scene.t_end, scene.F_ext)
-    h, v = solution.state(t)
-    modes = [Mode(mode) for mode in solution.modes(t)]
-    columns = {
-        "h": h, "v": v,
-        "a": [ball.acceleration(*state, scene.F_ext) for state in zip(h, v, modes, strict=True)],
-        "contact": [int(mode == Mode.CONTACT) for mode in modes],
-        "contact_force": [ball.contact_force(*state) for state in zip(h, v, modes, strict=True)],
-        "impacts": np.searchsorted([e.time for e in solution.events if e.kind == IMPACT], t, side="right"),
-    }
-    if set(columns) != set(OUTPUTS):
-        raise FmuBuildError(f"the reference has columns {sorted(columns)}, the FMU outputs {sorted(OUTPUTS)}")
-    with atomic_write(path) as temporary, temporary.open("w", encoding="utf-8") as file:
-        file.write(",".join(("time", *OUTPUTS)) + "\n")
-        for row in zip(t.tolist(), *(np.asarray(columns[name]).tolist() for name in OUTPUTS), strict=True):
-            file.write(",".join(map(repr, row)) + "\n")
-    return Path(path)
 
 
 def package_sources() -> list[Path]:
@@ -209,13 +164,21 @@ def is_stale(fmu: str | Path) -> bool:
 
 
 def build_command(output: str | Path | None = None, fmi_version: int = 2) -> int:
-    """`bouncingball build-fmu`: build and say where; a host that cannot build gets one line on stderr."""
+    """`bouncingball build-fmu`: build and say where, each step as a line on stderr with the time so far (the
+    numba compile takes most of it); a host that cannot build gets one line on stderr."""
+    started = time.perf_counter()
+
+    def step(name: str) -> None:
+        number = BUILD_STEPS.index(name) + 1
+        print(f"build-fmu: [{number}/{len(BUILD_STEPS)}] {name} ({time.perf_counter() - started:.0f} s so far)",
+              file=sys.stderr, flush=True)
+
     try:
-        path = build_fmu(output, fmi_version)
+        path = build_fmu(output, fmi_version, step)
     except FmuBuildError as error:
         print(f"bouncingball: cannot build the FMU: {error}", file=sys.stderr)
         return 1
-    print(f"wrote {path} and its reference result {reference_path(path)}")
+    print(f"wrote {path} and its reference result {reference_path(path)} in {time.perf_counter() - started:.0f} s")
     return 0
 
 
@@ -227,7 +190,7 @@ def _check_build_host() -> None:
     for path in (SLAVE_SCRIPT, LOADER_SOURCE, LOADER3_SOURCE, LOADER_HEADER):
         if not path.is_file():
             raise FmuBuildError(f"{path} not found: this installation of bouncingball is incomplete; "
-                                "reinstall it with pip install 'bouncingball[fmu]'")
+                                f"reinstall it: {install_command('fmu')}")
 
 
 def _compiler() -> list[str]:

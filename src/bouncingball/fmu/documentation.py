@@ -325,7 +325,7 @@ the FMU, named after it (<code>{MODEL_NAME}_ref.csv</code> beside <code>{MODEL_N
 solution at every communication point, in the columns time, {", ".join(SOLUTION_OUTPUTS)}.
 Any master's result, as a CSV with a <code>time</code> and an <code>h</code> column, is judged
 against the exact solution at its own times by</p>
-<pre>pip install bouncingball
+<pre>pip install -e .   # in a checkout of bouncingball (it is not on PyPI)
 bouncingball check result.csv --start-value g=1.62 --start-value h=1.0 --tolerance 1e-6</pre>
 <p>with the start values the master set; it exits 0 when the heights are within the tolerance and the
 <code>impacts</code> column (if any) counts right, 1 when not.</p>"""

@@ -23,7 +23,7 @@ import warnings
 from dataclasses import fields, replace
 
 from .. import limits, validation
-from ..physics import Ball, Mode
+from ..physics import Ball, Mode, unread_message, without_unread
 from ..scenes import SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
 from ..solvers.settings import MIN_RTOL, RTOL_RANGE_WHY
@@ -72,6 +72,7 @@ class BallSlave:
         self._stop_time: float | None = None
         self._tolerance: float | None = None
         self._tolerance_told = False  # the master's tolerance and the rtol used are logged once per instance
+        self._unread_told = set()  # the warnings of parameters the contact law does not read, logged once each
         self._integrator: BallIntegrator | None = None
         for variable in VARIABLES:
             if variable.causality == "output":  # each output is read by the method of its name
@@ -233,8 +234,8 @@ class BallSlave:
         """The ball and CVODE settings from values (default: the current ones); ValueError names a bad value."""
         if values is None:
             values, tolerance = self._values, self._tolerance
-        validation.choice("contact_law", values["contact_law"], FMU_CONTACT_LAWS)
-        ball = Ball(**ball_fields_of(values))
+        contact = validation.choice("contact_law", values["contact_law"], FMU_CONTACT_LAWS)
+        ball = Ball(**_read_fields(contact, ball_fields_of(values), self._unread_told, self.log, self.STATUS.warning))
         rtol = values["rtol"]
         if tolerance is not None:  # the master's tolerance may tighten rtol, never loosen it
             rtol = min(CvodeSettings(rtol=rtol).rtol, validation.in_closed_range(
@@ -286,6 +287,18 @@ class BallSlave:
 
     def _error(self, error) -> None:
         self.log(str(error), self.STATUS.error)
+
+
+def _read_fields(contact: str, ball_fields: dict, told: set, log, warning) -> dict:
+    """ball_fields with the parameters the contact law does not read at their defaults, each logged once (log's
+    status warning; told: the messages said), not refused: a master may set every parameter to its start value."""
+    ball_fields, unread = without_unread(ball_fields)
+    if unread:
+        message = unread_message(contact, unread, law="contact_law", verdict="is ignored (taken at its default)")
+        if message not in told:
+            told.add(message)
+            log(message, warning)
+    return ball_fields
 
 
 # dataclasses.asdict's deep copy costs ~22 us per fmi2GetFMUstate, three quarters of it; every field is a number, a

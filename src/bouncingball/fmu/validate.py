@@ -61,7 +61,9 @@ def run_fmu(fmu: str | Path, scene: Scene, options: dict | None = None, **start_
     try:
         from fmpy import extract, instantiate_fmu, read_model_description, simulate_fmu
     except ImportError as error:
-        raise ImportError(f"validate needs FMPy ({error}): pip install 'bouncingball[fmu]'") from None
+        from ..extras import install_command
+
+        raise ImportError(f"validate needs FMPy ({error}): {install_command('fmu')}") from None
 
     values = {**start_values_of(scene), **start_values}
     started = time.perf_counter()
@@ -113,7 +115,7 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
 
         if fmu == default and is_stale(fmu):
             progress(f"building {fmu}")
-            build_fmu(None, fmi_version)  # the default path: its folder is made
+            build_fmu(None, fmi_version, lambda step: progress(f"building {fmu}: {step}"))  # its folder is made
         else:
             check_fmu_file(fmu)
 

@@ -102,7 +102,9 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
         try:
             from .scipy_ref import simulate_scipy as run
         except ImportError as error:  # scipy is an optional extra
-            raise ImportError("solver 'scipy' needs SciPy: pip install 'bouncingball[reference]'") from error
+            from ..extras import install_command
+
+            raise ImportError(f"solver 'scipy' needs SciPy: {install_command('reference')}") from error
     else:
         from .exact import simulate_exact as run
     # A solver's options are the keywords its simulate function takes beyond the common ones.

@@ -19,10 +19,6 @@ SKSUNDAE_FIRST_USE = 0.43  # s: scikit-sundae's import (it loads SciPy)
 STEP_SAVING = 13.5e-6  # s per CVODE step
 STEPS_PER_PHASE = 46  # CVODE's steps per flight or contact at the default rtol (the article: 1925 in 42 phases)
 _COMPILED_MODULE = __name__.rpartition(".")[0] + ".compiled"
-# How to add numba: the extra of an installed bouncingball; the FMU's copy of the package (named otherwise) runs in
-# a host Python that has no bouncingball to add an extra to, and needs numba alone.
-INSTALL_NUMBA = ("pip install 'bouncingball[fast]'" if __name__.split(".")[0] == "bouncingball"
-                 else "pip install numba, into the Python that runs the FMU")
 _sksundae_steps = 0  # CVODE steps this process ran on scikit-sundae: what engine "auto" paid instead of loading
 
 
@@ -76,7 +72,7 @@ def choose_engine(engine: str = "auto", steps: float | None = None) -> tuple[str
     try:
         from . import compiled
     except ImportError as error:
-        reason = f"numba is not installed ({error}): {INSTALL_NUMBA}"
+        reason = f"numba is not installed ({error}): {_install_numba()}"
     except Exception as error:  # numba is there but cannot compile the engine (an incompatible release)
         reason = f"numba could not compile the engine ({type(error).__name__}: {error})".splitlines()[0]
     else:
@@ -106,3 +102,16 @@ def note_sksundae_steps(steps: int) -> None:
     """Count steps run on scikit-sundae in this process (what engine "auto" weighs; see choose_engine)."""
     global _sksundae_steps
     _sksundae_steps += steps
+
+
+def _install_numba() -> str:
+    """How to add numba: the [fast] extra, as this bouncingball was installed (extras.install_command).
+
+    The FMU's copy of the package (named otherwise) runs in a host Python that has no bouncingball to add an
+    extra to: there, numba alone.
+    """
+    if __name__.split(".")[0] != "bouncingball":
+        return "pip install numba, into the Python that runs the FMU"
+    from ..extras import install_command
+
+    return install_command("fast")

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 from collections.abc import Callable
 
 import numpy as np
@@ -34,7 +33,7 @@ from ..physics import Ball, Mode
 from . import engines, layout, machine, state_checks, stepper
 from .dense_output import interpolate
 from .engines import choose_engine
-from .result import EVENT_KINDS, Event, accuracy_warning
+from .result import EVENT_KINDS, Event, accuracy_warning, warn_at_caller
 from .settings import CvodeSettings, choose_method, too_many_steps_cause
 from .state import IntegratorState, IntegratorView
 from .stepper import SolverError
@@ -136,7 +135,7 @@ class BallIntegrator(IntegratorView):
                                                            self._state), self.t, self.settings.rtol)
         if warning is not None:
             self._accuracy_warned = True
-            warnings.warn(warning, stacklevel=4)
+            warn_at_caller(warning)
 
     # --- state ---------------------------------------------------------------------------------
     def set_state(self, state: IntegratorState) -> None:

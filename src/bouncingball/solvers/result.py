@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+import os
+import sys
+import warnings
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -12,7 +15,7 @@ from .. import codes
 from ..limits import check_output_interval
 from ..physics import Ball
 from .forcing import ForceTable
-from .settings import DEFAULT_RTOL, PROMISE
+from .settings import DEFAULT_RTOL, MIN_RTOL, PROMISE
 
 
 class EventKind(StrEnum):
@@ -152,12 +155,30 @@ def accuracy_warning(estimate: float, scale: float, since: float, now: float,
     if estimate <= PROMISE * scale:
         return None
     if rtol > DEFAULT_RTOL:  # a tolerance the user loosened: the promise is made at the defaults
-        cause = f"rtol = {rtol:g} is looser than the default {DEFAULT_RTOL:g}, which the promise is made at"
+        advice = (f"rtol = {rtol:g} is looser than the default {DEFAULT_RTOL:g}, which the promise is made at: "
+                  f"tighten rtol to {DEFAULT_RTOL:g} or below")
+    elif rtol > MIN_RTOL:
+        advice = (f"a small error grows fast here (an ill-conditioned run): tighten rtol (now {rtol:g}), which "
+                  f"shrinks the estimate, down to rtol = {MIN_RTOL:g}")
     else:
-        cause = "a small error there grows faster than double precision can follow: an ill-conditioned run"
+        advice = (f"no setting can help: rtol is already the tightest, {MIN_RTOL:g}, and a small error grows faster "
+                  "here than double precision can follow (an ill-conditioned run); shorten the run")
     return AccuracyWarning(f"by t = {now:.6g} s the run's error estimate is {estimate:.2g} m, {estimate / scale:.2g} "
-                           f"of its height scale {scale:.3g} m, past the promise of {PROMISE:g}: the run cannot be "
-                           f"trusted from t = {since:.6g} s on ({cause})")
+                           f"of its height scale {scale:.3g} m: past the promise of {PROMISE:g} from t = "
+                           f"{since:.6g} s on; {advice}")
+
+
+def warn_at_caller(warning: Warning) -> None:
+    """warnings.warn(warning), attributed to the first caller outside this package: the user's line.
+
+    The warning is issued from deep inside a solver, at a depth that depends on the path (simulate,
+    BallIntegrator.advance, the FMU); a fixed stacklevel would point into the package.
+    """
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep
+    frame, level = sys._getframe(0), 1
+    while frame is not None and frame.f_code.co_filename.startswith(package):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(warning, stacklevel=level)
 
 
 DEFAULT_OUTPUT_INTERVAL = 1e-3  # s: the article's output grid, every default grid's (simulate, scenes, bench)

@@ -74,29 +74,20 @@ def sweep_command(args) -> int:
     if args.scheduler and args.workers:
         raise ValueError(f"--workers = {args.workers} is not allowed with --scheduler: the cluster has its own")
     output_dir = check_output_folder("--output-dir", args.output_dir)
+    from .store import check_fresh
+
+    check_fresh(output_dir, args.resume, args.overwrite)
     for module in ("distributed", "pandas", "pyarrow", "matplotlib", "tqdm"):  # before the hours of work
         __import__(module)
-    from distributed import Client
-
     from . import report
-    from .run import run_sweep
 
     started = time.perf_counter()
-    options = dict(output_dir=output_dir, resume=args.resume, time_cap=time_cap, batch_size=args.batch_size)
-    if args.scheduler:
-        try:
-            client = Client(args.scheduler, timeout=connect_timeout)
-        except OSError as error:  # distributed's "Timed out trying to connect to ... after 10 s"
-            raise ValueError(f"--scheduler = {args.scheduler!r} is not allowed: no Dask scheduler answered there "
-                             f"within --connect-timeout = {connect_timeout:g} s ({error})") from None
-        output_dir.mkdir(parents=True, exist_ok=True)
-        with client:
-            frame = run_sweep(grid, client, **options)
-        cluster = f"the scheduler at {args.scheduler}"
-    else:
-        output_dir.mkdir(parents=True, exist_ok=True)
-        frame = run_sweep(grid, workers=args.workers, **options)
-        cluster = "LocalCluster (one single-threaded worker process each)"
+    options = dict(output_dir=output_dir, resume=args.resume, overwrite=args.overwrite, time_cap=time_cap,
+                   batch_size=args.batch_size)
+    try:
+        frame, cluster = _run(grid, args, options, connect_timeout)
+    except KeyboardInterrupt:
+        raise KeyboardInterrupt(_resume_hint(output_dir, args)) from None
     scaling = None
     if args.scaling:
         workers = frame.attrs["workers"]
@@ -117,8 +108,66 @@ def sweep_command(args) -> int:
     print(f"{len(frame)} runs ({frame.attrs['runs_done']} run now): "
           + ", ".join(f"{count} {status}" for status, count in counts.items())
           + f"; CVODE wrong in {len(report.cvode_wrong(frame))} cells", file=sys.stderr)
+    timed_out = timeouts_line(frame, time_cap)
+    if timed_out:
+        print(timed_out, file=sys.stderr)
     print(f"sweep finished in {time.perf_counter() - started:.0f} s", file=sys.stderr)
     return 0
+
+
+def _run(grid: grids.Grid, args, options: dict, connect_timeout: float):
+    """(The sweep's table, the cluster it ran on in words): on the scheduler of --scheduler, or a LocalCluster."""
+    from distributed import Client
+
+    from .run import run_sweep
+
+    output_dir = options["output_dir"]
+    if args.scheduler:
+        try:
+            client = Client(args.scheduler, timeout=connect_timeout)
+        except OSError as error:  # distributed's "Timed out trying to connect to ... after 10 s"
+            raise ValueError(f"--scheduler = {args.scheduler!r} is not allowed: no Dask scheduler answered there "
+                             f"within --connect-timeout = {connect_timeout:g} s ({error})") from None
+        output_dir.mkdir(parents=True, exist_ok=True)
+        with client:
+            return run_sweep(grid, client, **options), f"the scheduler at {args.scheduler}"
+    output_dir.mkdir(parents=True, exist_ok=True)
+    return run_sweep(grid, workers=args.workers, **options), "LocalCluster (one single-threaded worker process each)"
+
+
+def timeouts_line(frame, time_cap: float) -> str:
+    """One line saying which runs timed out and whether that is expected ("" if none did).
+
+    The SciPy peers (article, scipy:METHOD) on stiff cells take millions of explicit steps: a timeout there is
+    what the map is meant to show. CVODE's are not expected: the line says so and where to look.
+    """
+    out = frame[frame["status"] == "timed out"]
+    if out.empty:
+        return ""
+    parts = []
+    for solver, rows in out.groupby("solver", sort=False):
+        low, high = rows["k"].min(), rows["k"].max()
+        parts.append(f"{solver} {len(rows)} (k {low:.3g}{'' if low == high else f' to {high:.3g}'})")
+    cvode = out["solver"].str.startswith("cvode")
+    verdict = ("the SciPy peers on stiff cells, whose explicit steps shrink with the contact (expected)"
+               if not cvode.any() else f"{int(cvode.sum())} of them CVODE's, which is not expected: see the "
+               "timed-out cells in stability_map.md")
+    return f"timed out (past --time-cap = {time_cap:g} s): {', '.join(parts)}: {verdict}"
+
+
+def _resume_hint(output_dir, args) -> str:
+    """What Ctrl-C leaves and the exact command that goes on from it: this one, with --resume for --overwrite."""
+    import shlex
+    from pathlib import Path
+
+    from .store import results_in
+
+    kept = len(results_in(output_dir))
+    argv = [word for word in getattr(args, "argv", None) or sys.argv[1:] if word not in ("--overwrite", "--resume")]
+    program = "bouncingball" if Path(sys.argv[0]).name == "bouncingball" else f"{sys.executable} -m bouncingball.cli"
+    command = shlex.join([*shlex.split(program), *argv, "--resume"])
+    return (f"{kept} finished batch(es) kept in {output_dir}; to run only the rest: {command}" if kept else
+            f"no batch had finished, nothing written in {output_dir}; to start again: {command}")
 
 
 def _timed_on_local_cluster(grid: grids.Grid, workers: int, time_cap: float, batch_size: int) -> float:

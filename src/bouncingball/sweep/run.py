@@ -115,7 +115,8 @@ def choose_batch_size(overhead: float, runs: int, slots: int) -> int:
 
 
 def run_sweep(grid: Grid, client=None, *, output_dir: str | Path | None = None, resume: bool = False,
-              workers: int | None = None, time_cap: float = child.DEFAULT_TIME_CAP, batch_size: int | None = None,
+              overwrite: bool = False, workers: int | None = None, time_cap: float = child.DEFAULT_TIME_CAP,
+              batch_size: int | None = None,
               progress: bool = True, on_batch: Callable[[list[dict]], None] | None = None):
     """Run every cell of grid with every solver on a Dask cluster and compare each run with the exact solution.
 
@@ -129,7 +130,10 @@ def run_sweep(grid: Grid, client=None, *, output_dir: str | Path | None = None, 
     output_dir : str or Path, optional
         Where each finished batch is written (output_dir/sweep_parts/*.parquet) as it arrives.
     resume : bool
-        Keep the runs already in output_dir and run only the others (else they are deleted first).
+        Keep the runs already in output_dir and run only the others.
+    overwrite : bool
+        Delete the runs already in output_dir first. Where there are some, one of resume and overwrite
+        must be True (ValueError otherwise: a sweep never deletes a result unasked).
     workers : int, optional
         Worker processes of the LocalCluster (ignored with a client).
     time_cap : float
@@ -151,7 +155,8 @@ def run_sweep(grid: Grid, client=None, *, output_dir: str | Path | None = None, 
     Raises
     ------
     ValueError
-        If time_cap, workers or batch_size is not > 0.
+        If time_cap, workers or batch_size is not > 0, or output_dir holds results and neither resume
+        nor overwrite is given (or both are).
 
     Examples
     --------
@@ -167,6 +172,7 @@ def run_sweep(grid: Grid, client=None, *, output_dir: str | Path | None = None, 
     runs = grid.runs()
     done = None
     if output_dir is not None:
+        store.check_fresh(output_dir, resume, overwrite, ("resume=True", "overwrite=True"), "output_dir")
         if resume:
             done = store.read_parts(output_dir)
         else:
@@ -251,7 +257,8 @@ def _run_batches(client, todo: list[dict], size: int, time_cap: float, output_di
     futures = client.map(child.run_batch, batches, time_cap=time_cap, pure=False)
     pending = as_completed(futures)
     rows: list[dict] = []
-    shown = progress and sys.stderr.isatty()  # a bar redirected into a file is a mess of \r lines
+    shown = progress and sys.stderr.isatty()  # a bar redirected into a file is a mess of \r lines: step lines there
+    told = 0  # the tenths of the runs said as step lines so far
     with tqdm(total=len(todo), desc="sweep", unit="run", file=sys.stderr, disable=not shown) as bar, \
             _ctrl_c_between_results() as interrupted:
         while not pending.is_empty():
@@ -264,6 +271,9 @@ def _run_batches(client, todo: list[dict], size: int, time_cap: float, output_di
                     store.write_part(output_dir, batch)
                 rows += batch
                 bar.update(len(batch))
+                if progress and not shown and len(rows) * 10 // len(todo) > told:
+                    told = len(rows) * 10 // len(todo)
+                    print(f"sweep: {len(rows)} of {len(todo)} runs done", file=sys.stderr, flush=True)
                 if on_batch is not None:
                     on_batch(batch)
             if interrupted.is_set():

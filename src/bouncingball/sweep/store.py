@@ -1,6 +1,7 @@
 """Results on disk as they arrive: one Parquet file per finished batch, written whole or not at all.
 
-A sweep that is interrupted keeps every batch it finished; --resume reads them and skips their runs.
+A sweep that is interrupted keeps every batch it finished; --resume reads them and skips their runs. A sweep
+never deletes them unasked: where they are, it starts only with --resume or --overwrite (check_fresh).
 A finished sweep's whole table (TABLE) replaces its parts; --resume reads it too. A write interrupted
 before its rename leaves a temporary file (.<part>.parquet.<8 hex digits> in PARTS, .TABLE.<8 hex
 digits> beside it): never read, and removed with the parts (see is_own_temporary). Files the sweep
@@ -43,11 +44,39 @@ def is_own_temporary(path: Path) -> bool:
     return pattern.fullmatch(path.name) is not None
 
 
+def results_in(output_dir: Path) -> list[Path]:
+    """The results an earlier sweep left in output_dir: its whole table and its parts (not their temporaries)."""
+    table = Path(output_dir) / TABLE
+    parts = sorted(parts_dir(output_dir).glob("*.parquet")) if parts_dir(output_dir).is_dir() else []
+    return ([table] if table.is_file() else []) + parts
+
+
+def check_fresh(output_dir: Path, resume: bool, overwrite: bool, names: tuple[str, str] = ("--resume", "--overwrite"),
+                where: str = "--output-dir") -> None:
+    """Refuse to start where an earlier sweep's results are, unless told to keep them (resume) or delete them.
+
+    names: how the caller spells resume and overwrite, where the output folder's option; the message names both
+    and the results found. A sweep never deletes a result unasked.
+    """
+    if resume and overwrite:
+        raise ValueError(f"{names[0]} and {names[1]} are not allowed together: {names[0]} keeps the results in "
+                         f"{where} and runs the rest, {names[1]} deletes them and runs everything")
+    found = results_in(output_dir)
+    if found and not (resume or overwrite):
+        table = [path for path in found if path.name == TABLE]
+        parts = len(found) - len(table)
+        what = " and ".join(([f"the table {table[0]}"] if table else [])
+                            + ([f"{parts} finished batch(es) in {parts_dir(output_dir)}"] if parts else []))
+        raise ValueError(f"{where} = {str(output_dir)!r} holds an earlier sweep's results ({what}), which a sweep "
+                         f"does not delete unasked: add {names[0]} to keep them and run only the missing runs, or "
+                         f"{names[1]} to delete them and start over (or choose another {where})")
+
+
 def clear(output_dir: Path, table: bool = True) -> None:
     """Remove the parts of an earlier sweep, their leftover temporaries and (with table) its whole table.
 
-    A fresh sweep (not --resume) starts with this, and write_table ends with it (table=False). The
-    parts folder is removed once empty; a file in it that the sweep did not write keeps it.
+    A sweep asked to overwrite (--overwrite) starts with this, and write_table ends with it (table=False).
+    The parts folder is removed once empty; a file in it that the sweep did not write keeps it.
     """
     directory = parts_dir(output_dir)
     if directory.is_dir():
