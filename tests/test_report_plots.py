@@ -133,7 +133,7 @@ def test_heat_maps_explain_their_white_cells_and_label_legibly():
             calls[cell] = row.rhs_calls if row.status == "finished" else np.nan
         # The work as right-hand-side calls, which do not depend on the machine's load (wall time does).
         assert "right-hand-side calls" in work.get_title() and "wall time [s]" not in work.get_title()
-        np.testing.assert_allclose(work.get_images()[0].get_array().filled(np.nan), np.log10(calls))
+        np.testing.assert_allclose(work.get_images()[0].get_array().filled(np.nan), calls)
         for ax in (error, work):
             assert np.array_equal(np.isnan(ax.get_images()[0].get_array().filled(np.nan)), missing)
             legend = ax.get_legend()
@@ -147,3 +147,32 @@ def test_heat_maps_explain_their_white_cells_and_label_legibly():
             assert all(label.get_fontsize() >= 10 for label in ax.get_xticklabels() + ax.get_yticklabels())
             assert [label.get_text() for label in ax.get_xticklabels()][:3] == ["1e2", "1e3", "1e4"]
         assert (solver != "cvode") == missing.any()  # the stored map: only the SciPy runs time out
+
+
+def test_every_solver_s_heat_maps_share_one_colour_scale_per_quantity_with_a_bar_in_its_units():
+    """A colour means one error (one number of calls) in every solver's figure: the same log norm in all of them."""
+    pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    import pyarrow.parquet as pq
+    from matplotlib.colors import LogNorm
+
+    from bouncingball.sweep.report import grid_of, heat_map_figure
+
+    frame = pq.read_table(DOCS / "stability_map.parquet").to_pandas()
+    grid = grid_of(frame)
+    done = frame[frame["status"] == "finished"]
+    expected = {"error": (max(done["max_height_error"].min(), 1e-16), done["max_height_error"].max()),
+                "calls": (done.loc[done["rhs_calls"] > 0, "rhs_calls"].min(), done["rhs_calls"].max())}
+    # the stored table: the solvers' own ranges differ by orders of magnitude, so a scale of each would mislead
+    own = {solver: done.loc[done["solver"] == solver, "max_height_error"].max() for solver in grid.solvers}
+    assert max(own.values()) / min(own.values()) > 1e3
+    for solver in grid.solvers:
+        fig = heat_map_figure(frame, grid, solver)
+        for ax, quantity, unit in ((fig.axes[1], "error", "max |h - h_exact| [m]"),
+                                   (fig.axes[2], "calls", "right-hand-side calls")):
+            image = ax.get_images()[0]
+            assert isinstance(image.norm, LogNorm)
+            assert (image.norm.vmin, image.norm.vmax) == pytest.approx(expected[quantity], rel=1e-12)
+            assert image.colorbar.ax.get_ylabel() == unit
+            assert "one colour scale for all 3 solvers' maps" in ax.get_title()
+        plt.close(fig)
