@@ -201,7 +201,7 @@ def _error_summary(result: SimulationResult, exact: SimulationResult | None) -> 
         what = "rounding error estimate" if result.solver == "exact" else "error estimate"
         parts.append(f"{what} {result.error_estimate:.2g} m")
     if not parts:
-        parts.append("no error estimate (the SciPy reference does not make one)")
+        parts.append(f"no error estimate ({result.solver} makes none)")
     return ", ".join(parts)
 
 
