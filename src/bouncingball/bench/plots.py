@@ -123,6 +123,7 @@ def work_precision_figure(points: list[Point]):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
     fig, axes = plt.subplots(len(FAMILIES), len(PANELS), figsize=(14, 4.2 * len(FAMILIES)), layout="constrained",
                              sharex=True, sharey=True, squeeze=False)
@@ -154,6 +155,9 @@ def work_precision_figure(points: list[Point]):
                 compared_curve = (x, y)
         for row, (heading, _) in enumerate(FAMILIES):
             ax = axes[row][column]
+            ax.set_title(f"{heading}: article scene, {title} output grid", fontsize=11)
+            ax.grid(True, which="major", color="0.92")
+            ax.tick_params(labelsize=10)
             if not ax.get_lines():
                 ax.text(0.5, 0.5, f"no runs of this family on the {title} output grid", transform=ax.transAxes,
                         ha="center", va="center", fontsize=10, color="0.4")
@@ -163,10 +167,8 @@ def work_precision_figure(points: list[Point]):
                 compared, = ax.plot(*compared_curve, color="0.6", lw=1.0, ls="-", label=name, zorder=1.7)
                 entries[row].setdefault(name, compared)
             for target in MATCHED_ERRORS:  # over the grid, under every line
-                matched = ax.axhline(target, color="0.55", lw=0.8, ls="--", zorder=1.6)
-            ax.set_title(f"{heading}: article scene, {title} output grid", fontsize=11)
-            ax.grid(True, which="major", color="0.92")
-            ax.tick_params(labelsize=10)
+                ax.axhline(target, color="0.55", lw=0.8, ls="--", zorder=1.6)
+    matched = Line2D([], [], color="0.55", lw=0.8, ls="--")
     targets = ", ".join(f"{target:.0e}".replace("e-0", "e-") for target in MATCHED_ERRORS)
     for row, (heading, _) in enumerate(FAMILIES):
         handles = {**entries[row], f"the errors the tables compare at\n({targets} m)": matched}
