@@ -288,8 +288,9 @@ def test_sweep_example(tmp_path):
     assert list((tmp_path / "sweep" / "sweep_parts").glob("*.parquet"))  # streamed to disk as it ran
 
 
-def test_contact_laws_example_against_the_three_laws_independent_truths(tmp_path):
-    """Its table (impacts in 3 s, first contact's length, least force, first restitution) from the mpmath truths."""
+def test_contact_laws_example_against_the_laws_independent_truths(tmp_path):
+    """Its table (impacts in 3 s, first contact's length, least force, first restitution) from the mpmath truths;
+    the Hunt-Crossley row's alpha matched to the linear law's first restitution."""
     pytest.importorskip("matplotlib")
     from mpmath_oracle import Oracle
     from nopull_truth import NoPullTruth
@@ -314,6 +315,12 @@ def test_contact_laws_example_against_the_three_laws_independent_truths(tmp_path
     rigid = RigidTruth(0.06, 9.81, e, 0.0, 2.0, 0.0, 3.0)
     label = f"rigid, e = {e:.3f}"
     assert rows[label] == (str(sum(t <= 3.0 for t, _ in rigid.impacts)), "0 (instant)", "0", f"{e:.6f}")
+    # Hunt-Crossley (no closed form): its alpha gives the first bounce the linear law's restitution, by the truth's
+    hunt = re.search(rf"^hunt-crossley, alpha = ({NUMBER}) s/m +(\d+) +({NUMBER}) +({NUMBER}) +({NUMBER})$", out, re.M)
+    assert hunt, out
+    alpha, impacts, duration, least, bounce = hunt.groups()
+    assert 0.0 < float(alpha) < 0.1 and impacts == "3" and float(least) == 0.0  # its force never pulls
+    assert bounce == f"{e:.6f}" and 25.0 < float(duration) < 45.0
     assert (tmp_path / "out" / "contact_laws.png").stat().st_size > 10_000
     readme = " ".join((EXAMPLES.parent / "README.md").read_text(encoding="utf-8").split())
     assert f"first restitution, {e:.3f})" in readme and f"negative ({float(rows['linear'][2]):.0f} N)" in readme

@@ -39,28 +39,43 @@ def test_the_stored_work_precision_points_read_back_as_written(tmp_path):
     assert rows(copy) == stored and len(points) == len(stored) - 1 > 200  # every point, the header aside
 
 
-def test_work_precision_groups_the_fmu_series_and_names_the_reference_lines():
+def _legend_texts(fig) -> list[str]:
+    return [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]
+
+
+def test_work_precision_has_a_row_per_family_at_most_8_series_a_panel_and_the_legends_outside():
     points = tables.read_work_precision_csv(DOCS / "work_precision.csv")
     fig = plots.work_precision_figure(points)
-    legend = fig.legends[0]
-    texts = [t.get_text() for t in legend.get_texts()]
-    headings = [t.get_text() for t in legend.get_texts() if t.get_fontweight() == "bold"]
-    assert headings == [heading for heading, _ in plots.FAMILIES]
-    fmu_labels = sorted({p.solver.label for p in points if p.solver.kind == "fmu"})
-    start = texts.index("the FMU through FMPy")
-    assert len(fmu_labels) == 4 and texts[start + 1:start + 5] == ["1 ms steps, scikit-sundae engine",
-                                                                   "10 ms steps, scikit-sundae engine",
-                                                                   "1 ms steps, compiled engine (the default)",
-                                                                   "10 ms steps, compiled engine (the default)"]
+    assert len(fig.axes) == len(plots.FAMILIES) * len(plots.PANELS)
+    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend()]
+    assert [legend.get_title().get_text() for legend in legends] == [heading for heading, _ in plots.FAMILIES]
+    assert all(legend.get_title().get_fontweight() == "bold" for legend in legends)
+    texts = [t.get_text() for t in legends[1].get_texts()]
+    assert texts[:4] == ["1 ms steps, scikit-sundae engine", "10 ms steps, scikit-sundae engine",
+                         "1 ms steps, compiled engine (the default)", "10 ms steps, compiled engine (the default)"]
     for ax in fig.axes:
+        series = [line for line in ax.get_lines() if not line.get_label().startswith("_")]
+        assert len(series) <= plots.MAX_SERIES
         levels = [line.get_ydata()[0] for line in ax.get_lines() if line.get_linestyle() == "--"
                   and len(set(line.get_ydata())) == 1 and line.get_xdata()[0] == 0]
-        assert sorted(levels) == sorted(MATCHED_ERRORS)
-    names = [t.get_text() for t in fig.axes[-1].texts]
-    assert "1e-6 m" in names and "1e-9 m" in names
+        assert sorted(levels) == (sorted(MATCHED_ERRORS) if series else [])
+        # reference lines under every curve (and over the grid); nothing drawn over a curve inside the panel
+        compared = [line for line in series if line.get_label().endswith("to compare")]
+        curves = [line for line in series if len(set(line.get_ydata())) > 1 and len(set(line.get_xdata())) > 1
+                  and line not in compared]
+        references = compared + [line for line in ax.get_lines() if line not in curves + compared
+                                 and line.get_linestyle() != "None"]
+        assert all(r.get_zorder() < c.get_zorder() for r in references for c in curves)
+        assert not ax.texts or not series  # no annotations on the data (the empty panel says why it is empty)
+    # every solver of the table is drawn, each in its family's row, the C floor and exact solution with CVODE
+    solvers = {plots._label(p) for p in points}
+    drawn = {line.get_label().split(" (= ")[0] for ax in fig.axes for line in ax.get_lines()}
+    assert solvers <= drawn
     fig.canvas.draw()
-    box = legend.get_window_extent()
-    assert not any(_overlaps(box, ax.get_window_extent()) for ax in fig.axes)
+    for legend in legends:
+        box = legend.get_window_extent()
+        assert not any(_overlaps(box, ax.get_window_extent()) for ax in fig.axes) and box.x1 <= fig.bbox.x1
+    assert "the errors the tables compare at\n(1e-6, 1e-9 m)" in _legend_texts(fig)
 
 
 def _quick(points):
@@ -76,15 +91,16 @@ def test_work_precision_names_each_line_hidden_under_another(quick):
     """A line drawn under a later one with the same errors, at times closer than a marker, is named as hidden."""
     points = tables.read_work_precision_csv(DOCS / "work_precision.csv")
     fig = plots.work_precision_figure(_quick(points) if quick else points)
-    texts = [t.get_text() for t in fig.legends[0].get_texts()]
+    texts = _legend_texts(fig)
     found = set()
     for ax in fig.axes:
-        lines = [line for line in ax.get_lines() if not line.get_label().startswith("_")]
+        lines = [line for line in ax.get_lines() if not line.get_label().startswith("_")
+                 and not line.get_label().endswith("to compare")]
         for i, line in enumerate(lines):
             x, y = line.get_xdata(), line.get_ydata()
             covering = [later.get_label() for later in lines[i + 1:]
                         if np.array_equal(later.get_ydata(), y) and len(x) > 1
-                        and np.all(np.abs(np.log(later.get_xdata() / x)) < np.log(plots.SAME_TIME_FACTOR))]
+                        and np.all(np.abs(np.log(np.divide(later.get_xdata(), x))) < np.log(plots.SAME_TIME_FACTOR))]
             if covering:
                 found.add(line.get_label())
                 assert "hidden under it" in line.get_label() and f"= {covering[0]}" in line.get_label()
@@ -133,7 +149,7 @@ def test_heat_maps_explain_their_white_cells_and_label_legibly():
             calls[cell] = row.rhs_calls if row.status == "finished" else np.nan
         # The work as right-hand-side calls, which do not depend on the machine's load (wall time does).
         assert "right-hand-side calls" in work.get_title() and "wall time [s]" not in work.get_title()
-        np.testing.assert_allclose(work.get_images()[0].get_array().filled(np.nan), np.log10(calls))
+        np.testing.assert_allclose(work.get_images()[0].get_array().filled(np.nan), calls)
         for ax in (error, work):
             assert np.array_equal(np.isnan(ax.get_images()[0].get_array().filled(np.nan)), missing)
             legend = ax.get_legend()
@@ -147,3 +163,32 @@ def test_heat_maps_explain_their_white_cells_and_label_legibly():
             assert all(label.get_fontsize() >= 10 for label in ax.get_xticklabels() + ax.get_yticklabels())
             assert [label.get_text() for label in ax.get_xticklabels()][:3] == ["1e2", "1e3", "1e4"]
         assert (solver != "cvode") == missing.any()  # the stored map: only the SciPy runs time out
+
+
+def test_every_solver_s_heat_maps_share_one_colour_scale_per_quantity_with_a_bar_in_its_units():
+    """A colour means one error (one number of calls) in every solver's figure: the same log norm in all of them."""
+    pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    import pyarrow.parquet as pq
+    from matplotlib.colors import LogNorm
+
+    from bouncingball.sweep.report import grid_of, heat_map_figure
+
+    frame = pq.read_table(DOCS / "stability_map.parquet").to_pandas()
+    grid = grid_of(frame)
+    done = frame[frame["status"] == "finished"]
+    expected = {"error": (max(done["max_height_error"].min(), 1e-16), done["max_height_error"].max()),
+                "calls": (done.loc[done["rhs_calls"] > 0, "rhs_calls"].min(), done["rhs_calls"].max())}
+    # the stored table: the solvers' own ranges differ by orders of magnitude, so a scale of each would mislead
+    own = {solver: done.loc[done["solver"] == solver, "max_height_error"].max() for solver in grid.solvers}
+    assert max(own.values()) / min(own.values()) > 1e3
+    for solver in grid.solvers:
+        fig = heat_map_figure(frame, grid, solver)
+        for ax, quantity, unit in ((fig.axes[1], "error", "max |h - h_exact| [m]"),
+                                   (fig.axes[2], "calls", "right-hand-side calls")):
+            image = ax.get_images()[0]
+            assert isinstance(image.norm, LogNorm)
+            assert (image.norm.vmin, image.norm.vmax) == pytest.approx(expected[quantity], rel=1e-12)
+            assert image.colorbar.ax.get_ylabel() == unit
+            assert "one colour scale for all 3 solvers' maps" in ax.get_title()
+        plt.close(fig)

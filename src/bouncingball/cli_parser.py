@@ -45,8 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--output", metavar="CSV", help="write time,h,v to this file (-: to stdout, the summary then "
                                                      "goes to stderr)")
     run.add_argument("--events", metavar="CSV", help="write time,kind,v of each event to this file")
-    run.add_argument("--plot", metavar="PNG", help="draw height against time with the events marked, its error "
-                     "against the exact solution and, for an undamped ball, its energy")
+    run.add_argument("--plot", metavar="PNG", help="draw h(t), the events, the error and its estimate, for an "
+                     "undamped ball the energy drift, and the last second zoomed")
     run.add_argument("--plot-range", metavar="T0:T1", help="draw only from T0 to T1 [s] (default: the whole run)")
 
     sub.add_parser("scenes", help="list the built-in scenes")

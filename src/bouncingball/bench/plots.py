@@ -1,4 +1,4 @@
-"""The work-precision plot: max height error against median wall time, one line per solver, grouped by family.
+"""The work-precision plot: max height error against median wall time, one line per solver, a row per family.
 
 Redraw docs/work_precision.png from docs/work_precision.csv without rerunning the benchmark:
 ``python -m bouncingball.bench.plots docs/work_precision.csv docs/work_precision.png``.
@@ -13,10 +13,12 @@ from ..output import atomic_write
 from .targets import MATCHED_ERRORS
 from .work_precision import DENSE, QUICK, SPARSE, Point, by_solver
 
-# The families, in the legend's order: (heading, the solver kinds in it).
-FAMILIES = (("CVODE (this package)", ("cvode",)), ("the FMU through FMPy", ("fmu",)),
-            ("SciPy solve_ivp", ("article", "scipy")),
-            ("floors and references", ("floor", "exact", "evaluation", "empty")))
+# The families, one row of panels each: (heading, the solver kinds in it). The floors and references go with the
+# family they bound: the C floor and the exact solution with CVODE, the empty slave with the FMU.
+FAMILIES = (("CVODE (this package)", ("cvode", "floor", "exact", "evaluation")),
+            ("the FMU through FMPy", ("fmu", "empty")), ("SciPy solve_ivp", ("article", "scipy")))
+MAX_SERIES = 8  # lines with a legend entry per panel, at most: more cannot be told apart
+COMPARED = "auto (compiled)"  # CVODE's default, drawn thin and grey in the other families' panels to compare with
 SCIPY_COLOURS = {"RK45": "C9", "DOP853": "C8", "LSODA": "C5", "Radau": "#d4a017", "BDF": "C7"}  # muted, apart
 FLOORS = ("exact", "evaluation", "empty")  # no error to plot: their time is a floor, drawn as a vertical line
 # Two lines with the same errors whose times differ by less than this factor are one line on these log axes.
@@ -105,12 +107,17 @@ def plot_work_precision(points: list[Point], path: Path) -> Path:
 
 
 def work_precision_figure(points: list[Point]):
-    """Max height error against median wall time, log-log, one line per solver; one panel per output grid.
+    """Max height error against median wall time, log-log, one line per solver; a row of panels per family.
 
-    The legend groups the solvers by family beside the panels and names a line hidden under another
-    (hidden_lines); the dashed horizontal lines are the errors the benchmark's tables compare the
-    solvers at, named beside the panels; the vertical lines are times without an error (the exact
-    solution, the empty FMU). The title says what the run measured, and whether it was a quick one.
+    The columns are the output grids (1 ms, 0.1 s), the rows the families (FAMILIES): CVODE with
+    its floors (the C floor, the exact solution), the FMU with the empty slave's floor, SciPy;
+    CVODE's default (COMPARED) is drawn again, thin and grey, in the rows it is not in, so that every
+    panel compares with it. At most MAX_SERIES lines per panel; all panels share both axes. Each
+    row's legend is outside its panels, on the right, titled with the family and naming a line
+    hidden under another (hidden_lines). The dashed horizontal lines are the errors the benchmark's
+    tables compare the solvers at (in the legend); the vertical lines are times without an error
+    (the exact solution, the empty FMU). The title says what the run measured, and whether it was a
+    quick one.
     """
     import matplotlib
 
@@ -118,59 +125,63 @@ def work_precision_figure(points: list[Point]):
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
 
-    fig, axes = plt.subplots(1, 2, figsize=(14, 6), layout="constrained", sharey=True)
-    entries: dict[str, dict[str, object]] = {heading: {} for heading, _ in FAMILIES}
-    family_of = {kind: heading for heading, kinds in FAMILIES for kind in kinds}
+    fig, axes = plt.subplots(len(FAMILIES), len(PANELS), figsize=(14, 4.2 * len(FAMILIES)), layout="constrained",
+                             sharex=True, sharey=True, squeeze=False)
+    row_of = {kind: row for row, (_, kinds) in enumerate(FAMILIES) for kind in kinds}
     hidden = hidden_lines(points)
-    for ax, (section, title) in zip(axes, PANELS, strict=True):
+    entries: list[dict[str, object]] = [{} for _ in FAMILIES]
+    for column, (section, title) in enumerate(PANELS):
+        compared_curve = None
         for index, group in enumerate(by_solver(points, section).values()):
             first = group[0]
-            times = [p.median for p in group if p.status == "ok"]
+            row = row_of[first.solver.kind]
+            ax = axes[row][column]
             if first.solver.kind in FLOORS:
+                times = [p.median for p in group if p.status == "ok"]
                 if times:
                     empty = "0.6" if first.solver.comm_step <= DENSE else "0.3"  # the empty FMU, by its step
                     colour = {"exact": "k", "evaluation": "0.45"}.get(first.solver.kind, empty)
                     ls = {"exact": "-", "evaluation": "--"}.get(first.solver.kind, ":")
-                    line = ax.axvline(times[0], color=colour, ls=ls, lw=1.2)
-                    if first.solver.kind != "empty":  # left of the data: named on the plot too
-                        ax.annotate(_label(first), (times[0], 1.0), xycoords=("data", "axes fraction"),
-                                    xytext=(-3, -4), textcoords="offset points", rotation=90, ha="right", va="top",
-                                    fontsize=8, color=colour)
-                    entries[family_of[first.solver.kind]].setdefault(_label(first), line)
+                    line = ax.axvline(times[0], color=colour, ls=ls, lw=1.2, label=_label(first), zorder=1.8)
+                    entries[row].setdefault(_label(first), line)
                 continue
             x, y = _curve(group)
-            if x:
-                label = hidden.get(_label(first), _label(first))
-                line, = ax.plot(x, y, label=label, **_style(first, index))
-                entries[family_of[first.solver.kind]].setdefault(label, line)
-        for target in MATCHED_ERRORS:
-            matched = ax.axhline(target, color="0.55", lw=0.8, ls="--", zorder=1)
-            if ax is axes[-1]:  # named beside the panels, where no data is
-                ax.annotate(f"{target:.0e} m".replace("e-0", "e-"), (1.0, target), xycoords=("axes fraction", "data"),
-                            xytext=(4, 0), textcoords="offset points", ha="left", va="center", fontsize=9,
-                            color="0.3")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+            if not x:
+                continue
+            label = hidden.get(_label(first), _label(first))
+            line, = ax.plot(x, y, label=label, **_style(first, index))
+            entries[row].setdefault(label, line)
+            if first.solver.kind == "cvode" and _label(first) == COMPARED:
+                compared_curve = (x, y)
+        for row, (heading, _) in enumerate(FAMILIES):
+            ax = axes[row][column]
+            ax.set_title(f"{heading}: article scene, {title} output grid", fontsize=11)
+            ax.grid(True, which="major", color="0.92")
+            ax.tick_params(labelsize=10)
+            if not ax.get_lines():
+                ax.text(0.5, 0.5, f"no runs of this family on the {title} output grid", transform=ax.transAxes,
+                        ha="center", va="center", fontsize=10, color="0.4")
+                continue
+            if row != row_of["cvode"] and compared_curve:  # under the family's own lines
+                name = f"CVODE {COMPARED}, to compare"
+                compared, = ax.plot(*compared_curve, color="0.6", lw=1.0, ls="-", label=name, zorder=1.7)
+                entries[row].setdefault(name, compared)
+            for target in MATCHED_ERRORS:  # over the grid, under every line
+                ax.axhline(target, color="0.55", lw=0.8, ls="--", zorder=1.6)
+    matched = Line2D([], [], color="0.55", lw=0.8, ls="--")
+    targets = ", ".join(f"{target:.0e}".replace("e-0", "e-") for target in MATCHED_ERRORS)
+    for row, (heading, _) in enumerate(FAMILIES):
+        handles = {**entries[row], f"the errors the tables compare at\n({targets} m)": matched}
+        legend = axes[row][-1].legend(list(handles.values()), list(handles), title=heading, loc="upper left",
+                                      bbox_to_anchor=(1.03, 1.0), borderaxespad=0.0, fontsize=9, frameon=False)
+        legend.get_title().set_fontweight("bold")
+        axes[row][0].set_ylabel("max |h - h_exact| [m]", fontsize=11)
+    for ax in axes[-1]:
         ax.set_xlabel("median wall time [s]", fontsize=11)
-        ax.set_title(f"article scene, {title} output grid", fontsize=12)
-        ax.tick_params(labelsize=10)
-        ax.grid(True, which="major", color="0.92")
-    axes[0].set_ylabel("max |h - h_exact| [m]", fontsize=11)
-    entries[FAMILIES[-1][0]]["the errors the tables compare at"] = matched
-    handles, labels, headings = [], [], []
-    for heading, lines in entries.items():
-        if lines:
-            headings.append(len(labels))
-            handles.append(Line2D([], [], ls="none"))
-            labels.append(heading)
-            handles += list(lines.values())
-            labels += list(lines)
-    legend = fig.legend(handles, labels, loc="outside right upper", fontsize=9, frameon=False)
+    axes[0][0].set_xscale("log")
+    axes[0][0].set_yscale("log")
     title = run_kind(points)
-    # Over the panels, left of the legend (which starts at the top on the right)
     fig.suptitle(title, x=0.01, ha="left", fontsize=12, color="C3" if title.startswith("QUICK") else "k")
-    for index in headings:
-        legend.get_texts()[index].set_fontweight("bold")
     return fig
 
 

@@ -1,4 +1,4 @@
-"""What the sweep writes: the table (CSV and Parquet), heat maps per solver and docs/stability_map.md."""
+"""What the sweep writes: the table (CSV and Parquet), heat maps per solver on shared colour scales and the page."""
 
 from __future__ import annotations
 
@@ -86,40 +86,72 @@ def _damping_label(grid: Grid) -> str:
     return "damping alpha [s/m]" if grid.contact == HUNT_CROSSLEY else "damping ratio zeta"
 
 
-def heat_map_figure(frame, grid: Grid, solver: str):
-    """One solver's heat maps: event-count correctness, log10 height error and log10 RHS calls over (k, damping).
+ERROR_FLOOR = 1e-16  # m: an error of 0 is drawn as this (a log colour scale has no 0)
 
-    The work is shown as right-hand-side calls, not wall time: at a run of milliseconds the wall time
-    is mostly the load of the machine the sweep shared, the calls are the same on any machine.
-    One row of panels per (m, h0). A cell of the error or time map that is white has no value:
-    its run timed out or failed (the left map says which); a white cell of the left map was not
-    run. A legend under each map with white cells says so.
+
+def _index(axis: tuple[float, ...], value: float) -> int:
+    """Where value is on the axis, to a few ulps: an axis rebuilt from its ends (grid_of) may differ in the last bit."""
+    return int(np.flatnonzero(np.isclose(axis, value, rtol=1e-12, atol=0.0))[0])
+
+
+def colour_limits(frame) -> dict[str, tuple[float, float]]:
+    """(vmin, vmax) of each quantity's log colour scale over every finished run of the table, whatever its solver.
+
+    heat_map_figure draws every solver's map of a quantity on this one scale, so a colour means one
+    error (one number of right-hand-side calls) in every file of the sweep.
+    """
+    done = frame[frame["status"] == "finished"]
+    errors = np.maximum(done["max_height_error"].to_numpy(dtype=float), ERROR_FLOOR)
+    calls = done["rhs_calls"].to_numpy(dtype=float)
+    calls = calls[calls > 0]
+    limits = {}
+    for name, values in (("max_height_error", errors), ("rhs_calls", calls)):
+        low, high = (float(values.min()), float(values.max())) if len(values) else (1.0, 10.0)
+        limits[name] = (low, high if high > low else low * 10.0)
+    return limits
+
+
+def heat_map_figure(frame, grid: Grid, solver: str):
+    """One solver's heat maps: event-count correctness, max height error and right-hand-side calls over (k, damping).
+
+    The error and the calls are coloured on log scales shared by every solver of the table
+    (colour_limits), each with a colour bar in its units, so that one colour means one value in
+    every solver's figure. The work is shown as right-hand-side calls, not wall time: at a run of
+    milliseconds the wall time is mostly the load of the machine the sweep shared, the calls are the
+    same on any machine. One row of panels per (m, h0). A cell of the error or calls map that is
+    white has no value: its run timed out or failed (the left map says which); a white cell of the
+    left map was not run. A legend under each map with white cells says so.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.colors import ListedColormap
+    from matplotlib.colors import ListedColormap, LogNorm
     from matplotlib.patches import Patch
 
     damping = grid.damping
     ks, zetas = grid.axis("k"), grid.axis(damping)
     pairs = [(m, h0) for m in grid.axis("m") for h0 in grid.axis("h0")]
     colours = ListedColormap(["#4daf4a", "#a6d96a", "#e41a1c", "#984ea3", "#999999"])
+    limits = colour_limits(frame)
+    reference = grid.contact == HUNT_CROSSLEY
+    error_name = f"max |h - h_{'ref' if reference else 'exact'}| [m]"
+    units = (None, error_name, "right-hand-side calls")
+    norms = (None, LogNorm(*limits["max_height_error"]), LogNorm(*limits["rhs_calls"]))
     rows = frame[frame["solver"] == solver]
     figure, axes = plt.subplots(len(pairs), 3, figsize=(17, 5.2 * len(pairs)), squeeze=False, layout="constrained")
     for row_axes, (m, h0) in zip(axes, pairs, strict=True):
         part = rows[(rows["m"] == m) & (rows["h0"] == h0)]
         maps = [np.full((len(zetas), len(ks)), np.nan) for _ in range(3)]
         for _, run in part.iterrows():
-            i, j = zetas.index(run[damping]), ks.index(run["k"])
+            i, j = _index(zetas, run[damping]), _index(ks, run["k"])
             maps[0][i, j] = outcome(part.loc[[run.name]])[0]
             finished = run["status"] == "finished"
-            maps[1][i, j] = math.log10(max(run["max_height_error"], 1e-16)) if finished else np.nan
-            maps[2][i, j] = math.log10(run["rhs_calls"]) if finished and run["rhs_calls"] > 0 else np.nan
-        reference = grid.contact == HUNT_CROSSLEY
-        titles = (f"events against {_truth(grid)}", f"log10 max |h - h_{'ref' if reference else 'exact'}| [m]",
-                  "log10 right-hand-side calls (the work;\nunlike wall time, the same on any machine)")
+            maps[1][i, j] = max(run["max_height_error"], ERROR_FLOOR) if finished else np.nan
+            maps[2][i, j] = run["rhs_calls"] if finished and run["rhs_calls"] > 0 else np.nan
+        shared = f"one colour scale for all {len(grid.solvers)} solvers' maps" if len(grid.solvers) > 1 else "log scale"
+        titles = (f"events against {_truth(grid)}", f"{error_name}\n({shared})",
+                  f"right-hand-side calls (the work, the same on any\nmachine, unlike wall time) ({shared})")
         blanks = ("white: not run", "white: no data (the run timed out\nor failed, as the left map shows)",
                   "white: no data (the run timed out\nor failed, as the left map shows)")
         for panel, (axis, values, title, blank) in enumerate(zip(row_axes, maps, titles, blanks, strict=True)):
@@ -128,8 +160,10 @@ def heat_map_figure(frame, grid: Grid, solver: str):
                 bar = figure.colorbar(image, ax=axis, ticks=range(5))
                 bar.ax.set_yticklabels(OUTCOMES, fontsize=10)
             else:
-                image = axis.imshow(values, origin="lower", cmap="viridis", aspect="auto")
-                figure.colorbar(image, ax=axis).ax.tick_params(labelsize=10)
+                image = axis.imshow(values, origin="lower", cmap="viridis", norm=norms[panel], aspect="auto")
+                bar = figure.colorbar(image, ax=axis)
+                bar.set_label(units[panel], fontsize=10)
+                bar.ax.tick_params(labelsize=10)
             axis.set_xticks(range(len(ks)), [_tick(k) for k in ks], rotation=60, fontsize=10)
             axis.set_yticks(range(len(zetas)), [_tick(z) for z in zetas], fontsize=10)
             axis.set_xlabel(f"stiffness k [{k_unit(grid.contact)}]", fontsize=11)
