@@ -36,7 +36,8 @@ def test_one_field_list_makes_every_container_and_each_field_is_declared_once():
 
 def test_both_containers_start_alike_and_the_record_is_the_views_memory():
     interpreted, same = layout.interpreted_state()
-    view, record = layout.compiled_state()
+    view, memory = layout.compiled_state()
+    record = memory.view(layout.STATE_DTYPE)[0]
     assert interpreted is same
     for field in layout.FIELDS:
         for value in (getattr(interpreted, field.name), getattr(view, field.name), record[field.name]):

@@ -120,6 +120,7 @@ class BallIntegrator(IntegratorView):
         # s: the engine's first use in the process (its import, and its first CVODE objects); 0 after
         self.first_use_time = 0.0 if self.engine in loaded else time.perf_counter() - started
         self._parameters, self._atol = ball.parameters, 0.0 if s.atol is None else s.atol
+        self._machine_parameters = self._machine.parameters(ball.parameters)  # as the machine's calls take them
         # _state: the machine's state as Python reads it, by name; _machine_state: what the engine's machine takes
         # (the same object on scikit-sundae's engine; a record over the same memory on the compiled one)
         self._state, self._machine_state = self._machine.new_state()
@@ -135,7 +136,7 @@ class BallIntegrator(IntegratorView):
         """
         if self._accuracy_warned or (not whole and math.isnan(self._state.err_from)):
             return
-        warning = accuracy_warning(*self._machine.run_estimate(self._parameters, self.settings.rtol, self._atol,
+        warning = accuracy_warning(*self._machine.run_estimate(self._machine_parameters, self.settings.rtol, self._atol,
                                                            self._machine_state), self.t, self.settings.rtol)
         if warning is not None:
             self._accuracy_warned = True
@@ -173,7 +174,8 @@ class BallIntegrator(IntegratorView):
             # of an earlier target reached): CVODE would continue another trajectory, so it restarts at
             # the state itself, which continues within the tolerance, with the error carried to t (the
             # restart point's alone left out the phase from it to t: 0.37 of the estimate, in a flight).
-            self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, self._machine_state, 0.0, 1.0)
+            self._machine.phase_ends(self._machine_parameters, self.settings.rtol, self._atol, self._machine_state,
+                                     0.0, 1.0)
             self._restart_at((t, x, v, mode), F_ext, counts, t_start, errors=self._errors())
             return
         # The counters as they were: CVODE's step history is the original's.
@@ -208,7 +210,7 @@ class BallIntegrator(IntegratorView):
         """
         if type(t_target) is not float:  # None, text, an int beyond 1e308: named
             t_target = validation.finite("t_target", t_target, "s")
-        if self._machine.advance_in_step(self._parameters, self._machine_state, self._state.t, t_target):
+        if self._machine.advance_in_step(self._machine_parameters, self._machine_state, self._state.t, t_target):
             return []
         try:
             return self._advance(t_target, stop_at_event)
@@ -229,7 +231,7 @@ class BallIntegrator(IntegratorView):
             t_from = self._state.t
         elif type(t_from) is not float:
             t_from = validation.finite("t_from", t_from, "s")
-        return self._machine.advance_in_step(self._parameters, self._machine_state, t_from, t_target)
+        return self._machine.advance_in_step(self._machine_parameters, self._machine_state, t_from, t_target)
 
     def _advance(self, t_target: float, stop_at_event: bool = False) -> list[Event]:
         if not t_target >= self._state.t:
@@ -237,7 +239,7 @@ class BallIntegrator(IntegratorView):
         if t_target > self.resolvable_until:
             check_resolvable(self.ball, t_target)
         status, events, n_events = self._machine.advance(
-            self._engine, self._parameters, self.settings.rtol, self._atol, self._machine_state, t_target,
+            self._engine, self._machine_parameters, self.settings.rtol, self._atol, self._machine_state, t_target,
             stop_at_event, self._event_rows, 0, self._scratch)
         # Without an event the mode never changed: its solver alone ran (one file to read, not two).
         mode = int(self._state.mode)
@@ -263,7 +265,7 @@ class BallIntegrator(IntegratorView):
     def _integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
         t_end, state, machine_state = float(grid[-1]), self._state, self._machine_state
         check_resolvable(self.ball, t_end)
-        self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, machine_state, 0.0, 1.0)
+        self._machine.phase_ends(self._machine_parameters, self.settings.rtol, self._atol, machine_state, 0.0, 1.0)
         points, events = np.empty((256, 4)), np.empty((16, 3))
         points[0] = state.t, state.x, state.v, state.mode
         n_points, n_events = 1, 0
@@ -271,15 +273,15 @@ class BallIntegrator(IntegratorView):
             if self.progress is not None:
                 self.progress(float(state.t))
             status, points, n_points, events, n_events = self._machine.run_phases(
-                self._engine, self._parameters, self.settings.rtol, self._atol, machine_state, t_end, points, n_points,
-                events, n_events, self._scratch, PROGRESS_STEPS)
+                self._engine, self._machine_parameters, self.settings.rtol, self._atol, machine_state, t_end, points,
+                n_points, events, n_events, self._scratch, PROGRESS_STEPS)
             self._unreported = self._logs
             if status == machine.DONE:
                 break
             if status != machine.RETURNED:
                 raise _machine_failure(self, status)
         rest = state.rest_t, state.rest_x, state.rest_v, state.hc_rest_t
-        self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, machine_state, 0.0, 1.0)
+        self._machine.phase_ends(self._machine_parameters, self.settings.rtol, self._atol, machine_state, 0.0, 1.0)
         state.rest_t, state.rest_x, state.rest_v, state.hc_rest_t = rest  # a rest goes on
         self._warn_if_untrusted(whole=True)
         points = points[:n_points]

@@ -6,9 +6,8 @@ restart point from it. Each group below is declared once, one line per field: it
 in a new state, what it holds. Every field is a float64 (a mode, kind, count or flag too: exact as a
 double). From the one list come:
 
-- ``STATE_DTYPE``, a numpy structured dtype: the compiled engine's state is a record of it
-  (``compiled_state``), which numba passes into its compiled code by reference, read as fast as an
-  array's slot;
+- ``STATE_DTYPE``, a numpy structured dtype: the compiled engine's machine reads and writes a record
+  of it (over ``compiled_state``'s memory), as fast as an array's slot;
 - ``MachineState``, a ``dataclass(slots=True)`` with the same fields: the scikit-sundae engine's,
   whose interpreted machine reads an attribute faster than an array's slot;
 - ``StateView``, a ctypes structure over the compiled record's memory: what Python reads and
@@ -154,10 +153,14 @@ def interpreted_state() -> tuple[MachineState, MachineState]:
     return state, state
 
 
-def compiled_state() -> tuple[StateView, np.void]:
-    """A new state for the compiled engine: (a StateView, the STATE_DTYPE record over the same memory)."""
+def compiled_state() -> tuple[StateView, np.ndarray]:
+    """A new state for the compiled engine: (a StateView, a float64 array over its memory).
+
+    The compiled engine's entry points (compiled.py) take the array, which numba types fast, and hand
+    the machine the STATE_DTYPE record over that memory.
+    """
     view = StateView(*(field.initial for field in FIELDS))
-    return view, np.frombuffer(view, STATE_DTYPE)[0]
+    return view, np.frombuffer(view, np.float64)
 
 
 def copied(state):

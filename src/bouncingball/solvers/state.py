@@ -119,7 +119,7 @@ class IntegratorView:
         the height scale only where the run is ill-conditioned, and then an AccuracyWarning says from
         when the run cannot be trusted.
         """
-        return float(self._machine.run_estimate(self.ball.parameters, self.settings.rtol, self._atol,
+        return float(self._machine.run_estimate(self._machine_parameters, self.settings.rtol, self._atol,
                                                 self._machine_state)[0])
 
     @property
@@ -168,7 +168,7 @@ class IntegratorView:
             limits.check_scene(self.ball, self.h, self.v, value, self.t)
             bouncing = self._summed_bounce()
             # the phase at the old load ends here: its error carried into the next one
-            self._machine.phase_ends(self.ball.parameters, self.settings.rtol, self._atol, self._machine_state,
+            self._machine.phase_ends(self._machine_parameters, self.settings.rtol, self._atol, self._machine_state,
                                      0.0, 1.0)
             if bouncing is not None:  # the ball flies on from where its summed bounces have it
                 state = self._state
