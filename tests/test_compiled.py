@@ -521,14 +521,15 @@ def test_the_compiled_decisions_and_flows_are_the_interpreted_ones_to_the_bit():
     scales, flow = compiled._compiled[phases.phase_scales], compiled._compiled[equations.gap_flow_value]
     for _ in range(3000):
         m, k = 10.0 ** generator.uniform(-3, 3), 10.0 ** generator.uniform(0, 8)
-        ball = (m, k, 2.0 * math.sqrt(k * m) * generator.uniform(0.0, 3.0), 10.0 ** generator.uniform(-3, 0), 9.81,
-                float(generator.choice((contact_laws.LINEAR, contact_laws.RIGID))), 0.7, 0.0, 1.5, 0.0)
+        ball = contact_laws.BallParameters(
+            m, k, 2.0 * math.sqrt(k * m) * generator.uniform(0.0, 3.0), 10.0 ** generator.uniform(-3, 0), 9.81,
+            float(generator.choice((contact_laws.LINEAR, contact_laws.RIGID))), 0.7, 0.0, 1.5, 0.0)
         load = m * 9.81 * generator.uniform(-0.5, 1.5)
         x, v, tau = generator.uniform(-1e-2, 2.0), generator.uniform(-10.0, 10.0), 10.0 ** generator.uniform(-6, 0)
         for mode in (0, 1):
             assert scales(ball, mode, x, v, load) == phases.phase_scales(ball, mode, x, v, load)
-            assert flow(mode, x, v, tau, load, m, k, ball[2]) == equations.gap_flow_value(mode, x, v, tau, load, m, k,
-                                                                                         ball[2])
+            assert flow(mode, x, v, tau, load, m, k, ball.b) == equations.gap_flow_value(mode, x, v, tau, load, m, k,
+                                                                                        ball.b)
 
 
 def test_both_engines_report_a_failed_phase_alike(monkeypatch):

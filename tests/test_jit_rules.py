@@ -21,7 +21,7 @@ compiled = pytest.importorskip("bouncingball.solvers.compiled", reason="the comp
 from numba.core.dispatcher import Dispatcher  # noqa: E402  (numba is there once compiled imports)
 
 from bouncingball.contact_laws import BallParameters  # noqa: E402
-from bouncingball.solvers import jit  # noqa: E402
+from bouncingball.solvers import jit, layout  # noqa: E402
 
 GIVEN = tuple(compiled._compiled)  # every plain function compiled.py gave compiled_together
 COPY_OF = {id(copy): plain for plain, copy in compiled._compiled.items()}
@@ -32,6 +32,7 @@ NUMBA_BUILTINS = {"abs", "bool", "divmod", "enumerate", "float", "int", "isinsta
                   "range", "round", "tuple", "zip"}
 ARRAY_ATTRIBUTES = {"shape", "size", "ndim", "dtype", "ctypes", "T", "copy", "fill", "sum"}
 PARAMETER_FIELDS = set(BallParameters._fields)  # the ball's parameters travel as a namedtuple, read by name
+STATE_FIELDS = set(layout.NAMES)  # the machine's state: a record (interpreted: a dataclass), read by name
 # Nodes numba cannot compile (rule 4).
 REFUSED_NODES = (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda, ast.ClassDef, ast.Try, ast.With, ast.Yield,
                  ast.YieldFrom, ast.Global, ast.Nonlocal, ast.JoinedStr)
@@ -117,11 +118,13 @@ def compiled_rule_violations(function, namespace) -> list[str]:
     local = set(function.__code__.co_varnames)
     for node in ast.walk(tree):
         if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in local:
-            if node.attr in PARAMETER_FIELDS and node.value.id == "parameters":
+            if (node.attr in PARAMETER_FIELDS and node.value.id == "parameters"
+                    or node.attr in STATE_FIELDS and node.value.id == "state"):
                 continue
             if node.attr not in ARRAY_ATTRIBUTES and not all(hasattr(module, node.attr) for module in ALLOWED_MODULES):
                 found.append(f"{where(function, node)}: {ast.unparse(node)}, an object's attribute (arguments are "
-                             "floats, ints, tuples, arrays, the ball's parameters, or math / numpy as xp)")
+                             "floats, ints, tuples, arrays, the ball's parameters, the machine's state, or math / "
+                             "numpy as xp)")
     return found
 
 
@@ -198,6 +201,19 @@ def test_the_checks_find_a_call_through_a_module_and_an_object_read():
     assert "reads LIMIT" not in violations and "reads math" not in violations
     assert len(violations.splitlines()) == 5
     assert phases.__name__ in COMPILED_MODULES
+
+
+def test_the_state_is_read_by_its_fields_names_alone():
+    """Rule 3 lets the machine read its state's fields (layout.NAMES), nothing else of it: a misspelt one is found."""
+    source = textwrap.dedent('''
+        def flow(state, parameters):
+            state.rs_t = state.t + parameters.m
+            return state.rs_tt
+    ''')
+    violations = compiled_rule_violations(_function_from(source, {}), {})
+    assert violations == ["bouncingball.solvers.phases.flow, line 4: state.rs_tt, an object's attribute (arguments "
+                          "are floats, ints, tuples, arrays, the ball's parameters, the machine's state, or math / "
+                          "numpy as xp)"]
 
 
 def _function_from(source: str, namespace: dict):

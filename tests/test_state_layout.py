@@ -1,40 +1,65 @@
-"""The phase machine's state array (solvers/layout.py): its slots are distinct, and what each holds makes sense.
+"""The phase machine's state (solvers/layout.py): one list of named fields, and what each holds makes sense.
 
-A slot written under a wrong name (a segment's start where its end belongs, a count into a time) breaks one
-of the relations below between the named slots, which hold after every call of either driver, in either
+A field written under a wrong name (a segment's start where its end belongs, a count into a time) breaks one
+of the relations below between the named fields, which hold after every call of either driver, in either
 engine, whatever the targets.
 """
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
 import bouncingball as bb
+from bouncingball.codes import CONTACT, FLIGHT, FREE
 from bouncingball.solvers import layout
 from bouncingball.solvers.integrator import BallIntegrator
 from bouncingball.solvers.settings import CvodeSettings, hop_tolerance
 
-SLOTS = {name: value for name, value in vars(layout).items() if name.isupper() and name != "STATE_SIZE"}
 COUNTS = ("IMPACTS", "DEPARTURES", "STEPS", "RHS_CALLS", "NFEV", "RS_IMPACTS", "RS_DEPARTURES", "RS_STEPS",
           "RS_RHS_CALLS")
+MODES = (float(FLIGHT), float(CONTACT), float(FREE))
 
 
-def test_every_slot_has_one_name_and_every_name_one_slot():
-    assert sorted(SLOTS.values()) == list(range(layout.STATE_SIZE))
+def test_one_field_list_makes_every_container_and_each_field_is_declared_once():
+    """The record's dtype, the dataclass and the ctypes view have the fields of the groups, in their order."""
+    names = [field.name for group in layout.GROUPS.values() for field in group]
+    assert len(names) == len(set(names)) == len(layout.FIELDS)
+    assert list(layout.STATE_DTYPE.names) == names
+    assert set(layout.STATE_DTYPE.fields.values()) == {(np.dtype(np.float64), offset) for offset in
+                                                       range(0, 8 * len(names), 8)}
+    assert [field.name for field in dataclasses.fields(layout.MachineState)] == names
+    assert [name for name, _ in layout.StateView._fields_] == names
+    assert all(field.meaning for field in layout.FIELDS)
 
 
-def relations_broken(state: np.ndarray, ball: bb.Ball, rtol: float) -> list[str]:
-    """The relations between named slots that the state breaks (an empty list: none)."""
-    s = {name: float(state[index]) for name, index in SLOTS.items()}
+def test_both_containers_start_alike_and_the_record_is_the_views_memory():
+    interpreted, same = layout.interpreted_state()
+    view, memory = layout.compiled_state()
+    record = memory.view(layout.STATE_DTYPE)[0]
+    assert interpreted is same
+    for field in layout.FIELDS:
+        for value in (getattr(interpreted, field.name), getattr(view, field.name), record[field.name]):
+            assert value == field.initial or (math.isnan(field.initial) and math.isnan(value)), field.name
+    assert math.isnan(view.rest_t) and math.isnan(interpreted.last_impact)  # not at rest, no impact yet
+    view.rs_t, record["pend_x"] = 1.25, -3.5  # one memory: a write through either is read through the other
+    assert (record["rs_t"], view.pend_x) == (1.25, -3.5)
+    copy = layout.copied(view)
+    copy.rs_t = 2.0
+    assert view.rs_t == 1.25 and layout.copied(interpreted) is not interpreted
+
+
+def relations_broken(state, ball: bb.Ball, rtol: float) -> list[str]:
+    """The relations between named fields that the state breaks (an empty list: none)."""
+    s = {name.upper(): float(getattr(state, name)) for name in layout.NAMES}
     broken = []
 
     def need(condition: bool, what: str) -> None:
         if not condition:
             broken.append(f"{what}: " + ", ".join(f"{k}={v!r}" for k, v in s.items() if k in what))
 
-    need(s["MODE"] in (0.0, 1.0) and s["RS_MODE"] in (0.0, 1.0) and s["SEG_MODE"] in (0.0, 1.0),
-         "MODE RS_MODE SEG_MODE")
+    need(s["MODE"] in MODES and s["RS_MODE"] in MODES and s["SEG_MODE"] in MODES, "MODE RS_MODE SEG_MODE")
     for name in COUNTS:
         need(s[name] >= 0.0 and s[name] == math.floor(s[name]), name)
     for name in ("IMPACTS", "DEPARTURES", "STEPS", "RHS_CALLS"):
@@ -88,11 +113,11 @@ def test_a_wrong_slot_is_caught():
     ball, rtol = bb.Ball(), 1e-10
     integrator = BallIntegrator(ball, 2.0, 0.0, settings=CvodeSettings(rtol=rtol, engine="sksundae"))
     integrator.advance(0.7)
-    state = integrator._state.copy()
+    state = layout.copied(integrator._state)
     assert relations_broken(state, ball, rtol) == []
-    swapped = state.copy()
-    swapped[layout.SEG_T0], swapped[layout.SEG_T1] = state[layout.SEG_T1], state[layout.SEG_T0]
+    swapped = layout.copied(state)
+    swapped.seg_t0, swapped.seg_t1 = state.seg_t1, state.seg_t0
     assert relations_broken(swapped, ball, rtol) != []
-    miswritten = state.copy()
-    miswritten[layout.LAST_IMPACT] = state[layout.IMPACTS] + 5.0  # a count where a time belongs
+    miswritten = layout.copied(state)
+    miswritten.last_impact = state.impacts + 5.0  # a count where a time belongs
     assert relations_broken(miswritten, ball, rtol) != []

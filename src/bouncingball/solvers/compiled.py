@@ -26,15 +26,17 @@ import math
 import weakref
 
 import numpy as np
-from numba import carray, cfunc, njit, types
+from numba import carray, cfunc, from_dtype, njit, types
+from numba.extending import intrinsic
 
 from .. import contact_laws, equations, oscillator, physics, rounding
+from ..contact_laws import BallParameters
 from ..contact_laws import common as laws_common
 from ..contact_laws import hunt_crossley as hunt_crossley_law
 from ..contact_laws import linear as linear_law
 from ..contact_laws import no_pull as no_pull_law
 from ..contact_laws import rigid as rigid_law
-from . import dense_output, drivers, engine_protocol, error_estimate, exact, machine, phases
+from . import dense_output, drivers, engine_protocol, error_estimate, exact, layout, machine, phases
 from .engine_protocol import CV_ROOT_RETURN, CV_SUCCESS
 from .jit import (
     addresses,
@@ -167,14 +169,59 @@ _compiled = compiled_together(
      oscillator.unit_response: oscillator.unit_response_value,
      rounding.hypot: rounding.hypot_value, engine_protocol.engine_start: _engine_start,
      engine_protocol.engine_steps: _engine_steps, engine_protocol.engine_exceeded: _engine_exceeded}, _CACHE)
-run_phases = _compiled[drivers.run_phases]
+_run_phases, _advance = _compiled[drivers.run_phases], _compiled[drivers.advance]
+_advance_in_step = _compiled[drivers.advance_in_step]
+_phase_ends, _run_estimate = _compiled[machine.phase_ends], _compiled[error_estimate.run_estimate]
 fill_grid = _compiled[dense_output.fill_grid]
-advance = _compiled[drivers.advance]
-advance_in_step = _compiled[drivers.advance_in_step]
-phase_ends, run_estimate = _compiled[machine.phase_ends], _compiled[error_estimate.run_estimate]
 _scaled_rates, _root_values = _compiled[phases.scaled_rates], _compiled[phases.root_values]
 _scaled_jacobian = _compiled[phases.scaled_jacobian]
 _jacobian_varies, _varying_jacobian = _compiled[phases.jacobian_varies], _compiled[phases.varying_jacobian]
+
+
+# --- the entry points: the machine on its state, a record of layout.STATE_DTYPE ------------------------------
+# They take a float64 array over the record's memory (layout.compiled_state) and the ball's parameters as a plain
+# tuple (stepper.phase_machine), and give the machine the record and the namedtuple: numba types a record argument
+# (numpy.void) in ~30 us a call and a namedtuple in twice a tuple's time (measured), against a doStep's ~10 us.
+_STATE_RECORD = from_dtype(layout.STATE_DTYPE)
+
+
+@intrinsic
+def _record_pointer(typingctx, address):
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(signature.return_type))
+    return types.CPointer(_STATE_RECORD)(types.intp), codegen
+
+
+@njit(cache=_CACHE)
+def _record(memory):
+    return carray(_record_pointer(memory.ctypes.data), 1)[0]
+
+
+@njit(cache=_CACHE)
+def run_phases(engine, values, rtol, atol, memory, t_end, points, n_points, events, n_events, scratch, budget):
+    return _run_phases(engine, BallParameters(*values), rtol, atol, _record(memory), t_end, points, n_points,
+                       events, n_events, scratch, budget)
+
+
+@njit(cache=_CACHE)
+def advance(engine, values, rtol, atol, memory, t_target, stop_at_event, events, n_events, scratch):
+    return _advance(engine, BallParameters(*values), rtol, atol, _record(memory), t_target, stop_at_event, events,
+                    n_events, scratch)
+
+
+@njit(cache=_CACHE)
+def advance_in_step(values, memory, t_from, t_target):
+    return _advance_in_step(BallParameters(*values), _record(memory), t_from, t_target)
+
+
+@njit(cache=_CACHE)
+def phase_ends(values, rtol, atol, memory, jump, reflection):
+    _phase_ends(BallParameters(*values), rtol, atol, _record(memory), jump, reflection)
+
+
+@njit(cache=_CACHE)
+def run_estimate(values, rtol, atol, memory):
+    return _run_estimate(BallParameters(*values), rtol, atol, _record(memory))
 
 
 _callback_data = types.CPointer(types.intp)

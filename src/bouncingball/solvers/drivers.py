@@ -5,7 +5,7 @@ every event, for the grid values to be read off the dense output afterwards (den
 returns to its caller every step_budget steps (RETURNED), for progress and Ctrl-C; ``advance`` runs
 one CVODE step at a time to a target time, keeping the last step for the dense output of a target
 inside it (the FMU's doStep), optionally stopping at the first event. Plain Python over floats and
-the state array, run interpreted by the scikit-sundae engine and compiled by the compiled one, as
+the machine's state (layout.py), run interpreted by the scikit-sundae engine and compiled by the compiled one, as
 machine.py is.
 """
 
@@ -18,43 +18,16 @@ import numpy as np
 from ..codes import CONTACT
 from ..contact_laws import law_flow_value
 from .dense_output import step_state
-from .layout import (
-    HOP,
-    LOAD,
-    MODE,
-    NEEDS_INIT,
-    PEND_T,
-    PENDING,
-    REST_T,
-    REST_V,
-    REST_X,
-    SEG_MODE,
-    SEG_T0,
-    SEG_T1,
-    SEG_V0,
-    SEG_V1,
-    SEG_X0,
-    SEG_X1,
-    SEGMENT,
-    STEP_T,
-    STEP_V,
-    STEP_X,
-    STEPS,
-    T_LOW,
-    T,
-    V,
-    X,
-)
 from .machine import DONE, RETURNED, _take_event, closed_form_phase, grown, phase_steps
 from .phases import BY_CVODE, IN_CLOSED_FORM, REST, decide_phase, taylor_step
 
 
 def _decided_by_cvode(parameters, rtol, state):
     """Whether CVODE takes the phase starting at the state (phases.decide_phase); else its rest or event is set."""
-    answer, tau, x_event, v_event, kind = decide_phase(parameters, int(state[MODE]), state[X], state[V], state[LOAD],
-                                                       state[HOP], rtol)
+    answer, tau, x_event, v_event, kind = decide_phase(parameters, int(state.mode), state.x, state.v, state.load,
+                                                       state.hop, rtol)
     if answer == REST:
-        state[REST_T], state[REST_X], state[REST_V] = state[T], state[X], state[V]
+        state.rest_t, state.rest_x, state.rest_v = state.t, state.x, state.v
     elif answer == IN_CLOSED_FORM:
         closed_form_phase(state, tau, x_event, v_event, kind)
     return answer == BY_CVODE
@@ -62,60 +35,60 @@ def _decided_by_cvode(parameters, rtol, state):
 
 def _finish_by_taylor(parameters, state, t_target):
     """Within a few ulps of t_target CVODE refuses to step (CV_TOO_CLOSE): finish by a Taylor step; whether it did."""
-    dt = t_target - state[T]
-    if dt > 32.0 * _ulp(max(abs(t_target), abs(state[T]), 1e-300)):
+    dt = t_target - state.t
+    if dt > 32.0 * _ulp(max(abs(t_target), abs(state.t), 1e-300)):
         return False
-    state[X], state[V] = taylor_step(parameters, int(state[MODE]), state[X], state[V], state[LOAD], dt)
-    state[T], state[T_LOW] = t_target, 0.0
+    state.x, state.v = taylor_step(parameters, int(state.mode), state.x, state.v, state.load, dt)
+    state.t, state.t_low = t_target, 0.0
     return True
 
 
 def _rest_state(parameters, state, t):
-    """The state at t on the rest that began at REST_*, on the contact's exact flow."""
-    state[X], state[V] = law_flow_value(parameters, CONTACT, state[REST_X], state[REST_V], t - state[REST_T],
-                                        state[LOAD])
-    state[T], state[T_LOW] = t, 0.0
+    """The state at t on the rest that began at rest_*, on the contact's exact flow."""
+    state.x, state.v = law_flow_value(parameters, CONTACT, state.rest_x, state.rest_v, t - state.rest_t,
+                                        state.load)
+    state.t, state.t_low = t, 0.0
 
 
 def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, events, n_events, scratch,
                step_budget):
     """Integrate from the state to t_end phase by phase; (status, points, n_points, events, n_events).
 
-    parameters: Ball.parameters; atol 0 for none; state: new_state's array after restart_needed,
+    parameters: Ball.parameters; atol 0 for none; state: the machine's state (layout.py) after restart_needed,
     updated in place; points (n, 4: t, x, v, mode) and events (n, 3: t, kind, v) hold n_points and
     n_events rows so far and are returned grown where they filled up; scratch (n, 3) is the engine's
     buffer of step ends. status: DONE at t_end, RETURNED after step_budget steps, or a failure
-    (state[FAIL_T], state[FAIL_X] and state[FAIL_FLAG] say where and CVODE's flag).
+    (state.fail_t, state.fail_x and state.fail_flag say where and CVODE's flag).
     """
-    steps_at_entry = state[STEPS]
+    steps_at_entry = state.steps
     while True:
-        t, mode = state[T], int(state[MODE])
+        t, mode = state.t, int(state.mode)
         if not t < t_end:
             return DONE, points, n_points, events, n_events
-        if state[PENDING] != 0.0:  # a phase in closed form: to its event, or on its flow to t_end
-            points, n_points = _record(points, n_points, t, state[X], state[V], mode)
-            if state[PEND_T] <= t_end:
+        if state.pending != 0.0:  # a phase in closed form: to its event, or on its flow to t_end
+            points, n_points = _record(points, n_points, t, state.x, state.v, mode)
+            if state.pend_t <= t_end:
                 events, n_events = _take_event(parameters, rtol, atol, state, events, n_events)
             else:
-                state[X], state[V] = law_flow_value(parameters, mode, state[X], state[V], t_end - t, state[LOAD])
-                state[T], state[T_LOW] = t_end, 0.0
-            points, n_points = _record(points, n_points, state[T], state[X], state[V], mode)
+                state.x, state.v = law_flow_value(parameters, mode, state.x, state.v, t_end - t, state.load)
+                state.t, state.t_low = t_end, 0.0
+            points, n_points = _record(points, n_points, state.t, state.x, state.v, mode)
             continue
-        if not math.isnan(state[REST_T]):
-            points, n_points = _record(points, n_points, t, state[X], state[V], mode)
+        if not math.isnan(state.rest_t):
+            points, n_points = _record(points, n_points, t, state.x, state.v, mode)
             _rest_state(parameters, state, t_end)
-            points, n_points = _record(points, n_points, t_end, state[X], state[V], mode)
+            points, n_points = _record(points, n_points, t_end, state.x, state.v, mode)
             return DONE, points, n_points, events, n_events
-        if state[STEPS] - steps_at_entry >= step_budget:
+        if state.steps - steps_at_entry >= step_budget:
             return RETURNED, points, n_points, events, n_events
-        if state[NEEDS_INIT] != 0.0:
+        if state.needs_init != 0.0:
             if not _decided_by_cvode(parameters, rtol, state):
                 continue
             # Only once the phase is decided: one in closed form may end within these ulps before t_end.
             if _finish_by_taylor(parameters, state, t_end):
-                points, n_points = _record(points, n_points, t_end, state[X], state[V], mode)
+                points, n_points = _record(points, n_points, t_end, state.x, state.v, mode)
                 return DONE, points, n_points, events, n_events
-            points, n_points = _record(points, n_points, t, state[X], state[V], mode)  # as it is, not scaled and back
+            points, n_points = _record(points, n_points, t, state.x, state.v, mode)  # as it is, not scaled and back
         status, rows, count = phase_steps(engine, parameters, rtol, atol, state, t_end, scratch)
         if status != DONE:
             return status, points, n_points, events, n_events
@@ -123,10 +96,10 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
         points[n_points:n_points + count, :3] = rows[:count, :3]
         points[n_points:n_points + count, 3] = mode
         n_points += count
-        if state[PENDING] != 0.0:
+        if state.pending != 0.0:
             events, n_events = _take_event(parameters, rtol, atol, state, events, n_events)
-        elif not math.isnan(state[REST_T]) or state[STEP_T] == t_end:
-            state[T], state[X], state[V], state[T_LOW] = state[STEP_T], state[STEP_X], state[STEP_V], 0.0
+        elif not math.isnan(state.rest_t) or state.step_t == t_end:
+            state.t, state.x, state.v, state.t_low = state.step_t, state.step_x, state.step_v, 0.0
 
 
 def advance_in_step(parameters, state, t_from, t_target):
@@ -134,11 +107,11 @@ def advance_in_step(parameters, state, t_from, t_target):
 
     The state at t_target is read off the step's dense output.
     """
-    if not (state[SEGMENT] != 0.0 and state[T] == t_from and t_from < t_target <= state[SEG_T1]):
+    if not (state.segment != 0.0 and state.t == t_from and t_from < t_target <= state.seg_t1):
         return False
-    state[X], state[V] = step_state(parameters, state[LOAD], int(state[SEG_MODE]), state[SEG_T0], state[SEG_X0],
-                                    state[SEG_V0], state[SEG_T1], state[SEG_X1], state[SEG_V1], t_target)
-    state[T], state[T_LOW] = t_target, 0.0
+    state.x, state.v = step_state(parameters, state.load, int(state.seg_mode), state.seg_t0, state.seg_x0,
+                                    state.seg_v0, state.seg_t1, state.seg_x1, state.seg_v1, t_target)
+    state.t, state.t_low = t_target, 0.0
     return True
 
 
@@ -148,19 +121,19 @@ def advance(engine, parameters, rtol, atol, state, t_target, stop_at_event, even
     CVODE's steps do not depend on the targets: each aims machine.STEP_HORIZON past the last step's
     start, and a target inside a step is read off its dense output. With stop_at_event it returns at the
     first event before t_target (the state there, the mode switched). Arguments and statuses as
-    run_phases (scratch: at least one row); state[T] <= t_target.
+    run_phases (scratch: at least one row); state.t <= t_target.
     """
-    while state[T] < t_target:
-        if advance_in_step(parameters, state, state[T], t_target):
+    while state.t < t_target:
+        if advance_in_step(parameters, state, state.t, t_target):
             break
-        if state[PENDING] != 0.0:  # the kept step ends at an event before t_target
+        if state.pending != 0.0:  # the kept step ends at an event before t_target
             events, n_events = _take_event(parameters, rtol, atol, state, events, n_events)
             if stop_at_event:
                 break
             continue
-        if state[NEEDS_INIT] != 0.0 and math.isnan(state[REST_T]) and not _decided_by_cvode(parameters, rtol, state):
+        if state.needs_init != 0.0 and math.isnan(state.rest_t) and not _decided_by_cvode(parameters, rtol, state):
             continue  # a rest, or a phase in closed form: taken above
-        if not math.isnan(state[REST_T]):
+        if not math.isnan(state.rest_t):
             _rest_state(parameters, state, t_target)
             break
         if _finish_by_taylor(parameters, state, t_target):

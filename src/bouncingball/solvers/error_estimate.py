@@ -4,7 +4,7 @@ Each phase's flow is in closed form and affine in its start state (a parabola; a
 what a phase added to the error is measured, not guessed: the state at its end against the exact flow
 from its start. The error it started with is carried by the flow's transition matrix (the flow of the
 unit vectors under no load) and, at an impact or departure, by the saltation matrix of the field's
-jump there (-+ b/m: no 1/v). The functions are plain Python over floats and the state array
+jump there (-+ b/m: no 1/v). The functions are plain Python over floats and the machine's state
 (layout.py), run interpreted and compiled alike (machine.py calls them at each phase's end).
 
 The Hunt-Crossley law's contact has no closed form to measure CVODE's error against. There the error is
@@ -24,53 +24,6 @@ from ..codes import CONTACT, FLIGHT
 from ..contact_laws import HUNT_CROSSLEY, hunt_crossley_partials, hunt_crossley_state, law_flow_value
 from ..oscillator import oscillator_basis
 from ..rounding import hypot
-from .layout import (
-    ERR2_V,
-    ERR2_X,
-    ERR2_XV,
-    ERR_FROM,
-    ERR_MAX,
-    ERR_V,
-    ERR_X,
-    ERR_XV,
-    HC_A00,
-    HC_A01,
-    HC_A11,
-    HC_B00,
-    HC_B01,
-    HC_B11,
-    HC_QA00,
-    HC_QA01,
-    HC_QA11,
-    HC_QB00,
-    HC_QB01,
-    HC_QB11,
-    HC_XMAX,
-    HOP,
-    LENGTH,
-    LOAD,
-    NEEDS_INIT,
-    RS_MODE,
-    RS_T,
-    RS_T_LOW,
-    RS_V,
-    RS_X,
-    SCALE,
-    SEG_T0,
-    SEG_T1,
-    SEG_V0,
-    SEG_V1,
-    SEG_X0,
-    SEG_X1,
-    SPEED,
-    STEP_T,
-    STEP_V,
-    STEP_X,
-    T_LOW,
-    T,
-    V,
-    X,
-)
 from .phases import frame
 from .settings import ERROR_WITHIN_PHASE, ESTIMATE_CAP, ESTIMATE_SAFETY, LOCAL_ERROR_SAFETY, PROMISE
 
@@ -99,17 +52,17 @@ def phase_error(parameters, rtol, atol, state):
     if parameters.law == HUNT_CROSSLEY:
         ax, av, a_rho, _, _, _, bound, height = hunt_crossley_errors(parameters, rtol, atol, state)
         return ax, av, a_rho, bound, height
-    mode, load = int(state[RS_MODE]), state[LOAD]
-    x0, v0, ex0, ev0 = state[RS_X], state[RS_V], state[ERR_X], state[ERR_V]
-    tau = (state[T] - state[RS_T]) + (state[T_LOW] - state[RS_T_LOW])
+    mode, load = int(state.rs_mode), state.load
+    x0, v0, ex0, ev0 = state.rs_x, state.rs_v, state.err_x, state.err_v
+    tau = (state.t - state.rs_t) + (state.t_low - state.rs_t_low)
     x_flow, v_flow = law_flow_value(parameters, mode, x0, v0, tau, load)
     p00, p10 = law_flow_value(parameters, mode, 1.0, 0.0, tau, 0.0)
     p01, p11 = law_flow_value(parameters, mode, 0.0, 1.0, tau, 0.0)
-    ex = p00 * ex0 + p01 * ev0 + (state[X] - x_flow)
-    ev = p10 * ex0 + p11 * ev0 + (state[V] - v_flow)
+    ex = p00 * ex0 + p01 * ev0 + (state.x - x_flow)
+    ev = p10 * ex0 + p11 * ev0 + (state.v - v_flow)
     length, _ = frame(parameters, mode, x0, v0, load, rtol, atol)
     own = ERROR_WITHIN_PHASE * rtol * length + 8.0 * _EPS * (abs(x0) + length + R)
-    height = max(R, abs(R + state[X]))
+    height = max(R, abs(R + state.x))
     if mode == FLIGHT:
         carried = max(abs(ex0), abs(ex))
         height = max(height, R + length)  # the apex
@@ -117,7 +70,7 @@ def phase_error(parameters, rtol, atol, state):
         carried = max(abs(ex0), abs(ex))
     else:
         carried = max(hypot(ex0, ev0 / math.sqrt(k / m)), abs(ex))
-        own += state[HOP]
+        own += state.hop
     bound = ESTIMATE_SAFETY * (carried + own)
     # an error grown past double precision (inf, then nan) is no error to drop: it is the run lost
     return ex, ev, 0.0, bound if bound < math.inf else math.inf, height
@@ -137,8 +90,8 @@ def run_estimate(parameters, rtol, atol, state):
     (NaN: none).
     """
     _, _, _, bound, height = phase_error(parameters, rtol, atol, state)
-    scale, estimate = max(state[SCALE], height), max(state[ERR_MAX], bound)
-    since = _untrusted_from(estimate, scale, state[ERR_FROM], state[RS_T])
+    scale, estimate = max(state.scale, height), max(state.err_max, bound)
+    since = _untrusted_from(estimate, scale, state.err_from, state.rs_t)
     # past the range of the motion an estimate says nothing more (amplifications of 1e40 were measured)
     return min(estimate, ESTIMATE_CAP * scale), scale, since
 
@@ -147,7 +100,7 @@ def carry_error(parameters, rtol, atol, state, jump, reflection):
     """The phase from the restart point ends at the state: its error is carried to the state, the next start.
 
     The error (phase_error) is carried through the saltation matrix there, [[reflection, 0], [jump,
-    reflection]]; ERR_MAX, ERR_FROM and SCALE take the phase in.
+    reflection]]; err_max, err_from and scale take the phase in.
 
     A compliant contact's event keeps the state (reflection 1) and jumps the field: a perturbation dx
     of the state before the event moves the event by -dx/v, over which the acceleration differs by
@@ -159,14 +112,14 @@ def carry_error(parameters, rtol, atol, state, jump, reflection):
     """
     if parameters.law == HUNT_CROSSLEY:  # its events keep the state and the field (its force is 0 there): no saltation
         ax, av, a_rho, bx, bv, b_rho, bound, height = hunt_crossley_errors(parameters, rtol, atol, state)
-        state[ERR_X], state[ERR_V], state[ERR_XV] = ax, av, a_rho
-        state[ERR2_X], state[ERR2_V], state[ERR2_XV] = bx, bv, b_rho
+        state.err_x, state.err_v, state.err_xv = ax, av, a_rho
+        state.err2_x, state.err2_v, state.err2_xv = bx, bv, b_rho
     else:
         ex, ev, _, bound, height = phase_error(parameters, rtol, atol, state)
-    state[SCALE], state[ERR_MAX] = max(state[SCALE], height), max(state[ERR_MAX], bound)
-    state[ERR_FROM] = _untrusted_from(state[ERR_MAX], state[SCALE], state[ERR_FROM], state[RS_T])
+    state.scale, state.err_max = max(state.scale, height), max(state.err_max, bound)
+    state.err_from = _untrusted_from(state.err_max, state.scale, state.err_from, state.rs_t)
     if parameters.law != HUNT_CROSSLEY:
-        state[ERR_X], state[ERR_V] = reflection * ex, reflection * ev + jump * ex
+        state.err_x, state.err_v = reflection * ex, reflection * ev + jump * ex
 
 
 # --- the Hunt-Crossley law: the error as an ellipse {e : e^T P^-1 e <= 1} of (x, v), P = [[p00, p01], [p01, p11]] ---
@@ -222,19 +175,19 @@ def hunt_crossley_transition(parameters, load, t0, x0, v0, t1, x1, v1, t):
 
 
 def start_contact_ellipses(state):
-    """A Hunt-Crossley contact CVODE starts in its frame (LENGTH, SPEED): the restart point's two ellipses are one.
+    """A Hunt-Crossley contact CVODE starts in its frame (length, speed): the restart point's two ellipses are one.
 
     Its own error (the second) starts at 0. Merged here, after a flight that sheared both alike.
     """
-    sx, sv = state[LENGTH], state[SPEED]
-    a00, a01, a11 = ellipse_of(abs(state[ERR_X]) / sx, abs(state[ERR_V]) / sv, state[ERR_XV])
-    b00, b01, b11 = ellipse_of(abs(state[ERR2_X]) / sx, abs(state[ERR2_V]) / sv, state[ERR2_XV])
+    sx, sv = state.length, state.speed
+    a00, a01, a11 = ellipse_of(abs(state.err_x) / sx, abs(state.err_v) / sv, state.err_xv)
+    b00, b01, b11 = ellipse_of(abs(state.err2_x) / sx, abs(state.err2_v) / sv, state.err2_xv)
     a00, a01, a11 = ellipse_sum(a00, a01, a11, b00, b01, b11)
-    state[HC_A00], state[HC_A01], state[HC_A11] = a00, a01, a11
-    state[HC_QA00], state[HC_QA01], state[HC_QA11] = a00, a01, a11
-    state[HC_B00], state[HC_B01], state[HC_B11] = 0.0, 0.0, 0.0
-    state[HC_QB00], state[HC_QB01], state[HC_QB11] = 0.0, 0.0, 0.0
-    state[HC_XMAX] = math.sqrt(a00) * sx
+    state.hc_a00, state.hc_a01, state.hc_a11 = a00, a01, a11
+    state.hc_qa00, state.hc_qa01, state.hc_qa11 = a00, a01, a11
+    state.hc_b00, state.hc_b01, state.hc_b11 = 0.0, 0.0, 0.0
+    state.hc_qb00, state.hc_qb01, state.hc_qb11 = 0.0, 0.0, 0.0
+    state.hc_xmax = math.sqrt(a00) * sx
 
 
 def _contact_step(parameters, load, rtol, length, speed, t0, x0, v0, t1, x1, v1, t, a00, a01, a11, b00, b01, b11):
@@ -257,17 +210,17 @@ def _contact_step(parameters, load, rtol, length, speed, t0, x0, v0, t1, x1, v1,
 
 
 def contact_steps_ellipse(parameters, rtol, state, rows, count):
-    """The two ellipses carried over CVODE's steps from the last step end (STEP_*) through rows[:count] (t, x, v).
+    """The two ellipses carried over CVODE's steps from the last step end (step_*) through rows[:count] (t, x, v).
 
-    HC_A*, HC_B* at the last of them, HC_QA*, HC_QB* at the one before (the kept last step's start), HC_XMAX the
+    hc_a*, hc_b* at the last of them, hc_qa*, hc_qb* at the one before (the kept last step's start), hc_xmax the
     largest half-width of x's error at them (the sum of the two's: the support of a sum of sets is the sum of theirs).
     """
-    length, speed, load = state[LENGTH], state[SPEED], state[LOAD]
-    t0, x0, v0 = state[STEP_T], state[STEP_X], state[STEP_V]
-    a00, a01, a11 = state[HC_A00], state[HC_A01], state[HC_A11]
-    b00, b01, b11 = state[HC_B00], state[HC_B01], state[HC_B11]
+    length, speed, load = state.length, state.speed, state.load
+    t0, x0, v0 = state.step_t, state.step_x, state.step_v
+    a00, a01, a11 = state.hc_a00, state.hc_a01, state.hc_a11
+    b00, b01, b11 = state.hc_b00, state.hc_b01, state.hc_b11
     qa00, qa01, qa11, qb00, qb01, qb11 = a00, a01, a11, b00, b01, b11
-    largest = state[HC_XMAX]
+    largest = state.hc_xmax
     for i in range(count):
         t1, x1, v1 = rows[i, 0], rows[i, 1], rows[i, 2]
         qa00, qa01, qa11, qb00, qb01, qb11 = a00, a01, a11, b00, b01, b11
@@ -275,11 +228,11 @@ def contact_steps_ellipse(parameters, rtol, state, rows, count):
                                                      t1, a00, a01, a11, b00, b01, b11)
         largest = max(largest, (math.sqrt(max(a00, 0.0)) + math.sqrt(max(b00, 0.0))) * length)
         t0, x0, v0 = t1, x1, v1
-    state[HC_A00], state[HC_A01], state[HC_A11] = a00, a01, a11
-    state[HC_B00], state[HC_B01], state[HC_B11] = b00, b01, b11
-    state[HC_QA00], state[HC_QA01], state[HC_QA11] = qa00, qa01, qa11
-    state[HC_QB00], state[HC_QB01], state[HC_QB11] = qb00, qb01, qb11
-    state[HC_XMAX] = largest
+    state.hc_a00, state.hc_a01, state.hc_a11 = a00, a01, a11
+    state.hc_b00, state.hc_b01, state.hc_b11 = b00, b01, b11
+    state.hc_qa00, state.hc_qa01, state.hc_qa11 = qa00, qa01, qa11
+    state.hc_qb00, state.hc_qb01, state.hc_qb11 = qb00, qb01, qb11
+    state.hc_xmax = largest
 
 
 def hunt_crossley_errors(parameters, rtol, atol, state):
@@ -298,35 +251,35 @@ def hunt_crossley_errors(parameters, rtol, atol, state):
     tolerance. A flight or a free spell (parabolas, exact) carries both by its transition matrix and adds its own
     error to b, measured against the exact flow from its start as under the other laws.
     """
-    R, mode, load = parameters.R, int(state[RS_MODE]), state[LOAD]
-    x0, v0 = state[RS_X], state[RS_V]
-    ax, av, a_rho = abs(state[ERR_X]), abs(state[ERR_V]), state[ERR_XV]
-    bx, bv, b_rho = abs(state[ERR2_X]), abs(state[ERR2_V]), state[ERR2_XV]
+    R, mode, load = parameters.R, int(state.rs_mode), state.load
+    x0, v0 = state.rs_x, state.rs_v
+    ax, av, a_rho = abs(state.err_x), abs(state.err_v), state.err_xv
+    bx, bv, b_rho = abs(state.err2_x), abs(state.err2_v), state.err2_xv
     length, _ = frame(parameters, mode, x0, v0, load, rtol, atol)
     own = ERROR_WITHIN_PHASE * rtol * length + 8.0 * _EPS * (abs(x0) + length + R)
-    height = max(R, abs(R + state[X]))
+    height = max(R, abs(R + state.x))
     carried = ax + bx
     if mode == CONTACT:
-        own += state[HOP]
-        if state[NEEDS_INIT] == 0.0:  # CVODE has started it (else: the restart point's)
-            sx, sv = state[LENGTH], state[SPEED]
-            a00, a01, a11 = state[HC_A00], state[HC_A01], state[HC_A11]
-            b00, b01, b11 = state[HC_B00], state[HC_B01], state[HC_B11]
-            if state[T] < state[STEP_T]:
+        own += state.hop
+        if state.needs_init == 0.0:  # CVODE has started it (else: the restart point's)
+            sx, sv = state.length, state.speed
+            a00, a01, a11 = state.hc_a00, state.hc_a01, state.hc_a11
+            b00, b01, b11 = state.hc_b00, state.hc_b01, state.hc_b11
+            if state.t < state.step_t:
                 a00, a01, a11, b00, b01, b11 = _contact_step(
-                    parameters, load, 2.0 * rtol, sx, sv, state[SEG_T0], state[SEG_X0], state[SEG_V0], state[SEG_T1],
-                    state[SEG_X1], state[SEG_V1], state[T], state[HC_QA00], state[HC_QA01], state[HC_QA11],
-                    state[HC_QB00], state[HC_QB01], state[HC_QB11])
+                    parameters, load, 2.0 * rtol, sx, sv, state.seg_t0, state.seg_x0, state.seg_v0, state.seg_t1,
+                    state.seg_x1, state.seg_v1, state.t, state.hc_qa00, state.hc_qa01, state.hc_qa11,
+                    state.hc_qb00, state.hc_qb01, state.hc_qb11)
             ax, av, a_rho = widths_of(a00, a01, a11)
             bx, bv, b_rho = widths_of(b00, b01, b11)
             ax, av, bx, bv = ax * sx, av * sv, bx * sx, bv * sv
-            carried = max(state[HC_XMAX], ax + bx)
+            carried = max(state.hc_xmax, ax + bx)
     else:
-        tau = (state[T] - state[RS_T]) + (state[T_LOW] - state[RS_T_LOW])
+        tau = (state.t - state.rs_t) + (state.t_low - state.rs_t_low)
         x_flow, v_flow = law_flow_value(parameters, mode, x0, v0, tau, load)
         p00, p10 = law_flow_value(parameters, mode, 1.0, 0.0, tau, 0.0)
         p01, p11 = law_flow_value(parameters, mode, 0.0, 1.0, tau, 0.0)
-        dx, dv = state[X] - x_flow, state[V] - v_flow
+        dx, dv = state.x - x_flow, state.v - v_flow
         # in a frame where the errors are of order 1 (any frame holds the same sets; this one keeps their digits)
         sx, sv = max(ax, bx, abs(dx)), max(av, bv, abs(dv))
         sx, sv = sx if sx > 0.0 else 1.0, sv if sv > 0.0 else 1.0

@@ -30,7 +30,7 @@ import numpy as np
 from .. import limits, validation
 from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode
-from . import engines, layout, machine, state_checks, stepper
+from . import engines, machine, state_checks, stepper
 from .dense_output import interpolate
 from .engines import choose_engine
 from .result import EVENT_KINDS, Event, accuracy_warning, warn_at_caller
@@ -119,7 +119,11 @@ class BallIntegrator(IntegratorView):
         # s: the engine's first use in the process (its import, and its first CVODE objects); 0 after
         self.first_use_time = 0.0 if self.engine in loaded else time.perf_counter() - started
         self._parameters, self._atol = ball.parameters, 0.0 if s.atol is None else s.atol
-        self._state, self._scratch = machine.new_state(), np.empty((_SCRATCH_ROWS, 3))
+        self._machine_parameters = self._machine.parameters(ball.parameters)  # as the machine's calls take them
+        # _state: the machine's state as Python reads it, by name; _machine_state: what the engine's machine takes
+        # (the same object on scikit-sundae's engine; a record over the same memory on the compiled one)
+        self._state, self._machine_state = self._machine.new_state()
+        self._scratch = np.empty((_SCRATCH_ROWS, 3))
         self._event_rows = np.empty((4, 3))  # advance's events (t, kind, v); the machine grows a copy if need be
         # What set_state would check of this state, check_scene did; its mode is the start's by construction.
         self._restart_at((t0, h0 - ball.R, v0, ball.initial_mode(h0, v0, F_ext)), F_ext, (0, 0, None, 0, 0), t0)
@@ -129,10 +133,10 @@ class BallIntegrator(IntegratorView):
 
         Checked at the phases' ends (one comparison) or, with whole, over everything integrated so far.
         """
-        if self._accuracy_warned or (not whole and math.isnan(self._state[layout.ERR_FROM])):
+        if self._accuracy_warned or (not whole and math.isnan(self._state.err_from)):
             return
-        warning = accuracy_warning(*self._machine.run_estimate(self._parameters, self.settings.rtol, self._atol,
-                                                           self._state), self.t, self.settings.rtol)
+        warning = accuracy_warning(*self._machine.run_estimate(self._machine_parameters, self.settings.rtol, self._atol,
+                                                           self._machine_state), self.t, self.settings.rtol)
         if warning is not None:
             self._accuracy_warned = True
             warn_at_caller(warning)
@@ -164,23 +168,25 @@ class BallIntegrator(IntegratorView):
         finally:
             self._report_sundials_warnings()
         reached = self._state
-        if (float(reached[layout.X]), float(reached[layout.V])) != (x, v):
+        if (float(reached.x), float(reached.v)) != (x, v):
             # Not where this restart point leads (a state made by hand, or one a Taylor step within ulps
             # of an earlier target reached): CVODE would continue another trajectory, so it restarts at
             # the state itself, which continues within the tolerance, with the error carried to t (the
             # restart point's alone left out the phase from it to t: 0.37 of the estimate, in a flight).
-            self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, reached, 0.0, 1.0)
+            self._machine.phase_ends(self._machine_parameters, self.settings.rtol, self._atol, self._machine_state,
+                                     0.0, 1.0)
             self._restart_at((t, x, v, mode), F_ext, counts, t_start, errors=self._errors())
             return
         # The counters as they were: CVODE's step history is the original's.
         self._set_counts(counts)
-        reached[layout.RHS_CALLS] -= reached[layout.NFEV]
+        reached.rhs_calls -= reached.nfev
         self._resume_summed_bounces(state.zeno_time)
 
     def _resume_summed_bounces(self, zeno_time: float | None) -> None:
         """A rigid ball's rest on R from zeno_time [s] (its summed bounces until then), which no restart point knows."""
         if zeno_time is not None:
-            self._state[[layout.REST_T, layout.REST_X, layout.REST_V]] = zeno_time, 0.0, 0.0
+            state = self._state
+            state.rest_t, state.rest_x, state.rest_v = zeno_time, 0.0, 0.0
 
     def close(self) -> None:
         """Give the CVODE objects back to the process's pool for the next integrator; unusable after.
@@ -203,7 +209,7 @@ class BallIntegrator(IntegratorView):
         """
         if type(t_target) is not float:  # None, text, an int beyond 1e308: named
             t_target = validation.finite("t_target", t_target, "s")
-        if self._machine.advance_in_step(self._parameters, self._state, float(self._state[layout.T]), t_target):
+        if self._machine.advance_in_step(self._machine_parameters, self._machine_state, self._state.t, t_target):
             return []
         try:
             return self._advance(t_target, stop_at_event)
@@ -221,21 +227,21 @@ class BallIntegrator(IntegratorView):
         if type(t_target) is not float:
             t_target = validation.finite("t_target", t_target, "s")
         if t_from is None:
-            t_from = float(self._state[layout.T])
+            t_from = self._state.t
         elif type(t_from) is not float:
             t_from = validation.finite("t_from", t_from, "s")
-        return self._machine.advance_in_step(self._parameters, self._state, t_from, t_target)
+        return self._machine.advance_in_step(self._machine_parameters, self._machine_state, t_from, t_target)
 
     def _advance(self, t_target: float, stop_at_event: bool = False) -> list[Event]:
-        if not t_target >= self._state[layout.T]:
+        if not t_target >= self._state.t:
             raise ValueError(f"t_target = {t_target!r} s is not allowed: it must be >= the current time {self.t!r} s")
         if t_target > self.resolvable_until:
             check_resolvable(self.ball, t_target)
         status, events, n_events = self._machine.advance(
-            self._engine, self._parameters, self.settings.rtol, self._atol, self._state, t_target, stop_at_event,
-            self._event_rows, 0, self._scratch)
+            self._engine, self._machine_parameters, self.settings.rtol, self._atol, self._machine_state, t_target,
+            stop_at_event, self._event_rows, 0, self._scratch)
         # Without an event the mode never changed: its solver alone ran (one file to read, not two).
-        mode = int(self._state[layout.MODE])
+        mode = int(self._state.mode)
         self._unreported = (self._logs if n_events or status != machine.DONE or mode >= len(self._logs)
                             else (self._logs[mode],))
         if status != machine.DONE:
@@ -256,26 +262,26 @@ class BallIntegrator(IntegratorView):
             self._report_sundials_warnings()
 
     def _integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
-        t_end, state = float(grid[-1]), self._state
+        t_end, state, machine_state = float(grid[-1]), self._state, self._machine_state
         check_resolvable(self.ball, t_end)
-        self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0, 1.0)
+        self._machine.phase_ends(self._machine_parameters, self.settings.rtol, self._atol, machine_state, 0.0, 1.0)
         points, events = np.empty((256, 4)), np.empty((16, 3))
-        points[0] = state[layout.T], state[layout.X], state[layout.V], state[layout.MODE]
+        points[0] = state.t, state.x, state.v, state.mode
         n_points, n_events = 1, 0
         while True:
             if self.progress is not None:
-                self.progress(float(state[layout.T]))
+                self.progress(float(state.t))
             status, points, n_points, events, n_events = self._machine.run_phases(
-                self._engine, self._parameters, self.settings.rtol, self._atol, state, t_end, points, n_points,
-                events, n_events, self._scratch, PROGRESS_STEPS)
+                self._engine, self._machine_parameters, self.settings.rtol, self._atol, machine_state, t_end, points,
+                n_points, events, n_events, self._scratch, PROGRESS_STEPS)
             self._unreported = self._logs
             if status == machine.DONE:
                 break
             if status != machine.RETURNED:
                 raise _machine_failure(self, status)
-        rest = state[[layout.REST_T, layout.REST_X, layout.REST_V, layout.HC_REST_T]]
-        self._machine.phase_ends(self._parameters, self.settings.rtol, self._atol, state, 0.0, 1.0)
-        state[[layout.REST_T, layout.REST_X, layout.REST_V, layout.HC_REST_T]] = rest  # a rest goes on
+        rest = state.rest_t, state.rest_x, state.rest_v, state.hc_rest_t
+        self._machine.phase_ends(self._machine_parameters, self.settings.rtol, self._atol, machine_state, 0.0, 1.0)
+        state.rest_t, state.rest_x, state.rest_v, state.hc_rest_t = rest  # a rest goes on
         self._warn_if_untrusted(whole=True)
         points = points[:n_points]
         if self._machine.fill_grid is None:
@@ -292,9 +298,9 @@ class BallIntegrator(IntegratorView):
 
 
 def _machine_failure(integrator: BallIntegrator, status: int) -> SolverError:
-    """The error the machine's failure status stands for, with where it failed (the state's FAIL_* slots)."""
+    """The error the machine's failure status stands for, with where it failed (the state's fail_* fields)."""
     state, mode, R = integrator._state, integrator.mode, integrator.ball.R
-    t, x = float(state[layout.FAIL_T]), float(state[layout.FAIL_X])
+    t, x = float(state.fail_t), float(state.fail_x)
     method = integrator.methods[mode]
     if status == machine.TOO_MANY_STEPS:
         return SolverError(f"CVODE ({method}) took more than {MAX_STEPS_PER_PHASE} steps in one "
@@ -304,7 +310,7 @@ def _machine_failure(integrator: BallIntegrator, status: int) -> SolverError:
         return SolverError(f"CVODE stepped over an {'impact' if mode == Mode.FLIGHT else 'departure'} unseen "
                            f"near t = {t!r} s (h = {R + x!r} m, R = {R!r} m); "
                            "the result would be wrong: tighten rtol/atol or set max_step")
-    message = integrator._solvers[mode].message(int(state[layout.FAIL_FLAG]))
+    message = integrator._solvers[mode].message(int(state.fail_flag))
     return SolverError(f"CVODE failed at t = {t!r} s ({mode.name.lower()}, h = {integrator.h!r} m, "
                        f"v = {integrator.v!r} m/s): {message}")
 

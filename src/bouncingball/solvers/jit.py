@@ -28,7 +28,8 @@ interpreted. A function so reached:
    it at run time (a monkeypatch) reaches the interpreted engine, not the compiled one.
 3. Takes and returns floats, ints, bools, tuples of them and numpy arrays: no Python object (a Ball,
    a Mode, a settings dataclass); the ball travels as the namedtuple Ball.parameters, read by field
-   (``parameters.m``). The one exception
+   (``parameters.m``), and the machine's state as a record of layout.STATE_DTYPE (interpreted: a
+   layout.MachineState), read and written by field (``state.rs_t``). The one exception
    is the module ``math`` or ``numpy`` as an argument (``xp``), for code written once for floats and
    arrays; an argument's attributes are an array's (shape, ctypes, ...) or that module's functions.
 4. Uses nothing numba cannot compile: no keyword-only or variadic parameters (``*args``,
@@ -37,7 +38,7 @@ interpreted. A function so reached:
    oscillator.unit_response) has a plain-float stand-in in ``compiled_together``'s ``bound``
    (oscillator.unit_response_value), and the compiled code calls that.
 5. Lives in a source the cache digest covers, as does every constant it reads: a new compiled module,
-   or one whose constants the compiled code imports (layout.py's indices, settings.py's tolerances),
+   or one whose constants the compiled code imports (layout.py's fields, settings.py's tolerances),
    goes into ``ENGINE_SOURCES`` too, or a change to it leaves numba's disk cache with the old code.
 
 Functions of those modules that no entry point reaches (exact.simulate_exact, dense_output.interpolate)

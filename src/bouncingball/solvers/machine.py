@@ -8,8 +8,9 @@ departure, polished on the exact flow), checking that no step end lies beyond R 
 ``_take_event`` takes an event in one place; drivers.py's two drivers run them, a grid run to its end
 (``run_phases``) and the stepping API's ``advance``.
 
-The whole integrator state is one array (new_state's; BallIntegrator keeps it). The source is plain
-Python over floats and numpy arrays, and calls its engine through the engine_* functions: as written
+The whole integrator state is one object of named fields (layout.py; BallIntegrator keeps it), read and
+written by attribute. The source is plain Python over floats, numpy arrays and that state, and calls its
+engine through the engine_* functions: as written
 here they drive the scikit-sundae engine's solvers (stepper.SksundaePhaseSolver), and it runs
 interpreted; the compiled engine compiles this very source with numba (compiled.py), the engine_*
 bound to its own calls into SUNDIALS, so that no Python runs between phases. The machine decides
@@ -28,62 +29,6 @@ from ..rounding import later
 from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, CV_ROOT_RETURN, engine_exceeded, engine_start, engine_steps
 from .error_estimate import carry_error, contact_steps_ellipse, start_contact_ellipses
-from .layout import (
-    DEPARTURES,
-    ERR_FROM,
-    FAIL_FLAG,
-    FAIL_T,
-    FAIL_X,
-    HC_REST_T,
-    HOP,
-    IMPACTS,
-    LAST_IMPACT,
-    LENGTH,
-    LOAD,
-    MODE,
-    NEEDS_INIT,
-    NFEV,
-    ORIGIN,
-    ORIGIN_LOW,
-    PEND_KIND,
-    PEND_T,
-    PEND_T_LOW,
-    PEND_V,
-    PEND_X,
-    PENDING,
-    REST_T,
-    REST_V,
-    REST_X,
-    RHS_CALLS,
-    RS_DEPARTURES,
-    RS_IMPACTS,
-    RS_LAST_IMPACT,
-    RS_MODE,
-    RS_RHS_CALLS,
-    RS_STEPS,
-    RS_T,
-    RS_T_LOW,
-    RS_V,
-    RS_X,
-    SEG_MODE,
-    SEG_T0,
-    SEG_T1,
-    SEG_V0,
-    SEG_V1,
-    SEG_X0,
-    SEG_X1,
-    SEGMENT,
-    SPEED,
-    STATE_SIZE,
-    STEP_T,
-    STEP_V,
-    STEP_X,
-    STEPS,
-    T_LOW,
-    T,
-    V,
-    X,
-)
 from .phases import (
     frame,
     on_wrong_side,
@@ -97,24 +42,16 @@ DONE, RETURNED, CVODE_FAILED, TOO_MANY_STEPS, STEPPED_OVER = range(5)
 STEP_HORIZON = 1.0  # s: how far ahead advance's CVODE steps aim (see drivers.advance)
 
 
-def new_state():
-    """An integrator's state array, all zero but NaN for no last impact, no rest and no untrusted phase."""
-    state = np.zeros(STATE_SIZE)
-    state[LAST_IMPACT], state[REST_T], state[ERR_FROM] = math.nan, math.nan, math.nan
-    state[HC_REST_T] = math.nan
-    return state
-
-
 def restart_needed(state):
     """CVODE restarts at the current state, which becomes the restart point (the last step and any rest forgotten)."""
-    state[RHS_CALLS] += state[NFEV]
-    state[NFEV], state[NEEDS_INIT], state[SEGMENT], state[PENDING] = 0.0, 1.0, 0.0, 0.0
-    state[REST_T], state[HC_REST_T] = math.nan, math.nan
-    state[RS_T], state[RS_X], state[RS_V], state[RS_MODE] = state[T], state[X], state[V], state[MODE]
-    state[RS_T_LOW] = state[T_LOW]
-    state[RS_IMPACTS], state[RS_DEPARTURES] = state[IMPACTS], state[DEPARTURES]
-    state[RS_LAST_IMPACT] = state[LAST_IMPACT]
-    state[RS_RHS_CALLS], state[RS_STEPS] = state[RHS_CALLS], state[STEPS]
+    state.rhs_calls += state.nfev
+    state.nfev, state.needs_init, state.segment, state.pending = 0.0, 1.0, 0.0, 0.0
+    state.rest_t, state.hc_rest_t = math.nan, math.nan
+    state.rs_t, state.rs_x, state.rs_v, state.rs_mode = state.t, state.x, state.v, state.mode
+    state.rs_t_low = state.t_low
+    state.rs_impacts, state.rs_departures = state.impacts, state.departures
+    state.rs_last_impact = state.last_impact
+    state.rs_rhs_calls, state.rs_steps = state.rhs_calls, state.steps
 
 
 def phase_ends(parameters, rtol, atol, state, jump, reflection):
@@ -132,58 +69,58 @@ def closed_form_phase(state, tau, x_event, v_event, kind):
 
     The phase is kept as the last step.
     """
-    t_event, t_low = later(state[T], state[T_LOW], tau)
-    state[SEGMENT], state[SEG_MODE] = 1.0, state[MODE]
-    state[SEG_T0], state[SEG_X0], state[SEG_V0] = state[T], state[X], state[V]
-    state[SEG_T1], state[SEG_X1], state[SEG_V1] = t_event, x_event, v_event
-    state[PENDING], state[PEND_T], state[PEND_V], state[PEND_T_LOW] = 1.0, t_event, v_event, t_low
-    state[PEND_X], state[PEND_KIND] = x_event, kind
+    t_event, t_low = later(state.t, state.t_low, tau)
+    state.segment, state.seg_mode = 1.0, state.mode
+    state.seg_t0, state.seg_x0, state.seg_v0 = state.t, state.x, state.v
+    state.seg_t1, state.seg_x1, state.seg_v1 = t_event, x_event, v_event
+    state.pending, state.pend_t, state.pend_v, state.pend_t_low = 1.0, t_event, v_event, t_low
+    state.pend_x, state.pend_kind = x_event, kind
 
 
 def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     """CVODE's next steps in the phase at the state, both drivers' one phase routine; (status, rows, count).
 
-    Where the phase starts (NEEDS_INIT), CVODE restarts in its frame (phases.frame), from the state.
+    Where the phase starts (state.needs_init), CVODE restarts in its frame (phases.frame), from the state.
     t_stop: the stop time [s] of a grid run, whose steps run to it or to the phase's terminal root
     (or until the engine's buffer is full: call again); inf for advance, which takes one step aimed
     STEP_HORIZON past the last step's start. rows[:count]: the step ends (t, x, v), each an ulp-true
-    time; the last one is the state's last step (STEP_*; SEG_* from the one before, for the dense
-    output); a terminal root's is polished onto R and kept PENDING (the event to take), a rest root's
-    starts the rest (REST_*). status: DONE, or a failure (FAIL_*): CVODE's, or STEPPED_OVER where a
+    time; the last one is the state's last step (step_*; seg_* from the one before, for the dense
+    output); a terminal root's is polished onto R and kept pending (the event to take), a rest root's
+    starts the rest (rest_*). status: DONE, or a failure (fail_*): CVODE's, or STEPPED_OVER where a
     step end lies on the other side of R beyond side_margin (an event stepped over).
     """
-    mode, load, hop = int(state[MODE]), state[LOAD], state[HOP]
+    mode, load, hop = int(state.mode), state.load, state.hop
     one_step = math.isinf(t_stop)
-    if state[NEEDS_INIT] != 0.0:
-        length, speed = frame(parameters, mode, state[X], state[V], load, rtol, atol)
-        state[ORIGIN], state[LENGTH], state[SPEED], state[ORIGIN_LOW] = state[T], length, speed, state[T_LOW]
-        flag = engine_start(engine, mode, t_stop - state[T], state[X] / length, state[V] / speed, length, speed, hop,
+    if state.needs_init != 0.0:
+        length, speed = frame(parameters, mode, state.x, state.v, load, rtol, atol)
+        state.origin, state.length, state.speed, state.origin_low = state.t, length, speed, state.t_low
+        flag = engine_start(engine, mode, t_stop - state.t, state.x / length, state.v / speed, length, speed, hop,
                             load)
         if flag < 0:
-            state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = state[T], state[X], flag
+            state.fail_t, state.fail_x, state.fail_flag = state.t, state.x, flag
             return CVODE_FAILED, scratch, 0
-        state[NEEDS_INIT] = 0.0
-        state[STEP_T], state[STEP_X], state[STEP_V] = state[T], state[X], state[V]
+        state.needs_init = 0.0
+        state.step_t, state.step_x, state.step_v = state.t, state.x, state.v
         if parameters.law == HUNT_CROSSLEY and mode == CONTACT:
             start_contact_ellipses(state)
-    origin, length, speed = state[ORIGIN], state[LENGTH], state[SPEED]
-    tau_before = state[STEP_T] - origin
+    origin, length, speed = state.origin, state.length, state.speed
+    tau_before = state.step_t - origin
     flag, count, rows, gap_root, rest_root, rhs_calls = engine_steps(
         engine, mode, scratch, tau_before + STEP_HORIZON if one_step else t_stop - origin, one_step)
     if flag < 0:  # a grid run's phase is reported at its start, where its state is, whichever engine ran it
-        state[FAIL_T] = (origin + rows[count - 1, 0] if count > 0 else state[STEP_T]) if one_step else origin
-        state[FAIL_X], state[FAIL_FLAG] = state[STEP_X] if one_step else state[X], flag
+        state.fail_t = (origin + rows[count - 1, 0] if count > 0 else state.step_t) if one_step else origin
+        state.fail_x, state.fail_flag = state.step_x if one_step else state.x, flag
         return TOO_MANY_STEPS if engine_exceeded(engine, mode) else CVODE_FAILED, rows, 0
-    state[NFEV] = rhs_calls
+    state.nfev = rhs_calls
     last = count - 1
     no_pull = parameters.law == NO_PULL and mode == CONTACT  # a pressed contact: its event is the release
     # A Hunt-Crossley contact's third root is its release (the force's clip engaging), taken where CVODE located
     # it (no closed form to polish on), at the release speed exactly; a departure on the same step comes first.
     hc_release = parameters.law == HUNT_CROSSLEY and mode == CONTACT and rest_root != 0 and gap_root == 0
     if hc_release:
-        state[PENDING], state[PEND_V], state[PEND_KIND] = 1.0, release_speed(parameters.alpha), RELEASE
-        state[PEND_X] = min(length * rows[last, 1], 0.0)
-        state[PEND_T], state[PEND_T_LOW] = later(origin, state[ORIGIN_LOW], rows[last, 0])
+        state.pending, state.pend_v, state.pend_kind = 1.0, release_speed(parameters.alpha), RELEASE
+        state.pend_x = min(length * rows[last, 1], 0.0)
+        state.pend_t, state.pend_t_low = later(origin, state.origin_low, rows[last, 0])
         rest_root = 0
     if gap_root != 0:
         tau_step = rows[last - 1, 0] if count > 1 else tau_before
@@ -193,15 +130,15 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
             kind = RELEASE
         else:
             tau, v = polish_event(parameters, mode, load, length, tau_step, rows[last, 0], length * rows[last, 1],
-                                  speed * rows[last, 2], state[RS_X], state[RS_V])
+                                  speed * rows[last, 2], state.rs_x, state.rs_v)
             x, kind = 0.0, IMPACT if mode == FLIGHT else DEPARTURE
-        state[PENDING], state[PEND_V], state[PEND_X], state[PEND_KIND] = 1.0, v, x, kind
-        state[PEND_T], state[PEND_T_LOW] = later(origin, state[ORIGIN_LOW], tau)
+        state.pending, state.pend_v, state.pend_x, state.pend_kind = 1.0, v, x, kind
+        state.pend_t, state.pend_t_low = later(origin, state.origin_low, tau)
     rows[:count, 0] += origin
     rows[:count, 1] *= length
     rows[:count, 2] *= speed
     if gap_root != 0 or hc_release:
-        rows[last, 0], rows[last, 1], rows[last, 2] = state[PEND_T], state[PEND_X], state[PEND_V]
+        rows[last, 0], rows[last, 1], rows[last, 2] = state.pend_t, state.pend_x, state.pend_v
     elif flag != CV_ROOT_RETURN and not one_step and flag != BUFFER_FULL:
         rows[last, 0] = t_stop  # CVODE stopped at t_stop - origin, which may round off t_stop
     # the event's row is on R (or, a release, below it)
@@ -212,40 +149,40 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
         else:
             extreme = rows[:checked, 1].min() if mode == FLIGHT else rows[:checked, 1].max()
         if on_wrong_side(mode, extreme, side_margin(hop, rtol, length)):
-            state[FAIL_T], state[FAIL_X], state[FAIL_FLAG] = rows[checked - 1, 0], extreme, 0.0
+            state.fail_t, state.fail_x, state.fail_flag = rows[checked - 1, 0], extreme, 0.0
             return STEPPED_OVER, rows, 0
     if parameters.law == HUNT_CROSSLEY and mode == CONTACT:  # no closed form: its error carried step by step
         contact_steps_ellipse(parameters, rtol, state, rows, count)
-        if math.isnan(state[HC_REST_T]):
+        if math.isnan(state.hc_rest_t):
             _hunt_crossley_rest(parameters, state, rows, count)
     # A root of the extremum function alone ends no CVODE step (one_step returns at it): not counted.
-    state[STEPS] += count - 1 if flag == CV_ROOT_RETURN and gap_root == 0 and rest_root == 0 and not hc_release \
+    state.steps += count - 1 if flag == CV_ROOT_RETURN and gap_root == 0 and rest_root == 0 and not hc_release \
         else count
-    state[SEGMENT], state[SEG_MODE] = 1.0, mode
+    state.segment, state.seg_mode = 1.0, mode
     if count > 1:
-        state[SEG_T0], state[SEG_X0], state[SEG_V0] = rows[last - 1, 0], rows[last - 1, 1], rows[last - 1, 2]
+        state.seg_t0, state.seg_x0, state.seg_v0 = rows[last - 1, 0], rows[last - 1, 1], rows[last - 1, 2]
     else:
-        state[SEG_T0], state[SEG_X0], state[SEG_V0] = state[STEP_T], state[STEP_X], state[STEP_V]
-    state[SEG_T1], state[SEG_X1], state[SEG_V1] = rows[last, 0], rows[last, 1], rows[last, 2]
-    state[STEP_T], state[STEP_X], state[STEP_V] = rows[last, 0], rows[last, 1], rows[last, 2]
+        state.seg_t0, state.seg_x0, state.seg_v0 = state.step_t, state.step_x, state.step_v
+    state.seg_t1, state.seg_x1, state.seg_v1 = rows[last, 0], rows[last, 1], rows[last, 2]
+    state.step_t, state.step_x, state.step_v = rows[last, 0], rows[last, 1], rows[last, 2]
     if rest_root != 0:
-        state[REST_T], state[REST_X], state[REST_V] = rows[last, 0], rows[last, 1], rows[last, 2]
+        state.rest_t, state.rest_x, state.rest_v = rows[last, 0], rows[last, 1], rows[last, 2]
     return DONE, rows, count
 
 
 def _hunt_crossley_rest(parameters, state, rows, count):
-    """HC_REST_T: where contact_laws.hunt_crossley_rest_margin first turns positive on these steps, if it does.
+    """state.hc_rest_t: where contact_laws.hunt_crossley_rest_margin first turns positive on these steps, if it does.
 
-    The steps run from the last step's end (STEP_*, the phase start after a restart) through rows[:count];
+    The steps run from the last step's end (step_*, the phase start after a restart) through rows[:count];
     within the step where the margin turns positive its crossing is bisected on the step's dense output
     (dense_output.step_state, the interpolant the grid is read from). There is no closed form of the rest
     flow under this law, so the rest is only reported: CVODE integrates on through it (the ball never
     leaves, or by a hop below HOP). A margin already positive at a restart dates the rest there.
     """
-    m, k, n, load, hop = parameters.m, parameters.k, parameters.n, state[LOAD], state[HOP]
-    t0, x0, v0 = state[STEP_T], state[STEP_X], state[STEP_V]
+    m, k, n, load, hop = parameters.m, parameters.k, parameters.n, state.load, state.hop
+    t0, x0, v0 = state.step_t, state.step_x, state.step_v
     if hunt_crossley_rest_margin(x0, v0, load, m, k, n, hop) > 0.0:
-        state[HC_REST_T] = t0
+        state.hc_rest_t = t0
         return
     for i in range(count):
         t1, x1, v1 = rows[i, 0], rows[i, 1], rows[i, 2]
@@ -260,18 +197,18 @@ def _hunt_crossley_rest(parameters, state, rows, count):
                     high = mid
                 else:
                     low = mid
-            state[HC_REST_T] = high
+            state.hc_rest_t = high
             return
         t0, x0, v0 = t1, x1, v1
 
 
 def _take_event(parameters, rtol, atol, state, events, n_events):
-    """The PENDING event: the state moves there, the mode switches, the phase ends; (events, n_events) with its row."""
-    state[T], state[X], state[V], state[T_LOW] = state[PEND_T], state[PEND_X], state[PEND_V], state[PEND_T_LOW]
+    """The pending event: the state moves there, the mode switches, the phase ends; (events, n_events) with its row."""
+    state.t, state.x, state.v, state.t_low = state.pend_t, state.pend_x, state.pend_v, state.pend_t_low
     if n_events == events.shape[0]:
         events = grown(events)
-    kind, mode = int(state[PEND_KIND]), int(state[MODE])
-    events[n_events, 0], events[n_events, 1], events[n_events, 2] = state[T], kind, state[V]
+    kind, mode = int(state.pend_kind), int(state.mode)
+    events[n_events, 0], events[n_events, 1], events[n_events, 2] = state.t, kind, state.v
     if kind == IMPACT and parameters.law == RIGID:
         _bounce(parameters, rtol, atol, state)
         return events, n_events + 1
@@ -279,14 +216,14 @@ def _take_event(parameters, rtol, atol, state, events, n_events):
     # no-pull law's switches below R, where the force is 0 on either side, nor at a departure from its free sub-mode
     damping = parameters.b / parameters.m
     if kind == IMPACT:
-        state[MODE], state[IMPACTS], state[LAST_IMPACT] = CONTACT, state[IMPACTS] + 1.0, state[T]
+        state.mode, state.impacts, state.last_impact = CONTACT, state.impacts + 1.0, state.t
         jump = -damping
     elif kind == DEPARTURE:
-        state[MODE], state[DEPARTURES] = FLIGHT, state[DEPARTURES] + 1.0
-        state[HC_REST_T] = math.nan  # a Hunt-Crossley rest ended by a hop below HOP
+        state.mode, state.departures = FLIGHT, state.departures + 1.0
+        state.hc_rest_t = math.nan  # a Hunt-Crossley rest ended by a hop below HOP
         jump = damping if mode == CONTACT else 0.0
     else:
-        state[MODE] = FREE if kind == RELEASE else CONTACT
+        state.mode = FREE if kind == RELEASE else CONTACT
         jump = 0.0
     phase_ends(parameters, rtol, atol, state, jump, 1.0)
     return events, n_events + 1
@@ -298,16 +235,16 @@ def _bounce(parameters, rtol, atol, state):
     Where it stays after bounces summed as their series, its rest starts at the Zeno time, after the
     state's time; between them the ball is taken on R (the bounces there are lower than ZENO_APEX R).
     """
-    v_impact = state[V]
-    v_after, zeno = rigid_rebound(parameters, v_impact, state[LOAD])
+    v_impact = state.v
+    v_after, zeno = rigid_rebound(parameters, v_impact, state.load)
     e = parameters.e if v_after > 0.0 else 0.0  # on R at rest no error of x or v is left
-    jump = -(1.0 + e) * (state[LOAD] / parameters.m) / v_impact if v_after > 0.0 else 0.0
+    jump = -(1.0 + e) * (state.load / parameters.m) / v_impact if v_after > 0.0 else 0.0
     carry_error(parameters, rtol, atol, state, jump, -e)  # the error of the state before the impact
-    state[IMPACTS], state[LAST_IMPACT], state[V] = state[IMPACTS] + 1.0, state[T], v_after
-    state[MODE] = FLIGHT if v_after > 0.0 else CONTACT
+    state.impacts, state.last_impact, state.v = state.impacts + 1.0, state.t, v_after
+    state.mode = FLIGHT if v_after > 0.0 else CONTACT
     restart_needed(state)
     if zeno > 0.0:
-        state[REST_T], state[REST_X], state[REST_V] = later(state[T], state[T_LOW], zeno)[0], 0.0, 0.0
+        state.rest_t, state.rest_x, state.rest_v = later(state.t, state.t_low, zeno)[0], 0.0, 0.0
 
 
 def grown(rows):

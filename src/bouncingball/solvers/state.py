@@ -12,7 +12,7 @@ from .. import limits, validation
 from ..contact_laws import summed_bounce_state
 from ..equations import gap_acceleration, load_value
 from ..physics import Ball, Mode
-from . import layout, machine
+from . import machine
 from .phases import REST, decide_phase
 from .settings import hop_tolerance
 
@@ -83,7 +83,7 @@ class IntegratorState:
 
 
 class IntegratorView:
-    """BallIntegrator's state as the phase machine holds it (machine.new_state's array): read, saved, restarted.
+    """BallIntegrator's state as the phase machine holds it (layout.py's fields): read, saved, restarted.
 
     The ball's quantities at t, the snapshot get_state takes, and what sets a state and restarts
     CVODE there; BallIntegrator integrates it (the attributes ball, settings, _atol, _state, _F_ext,
@@ -95,17 +95,17 @@ class IntegratorView:
     @property
     def t(self) -> float:
         """Current time [s]."""
-        return float(self._state[layout.T])
+        return float(self._state.t)
 
     @property
     def h(self) -> float:
         """Height of the centre [m] at t."""
-        return self.ball.R + float(self._state[layout.X])
+        return self.ball.R + float(self._state.x)
 
     @property
     def v(self) -> float:
         """Velocity [m/s] at t, positive upwards."""
-        return float(self._state[layout.V])
+        return float(self._state.v)
 
     @property
     def error_estimate(self) -> float:
@@ -119,27 +119,28 @@ class IntegratorView:
         the height scale only where the run is ill-conditioned, and then an AccuracyWarning says from
         when the run cannot be trusted.
         """
-        return float(self._machine.run_estimate(self.ball.parameters, self.settings.rtol, self._atol, self._state)[0])
+        return float(self._machine.run_estimate(self._machine_parameters, self.settings.rtol, self._atol,
+                                                self._machine_state)[0])
 
     @property
     def mode(self) -> Mode:
         """The mode held at t: flight or contact."""
-        return Mode(int(self._state[layout.MODE]))
+        return Mode(int(self._state.mode))
 
     @property
     def impacts(self) -> int:
         """Impacts so far."""
-        return int(self._state[layout.IMPACTS])
+        return int(self._state.impacts)
 
     @property
     def departures(self) -> int:
         """Departures so far."""
-        return int(self._state[layout.DEPARTURES])
+        return int(self._state.departures)
 
     @property
     def rhs_calls(self) -> int:
         """Right-hand-side evaluations so far."""
-        return int(self._state[layout.RHS_CALLS] + self._state[layout.NFEV])
+        return int(self._state.rhs_calls + self._state.nfev)
 
     @property
     def error_estimate_before_phase(self) -> float:
@@ -147,12 +148,12 @@ class IntegratorView:
 
         An array read, for a caller that asks at every step (error_estimate adds the phase so far).
         """
-        return float(self._state[layout.ERR_MAX])
+        return float(self._state.err_max)
 
     @property
     def steps(self) -> int:
         """CVODE's internal steps so far."""
-        return int(self._state[layout.STEPS])
+        return int(self._state.steps)
 
     @property
     def F_ext(self) -> float:
@@ -167,16 +168,17 @@ class IntegratorView:
             limits.check_scene(self.ball, self.h, self.v, value, self.t)
             bouncing = self._summed_bounce()
             # the phase at the old load ends here: its error carried into the next one
-            self._machine.phase_ends(self.ball.parameters, self.settings.rtol, self._atol, self._state, 0.0, 1.0)
+            self._machine.phase_ends(self._machine_parameters, self.settings.rtol, self._atol, self._machine_state,
+                                     0.0, 1.0)
             if bouncing is not None:  # the ball flies on from where its summed bounces have it
                 state = self._state
-                state[layout.X], state[layout.V], state[layout.MODE] = *bouncing, Mode.FLIGHT
+                state.x, state.v, state.mode = *bouncing, float(Mode.FLIGHT)
                 machine.restart_needed(state)
             self._F_ext = value
             self._sync_F_ext()
 
     def _summed_bounce(self) -> tuple[float, float] | None:
-        """(x [m], v [m/s]) now where a rigid ball's summed bounces (rigid_rebound) go on until REST_T; or None.
+        """(x [m], v [m/s]) now where a rigid ball's summed bounces (rigid_rebound) go on until rest_t; or None.
 
         The ball is taken on R while they last (each lower than ZENO_APEX R), but a change of F_ext there
         starts from where the bounce truly is: a lift from rest would lose its speed (up to 1e-6 m/s after
@@ -185,7 +187,7 @@ class IntegratorView:
         rest, t = self._zeno_time(), self.t
         if rest is None or not t < rest:
             return None
-        impact, parameters = float(self._state[layout.LAST_IMPACT]), self.ball.parameters
+        impact, parameters = float(self._state.last_impact), self.ball.parameters
         e, g_eff = parameters.e, self._load / parameters.m
         v_first = 0.5 * (rest - impact) * g_eff * (1.0 - e)  # from the Zeno time rigid_rebound gave
         return summed_bounce_state(parameters, v_first, self._load, t - impact)
@@ -195,14 +197,14 @@ class IntegratorView:
         """dv/dt [m/s2] at t in the current mode."""
         ball, state = self.ball, self._state
         if ball.rigid or ball.hunt_crossley:
-            return ball.acceleration(ball.R + float(state[layout.X]), float(state[layout.V]), self.mode, self._F_ext)
-        return gap_acceleration(float(state[layout.X]), float(state[layout.V]), self.mode, self._load, ball.m,
+            return ball.acceleration(ball.R + float(state.x), float(state.v), self.mode, self._F_ext)
+        return gap_acceleration(float(state.x), float(state.v), self.mode, self._load, ball.m,
                                 ball.k, ball.b)
 
     @property
     def contact_force(self) -> float:
         """Force of the ground on the ball [N] at t, positive upwards; zero in flight."""
-        x, v = float(self._state[layout.X]), float(self._state[layout.V])
+        x, v = float(self._state.x), float(self._state.v)
         if self.ball.rigid or self.ball.hunt_crossley:
             return self.ball.contact_force(self.ball.R + x, v, self.mode, self._F_ext)
         if self.ball.no_pull:  # max(0, ...), and 0 in the free sub-mode
@@ -216,22 +218,22 @@ class IntegratorView:
         F_ext is taken as held constant from now on. A rigid ball's rest starts at the Zeno time where
         its last bounces were summed (contact_laws.rigid_rebound). A Hunt-Crossley ball's rest starts where
         its energy criterion (contact_laws.hunt_crossley_rest_margin) became true in its current contact, found
-        since CVODE last restarted (layout.HC_REST_T): CVODE integrates on through it, there being no
+        since CVODE last restarted (the state's hc_rest_t): CVODE integrates on through it, there being no
         closed form of the rest flow.
         """
         if self.ball.hunt_crossley:
-            rest = float(self._state[layout.HC_REST_T])
+            rest = float(self._state.hc_rest_t)
             return rest if self.mode == Mode.CONTACT and not math.isnan(rest) else None
-        x, v = float(self._state[layout.X]), float(self._state[layout.V])
+        x, v = float(self._state.x), float(self._state.v)
         if decide_phase(self._parameters, self.mode, x, v, self._load, self._hop, self.settings.rtol)[0] != REST:
             return None
         start = self._last_impact_time if self._last_impact_time is not None else self._t_start
-        rest = float(self._state[layout.REST_T])
+        rest = float(self._state.rest_t)
         return max(start, rest) if self.ball.rigid and not math.isnan(rest) else start
 
     @property
     def _last_impact_time(self) -> float | None:
-        last = float(self._state[layout.LAST_IMPACT])
+        last = float(self._state.last_impact)
         return None if math.isnan(last) else last
 
     def get_state(self) -> IntegratorState:
@@ -242,30 +244,30 @@ class IntegratorView:
         this integrator or a fresh one with the same ball and settings.
         """
         state = self._state
-        last = float(state[layout.RS_LAST_IMPACT])
-        restart = RestartPoint(float(state[layout.RS_T]), float(state[layout.RS_X]), float(state[layout.RS_V]),
-                               Mode(int(state[layout.RS_MODE])), int(state[layout.RS_IMPACTS]),
-                               int(state[layout.RS_DEPARTURES]), None if math.isnan(last) else last,
-                               int(state[layout.RS_RHS_CALLS]), int(state[layout.RS_STEPS]),
-                               float(state[layout.RS_T_LOW]), *self._errors())
+        last = float(state.rs_last_impact)
+        restart = RestartPoint(float(state.rs_t), float(state.rs_x), float(state.rs_v),
+                               Mode(int(state.rs_mode)), int(state.rs_impacts),
+                               int(state.rs_departures), None if math.isnan(last) else last,
+                               int(state.rs_rhs_calls), int(state.rs_steps),
+                               float(state.rs_t_low), *self._errors())
         return IntegratorState(t=self.t, h=self.h, v=self.v, mode=self.mode, F_ext=self._F_ext,
                                impacts=self.impacts, departures=self.departures,
                                last_impact_time=self._last_impact_time, t_start=self._t_start,
-                               rhs_calls=self.rhs_calls, steps=self.steps, gap=float(state[layout.X]),
+                               rhs_calls=self.rhs_calls, steps=self.steps, gap=float(state.x),
                                restart=restart, zeno_time=self._zeno_time())
 
     def _zeno_time(self) -> float | None:
-        """When the summed bounces of a rigid ball resting on R end [s] (REST_T, after its last impact), else None."""
-        rest, impact = float(self._state[layout.REST_T]), float(self._state[layout.LAST_IMPACT])
+        """When the summed bounces of a rigid ball resting on R end [s] (rest_t, after its last impact), else None."""
+        rest, impact = float(self._state.rest_t), float(self._state.last_impact)
         return rest if self.ball.rigid and self.mode == Mode.CONTACT and rest > impact else None
 
     def _errors(self) -> tuple:
         """The error estimate's fields at the restart point, as RestartPoint holds them."""
         state = self._state
-        since = float(state[layout.ERR_FROM])
-        return (float(state[layout.ERR_X]), float(state[layout.ERR_V]), float(state[layout.ERR_MAX]),
-                None if math.isnan(since) else since, float(state[layout.SCALE]),
-                *(float(state[i]) for i in (layout.ERR_XV, layout.ERR2_X, layout.ERR2_V, layout.ERR2_XV)))
+        since = float(state.err_from)
+        return (float(state.err_x), float(state.err_v), float(state.err_max),
+                None if math.isnan(since) else since, float(state.scale),
+                float(state.err_xv), float(state.err2_x), float(state.err2_v), float(state.err2_xv))
 
     def _restart_at(self, point, F_ext: float, counts, t_start: float, t_low: float = 0.0,
                     errors=(0.0, 0.0, 0.0, None, 0.0, 0.0, 0.0, 0.0, 0.0)) -> None:
@@ -274,15 +276,15 @@ class IntegratorView:
         With t's rounding error t_low, F_ext, the counters and the error estimate's fields (_errors).
         """
         state = self._state
-        state[layout.T], state[layout.X], state[layout.V], state[layout.MODE] = point
-        state[layout.T_LOW] = t_low
+        t, x, v, mode = point
+        state.t, state.x, state.v, state.mode, state.t_low = t, x, v, float(mode), t_low
         error_x, error_v, bound, since, scale, *ellipses = errors
-        state[layout.ERR_X], state[layout.ERR_V], state[layout.ERR_MAX] = error_x, error_v, bound
-        state[[layout.ERR_XV, layout.ERR2_X, layout.ERR2_V, layout.ERR2_XV]] = ellipses
-        state[layout.ERR_FROM], state[layout.SCALE] = math.nan if since is None else since, scale
+        state.err_x, state.err_v, state.err_max = error_x, error_v, bound
+        state.err_xv, state.err2_x, state.err2_v, state.err2_xv = ellipses
+        state.err_from, state.scale = math.nan if since is None else since, scale
         self._F_ext, self._t_start = F_ext, t_start
         self._set_counts(counts)
-        state[layout.NFEV] = 0.0
+        state.nfev = 0.0
         self._sync_F_ext()
         machine.restart_needed(state)
 
@@ -290,15 +292,15 @@ class IntegratorView:
         """impacts, departures, last impact time [s] or None, right-hand-side calls, steps."""
         impacts, departures, last_impact_time, rhs_calls, steps = counts
         state = self._state
-        state[layout.IMPACTS], state[layout.DEPARTURES], state[layout.STEPS] = impacts, departures, steps
-        state[layout.LAST_IMPACT] = math.nan if last_impact_time is None else last_impact_time
-        state[layout.RHS_CALLS] = rhs_calls
+        state.impacts, state.departures, state.steps = float(impacts), float(departures), float(steps)
+        state.last_impact = math.nan if last_impact_time is None else last_impact_time
+        state.rhs_calls = float(rhs_calls)
 
     def _sync_F_ext(self) -> None:
         """The load m g - F_ext and the hop tolerance at F_ext, for the machine (which gives the engine the load)."""
         self._load = load_value(self._F_ext, self.ball.m, self.ball.g)
         self._hop = hop_tolerance(self.ball, self.settings.rtol, self.settings.atol, self._F_ext)
-        self._state[layout.LOAD], self._state[layout.HOP] = self._load, self._hop
+        self._state.load, self._state.hop = self._load, self._hop
 
     @property
     def hop_tolerance(self) -> float:

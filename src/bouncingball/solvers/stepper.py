@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..physics import Ball, Mode
-from . import drivers, error_estimate, machine, phases, sksundae_events
+from . import drivers, error_estimate, layout, machine, phases, sksundae_events
 from .engine_protocol import CV_ROOT_RETURN, CV_TSTOP_RETURN
 from .sundials_log import ErrorsOffStdout, SundialsLog
 
@@ -206,7 +206,10 @@ class PhaseMachine:
     """An engine's phase machine (solvers/machine.py): its drivers, its grid fill, and its engine argument.
 
     fill_grid None: the grid is filled by dense_output.interpolate, in numpy. engine(solvers): what the
-    machine's engine_* calls take, from the two modes' solvers. phase_ends (machine.py) and
+    machine's engine_* calls take, from the two modes' solvers. new_state(): a new state of the machine
+    (layout.py), as (what Python reads and writes by name, what the machine takes); parameters(ball.parameters):
+    them as the machine's calls take them (a plain tuple for the compiled one's entry points, which numba types
+    in half the time of a namedtuple: ~3 us a call, measured, a tenth of a doStep). phase_ends (machine.py) and
     run_estimate (error_estimate.py) as the machine runs them: the compiled engine's cost ~6 us
     a call, where Python takes ~60 us, a fifth of a short run's time outside CVODE.
     """
@@ -216,6 +219,8 @@ class PhaseMachine:
     advance_in_step: Callable
     fill_grid: Callable | None
     engine: Callable
+    new_state: Callable
+    parameters: Callable
     phase_ends: Callable
     run_estimate: Callable
 
@@ -227,10 +232,14 @@ def phase_machine(engine: str) -> PhaseMachine:
         from . import compiled
 
         return PhaseMachine(compiled.run_phases, compiled.advance, compiled.advance_in_step, compiled.fill_grid,
-                            lambda solvers: np.stack([solver.handle() for solver in solvers]), compiled.phase_ends,
-                            compiled.run_estimate)
+                            lambda solvers: np.stack([solver.handle() for solver in solvers]),
+                            layout.compiled_state, tuple, compiled.phase_ends, compiled.run_estimate)
     return PhaseMachine(drivers.run_phases, drivers.advance, drivers.advance_in_step, None, tuple,
-                        machine.phase_ends, error_estimate.run_estimate)
+                        layout.interpreted_state, _as_given, machine.phase_ends, error_estimate.run_estimate)
+
+
+def _as_given(parameters):
+    return parameters
 
 
 _pool: dict[tuple, list] = {}
