@@ -52,6 +52,35 @@ def test_the_longest_stored_first_in_the_file():
     assert list(conftest.merged({here: 1.0}, {other: 50.0})) == [other, here]
 
 
+def _config(xdist: bool, *args: str, **options) -> SimpleNamespace:
+    """What pytest_cmdline_main reads of a pytest config: the plugins, the options given, the command line."""
+    given = {"numprocesses": None, "maxprocesses": None, "dist": "no", "loadscopereorder": True, **options}
+    return SimpleNamespace(pluginmanager=SimpleNamespace(hasplugin=lambda name: xdist and name == "xdist"),
+                           option=SimpleNamespace(**given), invocation_params=SimpleNamespace(args=args))
+
+
+def test_with_xdist_the_modules_go_to_up_to_4_workers_whole_and_in_order():
+    config = _config(True)
+    conftest.pytest_cmdline_main(config)
+    assert vars(config.option) == {"numprocesses": "auto", "maxprocesses": 4, "dist": "loadscope",
+                                   "loadscopereorder": False}
+
+
+def test_the_command_line_wins_over_the_xdist_defaults():
+    config = _config(True, "-n", "2", "--dist", "load", "--loadscope-reorder", numprocesses=2, dist="load")
+    conftest.pytest_cmdline_main(config)
+    assert vars(config.option) == {"numprocesses": 2, "maxprocesses": 4, "dist": "load", "loadscopereorder": True}
+    in_process = _config(True, "-n", "0", numprocesses=0)
+    conftest.pytest_cmdline_main(in_process)
+    assert in_process.option.dist == "no"
+
+
+def test_without_xdist_no_xdist_option_is_set():
+    config = _config(False)
+    conftest.pytest_cmdline_main(config)
+    assert vars(config.option) == vars(_config(False).option)
+
+
 @pytest.mark.slow  # a pytest of its own, ~5 s
 def test_pytest_runs_one_module_without_xdist_and_leaves_the_stored_times_alone():
     before = conftest.DURATIONS.read_bytes() if conftest.DURATIONS.is_file() else None
