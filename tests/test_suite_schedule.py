@@ -52,6 +52,30 @@ def test_the_longest_stored_first_in_the_file():
     assert list(conftest.merged({here: 1.0}, {other: 50.0})) == [other, here]
 
 
+def _session(*args: str, **options) -> SimpleNamespace:
+    """What pytest_sessionfinish reads of a session: the paths given (none: testpaths) and the selection options."""
+    selection = {"keyword": "", "markexpr": "", "lf": False, "deselect": None, "maxfail": 0, "stepwise": False}
+    config = SimpleNamespace(args=list(args or ["tests"]), option=SimpleNamespace(**{**selection, **options}),
+                             invocation_params=SimpleNamespace(dir=ROOT))
+    return SimpleNamespace(config=config)
+
+
+def test_a_run_of_the_whole_suite_stores_its_times_and_a_selection_does_not(monkeypatch, tmp_path):
+    here = "test_suite_schedule.py"
+    monkeypatch.setattr(conftest, "DURATIONS", tmp_path / "durations.json")
+    monkeypatch.setattr(conftest, "_measured", {here: 2.5})
+    monkeypatch.setattr(conftest, "_said", [])
+    for session, status in ((_session(), pytest.ExitCode.INTERRUPTED), (_session(markexpr="not slow"), 0),
+                            (_session(keyword="cli"), 0), (_session(maxfail=1), 1),
+                            (_session("tests/test_cli.py"), 0), (_session("tests::test_a"), 0)):
+        conftest.pytest_sessionfinish(session, status)
+        assert not conftest.DURATIONS.exists() and conftest._said == []
+    conftest.pytest_sessionfinish(_session(), pytest.ExitCode.TESTS_FAILED)  # a failed test still took its time
+    assert conftest.stored_durations() == {here: 2.5} and len(conftest._said) == 1
+    conftest.pytest_sessionfinish(_session(str(ROOT)), pytest.ExitCode.OK)  # the same again: nothing to write
+    assert len(conftest._said) == 1
+
+
 def _config(xdist: bool, *args: str, **options) -> SimpleNamespace:
     """What pytest_cmdline_main reads of a pytest config: the plugins, the options given, the command line."""
     given = {"numprocesses": None, "maxprocesses": None, "dist": "no", "loadscopereorder": True, **options}
