@@ -1,3 +1,5 @@
+import json
+import math
 import os
 from pathlib import Path
 
@@ -10,18 +12,104 @@ settings.register_profile("replay", derandomize=True)
 settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("BOUNCINGBALL_HYPOTHESIS", "replay"))
 
-# The modules that take a minute or more (builds, compiles, mpmath truths), run first: pytest-xdist hands each module
-# to one worker in this order (--no-loadscope-reorder), so no worker starts one of them while the others are done.
-LONG_MODULES = ("test_hunt_crossley.py", "test_bench.py", "test_wheel.py", "test_compiled.py", "test_fmu_masters.py",
-                "test_fmu_engine.py", "test_examples.py", "test_sweep.py")
+TESTS = Path(__file__).resolve().parent
+# Each module's measured time [s], longest first: the order the modules are handed out in. A run of the whole
+# suite rewrites it (pytest_sessionfinish); commit it when it changed.
+DURATIONS = TESTS / "durations.json"
+# A stored time is replaced only when the new one differs by more than this fraction (or a second): a loaded
+# machine's run-to-run noise alone does not rewrite the file.
+NOISE = 0.25
+# Under pytest-xdist: the modules shared among up to 4 workers, one per CPU; each module's tests in one worker
+# (--dist loadscope: its module fixtures built once), handed out in the order pytest_collection_modifyitems
+# gives them (--no-loadscope-reorder). Set here rather than in addopts so that pytest runs without the plugin
+# too (-p no:xdist, or not installed); -n, --maxprocesses and --dist given on the command line win.
+XDIST_DEFAULTS = {"numprocesses": "auto", "maxprocesses": 4}
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_cmdline_main(config):
+    if not config.pluginmanager.hasplugin("xdist") or hasattr(config, "workerinput"):
+        return
+    for name, value in XDIST_DEFAULTS.items():
+        if getattr(config.option, name) is None:
+            setattr(config.option, name, value)
+    if config.option.dist == "no" and config.option.numprocesses != 0:
+        config.option.dist = "loadscope"
+    if "--loadscope-reorder" not in config.invocation_params.args:
+        config.option.loadscopereorder = False
+
+
+def stored_durations() -> dict[str, float]:
+    """The module times of tests/durations.json (an empty record if it is missing or unreadable)."""
+    try:
+        return {str(name): float(seconds) for name, seconds in json.loads(DURATIONS.read_text()).items()}
+    except (OSError, ValueError, AttributeError):
+        return {}
 
 
 def pytest_collection_modifyitems(config, items):
-    def rank(item):
-        name = item.path.name
-        return LONG_MODULES.index(name) if name in LONG_MODULES else len(LONG_MODULES)
+    """The modules longest first, so that no worker starts a long one while the others are done.
 
-    items.sort(key=rank)  # stable: each module's own order kept
+    A module with no stored time goes first: if it is long, starting it last would lengthen the run by all of
+    it; if it is short, starting it first costs nothing.
+    """
+    durations = stored_durations()
+    items.sort(key=lambda item: -durations.get(item.path.name, math.inf))  # stable: each module's order kept
+
+
+_measured: dict[str, float] = {}  # module name: the sum of its tests' setup, call and teardown times [s]
+_said: list[str] = []  # what the run did with tests/durations.json, for the terminal summary
+
+
+def pytest_runtest_logreport(report):
+    """Add up each module's time (under xdist in the controller, from its workers' reports)."""
+    module = Path(report.nodeid.split("::")[0]).name
+    _measured[module] = _measured.get(module, 0.0) + report.duration
+
+
+def whole_suite_ran(session, exitstatus) -> bool:
+    """Did every test module run whole: no selection (-k, -m, --lf, a node id, a file), no early stop?"""
+    option = session.config.option
+    selected = (option.keyword or option.markexpr or getattr(option, "lf", False) or getattr(option, "deselect", None)
+                or option.maxfail or getattr(option, "stepwise", False))
+    here = session.config.invocation_params.dir
+    everything = all("::" not in argument and (here / argument).resolve() in (TESTS, *TESTS.parents)
+                     for argument in session.config.args)
+    return not selected and everything and exitstatus in (pytest.ExitCode.OK, pytest.ExitCode.TESTS_FAILED)
+
+
+def merged(stored: dict[str, float], measured: dict[str, float]) -> dict[str, float]:
+    """The stored times with the measured ones where they moved beyond the noise, for the modules that exist."""
+    kept = {}
+    for name in sorted({*stored, *measured}):
+        if not (TESTS / name).is_file():
+            continue
+        old, new = stored.get(name), measured.get(name)
+        if new is None or (old is not None and abs(new - old) <= max(NOISE * old, 1.0)):
+            kept[name] = old
+        else:
+            kept[name] = round(new, 1)
+    return dict(sorted(kept.items(), key=lambda item: (-item[1], item[0])))
+
+
+def pytest_sessionfinish(session, exitstatus):
+    if hasattr(session.config, "workerinput") or not whole_suite_ran(session, exitstatus):
+        return
+    stored = stored_durations()
+    durations = merged(stored, _measured)
+    if durations == stored:
+        return
+    changed = sum(durations.get(name) != stored.get(name) for name in {*durations, *stored})
+    try:
+        DURATIONS.write_text(json.dumps(durations, indent=1) + "\n")
+        _said.append(f"{DURATIONS}: {changed} module times updated from this run; commit it")
+    except OSError as error:
+        _said.append(f"{DURATIONS} not updated ({error}): the modules keep their stored order")
+
+
+def pytest_terminal_summary(terminalreporter):
+    for line in _said:
+        terminalreporter.write_line(line)
 
 
 @pytest.fixture(scope="session")

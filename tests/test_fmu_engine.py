@@ -18,6 +18,7 @@ import pytest
 
 from bouncingball.physics import Ball
 from fmu_helpers import exact_at
+from oracle_counts import oracle_counts
 
 pytestmark = pytest.mark.slow  # each test runs the FMU's compiled engine in a fresh process: numba compiles it there
 
@@ -89,7 +90,7 @@ def test_compiled_engine_gives_the_sksundae_answer_on_the_article_at_1ms(fmu, tm
     h, _, impacts = exact_at(t)
     assert np.max(np.abs(runs["compiled"]["h"] - h)) < EXACT
     np.testing.assert_array_equal(runs["compiled"]["impacts"], impacts)
-    assert impacts[-1] == 21
+    assert impacts[-1] == oracle_counts(Ball()).impacts
 
 
 def test_compiled_engine_with_F_ext_as_input(fmu, tmp_path):
@@ -114,7 +115,7 @@ def test_compiled_engine_with_F_ext_as_input(fmu, tmp_path):
     h_exact, _, impacts = exact_at(t[~before], ball, h0=3.0, v0=1.0, t_start=1.0)
     assert np.max(np.abs(h[~before] - h_exact)) < EXACT
     np.testing.assert_array_equal(runs["compiled"]["impacts"][~before], impacts)
-    assert impacts[-1] == 2
+    assert impacts[-1] == oracle_counts(ball, h0=3.0, v0=1.0, t_start=1.0, t_end=4.0).impacts >= 2
 
 
 def test_compiled_engine_resumes_from_an_fmu_state(unzipped, tmp_path):

@@ -94,7 +94,8 @@ def test_simulate_follows_the_nopull_truth(name, solver, engine):
 def test_the_cases_show_every_switch():
     """The cases hold what they are for: releases, engagements below R, departures from the free sub-mode, a rest."""
     kinds = {name: [kind for _, kind, _, _ in truth_of(name).events] for name in CASES}
-    assert kinds["article"].count("release") == kinds["article"].count("departure") == 18
+    bounces = len(kinds["article"]) // 3
+    assert kinds["article"] == ["impact", "release", "departure"] * bounces and bounces > 10
     assert kinds["critical"] == ["impact", "release", "engage"] and truth_of("critical").rest_time is not None
     assert kinds["lifted"] == ["release", "departure"]
     assert kinds["free-start"][:2] == ["departure", "impact"]

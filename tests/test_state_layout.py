@@ -12,14 +12,16 @@ import numpy as np
 import pytest
 
 import bouncingball as bb
-from bouncingball.codes import CONTACT, FLIGHT, FREE
+from bouncingball.codes import DEPARTURE, IMPACT
+from bouncingball.physics import Mode
 from bouncingball.solvers import layout
 from bouncingball.solvers.integrator import BallIntegrator
 from bouncingball.solvers.settings import CvodeSettings, hop_tolerance
 
 COUNTS = ("IMPACTS", "DEPARTURES", "STEPS", "RHS_CALLS", "NFEV", "RS_IMPACTS", "RS_DEPARTURES", "RS_STEPS",
           "RS_RHS_CALLS")
-MODES = (float(FLIGHT), float(CONTACT), float(FREE))
+MODES = {float(mode) for mode in Mode}  # every mode there is
+FREE_LAWS = ("linear-no-pull", "hunt-crossley")  # the laws whose contact has the free sub-mode below R
 
 
 def test_one_field_list_makes_every_container_and_each_field_is_declared_once():
@@ -60,12 +62,15 @@ def relations_broken(state, ball: bb.Ball, rtol: float) -> list[str]:
             broken.append(f"{what}: " + ", ".join(f"{k}={v!r}" for k, v in s.items() if k in what))
 
     need(s["MODE"] in MODES and s["RS_MODE"] in MODES and s["SEG_MODE"] in MODES, "MODE RS_MODE SEG_MODE")
+    need(Mode.FREE not in (s["MODE"], s["RS_MODE"], s["SEG_MODE"]) or ball.contact in FREE_LAWS,
+         "MODE RS_MODE SEG_MODE")
     for name in COUNTS:
         need(s[name] >= 0.0 and s[name] == math.floor(s[name]), name)
     for name in ("IMPACTS", "DEPARTURES", "STEPS", "RHS_CALLS"):
         need(s["RS_" + name] <= s[name], f"RS_{name} {name}")
     need(s["DEPARTURES"] <= s["IMPACTS"] <= s["DEPARTURES"] + 1.0, "DEPARTURES IMPACTS")  # from a drop
-    need(s["MODE"] == s["IMPACTS"] - s["DEPARTURES"], "MODE IMPACTS DEPARTURES")
+    # below R (pressed or free) after an impact not yet followed by its departure
+    need((s["MODE"] != Mode.FLIGHT) == s["IMPACTS"] - s["DEPARTURES"], "MODE IMPACTS DEPARTURES")
     need(s["RS_T"] <= s["T"], "RS_T T")
     need(math.isnan(s["LAST_IMPACT"]) or s["RS_LAST_IMPACT"] <= s["LAST_IMPACT"] <= s["T"], "LAST_IMPACT RS_T")
     for time, low in (("T", "T_LOW"), ("RS_T", "RS_T_LOW"), ("ORIGIN", "ORIGIN_LOW"), ("PEND_T", "PEND_T_LOW")):
@@ -79,13 +84,14 @@ def relations_broken(state, ball: bb.Ball, rtol: float) -> list[str]:
         if s["NEEDS_INIT"] == 0.0:  # a CVODE step's: its end is the last step end
             need((s["STEP_T"], s["STEP_X"], s["STEP_V"]) == (s["SEG_T1"], s["SEG_X1"], s["SEG_V1"]),
                  "STEP_T STEP_X STEP_V SEG_T1 SEG_X1 SEG_V1")
-    if s["PENDING"] != 0.0:  # an event ahead, on R, leaving the mode's side
-        need(s["T"] <= s["PEND_T"] and (s["PEND_V"] <= 0.0 if s["MODE"] == 0.0 else s["PEND_V"] >= 0.0),
-             "T PEND_T PEND_V MODE")
+    if s["PENDING"] != 0.0:  # an event ahead; an impact or a departure on R, leaving the mode's side
+        need(s["T"] <= s["PEND_T"], "T PEND_T")
+        if s["PEND_KIND"] in (IMPACT, DEPARTURE):
+            need(s["PEND_V"] <= 0.0 if s["MODE"] == Mode.FLIGHT else s["PEND_V"] >= 0.0, "PEND_V MODE PEND_KIND")
     if not math.isnan(s["REST_T"]):
-        need(s["MODE"] == 1.0 and s["REST_T"] <= s["T"] and s["REST_X"] < 0.0, "MODE REST_T REST_X T")
+        need(s["MODE"] == Mode.CONTACT and s["REST_T"] <= s["T"] and s["REST_X"] < 0.0, "MODE REST_T REST_X T")
     margin = max(hop_tolerance(ball, rtol, None, 0.0), 1e3 * rtol * ball.R)
-    need(s["X"] >= -margin if s["MODE"] == 0.0 else s["X"] <= margin, "X MODE")
+    need(s["X"] >= -margin if s["MODE"] == Mode.FLIGHT else s["X"] <= margin, "X MODE")
     # SCALE: set where the first phase ends (0 before)
     need(s["ERR_MAX"] >= 0.0 and s["ERR_X"] == s["ERR_X"] and (s["SCALE"] == 0.0 or s["SCALE"] >= ball.R),
          "ERR_MAX ERR_X SCALE")
@@ -93,19 +99,22 @@ def relations_broken(state, ball: bb.Ball, rtol: float) -> list[str]:
     return broken
 
 
+# the article's drop under the published law and under the no-pull law (free below R before each departure)
+@pytest.mark.parametrize("contact", ["linear", "linear-no-pull"])
 @pytest.mark.parametrize("engine", ["sksundae", "compiled"])
-def test_the_slots_hold_what_their_names_say_after_every_call(engine):
-    ball, rtol = bb.Ball(), 1e-10
+def test_the_slots_hold_what_their_names_say_after_every_call(engine, contact):
+    ball, rtol = bb.Ball(contact=contact), 1e-10
     integrator = BallIntegrator(ball, 2.0, 0.0, settings=CvodeSettings(rtol=rtol, engine=engine))
     targets = np.cumsum(np.random.default_rng(1).uniform(1e-5, 2e-2, 400))
-    checked = 0
+    modes = set()
     for number, target in enumerate(targets[targets < 3.0]):
         integrator.advance(float(target), stop_at_event=number % 3 == 0)
         assert relations_broken(integrator._state, ball, rtol) == [], (engine, integrator.t)
-        checked += 1
+        modes.add(integrator._state[layout.MODE])
     integrator.integrate_grid(np.linspace(integrator.t, integrator.t + 2.0, 201))
     assert relations_broken(integrator._state, ball, rtol) == []
-    assert integrator.impacts >= 5 and checked > 200  # events on the way (the article: 6 impacts by 5 s)
+    assert integrator.impacts >= 5  # events on the way (the article: 6 impacts by 5 s)
+    assert modes == ({Mode.FLIGHT, Mode.CONTACT, Mode.FREE} if contact in FREE_LAWS else {Mode.FLIGHT, Mode.CONTACT})
 
 
 def test_a_wrong_slot_is_caught():
@@ -121,3 +130,7 @@ def test_a_wrong_slot_is_caught():
     miswritten = layout.copied(state)
     miswritten.last_impact = state.impacts + 5.0  # a count where a time belongs
     assert relations_broken(miswritten, ball, rtol) != []
+    for mode in (float(Mode.FREE), 3.0):  # the free sub-mode under the linear law; no mode at all
+        wrong = layout.copied(state)
+        wrong.seg_mode = mode
+        assert any(what.startswith("MODE RS_MODE SEG_MODE") for what in relations_broken(wrong, ball, rtol))
