@@ -110,7 +110,7 @@ def test_the_slots_hold_what_their_names_say_after_every_call(engine, contact):
     for number, target in enumerate(targets[targets < 3.0]):
         integrator.advance(float(target), stop_at_event=number % 3 == 0)
         assert relations_broken(integrator._state, ball, rtol) == [], (engine, integrator.t)
-        modes.add(integrator._state[layout.MODE])
+        modes.add(integrator._state.mode)
     integrator.integrate_grid(np.linspace(integrator.t, integrator.t + 2.0, 201))
     assert relations_broken(integrator._state, ball, rtol) == []
     assert integrator.impacts >= 5  # events on the way (the article: 6 impacts by 5 s)
