@@ -1,10 +1,13 @@
 """The BouncingBall FMU's slave, for either FMI version: everything but pythonfmu's own classes.
 
-Every number comes from bouncingball's CVODE integrator (BallIntegrator); the interface is
-variables.VARIABLES. Nothing here raises: pythonfmu (and pythonfmu3) would turn an exception into a
-fatal status and release the instance. Errors are logged with status error instead, and the FMU's
-binary (bouncingball_fmu_loader.c, bouncingball_fmu3_loader.c) returns an error for a call that
-logged one.
+Every number comes from bouncingball's CVODE integrator (BallIntegrator), made at initialisation;
+before it, the outputs are the Ball's closed forms at the start values (no integrator is made for
+them). The interface is variables.VARIABLES, each output read by the getter _output_getters pairs
+with it. Nothing here raises: pythonfmu (and pythonfmu3) would turn an exception into a fatal
+status and release the instance. Errors are logged with status error instead, and the FMU's binary
+(bouncingball_fmu_loader.c, bouncingball_fmu3_loader.c) returns an error for a call that logged
+one. The integrator's warnings are held for the slave (BallIntegrator.held_warnings), which logs
+them with status warning after the call that made them: no warnings filter is touched.
 
 BallSlave imports neither pythonfmu nor pythonfmu3: slave.BouncingBall (FMI 2.0) and
 slave3.BouncingBall (FMI 3.0) put it in front of their library's slave class, and give it the
@@ -19,15 +22,14 @@ import json
 import math
 import os
 import sys
-import warnings
-from dataclasses import fields, replace
+from dataclasses import fields
+from typing import NamedTuple
 
 from .. import limits, validation
 from ..physics import Ball, Mode
 from ..scenes import SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
 from ..solvers.settings import MIN_RTOL, RTOL_RANGE_WHY
-from ..solvers.sundials_log import SundialsWarning
 from .engine_cache import first_use
 from .variables import FMU_CONTACT_LAWS, SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES, ball_fields_of
 
@@ -37,6 +39,16 @@ DEFAULT_ENGINE = "auto"  # the compiled engine where numba is installed, loaded 
 SETTABLE_AFTER_INITIALISATION = ("F_ext",)
 # Outputs the slave computes: a master may set the start values of h and v (initial="exact"), not these.
 COMPUTED_OUTPUTS = tuple(v.name for v in VARIABLES if v.causality == "output" and v.initial != "exact")
+
+
+class StartState(NamedTuple):
+    """The start values of the state, checked, and the mode the ball starts in (Ball.initial_mode)."""
+
+    ball: Ball
+    h: float  # m
+    v: float  # m/s
+    F_ext: float  # N
+    mode: Mode
 
 
 class BallSlave:
@@ -73,12 +85,21 @@ class BallSlave:
         self._tolerance: float | None = None
         self._tolerance_told = False  # the master's tolerance and the rtol used are logged once per instance
         self._integrator: BallIntegrator | None = None
+        # The warnings of this instance's integrators (BallIntegrator.held_warnings), logged after the call that
+        # made them: not empty is the flag, a truth test, where the warnings module's filters cost microseconds.
+        self._warnings: list[Warning] = []
+        getters = self._output_getters()
         for variable in VARIABLES:
-            if variable.causality == "output":  # each output is read by the method of its name
-                getter = getattr(self, f"_{variable.name}")
-            else:
+            if variable.causality == "output":
+                getter = getters[variable.name]
+            else:  # a parameter or input reads the value set
                 getter = lambda name=variable.name: self._values[name]  # noqa: E731
             self._register(variable, getter, lambda value, name=variable.name: self._set(name, value))
+
+    def _output_getters(self) -> dict:
+        """Each output's getter by the output's name (variables.VARIABLES'), the one table that pairs them."""
+        return {"h": self._h, "v": self._v, "a": self._a, "contact": self._contact,
+                "contact_force": self._contact_force, "impacts": self._impacts, "error_estimate": self._error_estimate}
 
     def _register(self, variable, getter, setter) -> None:
         """Register variable (a variables.FmuVariable) with the library, read by getter, written by setter."""
@@ -98,7 +119,7 @@ class BallSlave:
                 check_resolvable(integrator.ball, stop_time)
                 limits.check_scene(integrator.ball, integrator.h, integrator.v, integrator.F_ext, integrator.t,
                                    max(stop_time, integrator.t))
-            self._integrator = integrator
+            self._integrator = self._holding_warnings(integrator)
             self._tell_tolerance(integrator.settings.rtol)
             if self._values["engine"] == "auto" and integrator.engine != "compiled":
                 self.log(f"engine auto runs scikit-sundae's: {integrator.engine_reason}", self.STATUS.ok)
@@ -129,16 +150,16 @@ class BallSlave:
                 target = max(target, t)  # a current time rounded below t, and a step shorter than that rounding
                 if integrator.advance_within_step(target, t):
                     return self.STEPPED
-            with _caught_warnings() as caught:
-                if self.STOP_AT_EVENT:
-                    integrator.advance(target, stop_at_event=True)
-                else:
-                    integrator.advance(target)
-            for warning in caught:  # to the master's log, not the host's stderr; SundialsLog keeps one per cause
-                self.log(str(warning.message), self.STATUS.warning)
+            if self.STOP_AT_EVENT:
+                integrator.advance(target, stop_at_event=True)
+            else:
+                integrator.advance(target)
         except (ValueError, SolverError) as error:
+            self._log_warnings()  # those before the failure first
             self._error(error)
             return self.REFUSED
+        if self._warnings:
+            self._log_warnings()
         return self.STEPPED
 
     # --- FMU state: everything needed to continue exactly, in this or a fresh instance ------------
@@ -168,15 +189,17 @@ class BallSlave:
                 integrator = self._integrator
                 if integrator is None or (integrator.ball, integrator.settings) != (ball, settings):
                     with self._engine_first_use(settings.engine):
-                        integrator = BallIntegrator(ball, values["h"], values["v"], start_time, values["F_ext"],
-                                                    settings)
+                        integrator = self._holding_warnings(BallIntegrator(
+                            ball, values["h"], values["v"], start_time, values["F_ext"], settings))
                 t, h, v, F_ext = (validation.finite(f"state {name}", saved[name], unit)
                                   for name, unit in (("t", "s"), ("h", "m"), ("v", "m/s"), ("F_ext", "N")))
                 limits.check_scene(ball, h, v, F_ext, t)
                 integrator.set_state(IntegratorState(**saved))  # checks every field before it changes any
         except (KeyError, TypeError, ValueError, ImportError) as error:
+            self._log_warnings()
             self._error(f"{self.CALLS['set_state']} failed, nothing was changed: {error}")
             return
+        self._log_warnings()  # set_state integrates again from the restart point: SUNDIALS may have warned
         self._values, self._start_time, self._stop_time, self._tolerance = values, start_time, stop_time, tolerance
         self._integrator = integrator
 
@@ -211,16 +234,22 @@ class BallSlave:
         return self._values["v"] if self._integrator is None else self._integrator.v
 
     def _a(self):
-        integrator = self._integrator or self._preview()
-        return math.nan if integrator is None else integrator.acceleration
+        if self._integrator is not None:
+            return self._integrator.acceleration
+        start = self._start_state()
+        return math.nan if start is None else start.ball.acceleration(start.h, start.v, start.mode, start.F_ext)
 
     def _contact(self):
-        integrator = self._integrator or self._preview()
-        return integrator is not None and integrator.mode == Mode.CONTACT
+        if self._integrator is not None:
+            return self._integrator.mode == Mode.CONTACT
+        start = self._start_state()
+        return start is not None and start.mode == Mode.CONTACT
 
     def _contact_force(self):
-        integrator = self._integrator or self._preview()
-        return math.nan if integrator is None else integrator.contact_force
+        if self._integrator is not None:
+            return self._integrator.contact_force
+        start = self._start_state()
+        return math.nan if start is None else start.ball.contact_force(start.h, start.v, start.mode, start.F_ext)
 
     def _impacts(self):
         return 0 if self._integrator is None else self._integrator.impacts
@@ -256,14 +285,12 @@ class BallSlave:
             self.log(f"rtol = {used!r} is used: the tolerance of {self.CALLS['setup']}, tighter than the "
                      f"parameter rtol = {rtol!r}", self.STATUS.ok)
 
-    def _make_integrator(self, engine: str | None = None) -> BallIntegrator:
-        """An integrator at the start state (on engine if given); ValueError names a bad value.
+    def _make_integrator(self) -> BallIntegrator:
+        """An integrator at the start state; ValueError names a bad value.
 
         ImportError: the engine asked for is "compiled" and cannot run here (the message says why).
         """
         ball, settings = self._ball_and_settings()
-        if engine is not None:
-            settings = replace(settings, engine=engine)
         values = self._values
         h, v = validation.finite("h", values["h"], "m"), validation.finite("v", values["v"], "m/s")
         with self._engine_first_use(settings.engine):
@@ -276,13 +303,36 @@ class BallSlave:
             return contextlib.nullcontext()
         return first_use(self._resources, lambda message: self.log(message, self.STATUS.ok))
 
-    def _preview(self) -> BallIntegrator | None:
-        """Before initialisation, outputs are those of the start state (None if a value is invalid)."""
+    def _start_state(self) -> StartState | None:
+        """Before initialisation, the state the outputs are those of: the start values, in the mode the ball starts in.
+
+        None where initialisation would refuse a value: the checks are those BallIntegrator makes of its start,
+        without making one (its CVODE objects, and numba's engine, are not needed for a few closed forms).
+        """
+        values = self._values
         try:
-            # The start state's outputs do not depend on the engine: no numba for a preview.
-            return self._make_integrator(engine="sksundae")
+            ball, settings = self._ball_and_settings()
+            h, v = validation.finite("h", values["h"], "m"), validation.finite("v", values["v"], "m/s")
+            F_ext, t0 = values["F_ext"], validation.finite("t0", self._start_time, "s")
+            limits.check_scene(ball, h, v, F_ext, t0)
+            limits.check_cvode_settings(ball, h, settings.atol, settings.max_step, t0)
+            check_resolvable(ball, t0)
+            F_ext = float(F_ext)
+            return StartState(ball, h, v, F_ext, ball.initial_mode(h, v, F_ext))
         except ValueError:
             return None
+
+    def _holding_warnings(self, integrator: BallIntegrator) -> BallIntegrator:
+        """integrator, its warnings held for this instance's log (see _log_warnings)."""
+        integrator.held_warnings = self._warnings
+        return integrator
+
+    def _log_warnings(self) -> None:
+        """The integrators' warnings held since the last call, to the master's log (not the host's stderr)."""
+        held = self._warnings
+        for warning in held:  # SundialsLog keeps one per cause, BallIntegrator one AccuracyWarning
+            self.log(str(warning), self.STATUS.warning)
+        held.clear()
 
     def _error(self, error) -> None:
         self.log(str(error), self.STATUS.error)
@@ -301,48 +351,6 @@ def _state_fields(state: IntegratorState) -> dict:
     if state.restart is not None:
         saved["restart"] = {name: getattr(state.restart, name) for name in _RESTART_FIELDS}
     return saved
-
-
-class _RecordedWarnings:
-    """What warnings.catch_warnings(record=True) does, with SundialsWarning always shown: at a quarter of its cost.
-
-    Around every doStep: catch_warnings and its simplefilter cost ~2.5 us there, a quarter of a compiled
-    doStep. This changes the same state of the warnings module the same way (its filters copied with
-    ("always", SundialsWarning) first, the registries of warnings already shown invalidated, warnings shown
-    recorded into a list instead), in ~1 us. Not reentrant: one per call.
-    """
-
-    __slots__ = ("_saved",)
-    ALWAYS = ("always", None, SundialsWarning, None, 0)  # as simplefilter("always", SundialsWarning) makes it
-
-    def __enter__(self) -> list:
-        module = warnings
-        self._saved = module.filters, module.showwarning, module._showwarnmsg_impl
-        module.filters = [self.ALWAYS, *module.filters]
-        module._filters_mutated()
-        caught: list = []
-        module._showwarnmsg_impl = caught.append
-        module.showwarning = module._showwarning_orig
-        return caught
-
-    def __exit__(self, *exception) -> None:
-        module = warnings
-        module.filters, module.showwarning, module._showwarnmsg_impl = self._saved
-        module._filters_mutated()
-
-
-@contextlib.contextmanager
-def _catch_warnings():
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", SundialsWarning)
-        yield caught
-
-
-# The warnings module's internals _RecordedWarnings relies on are those of CPython 3.11-3.13; elsewhere (3.14 keeps
-# its filters per context and renamed them) catch_warnings itself.
-_caught_warnings = (_RecordedWarnings if all(hasattr(warnings, name) for name in
-                                             ("_filters_mutated", "_showwarnmsg_impl", "_showwarning_orig"))
-                    and not getattr(sys.flags, "context_aware_warnings", False) else _catch_warnings)
 
 
 def _search_package_in(resources: str) -> None:
