@@ -41,14 +41,15 @@ SETTABLE_AFTER_INITIALISATION = ("F_ext",)
 COMPUTED_OUTPUTS = tuple(v.name for v in VARIABLES if v.causality == "output" and v.initial != "exact")
 
 
-class StartState(NamedTuple):
-    """The start values of the state, checked, and the mode the ball starts in (Ball.initial_mode)."""
+class StartOutputs(NamedTuple):
+    """The outputs a, contact and contact_force before initialisation (start_outputs)."""
 
-    ball: Ball
-    h: float  # m
-    v: float  # m/s
-    F_ext: float  # N
-    mode: Mode
+    a: float  # m/s2
+    contact: bool
+    contact_force: float  # N
+
+
+NO_START_OUTPUTS = StartOutputs(math.nan, False, math.nan)  # of start values initialisation would refuse
 
 
 class BallSlave:
@@ -85,9 +86,7 @@ class BallSlave:
         self._tolerance: float | None = None
         self._tolerance_told = False  # the master's tolerance and the rtol used are logged once per instance
         self._integrator: BallIntegrator | None = None
-        # The warnings of this instance's integrators (BallIntegrator.held_warnings), logged after the call that
-        # made them: not empty is the flag, a truth test, where the warnings module's filters cost microseconds.
-        self._warnings: list[Warning] = []
+        self._warnings: list[Warning] = []  # its integrators' held_warnings: logged after the call that made them
         getters = self._output_getters()
         for variable in VARIABLES:
             if variable.causality == "output":
@@ -119,7 +118,8 @@ class BallSlave:
                 check_resolvable(integrator.ball, stop_time)
                 limits.check_scene(integrator.ball, integrator.h, integrator.v, integrator.F_ext, integrator.t,
                                    max(stop_time, integrator.t))
-            self._integrator = self._holding_warnings(integrator)
+            integrator.held_warnings = self._warnings
+            self._integrator = integrator
             self._tell_tolerance(integrator.settings.rtol)
             if self._values["engine"] == "auto" and integrator.engine != "compiled":
                 self.log(f"engine auto runs scikit-sundae's: {integrator.engine_reason}", self.STATUS.ok)
@@ -150,10 +150,7 @@ class BallSlave:
                 target = max(target, t)  # a current time rounded below t, and a step shorter than that rounding
                 if integrator.advance_within_step(target, t):
                     return self.STEPPED
-            if self.STOP_AT_EVENT:
-                integrator.advance(target, stop_at_event=True)
-            else:
-                integrator.advance(target)
+            integrator.advance(target, self.STOP_AT_EVENT)
         except (ValueError, SolverError) as error:
             self._log_warnings()  # those before the failure first
             self._error(error)
@@ -189,8 +186,9 @@ class BallSlave:
                 integrator = self._integrator
                 if integrator is None or (integrator.ball, integrator.settings) != (ball, settings):
                     with self._engine_first_use(settings.engine):
-                        integrator = self._holding_warnings(BallIntegrator(
-                            ball, values["h"], values["v"], start_time, values["F_ext"], settings))
+                        integrator = BallIntegrator(ball, values["h"], values["v"], start_time, values["F_ext"],
+                                                    settings)
+                    integrator.held_warnings = self._warnings
                 t, h, v, F_ext = (validation.finite(f"state {name}", saved[name], unit)
                                   for name, unit in (("t", "s"), ("h", "m"), ("v", "m/s"), ("F_ext", "N")))
                 limits.check_scene(ball, h, v, F_ext, t)
@@ -234,22 +232,13 @@ class BallSlave:
         return self._values["v"] if self._integrator is None else self._integrator.v
 
     def _a(self):
-        if self._integrator is not None:
-            return self._integrator.acceleration
-        start = self._start_state()
-        return math.nan if start is None else start.ball.acceleration(start.h, start.v, start.mode, start.F_ext)
+        return self._start_outputs().a if self._integrator is None else self._integrator.acceleration
 
     def _contact(self):
-        if self._integrator is not None:
-            return self._integrator.mode == Mode.CONTACT
-        start = self._start_state()
-        return start is not None and start.mode == Mode.CONTACT
+        return self._start_outputs().contact if self._integrator is None else self._integrator.mode == Mode.CONTACT
 
     def _contact_force(self):
-        if self._integrator is not None:
-            return self._integrator.contact_force
-        start = self._start_state()
-        return math.nan if start is None else start.ball.contact_force(start.h, start.v, start.mode, start.F_ext)
+        return self._start_outputs().contact_force if self._integrator is None else self._integrator.contact_force
 
     def _impacts(self):
         return 0 if self._integrator is None else self._integrator.impacts
@@ -273,17 +262,10 @@ class BallSlave:
     def _tell_tolerance(self, used: float) -> None:
         """Once per instance: a warning if the master asked for a looser tolerance than rtol, a note if tighter."""
         asked, rtol = self._tolerance, self._values["rtol"]
-        if self._tolerance_told or asked is None or asked == rtol:
-            return
-        self._tolerance_told = True
-        if asked > rtol:
-            self.log(f"tolerance = {asked!r} ({self.CALLS['setup']}) is looser than the FMU's rtol = {rtol!r}, so "
-                     f"rtol = {used!r} is used: a master's tolerance may tighten rtol but never loosen it, because "
-                     "each bounce's error carries into every later bounce (at 1e-3 the article's ball misses an "
-                     "impact); to loosen it, set the parameter rtol", self.STATUS.warning)
-        else:
-            self.log(f"rtol = {used!r} is used: the tolerance of {self.CALLS['setup']}, tighter than the "
-                     f"parameter rtol = {rtol!r}", self.STATUS.ok)
+        if not (self._tolerance_told or asked is None or asked == rtol):
+            self._tolerance_told = True
+            self.log(tolerance_note(asked, rtol, used, self.CALLS["setup"]),
+                     self.STATUS.warning if asked > rtol else self.STATUS.ok)
 
     def _make_integrator(self) -> BallIntegrator:
         """An integrator at the start state; ValueError names a bad value.
@@ -303,39 +285,52 @@ class BallSlave:
             return contextlib.nullcontext()
         return first_use(self._resources, lambda message: self.log(message, self.STATUS.ok))
 
-    def _start_state(self) -> StartState | None:
-        """Before initialisation, the state the outputs are those of: the start values, in the mode the ball starts in.
-
-        None where initialisation would refuse a value: the checks are those BallIntegrator makes of its start,
-        without making one (its CVODE objects, and numba's engine, are not needed for a few closed forms).
-        """
-        values = self._values
+    def _start_outputs(self) -> StartOutputs:
+        """Before initialisation: the outputs of the start values (start_outputs), no integrator made for them."""
         try:
             ball, settings = self._ball_and_settings()
-            h, v = validation.finite("h", values["h"], "m"), validation.finite("v", values["v"], "m/s")
-            F_ext, t0 = values["F_ext"], validation.finite("t0", self._start_time, "s")
-            limits.check_scene(ball, h, v, F_ext, t0)
-            limits.check_cvode_settings(ball, h, settings.atol, settings.max_step, t0)
-            check_resolvable(ball, t0)
-            F_ext = float(F_ext)
-            return StartState(ball, h, v, F_ext, ball.initial_mode(h, v, F_ext))
         except ValueError:
-            return None
-
-    def _holding_warnings(self, integrator: BallIntegrator) -> BallIntegrator:
-        """integrator, its warnings held for this instance's log (see _log_warnings)."""
-        integrator.held_warnings = self._warnings
-        return integrator
+            return NO_START_OUTPUTS
+        return start_outputs(ball, settings, self._values, self._start_time)
 
     def _log_warnings(self) -> None:
-        """The integrators' warnings held since the last call, to the master's log (not the host's stderr)."""
-        held = self._warnings
-        for warning in held:  # SundialsLog keeps one per cause, BallIntegrator one AccuracyWarning
+        """The integrators' warnings held since the last call (BallIntegrator.held_warnings), to the master's log."""
+        for warning in self._warnings:  # SundialsLog keeps one per cause, BallIntegrator one AccuracyWarning
             self.log(str(warning), self.STATUS.warning)
-        held.clear()
+        self._warnings.clear()
 
     def _error(self, error) -> None:
         self.log(str(error), self.STATUS.error)
+
+
+def start_outputs(ball: Ball, settings: CvodeSettings, values: dict, start_time: float) -> StartOutputs:
+    """The outputs of the start values (values: the slave's), in the mode the ball starts in: the Ball's closed forms.
+
+    NO_START_OUTPUTS where initialisation would refuse a value: the checks are those BallIntegrator makes
+    of its start, without making one (its CVODE objects, and numba's engine, are not needed for them).
+    """
+    try:
+        h, v = validation.finite("h", values["h"], "m"), validation.finite("v", values["v"], "m/s")
+        F_ext, t0 = values["F_ext"], validation.finite("t0", start_time, "s")
+        limits.check_scene(ball, h, v, F_ext, t0)
+        limits.check_cvode_settings(ball, h, settings.atol, settings.max_step, t0)
+        check_resolvable(ball, t0)
+        F_ext = float(F_ext)
+        mode = ball.initial_mode(h, v, F_ext)
+    except ValueError:
+        return NO_START_OUTPUTS
+    return StartOutputs(ball.acceleration(h, v, mode, F_ext), mode == Mode.CONTACT,
+                        ball.contact_force(h, v, mode, F_ext))
+
+
+def tolerance_note(asked: float, rtol: float, used: float, setup_call: str) -> str:
+    """What the log says of a master's tolerance asked (setup_call's) against the parameter rtol, rtol used."""
+    if asked > rtol:
+        return (f"tolerance = {asked!r} ({setup_call}) is looser than the FMU's rtol = {rtol!r}, so rtol = {used!r} "
+                "is used: a master's tolerance may tighten rtol but never loosen it, because each bounce's error "
+                "carries into every later bounce (at 1e-3 the article's ball misses an impact); to loosen it, set "
+                "the parameter rtol")
+    return f"rtol = {used!r} is used: the tolerance of {setup_call}, tighter than the parameter rtol = {rtol!r}"
 
 
 # dataclasses.asdict's deep copy costs ~22 us per fmi2GetFMUstate, three quarters of it; every field is a number, a
