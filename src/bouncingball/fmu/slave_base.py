@@ -1,10 +1,13 @@
 """The BouncingBall FMU's slave, for either FMI version: everything but pythonfmu's own classes.
 
-Every number comes from bouncingball's CVODE integrator (BallIntegrator); the interface is
-variables.VARIABLES. Nothing here raises: pythonfmu (and pythonfmu3) would turn an exception into a
-fatal status and release the instance. Errors are logged with status error instead, and the FMU's
-binary (bouncingball_fmu_loader.c, bouncingball_fmu3_loader.c) returns an error for a call that
-logged one.
+Every number comes from bouncingball's CVODE integrator (BallIntegrator), made at initialisation;
+before it, the outputs are the Ball's closed forms at the start values (no integrator is made for
+them). The interface is variables.VARIABLES, each output read by the getter _output_getters pairs
+with it. Nothing here raises: pythonfmu (and pythonfmu3) would turn an exception into a fatal
+status and release the instance. Errors are logged with status error instead, and the FMU's binary
+(bouncingball_fmu_loader.c, bouncingball_fmu3_loader.c) returns an error for a call that logged
+one. The integrator's warnings are held for the slave (BallIntegrator.held_warnings), which logs
+them with status warning after the call that made them: no warnings filter is touched.
 
 BallSlave imports neither pythonfmu nor pythonfmu3: slave.BouncingBall (FMI 2.0) and
 slave3.BouncingBall (FMI 3.0) put it in front of their library's slave class, and give it the
@@ -19,15 +22,14 @@ import json
 import math
 import os
 import sys
-import warnings
-from dataclasses import fields, replace
+from dataclasses import fields
+from typing import NamedTuple
 
 from .. import limits, validation
 from ..physics import Ball, Mode, unread_message, without_unread
 from ..scenes import SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
 from ..solvers.settings import MIN_RTOL, RTOL_RANGE_WHY
-from ..solvers.sundials_log import SundialsWarning
 from .engine_cache import first_use
 from .variables import FMU_CONTACT_LAWS, SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES, ball_fields_of
 
@@ -37,6 +39,17 @@ DEFAULT_ENGINE = "auto"  # the compiled engine where numba is installed, loaded 
 SETTABLE_AFTER_INITIALISATION = ("F_ext",)
 # Outputs the slave computes: a master may set the start values of h and v (initial="exact"), not these.
 COMPUTED_OUTPUTS = tuple(v.name for v in VARIABLES if v.causality == "output" and v.initial != "exact")
+
+
+class StartOutputs(NamedTuple):
+    """The outputs a, contact and contact_force before initialisation (start_outputs)."""
+
+    a: float  # m/s2
+    contact: bool
+    contact_force: float  # N
+
+
+NO_START_OUTPUTS = StartOutputs(math.nan, False, math.nan)  # of start values initialisation would refuse
 
 
 class BallSlave:
@@ -74,12 +87,19 @@ class BallSlave:
         self._tolerance_told = False  # the master's tolerance and the rtol used are logged once per instance
         self._unread_told = set()  # the warnings of parameters the contact law does not read, logged once each
         self._integrator: BallIntegrator | None = None
+        self._warnings: list[Warning] = []  # its integrators' held_warnings: logged after the call that made them
+        getters = self._output_getters()
         for variable in VARIABLES:
-            if variable.causality == "output":  # each output is read by the method of its name
-                getter = getattr(self, f"_{variable.name}")
-            else:
+            if variable.causality == "output":
+                getter = getters[variable.name]
+            else:  # a parameter or input reads the value set
                 getter = lambda name=variable.name: self._values[name]  # noqa: E731
             self._register(variable, getter, lambda value, name=variable.name: self._set(name, value))
+
+    def _output_getters(self) -> dict:
+        """Each output's getter by the output's name (variables.VARIABLES'), the one table that pairs them."""
+        return {"h": self._h, "v": self._v, "a": self._a, "contact": self._contact,
+                "contact_force": self._contact_force, "impacts": self._impacts, "error_estimate": self._error_estimate}
 
     def _register(self, variable, getter, setter) -> None:
         """Register variable (a variables.FmuVariable) with the library, read by getter, written by setter."""
@@ -99,6 +119,7 @@ class BallSlave:
                 check_resolvable(integrator.ball, stop_time)
                 limits.check_scene(integrator.ball, integrator.h, integrator.v, integrator.F_ext, integrator.t,
                                    max(stop_time, integrator.t))
+            integrator.held_warnings = self._warnings
             self._integrator = integrator
             self._tell_tolerance(integrator.settings.rtol)
             if self._values["engine"] == "auto" and integrator.engine != "compiled":
@@ -130,16 +151,13 @@ class BallSlave:
                 target = max(target, t)  # a current time rounded below t, and a step shorter than that rounding
                 if integrator.advance_within_step(target, t):
                     return self.STEPPED
-            with _caught_warnings() as caught:
-                if self.STOP_AT_EVENT:
-                    integrator.advance(target, stop_at_event=True)
-                else:
-                    integrator.advance(target)
-            for warning in caught:  # to the master's log, not the host's stderr; SundialsLog keeps one per cause
-                self.log(str(warning.message), self.STATUS.warning)
+            integrator.advance(target, self.STOP_AT_EVENT)
         except (ValueError, SolverError) as error:
+            self._log_warnings()  # those before the failure first
             self._error(error)
             return self.REFUSED
+        if self._warnings:
+            self._log_warnings()
         return self.STEPPED
 
     # --- FMU state: everything needed to continue exactly, in this or a fresh instance ------------
@@ -171,13 +189,16 @@ class BallSlave:
                     with self._engine_first_use(settings.engine):
                         integrator = BallIntegrator(ball, values["h"], values["v"], start_time, values["F_ext"],
                                                     settings)
+                    integrator.held_warnings = self._warnings
                 t, h, v, F_ext = (validation.finite(f"state {name}", saved[name], unit)
                                   for name, unit in (("t", "s"), ("h", "m"), ("v", "m/s"), ("F_ext", "N")))
                 limits.check_scene(ball, h, v, F_ext, t)
                 integrator.set_state(IntegratorState(**saved))  # checks every field before it changes any
         except (KeyError, TypeError, ValueError, ImportError) as error:
+            self._log_warnings()
             self._error(f"{self.CALLS['set_state']} failed, nothing was changed: {error}")
             return
+        self._log_warnings()  # set_state integrates again from the restart point: SUNDIALS may have warned
         self._values, self._start_time, self._stop_time, self._tolerance = values, start_time, stop_time, tolerance
         self._integrator = integrator
 
@@ -212,16 +233,13 @@ class BallSlave:
         return self._values["v"] if self._integrator is None else self._integrator.v
 
     def _a(self):
-        integrator = self._integrator or self._preview()
-        return math.nan if integrator is None else integrator.acceleration
+        return self._start_outputs().a if self._integrator is None else self._integrator.acceleration
 
     def _contact(self):
-        integrator = self._integrator or self._preview()
-        return integrator is not None and integrator.mode == Mode.CONTACT
+        return self._start_outputs().contact if self._integrator is None else self._integrator.mode == Mode.CONTACT
 
     def _contact_force(self):
-        integrator = self._integrator or self._preview()
-        return math.nan if integrator is None else integrator.contact_force
+        return self._start_outputs().contact_force if self._integrator is None else self._integrator.contact_force
 
     def _impacts(self):
         return 0 if self._integrator is None else self._integrator.impacts
@@ -245,26 +263,17 @@ class BallSlave:
     def _tell_tolerance(self, used: float) -> None:
         """Once per instance: a warning if the master asked for a looser tolerance than rtol, a note if tighter."""
         asked, rtol = self._tolerance, self._values["rtol"]
-        if self._tolerance_told or asked is None or asked == rtol:
-            return
-        self._tolerance_told = True
-        if asked > rtol:
-            self.log(f"tolerance = {asked!r} ({self.CALLS['setup']}) is looser than the FMU's rtol = {rtol!r}, so "
-                     f"rtol = {used!r} is used: a master's tolerance may tighten rtol but never loosen it, because "
-                     "each bounce's error carries into every later bounce (at 1e-3 the article's ball misses an "
-                     "impact); to loosen it, set the parameter rtol", self.STATUS.warning)
-        else:
-            self.log(f"rtol = {used!r} is used: the tolerance of {self.CALLS['setup']}, tighter than the "
-                     f"parameter rtol = {rtol!r}", self.STATUS.ok)
+        if not (self._tolerance_told or asked is None or asked == rtol):
+            self._tolerance_told = True
+            self.log(tolerance_note(asked, rtol, used, self.CALLS["setup"]),
+                     self.STATUS.warning if asked > rtol else self.STATUS.ok)
 
-    def _make_integrator(self, engine: str | None = None) -> BallIntegrator:
-        """An integrator at the start state (on engine if given); ValueError names a bad value.
+    def _make_integrator(self) -> BallIntegrator:
+        """An integrator at the start state; ValueError names a bad value.
 
         ImportError: the engine asked for is "compiled" and cannot run here (the message says why).
         """
         ball, settings = self._ball_and_settings()
-        if engine is not None:
-            settings = replace(settings, engine=engine)
         values = self._values
         h, v = validation.finite("h", values["h"], "m"), validation.finite("v", values["v"], "m/s")
         with self._engine_first_use(settings.engine):
@@ -277,13 +286,19 @@ class BallSlave:
             return contextlib.nullcontext()
         return first_use(self._resources, lambda message: self.log(message, self.STATUS.ok))
 
-    def _preview(self) -> BallIntegrator | None:
-        """Before initialisation, outputs are those of the start state (None if a value is invalid)."""
+    def _start_outputs(self) -> StartOutputs:
+        """Before initialisation: the outputs of the start values (start_outputs), no integrator made for them."""
         try:
-            # The start state's outputs do not depend on the engine: no numba for a preview.
-            return self._make_integrator(engine="sksundae")
+            ball, settings = self._ball_and_settings()
         except ValueError:
-            return None
+            return NO_START_OUTPUTS
+        return start_outputs(ball, settings, self._values, self._start_time)
+
+    def _log_warnings(self) -> None:
+        """The integrators' warnings held since the last call (BallIntegrator.held_warnings), to the master's log."""
+        for warning in self._warnings:  # SundialsLog keeps one per cause, BallIntegrator one AccuracyWarning
+            self.log(str(warning), self.STATUS.warning)
+        self._warnings.clear()
 
     def _error(self, error) -> None:
         self.log(str(error), self.STATUS.error)
@@ -301,6 +316,36 @@ def _read_fields(contact: str, ball_fields: dict, told: set, log, warning) -> di
     return ball_fields
 
 
+def start_outputs(ball: Ball, settings: CvodeSettings, values: dict, start_time: float) -> StartOutputs:
+    """The outputs of the start values (values: the slave's), in the mode the ball starts in: the Ball's closed forms.
+
+    NO_START_OUTPUTS where initialisation would refuse a value: the checks are those BallIntegrator makes
+    of its start, without making one (its CVODE objects, and numba's engine, are not needed for them).
+    """
+    try:
+        h, v = validation.finite("h", values["h"], "m"), validation.finite("v", values["v"], "m/s")
+        F_ext, t0 = values["F_ext"], validation.finite("t0", start_time, "s")
+        limits.check_scene(ball, h, v, F_ext, t0)
+        limits.check_cvode_settings(ball, h, settings.atol, settings.max_step, t0)
+        check_resolvable(ball, t0)
+        F_ext = float(F_ext)
+        mode = ball.initial_mode(h, v, F_ext)
+    except ValueError:
+        return NO_START_OUTPUTS
+    return StartOutputs(ball.acceleration(h, v, mode, F_ext), mode == Mode.CONTACT,
+                        ball.contact_force(h, v, mode, F_ext))
+
+
+def tolerance_note(asked: float, rtol: float, used: float, setup_call: str) -> str:
+    """What the log says of a master's tolerance asked (setup_call's) against the parameter rtol, rtol used."""
+    if asked > rtol:
+        return (f"tolerance = {asked!r} ({setup_call}) is looser than the FMU's rtol = {rtol!r}, so rtol = {used!r} "
+                "is used: a master's tolerance may tighten rtol but never loosen it, because each bounce's error "
+                "carries into every later bounce (at 1e-3 the article's ball misses an impact); to loosen it, set "
+                "the parameter rtol")
+    return f"rtol = {used!r} is used: the tolerance of {setup_call}, tighter than the parameter rtol = {rtol!r}"
+
+
 # dataclasses.asdict's deep copy costs ~22 us per fmi2GetFMUstate, three quarters of it; every field is a number, a
 # mode or None, so the fields themselves make the same dict.
 _STATE_FIELDS = tuple(field.name for field in fields(IntegratorState))
@@ -314,48 +359,6 @@ def _state_fields(state: IntegratorState) -> dict:
     if state.restart is not None:
         saved["restart"] = {name: getattr(state.restart, name) for name in _RESTART_FIELDS}
     return saved
-
-
-class _RecordedWarnings:
-    """What warnings.catch_warnings(record=True) does, with SundialsWarning always shown: at a quarter of its cost.
-
-    Around every doStep: catch_warnings and its simplefilter cost ~2.5 us there, a quarter of a compiled
-    doStep. This changes the same state of the warnings module the same way (its filters copied with
-    ("always", SundialsWarning) first, the registries of warnings already shown invalidated, warnings shown
-    recorded into a list instead), in ~1 us. Not reentrant: one per call.
-    """
-
-    __slots__ = ("_saved",)
-    ALWAYS = ("always", None, SundialsWarning, None, 0)  # as simplefilter("always", SundialsWarning) makes it
-
-    def __enter__(self) -> list:
-        module = warnings
-        self._saved = module.filters, module.showwarning, module._showwarnmsg_impl
-        module.filters = [self.ALWAYS, *module.filters]
-        module._filters_mutated()
-        caught: list = []
-        module._showwarnmsg_impl = caught.append
-        module.showwarning = module._showwarning_orig
-        return caught
-
-    def __exit__(self, *exception) -> None:
-        module = warnings
-        module.filters, module.showwarning, module._showwarnmsg_impl = self._saved
-        module._filters_mutated()
-
-
-@contextlib.contextmanager
-def _catch_warnings():
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", SundialsWarning)
-        yield caught
-
-
-# The warnings module's internals _RecordedWarnings relies on are those of CPython 3.11-3.13; elsewhere (3.14 keeps
-# its filters per context and renamed them) catch_warnings itself.
-_caught_warnings = (_RecordedWarnings if all(hasattr(warnings, name) for name in
-                                             ("_filters_mutated", "_showwarnmsg_impl", "_showwarning_orig"))
-                    and not getattr(sys.flags, "context_aware_warnings", False) else _catch_warnings)
 
 
 def _search_package_in(resources: str) -> None:

@@ -90,6 +90,10 @@ class BallIntegrator(IntegratorView):
 
     # integrate_grid tells it the time reached at its start and then every PROGRESS_STEPS steps or so
     progress: Callable[[float], None] | None = None
+    # Its warnings (AccuracyWarning, SundialsWarning): None issues them with warnings.warn; a list (an FMU's) holds
+    # them, appended, for its owner to pass on: a list not empty after a call is the flag that there is something to
+    # tell, read at the cost of a truth test (the warnings module's filters cost microseconds around every call).
+    held_warnings: list[Warning] | None = None
 
     def __init__(self, ball: Ball, h0: float, v0: float, t0: float = 0.0, F_ext: float = 0.0,
                  settings: CvodeSettings | None = None, expected_steps: float | None = None) -> None:
@@ -139,7 +143,10 @@ class BallIntegrator(IntegratorView):
                                                            self._machine_state), self.t, self.settings.rtol)
         if warning is not None:
             self._accuracy_warned = True
-            warn_at_caller(warning)
+            if self.held_warnings is None:
+                warn_at_caller(warning)
+            else:
+                self.held_warnings.append(warning)
 
     # --- state ---------------------------------------------------------------------------------
     def set_state(self, state: IntegratorState) -> None:
@@ -294,7 +301,11 @@ class BallIntegrator(IntegratorView):
     def _report_sundials_warnings(self) -> None:
         logs, self._unreported = self._unreported, ()
         for log in logs:
-            log.report(stacklevel=4)
+            for warning in log.new_warnings():
+                if self.held_warnings is None:
+                    warn_at_caller(warning)
+                else:
+                    self.held_warnings.append(warning)
 
 
 def _machine_failure(integrator: BallIntegrator, status: int) -> SolverError:

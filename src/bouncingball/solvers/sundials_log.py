@@ -134,10 +134,14 @@ class SundialsLog:
                 messages.append(f"{function}: {message}" if function else message)
         return messages
 
+    def new_warnings(self) -> list[SundialsWarning]:
+        """Each new cause (new_messages) as a SundialsWarning, to issue or to pass on."""
+        return [SundialsWarning(f"SUNDIALS {message}") for message in self.new_messages()]
+
     def report(self, stacklevel: int = 3) -> None:
         """Issue each new cause as a SundialsWarning."""
-        for message in self.new_messages():
-            warnings.warn(f"SUNDIALS {message}", SundialsWarning, stacklevel=stacklevel)
+        for warning in self.new_warnings():
+            warnings.warn(warning, stacklevel=stacklevel)
 
 
 def _remove(descriptor: int, path: str) -> None:
