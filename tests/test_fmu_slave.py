@@ -117,7 +117,7 @@ def test_an_accuracy_warning_reaches_the_log_once_and_the_hosts_filters_are_not_
         assert warnings.filters is filters and warnings.showwarning is show
     said = [(status, message) for status, message in slave.messages if status != _Status.ok]
     assert len(said) == 1 and said[0][0] == _Status.warning, said
-    assert "the run cannot be trusted from t = " in said[0][1] and "rtol = 0.001 is looser" in said[0][1]
+    assert "past the promise of 1e-06 from t = " in said[0][1] and "rtol = 0.001 is looser" in said[0][1]
     assert slave._warnings == [] and capfd.readouterr().err == ""
 
 

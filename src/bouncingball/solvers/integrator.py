@@ -143,10 +143,7 @@ class BallIntegrator(IntegratorView):
                                                            self._machine_state), self.t, self.settings.rtol)
         if warning is not None:
             self._accuracy_warned = True
-            if self.held_warnings is None:
-                warn_at_caller(warning)
-            else:
-                self.held_warnings.append(warning)
+            _issue(self.held_warnings, warning)
 
     # --- state ---------------------------------------------------------------------------------
     def set_state(self, state: IntegratorState) -> None:
@@ -302,10 +299,15 @@ class BallIntegrator(IntegratorView):
         logs, self._unreported = self._unreported, ()
         for log in logs:
             for warning in log.new_warnings():
-                if self.held_warnings is None:
-                    warn_at_caller(warning)
-                else:
-                    self.held_warnings.append(warning)
+                _issue(self.held_warnings, warning)
+
+
+def _issue(held: list | None, warning: Warning) -> None:
+    """warning issued at the user's line (held None), or held for the FMU slave (BallIntegrator.held_warnings)."""
+    if held is None:
+        warn_at_caller(warning)
+    else:
+        held.append(warning)
 
 
 def _machine_failure(integrator: BallIntegrator, status: int) -> SolverError:
