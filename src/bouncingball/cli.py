@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 from . import AccuracyWarning
 from .cli_parser import build_parser as _build_parser
+from .contact_laws import LAWS
 from .output import STANDARD_OUTPUT
 
 EXIT_BAD_INPUT = 2
@@ -91,7 +92,7 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
         else:
             warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
     # The Hunt-Crossley law has no exact solution to measure the run against: its own error estimate says how right.
-    judged = result.solver != "exact" and not scene.ball.hunt_crossley
+    judged = result.solver != "exact" and LAWS[scene.ball.contact].closed_form
     accuracy, exact_on_grid = accuracy_of_result(result, scene.h0, scene.v0) if judged else (None, None)
     exact = result if result.solver == "exact" else None if exact_on_grid is None else exact_on_grid.result()
 

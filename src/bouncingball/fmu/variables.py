@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..contact_laws import LAWS
 from ..solvers.settings import MIN_RTOL
 
 MODEL_NAME = "BouncingBall"
@@ -133,7 +134,7 @@ def judged_scene(scene, judge: str):
 
     Every law the FMU runs has one but Hunt and Crossley's, whose contact has no closed form.
     """
-    if fmu_scene(scene).ball.hunt_crossley:
+    if not LAWS[fmu_scene(scene).ball.contact].closed_form:
         raise ValueError(f"{judge} judges a run against the exact solution, and contact_law = 'hunt-crossley' has none "
                          "(its contact has no closed form); compare the run with bouncingball.simulate at a tight "
                          "rtol (1e-13) instead")

@@ -17,6 +17,7 @@ import numpy as np
 
 from .. import limits
 from ..contact_laws import (
+    LAWS,
     contact_event,
     free_event,
     rigid_rebound,
@@ -52,7 +53,7 @@ class ExactSolution:
     def __init__(self, ball: Ball, h0: float, v0: float, t_start: float = 0.0,
                  t_end: float = math.inf, F_ext: float | ForceTable = 0.0, max_phases: int | None = None) -> None:
         """max_phases: stop after that many phases (a count for an estimate, not a solution to t_end)."""
-        if ball.hunt_crossley:  # its contact has no closed form
+        if not LAWS[ball.contact].closed_form:  # the Hunt-Crossley contact
             raise ValueError(f"solver = 'exact' is not allowed with contact = {ball.contact!r}: the Hunt-Crossley "
                              "contact has no closed form; use cvode")
         self.ball = ball
