@@ -29,6 +29,7 @@ from .. import limits, validation
 from ..physics import Ball, Mode, unread_message, without_unread
 from ..scenes import SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
+from ..solvers.integrator import checked_start
 from ..solvers.settings import MIN_RTOL, RTOL_RANGE_WHY
 from .engine_cache import first_use
 from .variables import FMU_CONTACT_LAWS, SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES, ball_fields_of
@@ -319,16 +320,12 @@ def _read_fields(contact: str, ball_fields: dict, told: set, log, warning) -> di
 def start_outputs(ball: Ball, settings: CvodeSettings, values: dict, start_time: float) -> StartOutputs:
     """The outputs of the start values (values: the slave's), in the mode the ball starts in: the Ball's closed forms.
 
-    NO_START_OUTPUTS where initialisation would refuse a value: the checks are those BallIntegrator makes
-    of its start, without making one (its CVODE objects, and numba's engine, are not needed for them).
+    NO_START_OUTPUTS where initialisation would refuse a value: the checks are BallIntegrator's of its start
+    (checked_start), without making one (its CVODE objects, and numba's engine, are not needed for them).
     """
     try:
         h, v = validation.finite("h", values["h"], "m"), validation.finite("v", values["v"], "m/s")
-        F_ext, t0 = values["F_ext"], validation.finite("t0", start_time, "s")
-        limits.check_scene(ball, h, v, F_ext, t0)
-        limits.check_cvode_settings(ball, h, settings.atol, settings.max_step, t0)
-        check_resolvable(ball, t0)
-        F_ext = float(F_ext)
+        h, v, _, F_ext = checked_start(ball, h, v, start_time, values["F_ext"], settings)
         mode = ball.initial_mode(h, v, F_ext)
     except ValueError:
         return NO_START_OUTPUTS

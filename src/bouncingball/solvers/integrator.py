@@ -104,12 +104,8 @@ class BallIntegrator(IntegratorView):
             self.methods = {Mode.FLIGHT: "Adams", Mode.CONTACT: choose_method(ball)}
         else:
             self.methods = dict.fromkeys(Mode, s.method)
-        t0 = validation.finite("t0", t0, "s")
-        limits.check_scene(ball, h0, v0, F_ext, t0)  # each value checked and named there
-        h0, v0, F_ext = float(h0), float(v0), float(F_ext)
-        limits.check_cvode_settings(ball, h0, s.atol, s.max_step, t0)
+        h0, v0, t0, F_ext = checked_start(ball, h0, v0, t0, F_ext, s)
         self.resolvable_until = resolvable_until(ball)
-        check_resolvable(ball, t0)
         self._unreported, self._accuracy_warned = (), False  # _unreported: the SUNDIALS logs to read next
         loaded, started = engines.loaded(), time.perf_counter()
         self.engine, self.engine_reason = choose_engine(s.engine, expected_steps)
@@ -300,6 +296,16 @@ class BallIntegrator(IntegratorView):
         for log in logs:
             for warning in log.new_warnings():
                 _issue(self.held_warnings, warning)
+
+
+def checked_start(ball: Ball, h0, v0, t0, F_ext, settings: CvodeSettings) -> tuple[float, float, float, float]:
+    """(h0, v0, t0, F_ext) as floats, each checked as BallIntegrator checks its start; ValueError names a bad one."""
+    t0 = validation.finite("t0", t0, "s")
+    limits.check_scene(ball, h0, v0, F_ext, t0)  # each value checked and named there
+    h0, v0, F_ext = float(h0), float(v0), float(F_ext)
+    limits.check_cvode_settings(ball, h0, settings.atol, settings.max_step, t0)
+    check_resolvable(ball, t0)
+    return h0, v0, t0, F_ext
 
 
 def _issue(held: list | None, warning: Warning) -> None:
