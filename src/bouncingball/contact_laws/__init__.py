@@ -67,6 +67,7 @@ from .hunt_crossley import (
     release_speed,
 )
 from .hunt_crossley import contact_roots as hunt_crossley_contact_roots
+from .hunt_crossley import step_transition as hunt_crossley_step_transition
 from .linear import contact_scales as linear_contact_scales
 from .linear import contact_unresolved
 from .linear import decide_contact as linear_decide_contact
@@ -91,15 +92,16 @@ from .rigid import departure_time as rigid_departure_time
 __all__ = [
     "BY_CVODE", "BallParameters", "CONTACT_LAWS", "CONTACT_PARAMETERS", "ContactLaw", "HC_N_RANGE", "HUNT_CROSSLEY",
     "IN_CLOSED_FORM", "LAWS", "LAW_PARAMETERS", "LINEAR", "MIN_PHASE_SCALE", "NO_PULL", "REST", "RIGID",
-    "SOFT_CONTACT_CAP", "ZENO_APEX", "conserved_speed", "contact_event", "contact_scales", "contact_unresolved",
-    "decide_contact", "departure_speed", "departure_time", "free_event", "free_gap_rate", "has_free_sub_mode",
+    "SOFT_CONTACT_CAP", "ZENO_APEX", "conserved_speed", "contact_ends_in", "contact_event", "contact_integrated",
+    "contact_scales", "contact_step_transition", "contact_unresolved", "decide_contact", "departure_speed",
+    "departure_time", "free_event", "free_gap_rate", "has_free_sub_mode", "has_pressed_gap",
     "hunt_crossley_acceleration", "hunt_crossley_force", "hunt_crossley_free_event", "hunt_crossley_hop_tolerance",
     "hunt_crossley_jacobian", "hunt_crossley_partials", "hunt_crossley_rest_depth", "hunt_crossley_rest_margin",
-    "hunt_crossley_scales", "hunt_crossley_state", "hunt_crossley_static_deflection", "jacobian_varies",
-    "law_acceleration", "law_flow_value", "law_interpolant", "law_rest_margin", "no_pull_rest_margin_value",
-    "own_interpolant", "polish_flow_mode", "pressed_gap", "release_speed", "release_state", "release_time",
-    "rigid_rebound", "rigid_rebound_above", "root_values", "starts_free", "summed_bounce_state", "time_to_impact",
-    "varying_jacobian",
+    "hunt_crossley_scales", "hunt_crossley_state", "hunt_crossley_static_deflection", "impact_is_instantaneous",
+    "jacobian_varies", "law_acceleration", "law_flow_value", "law_interpolant", "law_rest_margin",
+    "no_pull_rest_margin_value", "own_interpolant", "polish_flow_mode", "pressed_gap", "release_speed", "release_state",
+    "release_time", "reported_rest_margin", "rigid_rebound", "rigid_rebound_above", "root_release_speed", "root_values",
+    "side_extreme", "starts_free", "summed_bounce_state", "third_root_releases", "time_to_impact", "varying_jacobian",
 ]
 
 
@@ -311,3 +313,69 @@ def root_values(y0, y1, mode, length, speed, load, own_side, hop, k, m, b, law, 
     d = load / k
     rest = rest_margin_value(length * y0, speed * y1, d, hop, k / m) if mode == CONTACT and d > 0.0 else -1.0
     return y0 if y0 != 0.0 else own_side, y1 if mode == CONTACT or load != 0.0 else 1.0, rest
+
+
+def contact_integrated(parameters):
+    """Whether the law's pressed contact has no closed form (rule 3): CVODE integrates every one.
+
+    The phase machine then carries its error step by step (contact_step_transition, in error_estimate's
+    ellipses) and only reports its rest (reported_rest_margin): no closed form takes the ball on from there.
+    """
+    return parameters.law == HUNT_CROSSLEY
+
+
+def contact_step_transition(parameters, load, t0, x0, v0, t1, x1, v1, t):
+    """(p00, p01, p10, p11): the transition matrix of (x, v) over an integrated contact's step from t0 to t <= t1."""
+    return hunt_crossley_step_transition(parameters, load, t0, x0, v0, t1, x1, v1, t)
+
+
+def reported_rest_margin(parameters, x, v, load, hop):
+    """An integrated contact's rest margin at (x [m], v [m/s]): positive where the ball is at rest (within hop [m])."""
+    return hunt_crossley_rest_margin(x, v, load, parameters.m, parameters.k, parameters.n, hop)
+
+
+def contact_ends_in(parameters):
+    """The event kind of a pressed contact's terminal root (root_values' first): DEPARTURE on R, or RELEASE.
+
+    The no-pull law's pressed contact ends where its force would pull (its pressed gap z = 0), below R.
+    """
+    return RELEASE if parameters.law == NO_PULL else DEPARTURE
+
+
+def side_extreme(parameters, mode, x, v):
+    """The extreme, over step ends (arrays x [m], v [m/s]) in mode, of what must keep the phase's side of its event.
+
+    The gap's least in flight (>= 0), its largest in contact (<= 0); in the no-pull law's pressed contact the
+    largest pressed gap z = x + (b / k) v = -force / k, which a missed release leaves above 0.
+    """
+    if mode == FLIGHT:
+        return x.min()
+    if parameters.law == NO_PULL:
+        return (x + (parameters.b / parameters.k) * v).max()
+    return x.max()
+
+
+def third_root_releases(parameters, mode):
+    """Whether root_values' third root in mode is a release (the Hunt-Crossley force's clip engaging), not a rest.
+
+    Found where CVODE located it (no closed form to polish it on), at root_release_speed exactly.
+    """
+    return mode == CONTACT and parameters.law == HUNT_CROSSLEY
+
+
+def root_release_speed(parameters):
+    """v [m/s] at a release found by the third root (third_root_releases): the speed where the force would pull."""
+    return release_speed(parameters.alpha)
+
+
+def impact_is_instantaneous(parameters):
+    """Whether an impact is a jump of v on R with no contact phase after it (rigid_rebound), not a compliant contact."""
+    return parameters.law == RIGID
+
+
+def has_pressed_gap(parameters):
+    """Whether the contact below R switches between pressed and free where its pressed gap z crosses 0 (pressed_gap).
+
+    The no-pull law's (with b > 0: with b = 0 its force is the linear law's, never pulling, and its code LINEAR).
+    """
+    return parameters.law == NO_PULL

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+from ..oscillator import oscillator_basis
 from .common import SOFT_CONTACT_CAP
 
 # The Hunt-Crossley law's exponent n: 1 (a linear spring) .. 2.5 (beyond Hertz's 1.5 for spheres, as fitted
@@ -177,3 +178,20 @@ def hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t):
     x = b0 * x0 + b1 * v0 + b2 * a0 + b3 * x1 + b4 * v1 + b5 * a1
     v = b0 * v0 + b1 * a0 + b2 * j0 + b3 * v1 + b4 * a1 + b5 * j1
     return x, v
+
+
+def step_transition(parameters, load, t0, x0, v0, t1, x1, v1, t):
+    """(p00, p01, p10, p11): the transition matrix of (x, v) over a pressed contact's step, from t0 to t <= t1.
+
+    The contact's equation linearised at the state halfway (its interpolant, hunt_crossley_state): the
+    oscillator x'' + 2 sigma x' + w2 x = 0 with sigma = -a_v / 2 and w2 = -a_x (hunt_crossley_partials, both >= 0
+    pressed), whose flow of the unit vectors is exact (oscillator.oscillator_basis). Second order in the step: the
+    error it carries is first order itself, so a few per cent on it are within the estimate's safety factor.
+    """
+    m, k, n, alpha = parameters.m, parameters.k, parameters.n, parameters.alpha
+    tau = t - t0
+    xm, vm = hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t0 + 0.5 * tau)
+    a_x, a_v = hunt_crossley_partials(xm, vm, load, m, k, n, alpha)
+    sigma, w2 = max(-0.5 * a_v, 0.0), max(-a_x, 0.0)
+    c, s = oscillator_basis(sigma, w2, tau)
+    return c + sigma * s, s, -w2 * s, c - sigma * s

@@ -20,7 +20,7 @@ from pythonfmu3.enums import Fmi3Causality, Fmi3Initial, Fmi3Status, Fmi3Variabi
 from pythonfmu3.modelexchange import ModelExchange
 
 from .. import validation
-from ..contact_laws import NO_PULL, free_gap_rate, pressed_gap, rigid_rebound_above
+from ..contact_laws import free_gap_rate, has_pressed_gap, pressed_gap, rigid_rebound_above
 from ..equations import load_value
 from ..physics import Ball, Mode, clipped_contact_mode
 from ..solvers.phases import phase_scales
@@ -112,7 +112,7 @@ def switched_mode(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> M
     if mode == Mode.FLIGHT:
         return Mode.CONTACT if down else None
     parameters = ball.parameters
-    if parameters.law != NO_PULL:
+    if not has_pressed_gap(parameters):
         return Mode.FLIGHT if up else None
     load = load_value(F_ext, ball.m, ball.g)
     if mode == Mode.CONTACT:

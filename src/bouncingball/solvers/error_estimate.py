@@ -7,12 +7,13 @@ unit vectors under no load) and, at an impact or departure, by the saltation mat
 jump there (-+ b/m: no 1/v). The functions are plain Python over floats and the machine's state
 (layout.py), run interpreted and compiled alike (machine.py calls them at each phase's end).
 
-The Hunt-Crossley law's contact has no closed form to measure CVODE's error against. There the error is
+A contact the law integrates (contact_laws.contact_integrated: the Hunt-Crossley law's) has no closed form to
+measure CVODE's error against. There the error is
 bounded instead by what CVODE's error test let through: each step's local error lies in the ellipse its test
 holds it in (_contact_step), and the error the step started with is carried by the step's
-transition matrix (the contact's equation linearised on the step). The error of (x, v) is then a set, carried
+transition matrix (the law's contact_step_transition). The error of (x, v) is then a set, carried
 as such through every phase of the run: the sum of two ellipses, the errors from before the last contact and
-that contact's own (hunt_crossley_errors). The flights' and free spells' own errors are measured as for the
+that contact's own (_carried_ellipses). The flights' and free spells' own errors are measured as for the
 other laws, and added to the second.
 """
 
@@ -21,8 +22,7 @@ from __future__ import annotations
 import math
 
 from ..codes import CONTACT, FLIGHT
-from ..contact_laws import HUNT_CROSSLEY, hunt_crossley_partials, hunt_crossley_state, law_flow_value
-from ..oscillator import oscillator_basis
+from ..contact_laws import contact_integrated, contact_step_transition, law_flow_value
 from ..rounding import hypot
 from .phases import frame
 from .settings import ERROR_WITHIN_PHASE, ESTIMATE_CAP, ESTIMATE_SAFETY, LOCAL_ERROR_SAFETY, PROMISE
@@ -31,49 +31,61 @@ _EPS = 2.0**-52
 
 
 def phase_error(parameters, rtol, atol, state):
-    """(ex, ev, rho, bound, height): the run's error of (x [m], v [m/s]) at the state, and bounds since the restart.
+    """(ax, av, a_rho, bx, bv, b_rho, bound, height): the run's error of (x, v) at the state, bounds since the restart.
 
-    rho: under the Hunt-Crossley law the errors are an ellipse, ex and ev its half-widths, rho its correlation
-    (hunt_crossley_errors: the first of its two); 0.0 under the other laws, whose ex and ev are the errors themselves.
+    ax [m], av [m/s]: the error of (x, v) itself (signed), and bx = bv = a_rho = b_rho = 0.0, where each phase
+    has a closed form (_carried_error); where the law's contact is integrated (contact_laws.contact_integrated),
+    the error lies in the sum of two ellipses a and b, of those half-widths and correlations (_carried_ellipses).
 
     bound: on |h - h_true| [m] over the phase from the restart point to the state; height: the phase's
-    height scale max(|h|, R) [m] (a flight's apex, or the state's height).
-
-    Each phase's flow is exact in closed form and affine in its start state, so its own error is
-    measured, not guessed: the state against the exact flow from the phase's start (CVODE's error
-    over the phase, the polish's). The error the start carried is propagated by the flow's
-    transition matrix (the flow of the unit vectors under no load). Over the phase, |h - h_true|
-    is at most the carried error's (at the ends of a flight; in contact its energy, which never
-    grows) plus the phase's own: CVODE's inside the phase, which is only measured at its end,
-    counted as ERROR_WITHIN_PHASE rtol its length scale; and the hop tolerance in contact, the hops
-    it may merge.
+    height scale max(|h|, R) [m] (a flight's apex, or the state's height). |h - h_true| over the phase is
+    at most the carried error's (at the ends of a flight; in a closed-form contact its energy, which never
+    grows) plus the phase's own: CVODE's inside the phase, which is only measured at its end, counted as
+    ERROR_WITHIN_PHASE rtol its length scale; and the hop tolerance in contact, the hops it may merge.
     """
-    m, k, R = parameters.m, parameters.k, parameters.R
-    if parameters.law == HUNT_CROSSLEY:
-        ax, av, a_rho, _, _, _, bound, height = hunt_crossley_errors(parameters, rtol, atol, state)
-        return ax, av, a_rho, bound, height
-    mode, load = int(state.rs_mode), state.load
-    x0, v0, ex0, ev0 = state.rs_x, state.rs_v, state.err_x, state.err_v
+    R, mode, load, x0 = parameters.R, int(state.rs_mode), state.load, state.rs_x
+    length, _ = frame(parameters, mode, x0, state.rs_v, load, rtol, atol)
+    own = ERROR_WITHIN_PHASE * rtol * length + 8.0 * _EPS * (abs(x0) + length + R)
+    height = max(R, abs(R + state.x))
+    if mode == CONTACT:
+        own += state.hop
+    elif mode == FLIGHT:
+        height = max(height, R + length)  # the apex
+    if contact_integrated(parameters):
+        ax, av, a_rho, bx, bv, b_rho, carried = _carried_ellipses(parameters, rtol, state, mode, load)
+    else:
+        ax, av, carried = _carried_error(parameters, state, mode, load)
+        a_rho, bx, bv, b_rho = 0.0, 0.0, 0.0, 0.0
+    bound = ESTIMATE_SAFETY * (carried + own)
+    # an error grown past double precision (inf, then nan) is no error to drop: it is the run lost
+    return ax, av, a_rho, bx, bv, b_rho, bound if bound < math.inf else math.inf, height
+
+
+def _flow_error(parameters, state, mode, load):
+    """(p00, p01, p10, p11, dx, dv): the phase's transition matrix, and the state's offset from its exact flow."""
+    x0, v0 = state.rs_x, state.rs_v
     tau = (state.t - state.rs_t) + (state.t_low - state.rs_t_low)
     x_flow, v_flow = law_flow_value(parameters, mode, x0, v0, tau, load)
     p00, p10 = law_flow_value(parameters, mode, 1.0, 0.0, tau, 0.0)
     p01, p11 = law_flow_value(parameters, mode, 0.0, 1.0, tau, 0.0)
-    ex = p00 * ex0 + p01 * ev0 + (state.x - x_flow)
-    ev = p10 * ex0 + p11 * ev0 + (state.v - v_flow)
-    length, _ = frame(parameters, mode, x0, v0, load, rtol, atol)
-    own = ERROR_WITHIN_PHASE * rtol * length + 8.0 * _EPS * (abs(x0) + length + R)
-    height = max(R, abs(R + state.x))
-    if mode == FLIGHT:
-        carried = max(abs(ex0), abs(ex))
-        height = max(height, R + length)  # the apex
-    elif mode != CONTACT:  # the no-pull law's free sub-mode below R: x's error, ex0 + tau ev0, is largest at an end
-        carried = max(abs(ex0), abs(ex))
-    else:
-        carried = max(hypot(ex0, ev0 / math.sqrt(k / m)), abs(ex))
-        own += state.hop
-    bound = ESTIMATE_SAFETY * (carried + own)
-    # an error grown past double precision (inf, then nan) is no error to drop: it is the run lost
-    return ex, ev, 0.0, bound if bound < math.inf else math.inf, height
+    return p00, p01, p10, p11, state.x - x_flow, state.v - v_flow
+
+
+def _carried_error(parameters, state, mode, load):
+    """(ex [m], ev [m/s], carried [m]): the error of (x, v) at the state, where every phase has a closed form.
+
+    Its flow is affine in its start state, so the phase's own error is measured, not guessed: the state against
+    the exact flow from the phase's start (CVODE's error over the phase, the polish's); the error the start
+    carried is propagated by the flow's transition matrix (the flow of the unit vectors under no load).
+    carried: the largest |error of x| over the phase, at an end of a parabola, or bounded by a contact's energy.
+    """
+    ex0, ev0 = state.err_x, state.err_v
+    p00, p01, p10, p11, dx, dv = _flow_error(parameters, state, mode, load)
+    ex = p00 * ex0 + p01 * ev0 + dx
+    ev = p10 * ex0 + p11 * ev0 + dv
+    if mode == CONTACT:
+        return ex, ev, max(hypot(ex0, ev0 / math.sqrt(parameters.k / parameters.m)), abs(ex))
+    return ex, ev, max(abs(ex0), abs(ex))  # a flight, or the no-pull law's free sub-mode below R
 
 
 def _untrusted_from(estimate, scale, since, phase_start):
@@ -89,7 +101,7 @@ def run_estimate(parameters, rtol, atol, state):
     scale: the height scale max(|h|, R) [m]; from: the start of the first phase past PROMISE of it
     (NaN: none).
     """
-    _, _, _, bound, height = phase_error(parameters, rtol, atol, state)
+    bound, height = phase_error(parameters, rtol, atol, state)[6:]
     scale, estimate = max(state.scale, height), max(state.err_max, bound)
     since = _untrusted_from(estimate, scale, state.err_from, state.rs_t)
     # past the range of the motion an estimate says nothing more (amplifications of 1e40 were measured)
@@ -108,21 +120,20 @@ def carry_error(parameters, rtol, atol, state, jump, reflection):
     + jump dx, with no 1/v (and 0 at the no-pull law's switches below R, where the force is 0 on either
     side, and at its departures from the free sub-mode). A rigid impact reverses the velocity, v+ = -e v-:
     reflection -e and jump -(1 + e) g_eff / v- (contact_laws.rigid_rebound's caller), or both 0 where the ball
-    stays on R.
+    stays on R. An integrated contact's force is 0 on R: its events keep the state and the field, no saltation.
     """
-    if parameters.law == HUNT_CROSSLEY:  # its events keep the state and the field (its force is 0 there): no saltation
-        ax, av, a_rho, bx, bv, b_rho, bound, height = hunt_crossley_errors(parameters, rtol, atol, state)
+    ax, av, a_rho, bx, bv, b_rho, bound, height = phase_error(parameters, rtol, atol, state)
+    state.scale, state.err_max = max(state.scale, height), max(state.err_max, bound)
+    state.err_from = _untrusted_from(state.err_max, state.scale, state.err_from, state.rs_t)
+    if contact_integrated(parameters):
         state.err_x, state.err_v, state.err_xv = ax, av, a_rho
         state.err2_x, state.err2_v, state.err2_xv = bx, bv, b_rho
     else:
-        ex, ev, _, bound, height = phase_error(parameters, rtol, atol, state)
-    state.scale, state.err_max = max(state.scale, height), max(state.err_max, bound)
-    state.err_from = _untrusted_from(state.err_max, state.scale, state.err_from, state.rs_t)
-    if parameters.law != HUNT_CROSSLEY:
-        state.err_x, state.err_v = reflection * ex, reflection * ev + jump * ex
+        state.err_x, state.err_v = reflection * ax, reflection * av + jump * ax
 
 
-# --- the Hunt-Crossley law: the error as an ellipse {e : e^T P^-1 e <= 1} of (x, v), P = [[p00, p01], [p01, p11]] ---
+# --- an integrated contact (contact_laws.contact_integrated): the error as ellipses {e : e^T P^-1 e <= 1} of (x, v),
+# P = [[p00, p01], [p01, p11]]
 def ellipse_sum(a00, a01, a11, b00, b01, b11):
     """An ellipse holding the Minkowski sum of the ellipses A and B: (1 + p) A + (1 + 1/p) B, p = sqrt(tr B / tr A).
 
@@ -157,25 +168,8 @@ def widths_of(p00, p01, p11):
     return ex, ev, min(max(rho, -1.0), 1.0)
 
 
-def hunt_crossley_transition(parameters, load, t0, x0, v0, t1, x1, v1, t):
-    """(p00, p01, p10, p11): the transition matrix of (x, v) over a Hunt-Crossley contact's step, from t0 to t <= t1.
-
-    The contact's equation linearised at the state halfway (its interpolant, contact_laws.hunt_crossley_state):
-    the oscillator x'' + 2 sigma x' + w2 x = 0 with sigma = -a_v / 2 and w2 = -a_x (contact_laws.hunt_crossley_partials,
-    both >= 0 pressed), whose flow of the unit vectors is exact (oscillator.oscillator_basis). Second order in the
-    step: the error it carries is first order itself, so a few per cent on it are within ESTIMATE_SAFETY.
-    """
-    m, k, n, alpha = parameters.m, parameters.k, parameters.n, parameters.alpha
-    tau = t - t0
-    xm, vm = hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t0 + 0.5 * tau)
-    a_x, a_v = hunt_crossley_partials(xm, vm, load, m, k, n, alpha)
-    sigma, w2 = max(-0.5 * a_v, 0.0), max(-a_x, 0.0)
-    c, s = oscillator_basis(sigma, w2, tau)
-    return c + sigma * s, s, -w2 * s, c - sigma * s
-
-
 def start_contact_ellipses(state):
-    """A Hunt-Crossley contact CVODE starts in its frame (length, speed): the restart point's two ellipses are one.
+    """An integrated contact CVODE starts in its frame (length, speed): the restart point's two ellipses are one.
 
     Its own error (the second) starts at 0. Merged here, after a flight that sheared both alike.
     """
@@ -194,12 +188,12 @@ def _contact_step(parameters, load, rtol, length, speed, t0, x0, v0, t1, x1, v1,
     """The two ellipses at t in a contact's step from t0 to t1, from (a, b) at t0, in the phase's frame.
 
     In the frame (x / length, v / speed), where CVODE integrates with rtol = atol: both carried by the step's
-    transition matrix (hunt_crossley_transition), and b plus the step's local error. CVODE's error test passes a
-    step whose estimated local error e has the weighted RMS norm sqrt((e0^2 / w0^2 + e1^2 / w1^2) / 2) <= 1, with
-    the weights w = rtol (|y| + 1) at the step's start: the ellipse diag(2 w0^2, 2 w1^2), taken LOCAL_ERROR_SAFETY
-    times (the test judges an estimate of the error, not the error).
+    transition matrix (contact_laws.contact_step_transition), and b plus the step's local error. CVODE's error test
+    passes a step whose estimated local error e has the weighted RMS norm sqrt((e0^2 / w0^2 + e1^2 / w1^2) / 2)
+    <= 1, with the weights w = rtol (|y| + 1) at the step's start: the ellipse diag(2 w0^2, 2 w1^2), taken
+    LOCAL_ERROR_SAFETY times (the test judges an estimate of the error, not the error).
     """
-    p00, p01, p10, p11 = hunt_crossley_transition(parameters, load, t0, x0, v0, t1, x1, v1, t)
+    p00, p01, p10, p11 = contact_step_transition(parameters, load, t0, x0, v0, t1, x1, v1, t)
     ratio = speed / length
     a00, a01, a11 = ellipse_image(p00, p01 * ratio, p10 / ratio, p11, a00, a01, a11)
     b00, b01, b11 = ellipse_image(p00, p01 * ratio, p10 / ratio, p11, b00, b01, b11)
@@ -235,66 +229,64 @@ def contact_steps_ellipse(parameters, rtol, state, rows, count):
     state.hc_xmax = largest
 
 
-def hunt_crossley_errors(parameters, rtol, atol, state):
-    """phase_error under the Hunt-Crossley law: (ax, av, a_rho, bx, bv, b_rho, bound, height).
+def _carried_ellipses(parameters, rtol, state, mode, load):
+    """(ax, av, a_rho, bx, bv, b_rho, carried [m]): phase_error's two ellipses, where the contact is integrated.
 
     The run's error of (x, v) at the state lies in the sum of two ellipses (half-widths [m, m/s] and correlation):
     a, the errors from before the last contact, and b, the last contact's own (and the phases' after it).
     Kept apart, each is carried by the phases' transition matrices exactly; only b grows by each step's local
     error, and they are merged once per contact (start_contact_ellipses), after a flight sheared both alike: a
-    sum of two ellipses held in one is wider than theirs where they differ in shape.
-
-    A contact's are those carried over CVODE's steps (contact_steps_ellipse); inside the kept last step (a target
-    the stepping API reached on its interpolant) they are carried there from the step's start, with the step's
-    local error twice (the interpolant's own, sixth order, below it). |h - h_true| over the contact is at most the
-    largest x half-width at its step ends, plus ERROR_WITHIN_PHASE rtol its length between them and the hop
-    tolerance. A flight or a free spell (parabolas, exact) carries both by its transition matrix and adds its own
-    error to b, measured against the exact flow from its start as under the other laws.
+    sum of two ellipses held in one is wider than theirs where they differ in shape. carried: the largest x
+    half-width of their sum over the phase.
     """
-    R, mode, load = parameters.R, int(state.rs_mode), state.load
-    x0, v0 = state.rs_x, state.rs_v
     ax, av, a_rho = abs(state.err_x), abs(state.err_v), state.err_xv
     bx, bv, b_rho = abs(state.err2_x), abs(state.err2_v), state.err2_xv
-    length, _ = frame(parameters, mode, x0, v0, load, rtol, atol)
-    own = ERROR_WITHIN_PHASE * rtol * length + 8.0 * _EPS * (abs(x0) + length + R)
-    height = max(R, abs(R + state.x))
-    carried = ax + bx
     if mode == CONTACT:
-        own += state.hop
-        if state.needs_init == 0.0:  # CVODE has started it (else: the restart point's)
-            sx, sv = state.length, state.speed
-            a00, a01, a11 = state.hc_a00, state.hc_a01, state.hc_a11
-            b00, b01, b11 = state.hc_b00, state.hc_b01, state.hc_b11
-            if state.t < state.step_t:
-                a00, a01, a11, b00, b01, b11 = _contact_step(
-                    parameters, load, 2.0 * rtol, sx, sv, state.seg_t0, state.seg_x0, state.seg_v0, state.seg_t1,
-                    state.seg_x1, state.seg_v1, state.t, state.hc_qa00, state.hc_qa01, state.hc_qa11,
-                    state.hc_qb00, state.hc_qb01, state.hc_qb11)
-            ax, av, a_rho = widths_of(a00, a01, a11)
-            bx, bv, b_rho = widths_of(b00, b01, b11)
-            ax, av, bx, bv = ax * sx, av * sv, bx * sx, bv * sv
-            carried = max(state.hc_xmax, ax + bx)
-    else:
-        tau = (state.t - state.rs_t) + (state.t_low - state.rs_t_low)
-        x_flow, v_flow = law_flow_value(parameters, mode, x0, v0, tau, load)
-        p00, p10 = law_flow_value(parameters, mode, 1.0, 0.0, tau, 0.0)
-        p01, p11 = law_flow_value(parameters, mode, 0.0, 1.0, tau, 0.0)
-        dx, dv = state.x - x_flow, state.v - v_flow
-        # in a frame where the errors are of order 1 (any frame holds the same sets; this one keeps their digits)
-        sx, sv = max(ax, bx, abs(dx)), max(av, bv, abs(dv))
-        sx, sv = sx if sx > 0.0 else 1.0, sv if sv > 0.0 else 1.0
-        q01, q10 = p01 * (sv / sx), p10 * (sx / sv)
-        a00, a01, a11 = ellipse_of(ax / sx, av / sv, a_rho)
-        a00, a01, a11 = ellipse_image(p00, q01, q10, p11, a00, a01, a11)
-        ax, av, a_rho = widths_of(a00, a01, a11)
-        b00, b01, b11 = ellipse_of(bx / sx, bv / sv, b_rho)
-        b00, b01, b11 = ellipse_image(p00, q01, q10, p11, b00, b01, b11)
-        dx, dv = dx / sx, dv / sv
-        b00, b01, b11 = ellipse_sum(b00, b01, b11, dx * dx, dx * dv, dv * dv)
-        bx, bv, b_rho = widths_of(b00, b01, b11)
-        ax, av, bx, bv = ax * sx, av * sv, bx * sx, bv * sv
-        carried = max(carried, ax + bx)  # x's half-widths are convex in the time along a parabola: largest at an end
-        if mode == FLIGHT:
-            height = max(height, R + length)  # the apex
-    bound = ESTIMATE_SAFETY * (carried + own)
-    return ax, av, a_rho, bx, bv, b_rho, bound if bound < math.inf else math.inf, height
+        if state.needs_init != 0.0:  # CVODE has not started it: the restart point's
+            return ax, av, a_rho, bx, bv, b_rho, ax + bx
+        return _contact_ellipses(parameters, rtol, state, load)
+    return _phase_ellipses(parameters, state, mode, load, ax, av, a_rho, bx, bv, b_rho)
+
+
+def _contact_ellipses(parameters, rtol, state, load):
+    """_carried_ellipses in a contact CVODE integrates: those carried over its steps (contact_steps_ellipse).
+
+    Inside the kept last step (a target the stepping API reached on its interpolant) they are carried there from
+    the step's start, with the step's local error twice (the interpolant's own, sixth order, below it).
+    """
+    sx, sv = state.length, state.speed
+    a00, a01, a11 = state.hc_a00, state.hc_a01, state.hc_a11
+    b00, b01, b11 = state.hc_b00, state.hc_b01, state.hc_b11
+    if state.t < state.step_t:
+        a00, a01, a11, b00, b01, b11 = _contact_step(
+            parameters, load, 2.0 * rtol, sx, sv, state.seg_t0, state.seg_x0, state.seg_v0, state.seg_t1,
+            state.seg_x1, state.seg_v1, state.t, state.hc_qa00, state.hc_qa01, state.hc_qa11,
+            state.hc_qb00, state.hc_qb01, state.hc_qb11)
+    ax, av, a_rho = widths_of(a00, a01, a11)
+    bx, bv, b_rho = widths_of(b00, b01, b11)
+    ax, av, bx, bv = ax * sx, av * sv, bx * sx, bv * sv
+    return ax, av, a_rho, bx, bv, b_rho, max(state.hc_xmax, ax + bx)
+
+
+def _phase_ellipses(parameters, state, mode, load, ax, av, a_rho, bx, bv, b_rho):
+    """_carried_ellipses over a flight or a free spell (parabolas, exact): both carried by its transition matrix.
+
+    Its own error, measured against the exact flow from its start as under the closed-form laws, is added to b.
+    """
+    p00, p01, p10, p11, dx, dv = _flow_error(parameters, state, mode, load)
+    # in a frame where the errors are of order 1 (any frame holds the same sets; this one keeps their digits)
+    sx, sv = max(ax, bx, abs(dx)), max(av, bv, abs(dv))
+    sx, sv = sx if sx > 0.0 else 1.0, sv if sv > 0.0 else 1.0
+    q01, q10 = p01 * (sv / sx), p10 * (sx / sv)
+    carried = ax + bx
+    a00, a01, a11 = ellipse_of(ax / sx, av / sv, a_rho)
+    a00, a01, a11 = ellipse_image(p00, q01, q10, p11, a00, a01, a11)
+    ax, av, a_rho = widths_of(a00, a01, a11)
+    b00, b01, b11 = ellipse_of(bx / sx, bv / sv, b_rho)
+    b00, b01, b11 = ellipse_image(p00, q01, q10, p11, b00, b01, b11)
+    dx, dv = dx / sx, dv / sv
+    b00, b01, b11 = ellipse_sum(b00, b01, b11, dx * dx, dx * dv, dv * dv)
+    bx, bv, b_rho = widths_of(b00, b01, b11)
+    ax, av, bx, bv = ax * sx, av * sv, bx * sx, bv * sv
+    # x's half-widths are convex in the time along a parabola: largest at an end
+    return ax, av, a_rho, bx, bv, b_rho, max(carried, ax + bx)

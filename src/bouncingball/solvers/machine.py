@@ -24,7 +24,16 @@ import math
 import numpy as np
 
 from ..codes import CONTACT, DEPARTURE, FLIGHT, FREE, IMPACT, RELEASE
-from ..contact_laws import HUNT_CROSSLEY, NO_PULL, RIGID, hunt_crossley_rest_margin, release_speed, rigid_rebound
+from ..contact_laws import (
+    contact_ends_in,
+    contact_integrated,
+    impact_is_instantaneous,
+    reported_rest_margin,
+    rigid_rebound,
+    root_release_speed,
+    side_extreme,
+    third_root_releases,
+)
 from ..rounding import later
 from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, CV_ROOT_RETURN, engine_exceeded, engine_start, engine_steps
@@ -80,7 +89,6 @@ def closed_form_phase(state, tau, x_event, v_event, kind):
 def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     """CVODE's next steps in the phase at the state, both drivers' one phase routine; (status, rows, count).
 
-    Where the phase starts (state.needs_init), CVODE restarts in its frame (phases.frame), from the state.
     t_stop: the stop time [s] of a grid run, whose steps run to it or to the phase's terminal root
     (or until the engine's buffer is full: call again); inf for advance, which takes one step aimed
     STEP_HORIZON past the last step's start. rows[:count]: the step ends (t, x, v), each an ulp-true
@@ -88,76 +96,116 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     output); a terminal root's is polished onto R and kept pending (the event to take), a rest root's
     starts the rest (rest_*). status: DONE, or a failure (fail_*): CVODE's, or STEPPED_OVER where a
     step end lies on the other side of R beyond side_margin (an event stepped over).
+
+    Its jobs, in order: restart CVODE where the phase starts (_start_phase); take its steps (engine_steps); the
+    event a root ends them on (_root_event); the steps into the world's frame, the event's row its polished
+    state (_world_rows); the side check (_stepped_over); the law's bookkeeping over an integrated contact's
+    steps (_integrated_contact_steps); the steps counted and the last one kept (_keep_last_step).
     """
-    mode, load, hop = int(state.mode), state.load, state.hop
-    one_step = math.isinf(t_stop)
+    mode, one_step = int(state.mode), math.isinf(t_stop)
     if state.needs_init != 0.0:
-        length, speed = frame(parameters, mode, state.x, state.v, load, rtol, atol)
-        state.origin, state.length, state.speed, state.origin_low = state.t, length, speed, state.t_low
-        flag = engine_start(engine, mode, t_stop - state.t, state.x / length, state.v / speed, length, speed, hop,
-                            load)
+        flag = _start_phase(engine, parameters, rtol, atol, state, mode, t_stop)
         if flag < 0:
             state.fail_t, state.fail_x, state.fail_flag = state.t, state.x, flag
             return CVODE_FAILED, scratch, 0
-        state.needs_init = 0.0
-        state.step_t, state.step_x, state.step_v = state.t, state.x, state.v
-        if parameters.law == HUNT_CROSSLEY and mode == CONTACT:
-            start_contact_ellipses(state)
-    origin, length, speed = state.origin, state.length, state.speed
-    tau_before = state.step_t - origin
+    tau_before = state.step_t - state.origin
     flag, count, rows, gap_root, rest_root, rhs_calls = engine_steps(
-        engine, mode, scratch, tau_before + STEP_HORIZON if one_step else t_stop - origin, one_step)
+        engine, mode, scratch, tau_before + STEP_HORIZON if one_step else t_stop - state.origin, one_step)
     if flag < 0:  # a grid run's phase is reported at its start, where its state is, whichever engine ran it
-        state.fail_t = (origin + rows[count - 1, 0] if count > 0 else state.step_t) if one_step else origin
+        state.fail_t = (state.origin + rows[count - 1, 0] if count > 0 else state.step_t) if one_step \
+            else state.origin
         state.fail_x, state.fail_flag = state.step_x if one_step else state.x, flag
         return TOO_MANY_STEPS if engine_exceeded(engine, mode) else CVODE_FAILED, rows, 0
     state.nfev = rhs_calls
-    last = count - 1
-    no_pull = parameters.law == NO_PULL and mode == CONTACT  # a pressed contact: its event is the release
-    # A Hunt-Crossley contact's third root is its release (the force's clip engaging), taken where CVODE located
-    # it (no closed form to polish on), at the release speed exactly; a departure on the same step comes first.
-    hc_release = parameters.law == HUNT_CROSSLEY and mode == CONTACT and rest_root != 0 and gap_root == 0
-    if hc_release:
-        state.pending, state.pend_v, state.pend_kind = 1.0, release_speed(parameters.alpha), RELEASE
+    released = rest_root != 0 and gap_root == 0 and third_root_releases(parameters, mode)
+    if released:
+        rest_root = 0
+    ends_in_event = gap_root != 0 or released
+    _root_event(parameters, state, mode, rows, count, tau_before, gap_root != 0, released)
+    _world_rows(state, rows, count, t_stop, flag, ends_in_event)
+    checked = count - 1 if ends_in_event else count  # the event's row is on R (or, a release, below it)
+    if checked > 0 and _stepped_over(parameters, rtol, state, mode, rows, checked):
+        return STEPPED_OVER, rows, 0
+    if mode == CONTACT and contact_integrated(parameters):
+        _integrated_contact_steps(parameters, rtol, state, rows, count)
+    # A root of the extremum function alone ends no CVODE step (one_step returns at it): not counted.
+    state.steps += count - 1 if flag == CV_ROOT_RETURN and not ends_in_event and rest_root == 0 else count
+    _keep_last_step(state, mode, rows, count)
+    if rest_root != 0:
+        state.rest_t, state.rest_x, state.rest_v = rows[count - 1, 0], rows[count - 1, 1], rows[count - 1, 2]
+    return DONE, rows, count
+
+
+def _start_phase(engine, parameters, rtol, atol, state, mode, t_stop):
+    """CVODE restarts in the phase's frame (phases.frame) from the state; the engine's flag (< 0: it failed)."""
+    length, speed = frame(parameters, mode, state.x, state.v, state.load, rtol, atol)
+    state.origin, state.length, state.speed, state.origin_low = state.t, length, speed, state.t_low
+    flag = engine_start(engine, mode, t_stop - state.t, state.x / length, state.v / speed, length, speed, state.hop,
+                        state.load)
+    if flag < 0:
+        return flag
+    state.needs_init = 0.0
+    state.step_t, state.step_x, state.step_v = state.t, state.x, state.v
+    if mode == CONTACT and contact_integrated(parameters):
+        start_contact_ellipses(state)
+    return flag
+
+
+def _root_event(parameters, state, mode, rows, count, tau_before, gap_root, released):
+    """The event the last of rows[:count] (in the phase's frame) is a root of, kept pending (pend_*), if any.
+
+    gap_root: the terminal root, polished on the exact flow: an impact or departure on R, or a release below it
+    (contact_laws.contact_ends_in). released: the third root a release (contact_laws.third_root_releases), taken
+    where CVODE located it (no closed form to polish on), at the release speed exactly; a terminal root on the
+    same step comes first.
+    """
+    origin, length, speed, load, last = state.origin, state.length, state.speed, state.load, count - 1
+    if released:
+        state.pending, state.pend_v, state.pend_kind = 1.0, root_release_speed(parameters), RELEASE
         state.pend_x = min(length * rows[last, 1], 0.0)
         state.pend_t, state.pend_t_low = later(origin, state.origin_low, rows[last, 0])
-        rest_root = 0
-    if gap_root != 0:
-        tau_step = rows[last - 1, 0] if count > 1 else tau_before
-        if no_pull:
-            tau, x, v = polish_release(parameters, load, length, tau_step, rows[last, 0], length * rows[last, 1],
-                                       speed * rows[last, 2])
-            kind = RELEASE
-        else:
-            tau, v = polish_event(parameters, mode, load, length, tau_step, rows[last, 0], length * rows[last, 1],
-                                  speed * rows[last, 2], state.rs_x, state.rs_v)
-            x, kind = 0.0, IMPACT if mode == FLIGHT else DEPARTURE
-        state.pending, state.pend_v, state.pend_x, state.pend_kind = 1.0, v, x, kind
-        state.pend_t, state.pend_t_low = later(origin, state.origin_low, tau)
-    rows[:count, 0] += origin
-    rows[:count, 1] *= length
-    rows[:count, 2] *= speed
-    if gap_root != 0 or hc_release:
+    if not gap_root:
+        return
+    tau_step = rows[last - 1, 0] if count > 1 else tau_before
+    kind = IMPACT if mode == FLIGHT else contact_ends_in(parameters)
+    if kind == RELEASE:
+        tau, x, v = polish_release(parameters, load, length, tau_step, rows[last, 0], length * rows[last, 1],
+                                   speed * rows[last, 2])
+    else:
+        tau, v = polish_event(parameters, mode, load, length, tau_step, rows[last, 0], length * rows[last, 1],
+                              speed * rows[last, 2], state.rs_x, state.rs_v)
+        x = 0.0
+    state.pending, state.pend_v, state.pend_x, state.pend_kind = 1.0, v, x, kind
+    state.pend_t, state.pend_t_low = later(origin, state.origin_low, tau)
+
+
+def _world_rows(state, rows, count, t_stop, flag, ends_in_event):
+    """rows[:count] from the phase's frame into the world's (t [s], x [m], v [m/s]); an event's row its pending state.
+
+    A grid run's last step ends at t_stop exactly (CVODE stopped at t_stop - origin, which may round it off).
+    """
+    rows[:count, 0] += state.origin
+    rows[:count, 1] *= state.length
+    rows[:count, 2] *= state.speed
+    last = count - 1
+    if ends_in_event:
         rows[last, 0], rows[last, 1], rows[last, 2] = state.pend_t, state.pend_x, state.pend_v
-    elif flag != CV_ROOT_RETURN and not one_step and flag != BUFFER_FULL:
-        rows[last, 0] = t_stop  # CVODE stopped at t_stop - origin, which may round off t_stop
-    # the event's row is on R (or, a release, below it)
-    checked = count - 1 if gap_root != 0 or hc_release else count
-    if checked > 0:
-        if no_pull:  # the step ends' z = -force / k (contact_laws.pressed_gap), which a missed release leaves above 0
-            extreme = (rows[:checked, 1] + (parameters.b / parameters.k) * rows[:checked, 2]).max()
-        else:
-            extreme = rows[:checked, 1].min() if mode == FLIGHT else rows[:checked, 1].max()
-        if on_wrong_side(mode, extreme, side_margin(hop, rtol, length)):
-            state.fail_t, state.fail_x, state.fail_flag = rows[checked - 1, 0], extreme, 0.0
-            return STEPPED_OVER, rows, 0
-    if parameters.law == HUNT_CROSSLEY and mode == CONTACT:  # no closed form: its error carried step by step
-        contact_steps_ellipse(parameters, rtol, state, rows, count)
-        if math.isnan(state.hc_rest_t):
-            _hunt_crossley_rest(parameters, state, rows, count)
-    # A root of the extremum function alone ends no CVODE step (one_step returns at it): not counted.
-    state.steps += count - 1 if flag == CV_ROOT_RETURN and gap_root == 0 and rest_root == 0 and not hc_release \
-        else count
+    elif flag != CV_ROOT_RETURN and not math.isinf(t_stop) and flag != BUFFER_FULL:
+        rows[last, 0] = t_stop
+
+
+def _stepped_over(parameters, rtol, state, mode, rows, checked):
+    """Whether a step end of rows[:checked] lies beyond side_margin on the other side of its event (fail_* set)."""
+    extreme = side_extreme(parameters, mode, rows[:checked, 1], rows[:checked, 2])
+    if on_wrong_side(mode, extreme, side_margin(state.hop, rtol, state.length)):
+        state.fail_t, state.fail_x, state.fail_flag = rows[checked - 1, 0], extreme, 0.0
+        return True
+    return False
+
+
+def _keep_last_step(state, mode, rows, count):
+    """The last of rows[:count] becomes the state's last step (step_*), kept with its start (seg_*) for dense output."""
+    last = count - 1
     state.segment, state.seg_mode = 1.0, mode
     if count > 1:
         state.seg_t0, state.seg_x0, state.seg_v0 = rows[last - 1, 0], rows[last - 1, 1], rows[last - 1, 2]
@@ -165,35 +213,39 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
         state.seg_t0, state.seg_x0, state.seg_v0 = state.step_t, state.step_x, state.step_v
     state.seg_t1, state.seg_x1, state.seg_v1 = rows[last, 0], rows[last, 1], rows[last, 2]
     state.step_t, state.step_x, state.step_v = rows[last, 0], rows[last, 1], rows[last, 2]
-    if rest_root != 0:
-        state.rest_t, state.rest_x, state.rest_v = rows[last, 0], rows[last, 1], rows[last, 2]
-    return DONE, rows, count
 
 
-def _hunt_crossley_rest(parameters, state, rows, count):
-    """state.hc_rest_t: where contact_laws.hunt_crossley_rest_margin first turns positive on these steps, if it does.
+def _integrated_contact_steps(parameters, rtol, state, rows, count):
+    """An integrated contact's steps: its error ellipses carried over them, and its rest dated if it starts there."""
+    contact_steps_ellipse(parameters, rtol, state, rows, count)
+    if math.isnan(state.hc_rest_t):
+        _reported_rest(parameters, state, rows, count)
+
+
+def _reported_rest(parameters, state, rows, count):
+    """state.hc_rest_t: where contact_laws.reported_rest_margin first turns positive on these steps, if it does.
 
     The steps run from the last step's end (step_*, the phase start after a restart) through rows[:count];
     within the step where the margin turns positive its crossing is bisected on the step's dense output
-    (dense_output.step_state, the interpolant the grid is read from). There is no closed form of the rest
-    flow under this law, so the rest is only reported: CVODE integrates on through it (the ball never
+    (dense_output.step_state, the interpolant the grid is read from). An integrated contact has no closed form
+    of its rest flow, so the rest is only reported: CVODE integrates on through it (the ball never
     leaves, or by a hop below HOP). A margin already positive at a restart dates the rest there.
     """
-    m, k, n, load, hop = parameters.m, parameters.k, parameters.n, state.load, state.hop
+    load, hop = state.load, state.hop
     t0, x0, v0 = state.step_t, state.step_x, state.step_v
-    if hunt_crossley_rest_margin(x0, v0, load, m, k, n, hop) > 0.0:
+    if reported_rest_margin(parameters, x0, v0, load, hop) > 0.0:
         state.hc_rest_t = t0
         return
     for i in range(count):
         t1, x1, v1 = rows[i, 0], rows[i, 1], rows[i, 2]
-        if hunt_crossley_rest_margin(x1, v1, load, m, k, n, hop) > 0.0:
+        if reported_rest_margin(parameters, x1, v1, load, hop) > 0.0:
             low, high = t0, t1
             for _ in range(80):
                 mid = 0.5 * (low + high)
                 if not low < mid < high:
                     break
                 x, v = step_state(parameters, load, CONTACT, t0, x0, v0, t1, x1, v1, mid)
-                if hunt_crossley_rest_margin(x, v, load, m, k, n, hop) > 0.0:
+                if reported_rest_margin(parameters, x, v, load, hop) > 0.0:
                     high = mid
                 else:
                     low = mid
@@ -209,7 +261,7 @@ def _take_event(parameters, rtol, atol, state, events, n_events):
         events = grown(events)
     kind, mode = int(state.pend_kind), int(state.mode)
     events[n_events, 0], events[n_events, 1], events[n_events, 2] = state.t, kind, state.v
-    if kind == IMPACT and parameters.law == RIGID:
+    if kind == IMPACT and impact_is_instantaneous(parameters):
         _bounce(parameters, rtol, atol, state)
         return events, n_events + 1
     # the saltation's jump: the field's, -+ b/m at an impact or a departure from the pressed contact; none at the
