@@ -112,6 +112,16 @@ class ContactLaw:
     name: its name (Ball.contact); code: the phase machine's (BallParameters.law); parameters: the Ball fields of
     its own that it reads, beyond m, R and g; closed_form: whether every phase has a closed-form flow (the exact
     solver, and so check and validate, take it); description: one line for help texts.
+
+    article_algorithm: whether the reference article's algorithm runs it (solvers/scipy_ref.py: solve_ivp switching
+    between flight and contact where h crosses R): its contact force a function of the state (Ball.acceleration),
+    its contact one phase between two crossings of R.
+    crossings_only: whether its only events are the crossings of R (impacts and departures), so that the FMU's
+    outputs (the impact count and the contact flag) account for every event (fmu/validate.py).
+    k_unit: the unit of its stiffness k, a format string of its parameters (n); None if it has no k.
+    damping_axis: how a grid of its balls (the sweep) gives its damping: "zeta", the damping ratio
+    b / (2 sqrt(k m)) of its linear spring-damper; "alpha", its own parameter alpha [s/m]; None if it has no k and
+    damping to map.
     """
 
     name: str
@@ -119,14 +129,25 @@ class ContactLaw:
     parameters: tuple[str, ...]
     closed_form: bool
     description: str
+    article_algorithm: bool
+    crossings_only: bool
+    k_unit: str | None
+    damping_axis: str | None
 
 
 LAWS = {law.name: law for law in (
-    ContactLaw("linear", LINEAR, ("k", "b"), True, "the spring-damper k, b (the damper may pull)"),
-    ContactLaw("rigid", RIGID, ("e", "v_min"), True, "an instantaneous impact, v+ = -e v-, resting below v_min"),
-    ContactLaw("linear-no-pull", NO_PULL, ("k", "b"), True, "the spring-damper whose force never pulls"),
-    ContactLaw("hunt-crossley", HUNT_CROSSLEY, ("k", "n", "alpha"), False,
-               "k delta^n (1 + 3/2 alpha delta'), clipped at 0"),
+    ContactLaw("linear", LINEAR, ("k", "b"), closed_form=True,
+               description="the spring-damper k, b (the damper may pull)",
+               article_algorithm=True, crossings_only=True, k_unit="N/m", damping_axis="zeta"),
+    ContactLaw("rigid", RIGID, ("e", "v_min"), closed_form=True,
+               description="an instantaneous impact, v+ = -e v-, resting below v_min",
+               article_algorithm=False, crossings_only=False, k_unit=None, damping_axis=None),
+    ContactLaw("linear-no-pull", NO_PULL, ("k", "b"), closed_form=True,
+               description="the spring-damper whose force never pulls",
+               article_algorithm=False, crossings_only=False, k_unit="N/m", damping_axis="zeta"),
+    ContactLaw("hunt-crossley", HUNT_CROSSLEY, ("k", "n", "alpha"), closed_form=False,
+               description="k delta^n (1 + 3/2 alpha delta'), clipped at 0",
+               article_algorithm=True, crossings_only=False, k_unit="N/m^{n:g}", damping_axis="alpha"),
 )}
 CONTACT_LAWS = tuple(LAWS)  # their names, the default first
 # The parameters each law reads besides the ball's m, R and g, by its name: another law's parameter set to a

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..accuracy import Accuracy, accuracy_of, accuracy_of_result, exact_on_grid, impact_counts
 from ..capped import FINISHED, Capped, run_capped
+from ..contact_laws import LAWS
 from ..scenes import Scene, load_scene
 from ..solvers import ARTICLE_LABEL
 from .variables import judged_scene, start_values_of
@@ -104,7 +105,7 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
     skip = {validation.choice("--skip", stage, STAGES) for stage in skip}
     time_cap = validation.positive("--time-cap", time_cap, "s")
     scene = judged_scene(load_scene(scene_name), "validate")
-    if scene.ball.contact != "linear" and "scipy" not in skip:
+    if not LAWS[scene.ball.contact].article_algorithm and "scipy" not in skip:
         skip.add("scipy")
         progress("the article's SciPy algorithm is not run: it models the linear contact law, not "
                  f"{scene.ball.contact}")
@@ -132,10 +133,10 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
     if "fmu" not in skip:
         progress("the FMU through FMPy")
         result, wall_time, load_time = run_fmu(fmu, scene)
+        others = "" if LAWS[scene.ball.contact].crossings_only else \
+            "; impacts counted, the law's other events are not among the FMU's outputs"
         rows.append(Row("FMU (FMPy)" if fmi_version == 2 else "FMU 3.0 CS (FMPy)", _fmu_accuracy(result, scene),
-                        wall_time, f"+ {load_time:.3f} s to load; events seen only at communication points"
-                        + ("" if scene.ball.contact == "linear" else "; impacts counted, the law's other events are "
-                           "not among the FMU's outputs")))
+                        wall_time, f"+ {load_time:.3f} s to load; events seen only at communication points{others}"))
         impacts_match = _impacts_match(result, scene)
         for label, options in FMI3_RUNS.items() if fmi_version == 3 else ():
             progress(f"the FMU through FMPy: {label}")
@@ -159,7 +160,7 @@ def _fmu_accuracy(result, scene: Scene) -> Accuracy:
     """The FMU's result against the exact solution at its own times (early return adds the events' times)."""
     at_points = exact_on_grid(result["time"], scene.ball, scene.h0, scene.v0, scene.F_ext, t_start=0.0)
     impacts, contact = int(result["impacts"][-1]), result["contact"].astype(int)
-    if scene.ball.contact != "linear":  # a rigid ball's rest, the no-pull law's releases: not in its outputs
+    if not LAWS[scene.ball.contact].crossings_only:  # a rigid ball's rest, a no-pull release: not in its outputs
         return accuracy_of(at_points, result["h"], impacts=impacts)
     # The FMU counts impacts; its departures follow from them and the contact flag at both ends.
     return accuracy_of(at_points, result["h"], events_found=2 * impacts + contact[0] - contact[-1])

@@ -9,6 +9,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .. import validation
+from ..contact_laws import LAWS
 from ..physics import Ball, Mode, clipped_contact_mode
 from . import ARTICLE_ATOL, ARTICLE_MAX_STEP, ARTICLE_METHOD, ARTICLE_RTOL, forcing
 from .forcing import ForceTable
@@ -37,10 +38,11 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     for the phase by more than atol + rtol R (a bounce stepped over unseen: the results would be wrong
     from there on).
     """
-    if ball.contact not in ("linear", "hunt-crossley"):  # its terminal events switch between flight and contact
+    if not LAWS[ball.contact].article_algorithm:  # its terminal events switch between flight and contact
+        runs = ", ".join(name for name, law in LAWS.items() if law.article_algorithm)
         raise ValueError(f"solver = 'scipy' is not allowed with contact = {ball.contact!r}: the reference "
-                         "article's algorithm models a contact whose force is a function of the state (linear, "
-                         "hunt-crossley); use cvode or exact")
+                         f"article's algorithm models a contact whose force is a function of the state ({runs}); "
+                         "use cvode or exact")
     method = validation.choice("method", method, METHODS)
     rtol = validation.in_range("rtol", rtol, 0.0, 1.0)
     atol = validation.positive("atol", atol)

@@ -6,6 +6,7 @@ import sys
 import time
 
 from .. import validation
+from ..contact_laws import LAWS
 from ..output import check_output_folder
 from . import grid as grids
 from .child import DEFAULT_TIME_CAP
@@ -32,26 +33,23 @@ def build_grid(k: str | None = None, zeta: str | None = None, m: str | None = No
     >>> build_grid(k="1e2:1e6:3", zeta="0.1", solvers="cvode,article").runs()[0]["solver"]
     'cvode'
     """
-    contact = "linear" if contact is None else grids.check_contact("--contact", contact)
-    hunt_crossley = contact == grids.HUNT_CROSSLEY
-    if hunt_crossley and zeta is not None:
-        raise ValueError(f"--zeta = {zeta!r} is not allowed with --contact hunt-crossley: its damping is alpha "
-                         "[s/m]; use --alpha")
-    if not hunt_crossley and alpha is not None:
+    contact = grids.DEFAULT_CONTACT if contact is None else grids.check_contact("--contact", contact)
+    damping = grids.damping_field(contact)
+    if damping != "zeta" and zeta is not None:
+        raise ValueError(f"--zeta = {zeta!r} is not allowed with --contact {contact}: its damping is {damping} "
+                         f"[{grids.UNITS[damping]}]; use --{damping}")
+    if damping != "alpha" and alpha is not None:
         raise ValueError(f"--alpha = {alpha!r} is not allowed with --contact {contact}: it is the Hunt-Crossley "
-                         "law's damping; use --zeta")
-    if hunt_crossley:
-        defaults = {"k": grids.QUICK_HC_K if quick else grids.DEFAULT_HC_K}
-    else:
-        defaults = {"k": grids.QUICK_K if quick else grids.DEFAULT_K, "zeta": grids.QUICK_ZETA if quick else
-                    grids.DEFAULT_ZETA}
-    defaults.update(m=grids.DEFAULT_M, h0=grids.DEFAULT_H0)
+                         f"law's damping; use --{damping}")
+    defaults = {"k": grids.default_k(contact, quick), "m": grids.DEFAULT_M, "h0": grids.DEFAULT_H0}
+    if damping == "zeta":
+        defaults["zeta"] = grids.QUICK_ZETA if quick else grids.DEFAULT_ZETA
     axes = {field: defaults[field] if text is None else grids.parse_range(field, text)
             for field, text in (("k", k), ("zeta", zeta), ("m", m), ("h0", h0)) if field in defaults}
-    if hunt_crossley:
+    if damping == "alpha":
         axes["alpha"] = (grids.QUICK_ALPHA if quick else grids.DEFAULT_ALPHA) if alpha is None else \
             grids.parse_alpha(alpha)
-    default = ("cvode",) if contact == "linear-no-pull" else grids.DEFAULT_SOLVERS
+    default = grids.DEFAULT_SOLVERS if LAWS[contact].article_algorithm else ("cvode",)
     names = default if solvers is None else tuple(name.strip() for name in solvers.split(","))
     for name in names:
         if name.lower() not in (known.lower() for known in grids.solver_names()):

@@ -12,6 +12,7 @@ import numpy as np
 
 from .. import validation
 from ..bench import runners
+from ..contact_laws import CONTACT_LAWS, LAWS
 from ..physics import Ball
 from ..scenes import SCENE_DEFAULTS, Scene
 from ..solvers.settings import DEFAULT_ATOL, DEFAULT_RTOL, METHODS
@@ -29,15 +30,19 @@ QUICK_ZETA = (1e-4, 1e2, 3)
 MAX_POINTS = 1000  # per axis: a bigger grid is a typo, not a study
 MAX_RUNS = 1_000_000
 UNITS = {"k": "N/m", "zeta": "", "alpha": "s/m", "m": "kg", "h0": "m"}
-# The contact laws whose balls the grid describes: the rigid law has no k or damping.
-MAPPED_CONTACT_LAWS = ("linear", "linear-no-pull", "hunt-crossley")
-HUNT_CROSSLEY = "hunt-crossley"
-# Its grid: k [N/m^1.5] and alpha [s/m] (alpha = 0 the undamped Hertz contact); n held at Hertz's 1.5 for spheres.
+DEFAULT_CONTACT = CONTACT_LAWS[0]  # the registry's default law: its runs' keys and pages name no law
+# The contact laws whose balls the grid describes: those with a k and a damping to map (ContactLaw.damping_axis).
+MAPPED_CONTACT_LAWS = tuple(name for name, law in LAWS.items() if law.damping_axis is not None)
+# The law parameters the grid holds fixed where a law reads them: n at Hertz's 1.5 for spheres (the Hunt-Crossley
+# law's grid is then k [N/m^1.5] and alpha [s/m], alpha = 0 the undamped Hertz contact).
 HC_N = 1.5
+HELD = {"n": HC_N}
 DEFAULT_HC_K = (1e3, 1e9, 13)  # N/m^1.5, half decades
 DEFAULT_ALPHA_TEXT = "0,1e-4:1:9"  # s/m: 0 and half decades (DEFAULT_ALPHA, below)
 QUICK_HC_K = (1e3, 1e9, 3)
 QUICK_ALPHA = (0.0, 1e-2, 1.0)
+# k's (default, quick) range by its unit (k_unit): a stiffness's scale depends on its unit.
+K_RANGES = {"N/m": (DEFAULT_K, QUICK_K), f"N/m^{HC_N:g}": (DEFAULT_HC_K, QUICK_HC_K)}
 
 
 def check_contact(name: str, value: object) -> str:
@@ -45,18 +50,29 @@ def check_contact(name: str, value: object) -> str:
     try:
         return validation.choice(name, value, MAPPED_CONTACT_LAWS)
     except ValueError as error:
-        why = " (the rigid law has no k or damping to map)" if str(value).lower() == "rigid" else ""
+        law = LAWS.get(str(value).lower())
+        why = f" (the {law.name} law has no k or damping to map)" if law is not None else ""
         raise ValueError(f"{error}{why}") from None
 
 
 def damping_field(contact: str) -> str:
-    """The grid's damping axis for a contact law: "alpha" for the Hunt-Crossley law, "zeta" for the linear laws."""
-    return "alpha" if contact == HUNT_CROSSLEY else "zeta"
+    """The grid's damping axis for a contact law (ContactLaw.damping_axis): "zeta", or "alpha" (Hunt-Crossley)."""
+    return LAWS[contact].damping_axis
 
 
 def k_unit(contact: str) -> str:
-    """The unit of k under a contact law: N/m, or N/m^n for the Hunt-Crossley law (n = HC_N)."""
-    return f"N/m^{HC_N:g}" if contact == HUNT_CROSSLEY else "N/m"
+    """The unit of k under a contact law (ContactLaw.k_unit) at the parameters HELD: N/m, or N/m^1.5 (Hunt-Crossley)."""
+    return LAWS[contact].k_unit.format(**HELD)
+
+
+def held(contact: str) -> dict[str, float]:
+    """The parameters HELD that the contact law reads (n under the Hunt-Crossley law), by name."""
+    return {name: value for name, value in HELD.items() if name in LAWS[contact].parameters}
+
+
+def range_fields(contact: str) -> tuple[str, ...]:
+    """The grid's axes that are (low, high, points) ranges under a contact law: zeta is one, alpha a list of values."""
+    return ("k", "zeta", "m", "h0") if damping_field(contact) == "zeta" else ("k", "m", "h0")
 
 
 def solver_names() -> tuple[str, ...]:
@@ -185,16 +201,22 @@ def log_points(low: float, high: float, points: int) -> tuple[float, ...]:
 DEFAULT_ALPHA = parse_alpha(DEFAULT_ALPHA_TEXT)
 
 
+def default_k(contact: str, quick: bool = False) -> tuple[float, float, int]:
+    """The k axis a contact law's grid has by default (with quick the small one's), by k's unit: K_RANGES."""
+    return K_RANGES[k_unit(contact)][quick]
+
+
 def refuse_other_damping(contact: str, zeta, alpha, alpha_unit: str, what: str) -> None:
     """ValueError if the damping field that contact does not use is given.
 
     That is zeta under the Hunt-Crossley law, alpha under the linear laws. what: "damping" for a cell,
     "damping axis" for a grid; alpha_unit: how alpha's value is shown (" s/m" for a number).
     """
-    if contact == HUNT_CROSSLEY and zeta is not None:
-        raise ValueError(f"zeta = {zeta!r} is not allowed with contact = 'hunt-crossley': its {what} is alpha [s/m], "
-                         "not a damping ratio")
-    if contact != HUNT_CROSSLEY and alpha is not None:
+    axis = damping_field(contact)
+    if axis != "zeta" and zeta is not None:
+        raise ValueError(f"zeta = {zeta!r} is not allowed with contact = {contact!r}: its {what} is {axis} "
+                         f"[{UNITS[axis]}], not a damping ratio")
+    if axis != "alpha" and alpha is not None:
         raise ValueError(f"alpha = {alpha!r}{alpha_unit} is not allowed with contact = {contact!r}: its {what} is the "
                          "damping ratio zeta")
 
@@ -212,23 +234,23 @@ class Cell:
     zeta: float | None
     m: float
     h0: float
-    contact: str = "linear"
+    contact: str = DEFAULT_CONTACT
     alpha: float | None = None
 
     def __post_init__(self) -> None:
         contact = check_contact("contact", self.contact)
         object.__setattr__(self, "contact", contact)
         refuse_other_damping(contact, self.zeta, self.alpha, " s/m", "damping")
-        if contact == HUNT_CROSSLEY:
+        if damping_field(contact) == "alpha":
             if self.alpha is None:
-                raise ValueError("alpha = None is not allowed with contact = 'hunt-crossley': it must be finite "
+                raise ValueError(f"alpha = None is not allowed with contact = {contact!r}: it must be finite "
                                  "and >= 0 [s/m]")
             object.__setattr__(self, "alpha", validation.non_negative("alpha", self.alpha, "s/m"))
 
     @property
     def damping(self) -> float:
         """The value on the grid's damping axis: alpha [s/m] under the Hunt-Crossley law, else zeta."""
-        return self.alpha if self.contact == HUNT_CROSSLEY else self.zeta
+        return getattr(self, damping_field(self.contact))
 
     @property
     def b(self) -> float | None:
@@ -236,13 +258,11 @@ class Cell:
         return None if self.zeta is None else 2.0 * self.zeta * math.sqrt(self.k * self.m)
 
     def scene(self, t_end: float, output_interval: float) -> Scene:
-        """The cell as a Scene: the article's R and g, dropped at rest from h0."""
-        if self.contact == HUNT_CROSSLEY:
-            ball = Ball(m=self.m, k=self.k, R=ARTICLE_BALL.R, g=ARTICLE_BALL.g, contact=self.contact, n=HC_N,
-                        alpha=self.alpha)
-        else:
-            ball = Ball(m=self.m, k=self.k, b=self.b, R=ARTICLE_BALL.R, g=ARTICLE_BALL.g, contact=self.contact)
+        """The cell as a Scene: the article's R and g, dropped at rest from h0 (the law's parameters HELD as held)."""
         damping = damping_field(self.contact)
+        law_damping = {"b": self.b} if damping == "zeta" else {damping: self.damping}
+        ball = Ball(m=self.m, k=self.k, R=ARTICLE_BALL.R, g=ARTICLE_BALL.g, contact=self.contact, **law_damping,
+                    **held(self.contact))
         return Scene(f"k={self.k:.3g},{damping}={self.damping:.3g},m={self.m:.3g},h0={self.h0:.3g}", "sweep cell",
                      ball, self.h0, 0.0, t_end, output_interval)
 
@@ -253,7 +273,7 @@ def cell_of(run: dict) -> Cell:
         value = run.get(field)
         return None if value is None or (isinstance(value, float) and math.isnan(value)) else value
 
-    return Cell(run["k"], given("zeta"), run["m"], run["h0"], run.get("contact", "linear"), given("alpha"))
+    return Cell(run["k"], given("zeta"), run["m"], run["h0"], run.get("contact", DEFAULT_CONTACT), given("alpha"))
 
 
 @dataclass(frozen=True)
@@ -278,20 +298,20 @@ class Grid:
     t_end: float = DEFAULT_T_END
     output_interval: float = DEFAULT_OUTPUT_INTERVAL
     solvers: tuple[str, ...] = DEFAULT_SOLVERS
-    contact: str = "linear"
+    contact: str = DEFAULT_CONTACT
     alpha: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         contact = check_contact("contact", self.contact)
         object.__setattr__(self, "contact", contact)
         refuse_other_damping(contact, self.zeta, self.alpha, "", "damping axis")
-        if contact == HUNT_CROSSLEY:
+        if damping_field(contact) == "alpha":
             object.__setattr__(self, "alpha", check_alpha(DEFAULT_ALPHA if self.alpha is None else self.alpha))
         else:
             object.__setattr__(self, "zeta", DEFAULT_ZETA if self.zeta is None else self.zeta)
         if self.k is None:
-            object.__setattr__(self, "k", DEFAULT_HC_K if contact == HUNT_CROSSLEY else DEFAULT_K)
-        for field in ("k", "m", "h0") if contact == HUNT_CROSSLEY else ("k", "zeta", "m", "h0"):
+            object.__setattr__(self, "k", default_k(contact))
+        for field in range_fields(contact):
             low, high, points = getattr(self, field)
             text = f"{low!r}:{high!r}:{points!r}"
             if isinstance(points, bool) or not isinstance(points, int):
@@ -307,7 +327,7 @@ class Grid:
         names = tuple(dict.fromkeys(validation.choice("solver", name, solver_names()) for name in self.solvers))
         object.__setattr__(self, "solvers", names)
         other = next((name for name in names if not name.startswith("cvode")), None)
-        if contact == "linear-no-pull" and other is not None:
+        if not LAWS[contact].article_algorithm and other is not None:
             raise ValueError(f"solver = {other!r} is not allowed with contact = {contact!r}: the article's algorithm "
                              "and SciPy's methods model a contact force that is a function of the state (the linear "
                              "and Hunt-Crossley laws); use cvode, cvode:Adams or cvode:BDF")
@@ -331,8 +351,8 @@ class Grid:
 
     def cells(self) -> list[Cell]:
         """Every cell of the grid, k varying fastest."""
-        hunt_crossley = self.contact == HUNT_CROSSLEY
-        return [Cell(k, None if hunt_crossley else damping, m, h0, self.contact, damping if hunt_crossley else None)
+        by_zeta = self.damping == "zeta"
+        return [Cell(k, damping if by_zeta else None, m, h0, self.contact, None if by_zeta else damping)
                 for m in self.axis("m") for h0 in self.axis("h0") for damping in self.axis(self.damping)
                 for k in self.axis("k")]
 
@@ -341,11 +361,10 @@ class Grid:
 
         A field the law has not (zeta and b, or alpha and n) is NaN, so that each table column is of floats.
         """
-        hunt_crossley = self.contact == HUNT_CROSSLEY
+        n = held(self.contact).get("n", math.nan)
         return [{"key": run_key(cell, solver, self.t_end, self.output_interval), "k": cell.k,
-                 "zeta": math.nan if hunt_crossley else cell.zeta, "m": cell.m, "h0": cell.h0,
-                 "b": math.nan if hunt_crossley else cell.b, "alpha": cell.alpha if hunt_crossley else math.nan,
-                 "n": HC_N if hunt_crossley else math.nan, "t_end": self.t_end,
+                 "zeta": _or_nan(cell.zeta), "m": cell.m, "h0": cell.h0, "b": _or_nan(cell.b),
+                 "alpha": _or_nan(cell.alpha), "n": n, "t_end": self.t_end,
                  "output_interval": self.output_interval, "solver": solver, "contact": cell.contact}
                 for cell in self.cells() for solver in self.solvers]
 
@@ -355,6 +374,12 @@ def run_key(cell: Cell, solver: str, t_end: float, output_interval: float) -> st
 
     A Hunt-Crossley cell's key names its alpha where the linear laws' hold zeta.
     """
-    law = "" if cell.contact == "linear" else f"|{cell.contact}"
-    damping = f"alpha={cell.alpha!r}" if cell.contact == HUNT_CROSSLEY else repr(cell.zeta)
+    law = "" if cell.contact == DEFAULT_CONTACT else f"|{cell.contact}"
+    field = damping_field(cell.contact)
+    damping = repr(cell.zeta) if field == "zeta" else f"{field}={cell.damping!r}"
     return f"{solver}|{cell.k!r}|{damping}|{cell.m!r}|{cell.h0!r}|{t_end!r}|{output_interval!r}{law}"
+
+
+def _or_nan(value: float | None) -> float:
+    """A field the cell's law has not (None) as NaN, so that each table column is of floats."""
+    return math.nan if value is None else value

@@ -8,12 +8,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..contact_laws import LAWS
 from ..output import atomic_write
 from ..solvers import ARTICLE_LABEL
 from ..solvers.settings import DEFAULT_RTOL, HOP_RESOLUTION, MERGED_HOP_MARGIN
 from . import store
 from .child import HEIGHT_TOLERANCE
-from .grid import ARTICLE_BALL, HC_N, HUNT_CROSSLEY, Grid, k_unit
+from .grid import ARTICLE_BALL, DEFAULT_CONTACT, HC_N, Grid, damping_field, held, k_unit, range_fields
 
 HEIGHT_LIMIT = 1e-5  # m: CVODE's height error above this at the defaults is listed as wrong
 TABLE_CSV = "stability_map.csv"
@@ -24,6 +25,8 @@ TARGET = 1e-6  # m: bench --hunt-crossley's matched error, a second column of th
 # Event correctness as colours: counts agree; counts differ only by hops too small to resolve (merged
 # into a contact: accuracy.event_mismatches finds nothing); events missing, extra or off; failed; timed out.
 OUTCOMES = ("events match", "tiny hops merged", "events wrong", "failed", "timed out")
+# The damping axis (grid.damping_field) as the maps' axis label and the page's column header.
+DAMPING_LABELS = {"zeta": ("damping ratio zeta", "damping ratio"), "alpha": ("damping alpha [s/m]", "alpha [s/m]")}
 
 
 def outcome(frame):
@@ -77,13 +80,19 @@ def _tick(value: float) -> str:
     return f"{value / 10.0 ** power:.2g}e{power}"
 
 
+def _by_reference(grid: Grid) -> bool:
+    """Whether the runs are measured against a reference run: the law has no exact solution (Hunt-Crossley)."""
+    return not LAWS[grid.contact].closed_form
+
+
 def _truth(grid: Grid) -> str:
     """What the errors are measured against: the exact solution, or (Hunt-Crossley) the reference run."""
-    return "the reference run" if grid.contact == HUNT_CROSSLEY else "the exact solution"
+    return "the reference run" if _by_reference(grid) else "the exact solution"
 
 
-def _damping_label(grid: Grid) -> str:
-    return "damping alpha [s/m]" if grid.contact == HUNT_CROSSLEY else "damping ratio zeta"
+def _law_title(grid: Grid) -> str:
+    """", contact law NAME" after a title, "" for the default law (the pages of before the laws)."""
+    return "" if grid.contact == DEFAULT_CONTACT else f", contact law {grid.contact}"
 
 
 ERROR_FLOOR = 1e-16  # m: an error of 0 is drawn as this (a log colour scale has no 0)
@@ -134,7 +143,7 @@ def heat_map_figure(frame, grid: Grid, solver: str):
     pairs = [(m, h0) for m in grid.axis("m") for h0 in grid.axis("h0")]
     colours = ListedColormap(["#4daf4a", "#a6d96a", "#e41a1c", "#984ea3", "#999999"])
     limits = colour_limits(frame)
-    reference = grid.contact == HUNT_CROSSLEY
+    reference = _by_reference(grid)
     error_name = f"max |h - h_{'ref' if reference else 'exact'}| [m]"
     units = (None, error_name, "right-hand-side calls")
     norms = (None, LogNorm(*limits["max_height_error"]), LogNorm(*limits["rhs_calls"]))
@@ -167,9 +176,8 @@ def heat_map_figure(frame, grid: Grid, solver: str):
             axis.set_xticks(range(len(ks)), [_tick(k) for k in ks], rotation=60, fontsize=10)
             axis.set_yticks(range(len(zetas)), [_tick(z) for z in zetas], fontsize=10)
             axis.set_xlabel(f"stiffness k [{k_unit(grid.contact)}]", fontsize=11)
-            axis.set_ylabel(_damping_label(grid), fontsize=11)
-            law = "" if grid.contact == "linear" else f", contact law {grid.contact}"
-            law += f" (n = {HC_N:g})" if reference else ""
+            axis.set_ylabel(DAMPING_LABELS[damping][0], fontsize=11)
+            law = _law_title(grid) + "".join(f" ({name} = {value:g})" for name, value in held(grid.contact).items())
             axis.set_title(f"{solver}: {title}\nm = {m:g} kg, h0 = {h0:g} m{law}", fontsize=11)
             if np.isnan(values).any():
                 axis.legend(handles=[Patch(facecolor="white", edgecolor="0.4", label=blank)], loc="upper center",
@@ -180,11 +188,11 @@ def heat_map_figure(frame, grid: Grid, solver: str):
 def grid_of(frame) -> Grid:
     """The Grid a sweep's table was run on: each axis from its values, the solvers in the order they come."""
     axes = {}
-    contact = str(frame["contact"].iloc[0]) if "contact" in frame else "linear"  # a table of before the laws
-    for field in ("k", "m", "h0") if contact == HUNT_CROSSLEY else ("k", "zeta", "m", "h0"):
+    contact = str(frame["contact"].iloc[0]) if "contact" in frame else DEFAULT_CONTACT  # a table of before the laws
+    for field in range_fields(contact):
         values = np.unique(frame[field].to_numpy(dtype=float))
         axes[field] = (float(values[0]), float(values[-1]), len(values))
-    if contact == HUNT_CROSSLEY:
+    if damping_field(contact) == "alpha":  # its values, not a range
         axes["alpha"] = tuple(float(x) for x in np.unique(frame["alpha"].to_numpy(dtype=float)))
     return Grid(**axes, t_end=float(frame["t_end"].iloc[0]), output_interval=float(frame["output_interval"].iloc[0]),
                 solvers=tuple(dict.fromkeys(frame["solver"])), contact=contact)
@@ -218,7 +226,7 @@ def write_tables(frame, output_dir: Path) -> list[Path]:
 
 
 def _summary(frame, grid: Grid) -> list[str]:
-    target = grid.contact == HUNT_CROSSLEY
+    target = _by_reference(grid)
     lines = ["| solver | runs | finished | event counts match | events right | failed | timed out | "
              f"max error <= {HEIGHT_LIMIT:g} m | " + (f"max error <= {TARGET:g} m | " if target else "")
              + "median max error [m] | median wall time [ms] | RHS calls (sum) |", "|" + " --- |" * (11 + target)]
@@ -244,7 +252,7 @@ def _law_lines(grid: Grid, info: dict) -> list[str]:
     axes = f"- m [kg]: {', '.join(f'{x:.3g}' for x in grid.axis('m'))}; h0 [m]: " \
            f"{', '.join(f'{x:.3g}' for x in grid.axis('h0'))}; v0 = 0; R = {ARTICLE_BALL.R:g} m, " \
            f"g = {ARTICLE_BALL.g:g} m/s2; contact law {grid.contact}"
-    if grid.contact != HUNT_CROSSLEY:
+    if not _by_reference(grid):
         return [f"Generated by `{info['command']}`: every cell of a log-spaced grid over stiffness k and damping "
                 f"ratio zeta = b / (2 sqrt(k m)) run by each solver on dask.distributed, {cap}, and compared with "
                 f"the exact solution on its own output grid. {table}"], [
@@ -286,11 +294,11 @@ def write_markdown(frame, grid: Grid, info: dict, output_dir: Path, images: list
 
     env = environment()
     attrs = frame.attrs
-    law = "" if grid.contact == "linear" else f", contact law {grid.contact}"
+    law = _law_title(grid)
     truth = _truth(grid)
-    short = "reference" if grid.contact == HUNT_CROSSLEY else "exact"
+    short = "reference" if _by_reference(grid) else "exact"
     damping = grid.damping
-    damping_header = "alpha [s/m]" if grid.contact == HUNT_CROSSLEY else "damping ratio"
+    damping_header = DAMPING_LABELS[damping][1]
     k_header = f"k [{k_unit(grid.contact)}]"
     opening, axis_lines = _law_lines(grid, info)
     lines = [f"# Stability map over the parameter space{law}", "", *opening, "",
@@ -308,7 +316,7 @@ def write_markdown(frame, grid: Grid, info: dict, output_dir: Path, images: list
              f"size {attrs['batch_size']} runs per task, so {attrs['overhead'] / attrs['batch_size'] * 1e3:.2f} ms "
              "per run, against a median run of "
              f"{frame.loc[frame['status'] == 'finished', 'wall_time'].median() * 1e3:.3g} ms"
-             + (" (the reference run not included)" if grid.contact == HUNT_CROSSLEY else "")]
+             + (" (the reference run not included)" if _by_reference(grid) else "")]
     scaling = info.get("scaling")
     if scaling:
         one, many, n = scaling
