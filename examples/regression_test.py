@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from bouncingball.testing import check_result
+from bouncingball.check.judge import check_result
 
 CASES = {  # name: (start values, stop time [s], communication step [s])
     "article": ({}, 8.0, 1e-3),

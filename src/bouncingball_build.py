@@ -2,7 +2,7 @@
 
 numba would compile the compiled engine at its first use after install (about 15 s). A wheel's build
 compiles it once for any CPU of the build host's architecture and puts numba's cache files in the
-package (bouncingball/solvers/engine_cache.py), so a first use reads them in well under a second.
+package (bouncingball/solvers/engines/ahead_of_time.py), so a first use reads them in well under a second.
 That needs the engine's own requirements in the build environment, which get_requires_for_build_wheel
 adds (the project's dependencies and its [fast] extra, read from pyproject.toml). An editable install
 and an sdist compile nothing. BOUNCINGBALL_SHIP_NUMBA_CACHE=0 builds a wheel without it (its engine
@@ -55,8 +55,8 @@ class BuildPy(build_py):
             return
         path = os.pathsep.join(filter(None, (os.path.abspath(self.build_lib), os.environ.get("PYTHONPATH"))))
         environment = {**os.environ, "PYTHONPATH": path, "PYTHONDONTWRITEBYTECODE": "1"}
-        completed = subprocess.run([sys.executable, "-m", "bouncingball.solvers.engine_cache"], env=environment,
-                                   check=False)
+        completed = subprocess.run([sys.executable, "-m", "bouncingball.solvers.engines.ahead_of_time"],
+                                   env=environment, check=False)
         if completed.returncode != 0:
             print("bouncingball: the wheel ships no cache of its compiled engine (its compile exited with status "
                   f"{completed.returncode}): it compiles at its first use where it runs", file=sys.stderr)

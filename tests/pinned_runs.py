@@ -73,7 +73,7 @@ def cases():
 def _stepped(law, engine):
     """The article's first 3 s in 10 ms steps of BallIntegrator.advance, as an FMU's doStep takes them."""
     from bouncingball.solvers.integrator import BallIntegrator
-    from bouncingball.solvers.settings import CvodeSettings
+    from bouncingball.solvers.phase_machine.settings import CvodeSettings
 
     integrator = BallIntegrator(_ball(load_scene("article"), law), 2.0, 0.0, settings=CvodeSettings(engine=engine))
     h, v, estimate, events = [], [], [], []

@@ -1,4 +1,4 @@
-"""`bouncingball check` and bouncingball.testing: a master's CSV judged against the exact solution."""
+"""`bouncingball check` and bouncingball.check.judge: a master's CSV judged against the exact solution."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bouncingball.check.judge import BadResultError, check_result, read_result_csv, scene_with_start_values
 from bouncingball.cli import EXIT_BAD_INPUT, EXIT_CHECK_FAILED, main
 from bouncingball.physics import Ball
 from bouncingball.solvers.exact import ExactSolution
-from bouncingball.testing import BadResultError, check_result, read_result_csv, scene_with_start_values
 from fmu_helpers import exact_at
 from oracle_counts import oracle_counts
 

@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bouncingball.check.input_files import fmpy_input_value, read_input_file
+from bouncingball.check.judge import check_result
+from bouncingball.check.result_files import BadResultError
 from bouncingball.cli import main
-from bouncingball.input_files import fmpy_input_value, read_input_file
-from bouncingball.result_files import BadResultError
-from bouncingball.testing import check_result
 
 fmpy = pytest.importorskip("fmpy")
 

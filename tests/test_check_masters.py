@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 
 import bouncingball as bb
+from bouncingball.check.judge import check_result
 from bouncingball.cli import EXIT_BAD_INPUT, EXIT_CHECK_FAILED, main
 from bouncingball.physics import Ball
 from bouncingball.solvers.cvode import merged_hop_limit
 from bouncingball.solvers.exact import ExactSolution
 from bouncingball.solvers.result import IMPACT
-from bouncingball.testing import check_result
 
 ARTICLE = Ball()
 MOON = Ball(g=1.62)

@@ -374,7 +374,7 @@ def test_sundials_own_error_text_stays_off_the_terminal(monkeypatch, capfd, tmp_
 
     Such an rtol is refused before any work; the floor is lowered here to reach CVODE's own failure.
     """
-    from bouncingball.solvers import settings
+    from bouncingball.solvers.phase_machine import settings
 
     monkeypatch.setattr(settings, "MIN_RTOL", 0.0)
     code = main(["run", "article", "--rtol", "1e-300", "--engine", "sksundae", "--output", str(tmp_path / "r.csv")])
@@ -392,7 +392,7 @@ def test_atol_zero_is_none_on_the_command_line(capsys, tmp_path):
 
 
 def test_text_printed_during_a_solver_call_other_than_sundials_errors_is_passed_on(capsys):
-    from bouncingball.solvers.sundials_log import ErrorsOffStdout
+    from bouncingball.solvers.engines.sundials_log import ErrorsOffStdout
 
     with ErrorsOffStdout():
         print("before")

@@ -20,10 +20,11 @@ import pytest
 
 import bouncingball as bb
 from bouncingball.scenes import BUILTIN_SCENES, load_scene
-from bouncingball.solvers import sundials
 from bouncingball.solvers.cvode import BallIntegrator, CvodeSettings, choose_engine
+from bouncingball.solvers.engines import sundials
 
-compiled = pytest.importorskip("bouncingball.solvers.compiled", reason="the compiled engine needs numba ([fast])")
+compiled = pytest.importorskip("bouncingball.solvers.engines.compiled",
+                               reason="the compiled engine needs numba ([fast])")
 if compiled.unavailable_reason() is not None:
     pytest.skip(f"compiled engine unavailable: {compiled.unavailable_reason()}", allow_module_level=True)
 
@@ -388,8 +389,8 @@ def test_solvers_free_their_sundials_memory():
         import numpy as np
         import bouncingball as bb
         from bouncingball.physics import Mode
-        from bouncingball.solvers import compiled
-        from bouncingball.solvers.compiled import PhaseSolver
+        from bouncingball.solvers.engines import compiled
+        from bouncingball.solvers.engines.compiled import PhaseSolver
 
         def resident():
             with open("/proc/self/statm") as statm:
@@ -424,7 +425,7 @@ def test_solvers_free_their_sundials_memory():
 _CACHE_REPORT = textwrap.dedent("""
     import json
     import bouncingball as bb
-    from bouncingball.solvers import compiled
+    from bouncingball.solvers.engines import compiled
     result = bb.simulate(bb.Ball(), 2.0, 0.0, 1.0, 1e-3, engine="compiled")
     machine = compiled.run_phases.stats
     print(json.dumps({"machine_hits": sum(machine.cache_hits.values()), "rhs_hits": compiled._rhs.cache_hits,
@@ -465,7 +466,8 @@ def compiled_copy(tmp_path_factory) -> Path:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("source", "callbacks_too"), [("physics.py", True), ("solvers/machine.py", False)])
+@pytest.mark.parametrize(("source", "callbacks_too"),
+                         [("physics.py", True), ("solvers/phase_machine/machine.py", False)])
 def test_a_change_to_a_compiled_source_recompiles_the_code_numbas_disk_cache_held(compiled_copy, tmp_path, source,
                                                                                   callbacks_too):
     """numba keys each cached function by its own file, but the compiled code inlines functions of other files: after
@@ -492,7 +494,7 @@ def test_a_change_to_a_compiled_source_recompiles_the_code_numbas_disk_cache_hel
 def test_many_short_runs_load_the_compiled_engine_once_they_would_have_paid_for_it():
     completed = _run_python("""
         import bouncingball as bb
-        from bouncingball.solvers import engines as rule
+        from bouncingball.solvers import engine_selection as rule
         runs = [bb.simulate(bb.Ball(), 2.0, 0.0, 8.0)]
         break_even = rule.compiled_break_even()  # scikit-sundae loaded by the first run, the compiled engine not
         runs += [bb.simulate(bb.Ball(), 2.0, 0.0, 8.0) for _ in range(29)]
@@ -515,7 +517,7 @@ def test_the_compiled_decisions_and_flows_are_the_interpreted_ones_to_the_bit():
     import random
 
     from bouncingball import contact_laws, equations
-    from bouncingball.solvers import phases
+    from bouncingball.solvers.phase_machine import phases
 
     generator = random.Random(3)
     scales, flow = compiled._compiled[phases.phase_scales], compiled._compiled[equations.gap_flow_value]
@@ -555,7 +557,7 @@ def test_numbas_private_api_that_jit_uses_is_still_there(tmp_path):
     import numba
     from numba.core.caching import CacheImpl
 
-    from bouncingball.solvers import jit
+    from bouncingball.solvers.engines import jit
 
     # compiled.py's import put it before numba's own (each copy of the package in the process, an FMU's, puts its own)
     assert CacheImpl._locator_classes.index(jit._digest_locator()) < CacheImpl._locator_classes.index(
@@ -584,7 +586,7 @@ def test_numbas_private_api_that_jit_uses_is_still_there(tmp_path):
 def test_a_cache_compiled_elsewhere_is_named_for_what_does_not_fit(tmp_path):
     """The code in a cache folder runs here only if numba, the sources and the CPU are this host's: a cache that
     differs in one says which (what the FMU logs before numba compiles)."""
-    from bouncingball.solvers import jit
+    from bouncingball.solvers.engines import jit
 
     digest = jit.sources_digest(jit.engine_sources())
     host = jit._host_key()
@@ -621,7 +623,7 @@ def test_code_compiled_for_the_generic_cpu_is_shipped_code_that_fits_and_is_file
     """A shipped cache compiled for numba's generic CPU of this architecture fits any CPU of it: as shipped it fits
     (not in the user-wide cache, where numba would not find it), and the copy into the user-wide cache files each
     overload under this host's CPU, data files copied byte for byte."""
-    from bouncingball.solvers import jit
+    from bouncingball.solvers.engines import jit
 
     digest = jit.sources_digest(jit.engine_sources())
     host = jit._host_key()
@@ -657,16 +659,16 @@ def test_the_cache_is_taken_whole_under_a_lock_by_processes_importing_at_once(tm
     """Four processes find the cache folder empty at once (Dask's workers importing) and a shipped cache that fits:
     each takes the lock in turn, one copies the shipped code in, and none compiles, announces a compile, leaks a file
     handle (-X dev makes that a ResourceWarning, here an error) or leaves a temporary file."""
-    from bouncingball.solvers import jit
+    from bouncingball.solvers.engines import jit
 
     bb.simulate(bb.Ball(), 2.0, 0.0, 0.1, 1e-3, engine="compiled")  # the user-wide cache holds this run's code
     shipped = Path(jit.cache_folder(jit.sources_digest(jit.engine_sources())))
     code = textwrap.dedent(f"""
         import bouncingball as bb
-        from bouncingball.solvers import jit
+        from bouncingball.solvers.engines import jit
         with jit.first_use({str(shipped)!r}, lambda message: print("said", message)):
             result = bb.simulate(bb.Ball(), 2.0, 0.0, 0.1, 1e-3, engine="compiled")
-        from bouncingball.solvers import compiled
+        from bouncingball.solvers.engines import compiled
         print(sum(compiled.run_phases.stats.cache_misses.values()), compiled._rhs.cache_hits)
     """)
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
@@ -703,7 +705,7 @@ def test_a_cache_folder_that_cannot_be_used_is_said_before_numba_compiles_in_the
 def test_an_index_that_cannot_be_read_is_a_misfit_the_shipped_cache_replaces(tmp_path):
     """A truncated index in the user-wide cache (a full disk, a killed copy) is named as a misfit, not an error that
     leaves numba compiling in every process: a shipped cache that fits is copied over it."""
-    from bouncingball.solvers import jit
+    from bouncingball.solvers.engines import jit
 
     digest = jit.sources_digest(jit.engine_sources())
     index = tmp_path / f"m.f-1{_python_tag()}.nbi"

@@ -353,10 +353,10 @@ def test_advance_and_integrate_grid_agree(name, engine):
 
 
 def test_the_sksundae_adapter_still_fits_scikit_sundae():
-    """solvers/sksundae_events.py reads scikit-sundae's private root records: fail loudly if a release changes them."""
+    """engines/sksundae_events.py reads scikit-sundae's private root records: fail loudly if a release changes them."""
     from sksundae.cvode import CVODE
 
-    from bouncingball.solvers import sksundae_events
+    from bouncingball.solvers.engines import sksundae_events
 
     def rhs(t, y, yp):
         yp[0] = -1.0
@@ -377,11 +377,11 @@ def test_the_sksundae_adapter_still_fits_scikit_sundae():
 
 @pytest.mark.parametrize("engine", ["sksundae", "compiled"])
 def test_pooled_cvode_objects_integrate_as_new_ones(engine):
-    """simulate keeps its CVODE objects for the next run (solvers/stepper.py): another ball between two
+    """simulate keeps its CVODE objects for the next run (solvers/engines/stepper.py): another ball between two
     runs, and a run on new objects, change no number."""
     if engine == "compiled":
         pytest.importorskip("numba")
-    from bouncingball.solvers import stepper
+    from bouncingball.solvers.engines import stepper
 
     def run(ball, h0):
         result = bouncingball.simulate(ball, h0, 0.0, 3.0, engine=engine)

@@ -19,8 +19,9 @@ ROOT = Path(__file__).resolve().parents[1]
 # The public API: numpydoc docstrings (ruff checks them, pyproject.toml), and their examples run here.
 PUBLIC_MODULES = ("bouncingball.physics", "bouncingball.limits", "bouncingball.solvers", "bouncingball.solvers.result",
                   "bouncingball.solvers.cvode", "bouncingball.solvers.exact", "bouncingball.accuracy",
-                  "bouncingball.capped", "bouncingball.scenes", "bouncingball.testing", "bouncingball.check_outcome",
-                  "bouncingball.result_files", "bouncingball.printed_numbers", "bouncingball.input_files",
+                  "bouncingball.capped", "bouncingball.scenes", "bouncingball.check.judge",
+                  "bouncingball.check.outcome", "bouncingball.check.result_files",
+                  "bouncingball.check.printed_numbers", "bouncingball.check.input_files",
                   "bouncingball.sweep.run", "bouncingball.sweep.grid", "bouncingball.run_report",
                   "bouncingball.plotting")
 PRIVATE = re.compile(r"NOTES\.md|\bthe issue\b|\bissue's\b", re.IGNORECASE)
@@ -50,8 +51,8 @@ def test_public_examples_run(module):
 
 
 def test_the_readme_quotes_the_engine_choice_constants():
-    """The rule of engine "auto" as the code applies it (solvers/engines.py), not as once typed."""
-    from bouncingball.solvers import engines
+    """The rule of engine "auto" as the code applies it (solvers/engine_selection.py), not as once typed."""
+    from bouncingball.solvers import engine_selection as engines
 
     text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
     fresh = (engines.COMPILED_FIRST_USE - engines.SKSUNDAE_FIRST_USE) / engines.STEP_SAVING
@@ -306,7 +307,7 @@ def test_the_validate_sample_on_the_fmu_page_is_what_validate_prints(validated_a
 def _range_of(variable) -> str | set[str]:
     """A variable's range as the page writes it: FMI's inclusive min of the smallest double is "> 0"."""
     from bouncingball.fmu.variables import FMU_CONTACT_LAWS, SMALLEST_POSITIVE
-    from bouncingball.solvers.settings import ENGINES, METHODS
+    from bouncingball.solvers.phase_machine.settings import ENGINES, METHODS
 
     if variable.name in ("method", "engine", "contact_law"):
         return set({"method": METHODS, "engine": ENGINES, "contact_law": FMU_CONTACT_LAWS}[variable.name])
@@ -346,13 +347,13 @@ def test_the_fmu_pages_variable_table_is_the_fmus():
 def test_the_fmu_pages_constants_are_the_codes():
     """The DefaultExperiment, FMI's smallest min, the state's format, the check's tolerance, the nominals and the
     weightless scene's impact, as the code and its scenes have them."""
+    from bouncingball.check.judge import DEFAULT_TOLERANCE
     from bouncingball.fmu.slave3 import phase_nominals
     from bouncingball.fmu.slave_base import STATE_FORMAT
     from bouncingball.fmu.variables import SMALLEST_POSITIVE
     from bouncingball.physics import Mode
     from bouncingball.scenes import load_scene
-    from bouncingball.solvers.settings import CvodeSettings
-    from bouncingball.testing import DEFAULT_TOLERANCE
+    from bouncingball.solvers.phase_machine.settings import CvodeSettings
 
     article, rtol, weightless = load_scene("article"), CvodeSettings().rtol, load_scene("zero-gravity")
     flight = phase_nominals(article.ball, article.h0, article.v0, Mode.FLIGHT, 0.0)

@@ -146,8 +146,8 @@ def test_the_accuracy_warning_points_at_the_users_call_and_says_what_to_do():
     import inspect
 
     from bouncingball.solvers.cvode import BallIntegrator
+    from bouncingball.solvers.phase_machine.settings import MIN_RTOL
     from bouncingball.solvers.result import accuracy_warning
-    from bouncingball.solvers.settings import MIN_RTOL
 
     for rtol, advice in ((1e-12, "tighten rtol (now 1e-12), which shrinks the estimate, down to rtol = 1e-15"),
                          (1e-6, "rtol = 1e-06 is looser than the default 1e-12, which the promise is made at: "
@@ -189,8 +189,8 @@ def test_a_well_conditioned_forced_run_does_not_warn(seed):
 def test_check_says_when_the_run_it_judges_is_ill_conditioned(tmp_path):
     """check judges a master's file against the exact solution (the verdict as ever), and says where the scene
     itself is ill-conditioned: there no double-precision solution can be trusted, the exact one included."""
+    from bouncingball.check.judge import check_result
     from bouncingball.scenes import Scene
-    from bouncingball.testing import check_result
 
     grid = np.round(np.linspace(0.0, 3.0, 1501), 12)
     table = ill_table(1)  # its steps moved to the grid, it passes the promise late in the run

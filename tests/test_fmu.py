@@ -534,9 +534,9 @@ def test_an_unknown_or_mistyped_value_reference_is_an_error_and_the_instance_car
 def test_the_scene_to_start_value_mapping_covers_the_fmus_start_values():
     """fmu/variables.py's one mapping: every name a variable of the table, the ball's parameters all there,
     and a scene's start values give back that scene (testing.scene_with_start_values, what check uses)."""
+    from bouncingball.check.judge import scene_with_start_values
     from bouncingball.fmu.variables import SCENE_FIELD_OF_START_VALUE, VARIABLES, start_values_of
     from bouncingball.scenes import BALL_KEYS, load_scene
-    from bouncingball.testing import scene_with_start_values
 
     names = {variable.name for variable in VARIABLES}
     assert set(SCENE_FIELD_OF_START_VALUE) <= names

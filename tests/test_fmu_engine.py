@@ -261,7 +261,7 @@ def test_the_fmu_ships_code_compiled_for_any_cpu_of_its_architecture(fmu, tmp_pa
     import zipfile
 
     pytest.importorskip("numba")
-    from bouncingball.solvers import jit
+    from bouncingball.solvers.engines import jit
 
     with zipfile.ZipFile(fmu) as archive:
         names = [name for name in archive.namelist() if name.startswith("resources/numba-cache/")]

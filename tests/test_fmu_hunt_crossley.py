@@ -83,8 +83,8 @@ def test_model_exchange_sees_every_impact_and_departure(unzipped3, name):
 
 
 def test_check_refuses_a_hunt_crossley_run_by_name_it_has_no_exact_solution(fmu, capsys, tmp_path):
+    from bouncingball.check.judge import check_result
     from bouncingball.cli import main
-    from bouncingball.testing import check_result
 
     result = _simulate(fmu, "benchmark")
     columns = {"time": result["time"], "h": result["h"], "impacts": result["impacts"]}

@@ -103,7 +103,7 @@ def test_model_exchange_sees_every_sub_mode_switch(unzipped3, name):
 
 
 def test_check_judges_a_no_pull_run_by_its_start_values(fmu):
-    from bouncingball.testing import check_result
+    from bouncingball.check.judge import check_result
 
     result = _simulate(fmu, "article")
     columns = {"time": result["time"], "h": result["h"], "impacts": result["impacts"]}

@@ -138,7 +138,7 @@ def test_a_bad_contact_law_parameter_is_refused_at_initialisation_naming_it(fmu,
 
 def test_check_judges_a_rigid_run_by_its_start_values(fmu):
     """`check` takes contact_law, e and v_min as start values: the rigid run passes, judged as linear it fails."""
-    from bouncingball.testing import check_result
+    from bouncingball.check.judge import check_result
 
     values = _start_values(0.7, 0.1, 1.0)
     result = _simulate(fmu, values)

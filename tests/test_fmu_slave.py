@@ -17,8 +17,8 @@ from bouncingball.fmu.documentation import _Host, _Status
 from bouncingball.fmu.variables import OUTPUTS
 from bouncingball.physics import Mode
 from bouncingball.scenes import load_scene
-from bouncingball.solvers import sundials_log
 from bouncingball.solvers.cvode import SolverError
+from bouncingball.solvers.engines import sundials_log
 
 
 def _slave(**values) -> _Host:

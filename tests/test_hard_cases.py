@@ -291,7 +291,7 @@ def test_a_late_start_is_integrated_in_phase_time_without_sundials_warnings(capf
     """
     import warnings
 
-    from bouncingball.solvers.sundials_log import SundialsWarning
+    from bouncingball.solvers.engines.sundials_log import SundialsWarning
 
     integrator = BallIntegrator(ARTICLE, 2.0, 0.0, t0=1e6)
     with warnings.catch_warnings():
@@ -307,7 +307,7 @@ def test_a_sundials_log_reports_each_cause_once():
     """The log on its own: a raw scikit-sundae CVODE object created under capturing()."""
     from sksundae.cvode import CVODE
 
-    from bouncingball.solvers.sundials_log import SundialsLog
+    from bouncingball.solvers.engines.sundials_log import SundialsLog
 
     def rhs(t, y, yp):
         yp[0], yp[1] = y[1], -y[0]

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from bouncingball import Ball, simulate
 from bouncingball.physics import Mode
 from bouncingball.solvers.cvode import BallIntegrator, CvodeSettings
-from bouncingball.solvers.settings import hop_tolerance, merged_hop_limit
+from bouncingball.solvers.phase_machine.settings import hop_tolerance, merged_hop_limit
 from hunt_crossley_truth import HuntCrossleyTruth, hertz_contact_duration, mp
 
 TOLERANCE = 1e-6  # of the height scale, the promise; measured errors are ~1e-9 (see MEASURED)
@@ -353,7 +353,7 @@ def test_the_benchmarks_scene_and_reference_follow_the_truth():
     """bench --hunt-crossley measures errors against the compiled engine at REFERENCE_RTOL: over the truth's first
     3 s of the same scene it is within REFERENCE_HELD_WITHIN (measured 3.0e-10 m), its events within 1e-9 s
     (7.6e-11 s)."""
-    from bouncingball.bench.hunt_crossley import REFERENCE_ATOL, REFERENCE_HELD_WITHIN, REFERENCE_RTOL, SCENE
+    from bouncingball.bench.hunt_crossley_study import REFERENCE_ATOL, REFERENCE_HELD_WITHIN, REFERENCE_RTOL, SCENE
 
     k, n, alpha, m, R, g, h0, v0, t_end, F_ext = CASES["benchmark"]
     assert (SCENE.ball, SCENE.h0, SCENE.v0, SCENE.F_ext) == (ball_of("benchmark"), h0, v0, F_ext)

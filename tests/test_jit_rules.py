@@ -1,4 +1,4 @@
-"""The rules of solvers/jit.py's docstring, checked on the syntax trees of the functions compiled_together is given.
+"""The rules of engines/jit.py's docstring, checked on the syntax trees of the functions compiled_together is given.
 
 The functions are those compiled.py passed (the keys of compiled._compiled), not a list kept here, and
 the names each one reads are resolved in the globals numba compiles it with (its compiled copy's), so
@@ -17,11 +17,13 @@ from types import FunctionType, ModuleType
 import numpy as np
 import pytest
 
-compiled = pytest.importorskip("bouncingball.solvers.compiled", reason="the compiled engine needs numba ([fast])")
+compiled = pytest.importorskip("bouncingball.solvers.engines.compiled",
+                               reason="the compiled engine needs numba ([fast])")
 from numba.core.dispatcher import Dispatcher  # noqa: E402  (numba is there once compiled imports)
 
 from bouncingball.contact_laws import BallParameters  # noqa: E402
-from bouncingball.solvers import jit, layout  # noqa: E402
+from bouncingball.solvers.engines import jit  # noqa: E402
+from bouncingball.solvers.phase_machine import layout  # noqa: E402
 
 GIVEN = tuple(compiled._compiled)  # every plain function compiled.py gave compiled_together
 COPY_OF = {id(copy): plain for plain, copy in compiled._compiled.items()}
@@ -130,7 +132,7 @@ def compiled_rule_violations(function, namespace) -> list[str]:
 
 def test_the_rules_are_checked_on_what_compiled_py_gives():
     """The functions come from compiled.py as it is: the machine and the callbacks' functions among them."""
-    from bouncingball.solvers import dense_output, drivers, phases
+    from bouncingball.solvers.phase_machine import dense_output, drivers, phases
 
     assert {drivers.run_phases, dense_output.fill_grid, phases.scaled_rates} <= set(entry_points())
     assert len(reached(entry_points())) > 20
@@ -181,7 +183,7 @@ def test_every_source_the_compiled_code_reads_is_in_the_cache_digest():
 def test_the_checks_find_a_call_through_a_module_and_an_object_read():
     """A function as an engineer might write it: each check names its line."""
     from bouncingball import equations, physics
-    from bouncingball.solvers import phases
+    from bouncingball.solvers.phase_machine import phases
 
     namespace = {"equations": equations, "Ball": physics.Ball, "math": math, "LIMIT": 2.0}
     source = textwrap.dedent('''
@@ -192,7 +194,8 @@ def test_the_checks_find_a_call_through_a_module_and_an_object_read():
     ''')
     function = _function_from(source, namespace)
     assert module_attribute_calls(function, {"bouncingball.equations"}) == [
-        "bouncingball.solvers.phases.flow, line 4: equations.gap_flow_value (import it: from bouncingball.equations "
+        "bouncingball.solvers.phase_machine.phases.flow, line 4: equations.gap_flow_value (import it: from "
+        "bouncingball.equations "
         "import gap_flow_value, and call it by its name)"]
     violations = "\n".join(compiled_rule_violations(function, namespace))
     for expected in ("line 2: keyword-only or variadic", "line 5: JoinedStr", "line 5: reads Ball, a type",
@@ -211,9 +214,9 @@ def test_the_state_is_read_by_its_fields_names_alone():
             return state.rs_tt
     ''')
     violations = compiled_rule_violations(_function_from(source, {}), {})
-    assert violations == ["bouncingball.solvers.phases.flow, line 4: state.rs_tt, an object's attribute (arguments "
-                          "are floats, ints, tuples, arrays, the ball's parameters, the machine's state, or math / "
-                          "numpy as xp)"]
+    assert violations == ["bouncingball.solvers.phase_machine.phases.flow, line 4: state.rs_tt, an object's attribute "
+                          "(arguments are floats, ints, tuples, arrays, the ball's parameters, the machine's state, "
+                          "or math / numpy as xp)"]
 
 
 def _function_from(source: str, namespace: dict):
@@ -224,5 +227,5 @@ def _function_from(source: str, namespace: dict):
     linecache.cache[filename] = (len(source), None, source.splitlines(True), filename)
     exec(compile(source, filename, "exec"), namespace)  # noqa: S102
     function = namespace["flow"]
-    function.__module__ = "bouncingball.solvers.phases"
+    function.__module__ = "bouncingball.solvers.phase_machine.phases"
     return function

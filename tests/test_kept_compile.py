@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from bouncingball.solvers import engine_cache
+from bouncingball.solvers.engines import ahead_of_time as engine_cache
 
 
 @pytest.fixture

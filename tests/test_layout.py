@@ -13,7 +13,7 @@ import bouncingball
 PACKAGE = Path(bouncingball.__file__).parent
 MODULES = sorted(m.name for m in pkgutil.walk_packages([str(PACKAGE)], "bouncingball."))
 # What each layer may import from this package: codes, rounding, oscillator <- equations <- contact_laws <- physics
-# <- limits <- solvers <- the rest.
+# <- limits <- the phase machine <- its engines <- the solvers' front-ends <- the rest.
 MODEL = {"bouncingball.codes", "bouncingball.rounding", "bouncingball.oscillator", "bouncingball.equations",
          "bouncingball.contact_laws", "bouncingball.physics"}
 LOWER_LAYERS = {
@@ -26,6 +26,9 @@ LOWER_LAYERS = {
     "bouncingball.physics": {"bouncingball.codes", "bouncingball.validation", "bouncingball.equations",
                              "bouncingball.contact_laws"},
     "bouncingball.limits": {*MODEL, "bouncingball.validation"},
+    "bouncingball.solvers.phase_machine": {*MODEL, "bouncingball.validation", "bouncingball.solvers.phase_machine"},
+    "bouncingball.solvers.engines": {*MODEL, "bouncingball.validation", "bouncingball.solvers.phase_machine",
+                                     "bouncingball.solvers.engines"},
     # extras: the install hint of a missing extra's message (standard library only)
     "bouncingball.solvers": {*MODEL, "bouncingball.validation", "bouncingball.limits", "bouncingball.solvers",
                              "bouncingball.extras"},
@@ -66,7 +69,8 @@ def _imports_of(path: Path, module: str) -> set[str]:
 def test_lower_layers_import_nothing_above_them(layer):
     allowed = LOWER_LAYERS[layer]
     stem = layer.split(".")[-1]
-    files = [PACKAGE / f"{stem}.py"] if layer in SINGLE_FILE_LAYERS else sorted((PACKAGE / stem).glob("*.py"))
+    folder = PACKAGE.joinpath(*layer.split(".")[1:])
+    files = [folder.with_suffix(".py")] if layer in SINGLE_FILE_LAYERS else sorted(folder.glob("*.py"))
     for path in files:
         module = layer if path.stem in (stem, "__init__") else f"{layer}.{path.stem}"
         for imported in _imports_of(path, module):
@@ -92,3 +96,60 @@ def test_no_module_or_class_is_too_long_to_read_in_one_pass():
                     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
                     if isinstance(node, ast.ClassDef) and node.end_lineno - node.lineno + 1 > MAX_CLASS_LINES}
     assert len(sources) > 40 and long_modules == {} and long_classes == {}
+
+
+def test_no_two_modules_share_a_name():
+    """A module's name says which it is: no two files of the package (but __init__.py) share a name."""
+    names = [path.stem for path in PACKAGE.rglob("*.py") if path.name != "__init__.py"]
+    assert len(names) > 40 and sorted({name for name in names if names.count(name) > 1}) == []
+
+
+def _import_graph() -> dict[str, set[str]]:
+    """Each module of the package and the modules it imports, at its top or inside a function."""
+    modules = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+
+    def module_of(name: str) -> str:  # "package.module.attribute" -> the module
+        while name not in modules and "." in name:
+            name = name.rsplit(".", 1)[0]
+        return name
+
+    return {module: {module_of(name) for name in _imports_of(path, module)} - {module}
+            for module, path in modules.items()}
+
+
+def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import circles of graph: its strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on_stack, circles = {}, {}, [], set(), []
+
+    def visit(module):
+        index[module] = low[module] = len(index)
+        stack.append(module)
+        on_stack.add(module)
+        for other in graph.get(module, ()):
+            if other not in index:
+                visit(other)
+                low[module] = min(low[module], low[other])
+            elif other in on_stack:
+                low[module] = min(low[module], index[other])
+        if low[module] == index[module]:
+            component = []
+            while not component or component[-1] != module:
+                component.append(stack.pop())
+                on_stack.discard(component[-1])
+            if len(component) > 1:
+                circles.append(sorted(component))
+
+    for module in graph:
+        if module not in index:
+            visit(module)
+    return circles
+
+
+def test_no_import_circle_even_through_an_import_inside_a_function():
+    graph = _import_graph()
+    assert len(graph) > 40 and _circles(graph) == []
+    assert _circles({**graph, "bouncingball.fmu.build3": {"bouncingball.fmu.build"}}) == [
+        ["bouncingball.fmu.build", "bouncingball.fmu.build3"]]  # the check sees one

@@ -146,7 +146,7 @@ def test_a_scene_file_chooses_the_rigid_law_and_run_reports_its_bounces(tmp_path
 
 def test_check_judges_a_file_against_a_rigid_scene_file(tmp_path):
     """A CSV of the truth's heights passes against the rigid scene file, and fails against its linear twin."""
-    from bouncingball.testing import check_result
+    from bouncingball.check.judge import check_result
 
     scene = tmp_path / "reference.toml"
     scene.write_text(REFERENCE_SCENE)

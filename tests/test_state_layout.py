@@ -1,4 +1,4 @@
-"""The phase machine's state (solvers/layout.py): one list of named fields, and what each holds makes sense.
+"""The phase machine's state (phase_machine/layout.py): one list of named fields, and what each holds makes sense.
 
 A field written under a wrong name (a segment's start where its end belongs, a count into a time) breaks one
 of the relations below between the named fields, which hold after every call of either driver, in either
@@ -14,9 +14,9 @@ import pytest
 import bouncingball as bb
 from bouncingball.codes import DEPARTURE, IMPACT
 from bouncingball.physics import Mode
-from bouncingball.solvers import layout
 from bouncingball.solvers.integrator import BallIntegrator
-from bouncingball.solvers.settings import CvodeSettings, hop_tolerance
+from bouncingball.solvers.phase_machine import layout
+from bouncingball.solvers.phase_machine.settings import CvodeSettings, hop_tolerance
 
 COUNTS = ("IMPACTS", "DEPARTURES", "STEPS", "RHS_CALLS", "NFEV", "RS_IMPACTS", "RS_DEPARTURES", "RS_STEPS",
           "RS_RHS_CALLS")

@@ -535,7 +535,7 @@ HC_CELL = {"k": 1e6, "zeta": math.nan, "alpha": 0.2, "n": 1.5, "m": 1.0, "h0": 0
 def test_a_hunt_crossley_cell_is_measured_against_a_reference_that_follows_the_mpmath_truth():
     """Its reference within REFERENCE_HELD_WITHIN of the truth with every event to 1e-9 s; each row's error within
     that of the solver's own distance from the truth (triangle inequality), and under 1e-6 m."""
-    from bouncingball.bench.hunt_crossley import REFERENCE_HELD_WITHIN
+    from bouncingball.bench.hunt_crossley_study import REFERENCE_HELD_WITHIN
     from bouncingball.sweep.child import measure, reference_run
     from bouncingball.sweep.grid import cell_of
     from hunt_crossley_truth import HuntCrossleyTruth

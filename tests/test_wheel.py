@@ -60,7 +60,7 @@ def test_the_wheel_builds_and_runs_the_fmu_outside_the_checkout(installed, tmp_p
 _FIRST_COMPILED_RUN = """
 import json
 import bouncingball as bb
-from bouncingball.solvers import compiled
+from bouncingball.solvers.engines import compiled
 result = bb.simulate(bb.Ball(), 2.0, 0.0, 8.0, 1e-3, engine="compiled")
 dispatchers = [value for value in vars(compiled).values() if hasattr(value, "stats")]
 dispatchers += list(compiled._compiled.values())

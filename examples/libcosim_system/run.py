@@ -19,7 +19,7 @@ from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
 from libcosimpy.CosimObserver import CosimObserver
 from pythonfmu import FmuBuilder
 
-from bouncingball.testing import check_result
+from bouncingball.check.judge import check_result
 
 HERE = Path(__file__).resolve().parent
 out = Path(sys.argv[1] if len(sys.argv) > 1 else ".").resolve()

@@ -202,7 +202,7 @@ def _progress_bar(t_end: float):
 
 
 def _check(args: argparse.Namespace) -> int:
-    from .testing import check_result
+    from .check.judge import check_result
 
     start_values = {}
     for item in args.start_value:

@@ -2,7 +2,7 @@
 
 Each mode's acceleration, the load, the static deflection, the rest margin and the exact flow of the
 linear law's modes. physics.Ball's methods call them, and the compiled CVODE engine compiles these same
-functions, so the physics has one definition (solvers/jit.py's rules); contact_laws/ builds each law's
+functions, so the physics has one definition (solvers/engines/jit.py's rules); contact_laws/ builds each law's
 on them.
 """
 

@@ -3,7 +3,7 @@
 product_error is the exact rounding error of a product (Dekker's two-product); hypot_value is
 math.hypot as CPython computes it; later is an event's time as a double and its rounding error. All
 are plain Python over floats, so numba compiles them to the
-same numbers (solvers/jit.py), where compiled code would otherwise call a C library that rounds
+same numbers (solvers/engines/jit.py), where compiled code would otherwise call a C library that rounds
 differently at times.
 """
 
@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 
 # What interpreted code calls: the C function, a hundred times faster than hypot_value interpreted, and the same
-# numbers; the compiled engine binds the name to hypot_value (solvers/compiled.py).
+# numbers; the compiled engine binds the name to hypot_value (solvers/engines/compiled.py).
 hypot = math.hypot
 
 

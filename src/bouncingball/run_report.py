@@ -88,7 +88,7 @@ def hop_limit(result: SimulationResult) -> float:
     """
     if result.solver != "cvode":
         return 0.0
-    from .solvers.cvode import merged_hop_limit  # CVODE's rule, imported where a CVODE run already has
+    from .solvers.cvode import merged_hop_limit
 
     rtol, atol = result.options["rtol"], result.options["atol"]
     forces = getattr(result.F_ext, "values", (result.F_ext,))
@@ -121,7 +121,7 @@ def event_differences(result: SimulationResult, exact: ExactSolution, height_tol
     """
     if [event.kind for event in result.events] == [event.kind for event in exact.events]:
         return []
-    from .testing import DEFAULT_TOLERANCE  # here: the common case above needs none of what it imports
+    from .check.judge import DEFAULT_TOLERANCE
 
     height_tolerance = max(height_tolerance, DEFAULT_TOLERANCE)
     limit = hop_limit(result)

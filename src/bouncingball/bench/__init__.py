@@ -28,7 +28,7 @@ def bench_command(output_dir: str | Path = "bench-results", quick: bool = False,
 
         written = study.run(output_dir, repeats=2 if quick else study.REPEATS)
     elif hunt_crossley:
-        from . import hunt_crossley as study
+        from . import hunt_crossley_study as study
 
         written = study.run(output_dir, quick=quick)
     elif stability:

@@ -12,7 +12,7 @@ import subprocess
 import sys
 from dataclasses import dataclass
 
-from ..solvers import engines
+from ..solvers import engine_selection
 
 # One fresh process: the article once (the engine's first use), then twice more (hot).
 _PROGRAM = r"""
@@ -66,12 +66,13 @@ def break_even_rows(measured: dict[str, FirstUse]) -> list[tuple[str, str, str]]
     compiled, sksundae = measured["compiled"], measured["sksundae"]
     saving = (sksundae.hot - compiled.hot) / compiled.steps
     fresh = (compiled.load - sksundae.load) / saving
-    used_fresh = (engines.COMPILED_FIRST_USE - engines.SKSUNDAE_FIRST_USE) / engines.STEP_SAVING
+    used_fresh = ((engine_selection.COMPILED_FIRST_USE - engine_selection.SKSUNDAE_FIRST_USE)
+                  / engine_selection.STEP_SAVING)
     return [
-        ("compiled engine's first use [s]", f"{compiled.load:.3g}", f"{engines.COMPILED_FIRST_USE:g}"),
-        ("scikit-sundae engine's first use [s]", f"{sksundae.load:.3g}", f"{engines.SKSUNDAE_FIRST_USE:g}"),
-        ("saved per CVODE step [us]", f"{saving * 1e6:.3g}", f"{engines.STEP_SAVING * 1e6:g}"),
+        ("compiled engine's first use [s]", f"{compiled.load:.3g}", f"{engine_selection.COMPILED_FIRST_USE:g}"),
+        ("scikit-sundae engine's first use [s]", f"{sksundae.load:.3g}", f"{engine_selection.SKSUNDAE_FIRST_USE:g}"),
+        ("saved per CVODE step [us]", f"{saving * 1e6:.3g}", f"{engine_selection.STEP_SAVING * 1e6:g}"),
         ("break-even in a fresh process [steps]", f"{fresh:.0f}", f"{used_fresh:.0f}"),
         ("break-even once scikit-sundae is loaded [steps]", f"{compiled.load / saving:.0f}",
-         f"{engines.COMPILED_FIRST_USE / engines.STEP_SAVING:.0f}"),
+         f"{engine_selection.COMPILED_FIRST_USE / engine_selection.STEP_SAVING:.0f}"),
     ]

@@ -238,7 +238,7 @@ def _run_child(job: dict, cache: str) -> dict:
 
 def _engine_unavailable() -> str:
     """Why the compiled engine cannot run in this Python (so not in the FMU it runs either), or ""."""
-    from ..solvers.engines import choose_engine
+    from ..solvers.engine_selection import choose_engine
 
     try:
         choose_engine("compiled")

@@ -148,8 +148,8 @@ def _engine_choice_section(first_use: dict[str, engine_choice.FirstUse]) -> list
         "## Choosing the engine",
         "",
         f"`engine=\"auto\"` weighs the compiled engine's first use in a process against the CVODE steps of the run "
-        f"(`bouncingball.solvers.engines.choose_engine`). Measured on the article ({compiled.steps} steps), each "
-        "engine in fresh processes: the first run minus a hot one is the engine's loading; median of "
+        f"(`bouncingball.solvers.engine_selection.choose_engine`). Measured on the article ({compiled.steps} steps), "
+        "each engine in fresh processes: the first run minus a hot one is the engine's loading; median of "
         f"{engine_choice.REPEATS} processes per engine, interleaved.",
         "",
         *table(["quantity", "measured", "used by choose_engine"], engine_choice.break_even_rows(first_use)),
@@ -271,7 +271,7 @@ def _matrix_cell(outcome: Outcome) -> str:
 
 def write_stability_md(scenes: list[Scene], outcomes: list[Outcome], cap: float, quick: bool,
                        environment: dict[str, str], path: Path) -> Path:
-    from ..solvers.settings import DEFAULT_RTOL  # (here: the bench's report imports no solver at load)
+    from ..solvers.phase_machine.settings import DEFAULT_RTOL
 
     labels = [solver.label for solver in stability_solvers(scenes[0])]
     by_scene: dict[str, dict[str, Outcome]] = {}

@@ -136,7 +136,7 @@ def warm_up() -> None:
     What a capped child runs before its first timed run (capped.run_capped's warm_up), so that the
     run's time is its own, not the engines' loading.
     """
-    from ..solvers.engines import choose_engine
+    from ..solvers.engine_selection import choose_engine
 
     choose_engine("auto")  # loads the compiled engine where it runs; "auto" then takes it for every run
     scene = load_scene("article")
@@ -190,7 +190,7 @@ def _run_fmu(solver: Solver, scene: Scene, tolerances: dict, fmus: FmuPaths | No
         if solver.engine:
             start_values["engine"] = solver.engine
         if solver.engine == "compiled":  # where it cannot run here, it cannot in the FMU: say why
-            from ..solvers.engines import choose_engine
+            from ..solvers.engine_selection import choose_engine
 
             choose_engine("compiled")
     # FMPy passes the DefaultExperiment's tolerance (the default rtol) unless told one, and the FMU's rtol is

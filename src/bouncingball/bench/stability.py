@@ -86,7 +86,7 @@ def stability_solvers(scene: Scene) -> list[Solver]:
 
 def stability_cases(scenes: list[Scene]) -> list[Case]:
     """Every solver at CVODE's default tolerances (the article's algorithm as published)."""
-    from ..solvers.settings import DEFAULT_RTOL
+    from ..solvers.phase_machine.settings import DEFAULT_RTOL
 
     cases = []
     for scene in scenes:

@@ -194,7 +194,7 @@ def target_fmu(points: list[Point]) -> Target:
     if not candidates:
         return Target("c", goal, False, "the FMU did not run: " + "; ".join(
             {p.note for p, _ in fmu_step_costs(points) if p.note}))
-    from ..solvers.settings import DEFAULT_RTOL  # (here: the bench's report imports no solver at load)
+    from ..solvers.phase_machine.settings import DEFAULT_RTOL
 
     # the FMU's doStep is compared at the swept tolerance nearest its default
     fmu, empty = min(candidates, key=lambda pair: abs(math.log10(pair[0].rtol / DEFAULT_RTOL)))

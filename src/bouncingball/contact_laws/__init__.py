@@ -10,8 +10,8 @@
 
 The contract
 ------------
-A law's module holds what the law adds to the phase machine, as plain functions of floats (solvers/jit.py's rules:
-they run interpreted in the scikit-sundae engine and compiled in the other), taking Ball.parameters (a
+A law's module holds what the law adds to the phase machine, as plain functions of floats (solvers/engines/jit.py's
+rules: they run interpreted in the scikit-sundae engine and compiled in the other), taking Ball.parameters (a
 BallParameters, read by name), the gap x = h - R [m], v [m/s] and the load m g - F_ext [N]:
 
 1. ``contact_scales(parameters, x, v, load) -> (length [m], speed [m/s])``: the frame CVODE integrates a contact
@@ -35,6 +35,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+
+import numpy as np
 
 from ..codes import CONTACT, DEPARTURE, ENGAGE, FLIGHT, FREE, RELEASE
 from ..equations import gap_acceleration, gap_flow_value, rest_margin_value
@@ -75,14 +77,7 @@ from .linear import departure_speed as linear_departure_speed
 from .linear import departure_time as linear_departure_time
 from .no_pull import contact_roots as no_pull_contact_roots
 from .no_pull import decide_contact as no_pull_decide_contact
-from .no_pull import (
-    free_event,
-    free_gap_rate,
-    no_pull_rest_margin_value,
-    pressed_gap,
-    release_state,
-    release_time,
-)
+from .no_pull import free_event, free_gap_rate, no_pull_rest_margin_value, pressed_gap, release_state, release_time
 from .rigid import ZENO_APEX, rigid_rebound, rigid_rebound_above, summed_bounce_state
 from .rigid import contact_scales as rigid_contact_scales
 from .rigid import decide_contact as rigid_decide_contact
@@ -299,7 +294,7 @@ def law_acceleration(x, v, mode, load, m, k, b, law, n, alpha):
 def own_interpolant(parameters, mode):
     """Whether the law reads a step in mode off an interpolant of its own (law_interpolant), having no closed form.
 
-    Elsewhere the dense output blends the mode's exact flow (solvers/dense_output.py).
+    Elsewhere the dense output blends the mode's exact flow (solvers/phase_machine/dense_output.py).
     """
     return mode == CONTACT and parameters.law == HUNT_CROSSLEY
 
@@ -370,10 +365,10 @@ def side_extreme(parameters, mode, x, v):
     largest pressed gap z = x + (b / k) v = -force / k, which a missed release leaves above 0.
     """
     if mode == FLIGHT:
-        return x.min()
+        return np.min(x)
     if parameters.law == NO_PULL:
-        return (x + (parameters.b / parameters.k) * v).max()
-    return x.max()
+        return np.max(x + (parameters.b / parameters.k) * v)
+    return np.max(x)
 
 
 def third_root_releases(parameters, mode):

@@ -3,7 +3,7 @@
 Free (Mode.FREE, the flight's parabola below R) above the release speed 2 / (3 alpha), where the force would pull;
 pressed (Mode.CONTACT) below it. No closed form: CVODE integrates every pressed contact, with the law's own
 right-hand side and state-dependent Jacobian; its rest is only reported (hunt_crossley_rest_margin), and its
-error carried step by step (solvers/error_estimate.py).
+error carried step by step (solvers/phase_machine/error_estimate.py).
 """
 
 from __future__ import annotations

@@ -27,17 +27,18 @@ import sys
 import sysconfig
 import tempfile
 import time
-import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
 from ..extras import install_command
 from ..output import atomic_write, check_output_path
+from . import build3
 from .documentation import index_html
 from .engine_cache import compile_cache, shipped_files
 from .host_check import check_source
+from .model_description import FmuBuildError, complete_model_description
 from .reference import reference_path, write_reference_csv
-from .variables import MODEL_NAME, UNITS, VARIABLES
+from .variables import MODEL_NAME, VARIABLES
 
 DEFAULT_OUTPUT = Path("dist") / f"{MODEL_NAME}.fmu"
 DEFAULT_OUTPUTS = {2: DEFAULT_OUTPUT, 3: Path("dist") / f"{MODEL_NAME}3.fmu"}
@@ -54,10 +55,6 @@ BUILD_STEPS = ("compiling the C loader and staging the package", "pythonfmu buil
                "sources is kept)", "packing the FMU", "writing the reference result (the exact solution)")
 PLATFORM = "linux64"
 PYTHONFMU_BINARY = f"{MODEL_NAME}_pythonfmu.so"  # pythonfmu's binary, loaded by ours
-
-
-class FmuBuildError(RuntimeError):
-    """The FMU cannot be built here; the message says what is missing."""
 
 
 def build_fmu(output: str | Path | None = None, fmi_version: int = 2, step=None) -> Path:
@@ -140,9 +137,8 @@ def _stage(folder: Path, fmi_version: int = 2) -> tuple[Path, Path]:
     source = SLAVE_SCRIPT.read_text(encoding="utf-8")
     changes = {'PACKAGE = "bouncingball"\n': f'PACKAGE = "{name}"\n'}
     if fmi_version == 3:
-        from .build3 import SCRIPT_CHANGES
 
-        changes.update(SCRIPT_CHANGES)
+        changes.update(build3.SCRIPT_CHANGES)
     for marker, replacement in changes.items():
         if source.count(marker) != 1:
             raise FmuBuildError(f"{SLAVE_SCRIPT.name} must contain {marker.strip()!r} exactly once")
@@ -271,7 +267,7 @@ def _repack(built: Path, loader: Path, target: Path, fmi_version: int = 2, extra
     extra names ((file, its name in the FMU): the compiled engine's cache)."""
     binaries = f"binaries/{PLATFORM if fmi_version == 2 else 'x86_64-linux'}/"
     if fmi_version == 3:
-        from .build3 import complete_model_description as complete
+        complete = build3.complete_model_description
     else:
         complete = complete_model_description
     with zipfile.ZipFile(built) as source, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as fmu:
@@ -289,70 +285,3 @@ def _repack(built: Path, loader: Path, target: Path, fmi_version: int = 2, extra
         fmu.write(loader, f"{binaries}{MODEL_NAME}.so")
         for path, name in extra:
             fmu.write(path, name)
-
-
-def complete_model_description(xml: bytes) -> bytes:
-    """Add units, min/max, DefaultExperiment and InitialUnknowns to pythonfmu's modelDescription.xml."""
-    root = ET.fromstring(xml)
-    stamp(root, "pythonfmu")
-    children = list(root)
-    root.insert(children.index(root.find("CoSimulation")) + 1, unit_definitions())
-    root.insert(list(root).index(root.find("ModelVariables")), default_experiment())
-
-    scalars = root.find("ModelVariables").findall("ScalarVariable")
-    index = {scalar.get("name"): i + 1 for i, scalar in enumerate(scalars)}
-    # The loader checks value references against VARIABLES' order (BB_VARIABLE_TYPES): pythonfmu must agree.
-    if [(s.get("name"), s.get("valueReference")) for s in scalars] != [(v.name, str(i)) for i, v in
-                                                                           enumerate(VARIABLES)]:
-        raise FmuBuildError("pythonfmu numbered the variables other than in VARIABLES' order")
-    for variable in VARIABLES:
-        add_unit_and_range(scalars[index[variable.name] - 1].find(variable.type), variable)
-
-    structure = root.find("ModelStructure")
-    initial_unknowns = ET.SubElement(structure, "InitialUnknowns")
-    for variable in VARIABLES:  # outputs computed at initialisation: every output without initial="exact"
-        if variable.causality == "output" and variable.initial != "exact":
-            ET.SubElement(initial_unknowns, "Unknown", index=str(index[variable.name]))
-    ET.indent(root)
-    return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
-
-
-# --- what both FMI versions' model descriptions get ------------------------------------------------
-def stamp(root: ET.Element, library: str) -> None:
-    """The model's version and the generation tool (bouncingball, and the pythonfmu library it used)."""
-    from importlib.metadata import version as installed_version
-
-    from .. import __version__
-
-    root.set("version", __version__)
-    root.set("generationTool", f"bouncingball {__version__} ({library} {installed_version(library)})")
-
-
-def unit_definitions() -> ET.Element:
-    """UnitDefinitions: every unit of the variable table, in SI base units."""
-    units = ET.Element("UnitDefinitions")
-    for name, exponents in UNITS.items():
-        unit = ET.SubElement(units, "Unit", name=name)
-        ET.SubElement(unit, "BaseUnit", {base: str(power) for base, power in exponents.items()})
-    return units
-
-
-def default_experiment() -> ET.Element:
-    """The article scene, 0 to 8 s every 1 ms, at the FMU's own rtol."""
-    from ..scenes import load_scene
-    from ..solvers.cvode import CvodeSettings
-
-    article = load_scene("article")
-    # The FMU's own rtol as the tolerance: a master that takes it from here passes it back (see slave_base's rule).
-    return ET.Element("DefaultExperiment", startTime="0", stopTime=repr(article.t_end),
-                      stepSize=repr(article.output_interval), tolerance=repr(CvodeSettings().rtol))
-
-
-def add_unit_and_range(typed: ET.Element, variable) -> None:
-    """The unit, min and max of variable (a variables.FmuVariable) on its typed XML element."""
-    if variable.unit:
-        typed.set("unit", variable.unit)
-    if variable.min is not None:
-        typed.set("min", repr(variable.min) if variable.type == "Real" else str(int(variable.min)))
-    if variable.max is not None:
-        typed.set("max", repr(variable.max))

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
-from .build import FmuBuildError, add_unit_and_range, default_experiment, stamp, unit_definitions
+from .model_description import FmuBuildError, add_unit_and_range, default_experiment, stamp, unit_definitions
 from .variables import FMI3_VARIABLES, VARIABLES
 
 SCRIPT_CHANGES = {

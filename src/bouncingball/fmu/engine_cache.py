@@ -2,10 +2,10 @@
 
 A master unzips the FMU into a new folder, and the compiled engine's first use in its process would
 compile it (about 15 s). So build-fmu compiles the engine of the FMU's copy of the package once, in
-a fresh process, for any CPU of the host's architecture (solvers/engine_cache.py), and ships numba's
+a fresh process, for any CPU of the host's architecture (solvers/engines/ahead_of_time.py), and ships numba's
 cache files in the FMU's resources (SHIPPED). The slave's first use of the engine (first_use) takes
 them where they fit the host (its numba, Python and architecture, the sources' digest:
-solvers/jit.py's cache_allowed), else numba compiles once, said in the FMU's log before it does,
+solvers/engines/jit.py's cache_allowed), else numba compiles once, said in the FMU's log before it does,
 into the user-wide cache that every later process reads.
 """
 
@@ -17,7 +17,7 @@ import os
 import sys
 from pathlib import Path
 
-from ..solvers.engine_cache import SHIPPED, compile_kept
+from ..solvers.engines.ahead_of_time import SHIPPED, compile_kept
 
 
 def compile_cache(package: Path, into: Path) -> Path | None:
@@ -43,7 +43,7 @@ def first_use(resources: str | None, say):
     if importlib.util.find_spec("numba") is None or f"{__package__.rpartition('.')[0]}.solvers.compiled" in sys.modules:
         return contextlib.nullcontext()
     try:
-        from ..solvers import jit
+        from ..solvers.engines import jit
     except ImportError:  # a numba that cannot be imported: the engine's choice says why
         return contextlib.nullcontext()
     shipped = os.path.join(resources, SHIPPED) if resources else None

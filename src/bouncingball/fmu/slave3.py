@@ -23,7 +23,7 @@ from .. import validation
 from ..contact_laws import free_gap_rate, has_pressed_gap, pressed_gap, rigid_rebound_above
 from ..equations import load_value
 from ..physics import Ball, Mode, clipped_contact_mode
-from ..solvers.phases import phase_scales
+from ..solvers.phase_machine.phases import phase_scales
 from .slave_base import BallSlave
 from .variables import EVENT_INDICATOR, FMI3_VARIABLES, SMALLEST_POSITIVE, VARIABLES
 

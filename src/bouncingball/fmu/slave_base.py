@@ -30,7 +30,7 @@ from ..physics import Ball, Mode, unread_message, without_unread
 from ..scenes import SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
 from ..solvers.integrator import checked_start
-from ..solvers.settings import MIN_RTOL, RTOL_RANGE_WHY
+from ..solvers.phase_machine.settings import MIN_RTOL, RTOL_RANGE_WHY
 from .engine_cache import first_use
 from .variables import FMU_CONTACT_LAWS, SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES, ball_fields_of
 

@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass
 
 from ..contact_laws import CONTACT_LAWS, LAWS
-from ..solvers.settings import MIN_RTOL
+from ..solvers.phase_machine.settings import MIN_RTOL
 
 MODEL_NAME = "BouncingBall"
 SMALLEST_POSITIVE = math.ulp(0.0)  # FMI's min is inclusive: "> 0" is ">= 5e-324"

@@ -1,8 +1,8 @@
 """SUNDIALS CVODE with contact and departure found by root-finding: simulate_cvode, and where each piece lives.
 
-solvers/settings.py holds the settings and the tolerance's hop rule, solvers/engines.py the choice
-of engine, solvers/integrator.py the integrator (BallIntegrator) and solvers/phases.py its
-decisions; solvers/stepper.py the protocol both engines implement. Their public names are
+solvers/phase_machine/settings.py holds the settings and the tolerance's hop rule, solvers/engine_selection.py the
+choice of engine, solvers/integrator.py the integrator (BallIntegrator) and solvers/phase_machine/phases.py its
+decisions; solvers/engines/stepper.py the protocol both engines implement. Their public names are
 importable from here too.
 """
 
@@ -15,13 +15,13 @@ import numpy as np
 
 from ..limits import check_cvode_settings, check_resolvable, resolvable_until
 from ..physics import Ball, Mode
-from . import engines, forcing
-from .engines import choose_engine, expected_steps
+from . import engine_selection, forcing
+from .engine_selection import choose_engine, expected_steps
+from .engines.stepper import SolverError
 from .forcing import ForceTable
 from .integrator import BallIntegrator
-from .phases import phase_scales
-from .result import Event, SimulationResult, SolverStats, output_grid
-from .settings import (
+from .phase_machine.phases import phase_scales
+from .phase_machine.settings import (
     DEFAULT_ATOL,
     DEFAULT_RTOL,
     ENGINES,
@@ -31,8 +31,8 @@ from .settings import (
     hop_tolerance,
     merged_hop_limit,
 )
+from .result import Event, SimulationResult, SolverStats, output_grid
 from .state import IntegratorState, RestartPoint
-from .stepper import SolverError
 
 __all__ = ["DEFAULT_ATOL", "DEFAULT_RTOL", "ENGINES", "METHODS", "BallIntegrator", "CvodeSettings",
            "IntegratorState", "RestartPoint", "SolverError", "check_resolvable", "choose_engine", "choose_method",
@@ -69,9 +69,9 @@ def _steps_for_auto(ball: Ball, h0: float, v0: float, grid: np.ndarray, F_ext: f
     """The run's expected steps where engine "auto" has to weigh them (see choose_engine), else None."""
     if ball.hunt_crossley:  # no exact solution to count its phases by: unknown, as an FMU's
         return None
-    if settings.engine != "auto" or (break_even := engines.compiled_break_even()) == 0.0:
+    if settings.engine != "auto" or (break_even := engine_selection.compiled_break_even()) == 0.0:
         return None
-    return engines.expected_steps(ball, h0, v0, float(grid[0]), float(grid[-1]), F_ext, at_most=break_even)
+    return engine_selection.expected_steps(ball, h0, v0, float(grid[0]), float(grid[-1]), F_ext, at_most=break_even)
 
 
 _compiled_engine_ready = False  # its functions compiled (or loaded) in this process: _ready_compiled_engine ran
@@ -123,7 +123,7 @@ def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     finally:
         integrator.close()
     if integrator.engine == "sksundae":
-        engines.note_sksundae_steps(integrator.steps)
+        engine_selection.note_sksundae_steps(integrator.steps)
     stats = SolverStats(steps=integrator.steps, rhs_calls=integrator.rhs_calls, events=len(events),
                         wall_time=wall_time, engine=integrator.engine, engine_reason=integrator.engine_reason,
                         first_use_time=first_use_time)

@@ -16,14 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import limits
-from ..contact_laws import (
-    LAWS,
-    contact_event,
-    free_event,
-    rigid_rebound,
-    summed_bounce_state,
-    time_to_impact,
-)
+from ..contact_laws import LAWS, contact_event, free_event, rigid_rebound, summed_bounce_state, time_to_impact
 from ..equations import load_value
 from ..physics import Ball, Mode
 from ..rounding import later

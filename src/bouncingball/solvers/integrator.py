@@ -1,10 +1,10 @@
 """BallIntegrator: CVODE advanced phase by phase, with contact and departure found by root-finding.
 
-Each mode has its own CVODE solver (solvers/stepper.py: either engine), right-hand side and
+Each mode has its own CVODE solver (solvers/engines/stepper.py: either engine), right-hand side and
 terminal root function (h - R, with direction -1 in flight and +1 in contact). At each root the
 integrator switches mode and re-initialises CVODE at the event, so no step ever straddles the
-discontinuity. The phases are run by the engine's phase machine (solvers/machine.py, its decisions
-in solvers/phases.py); the integrator holds the machine's state, checks what it is given, and keeps
+discontinuity. The phases are run by the engine's phase machine (solvers/phase_machine/machine.py, its decisions
+in solvers/phase_machine/phases.py); the integrator holds the machine's state, checks what it is given, and keeps
 the restart point that makes a rollback bit for bit.
 
 Each mode has its own CVODE object with three root functions: h - R, terminal, in the mode's
@@ -30,13 +30,15 @@ import numpy as np
 from .. import limits, validation
 from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode
-from . import engines, machine, state_checks, stepper
-from .dense_output import interpolate
-from .engines import choose_engine
+from . import engine_selection, state_checks
+from .engine_selection import choose_engine
+from .engines import stepper
+from .engines.stepper import SolverError
+from .phase_machine import machine
+from .phase_machine.dense_output import interpolate
+from .phase_machine.settings import CvodeSettings, choose_method, too_many_steps_cause
 from .result import EVENT_KINDS, Event, accuracy_warning, warn_at_caller
-from .settings import CvodeSettings, choose_method, too_many_steps_cause
 from .state import IntegratorState, IntegratorView
-from .stepper import SolverError
 
 # The modes CVODE integrates, one solver each: the no-pull law's free sub-mode (Mode.FREE) is a parabola,
 # always taken in closed form (phases.decide_phase).
@@ -107,7 +109,7 @@ class BallIntegrator(IntegratorView):
         h0, v0, t0, F_ext = checked_start(ball, h0, v0, t0, F_ext, s)
         self.resolvable_until = resolvable_until(ball)
         self._unreported, self._accuracy_warned = (), False  # _unreported: the SUNDIALS logs to read next
-        loaded, started = engines.loaded(), time.perf_counter()
+        loaded, started = engine_selection.loaded(), time.perf_counter()
         self.engine, self.engine_reason = choose_engine(s.engine, expected_steps)
         self._solvers = {mode: stepper.acquire(self.engine, ball, mode, self.methods[mode], s.rtol, s.max_step,
                                                _MAX_STEPS_PER_CALL, _own_side(mode),

@@ -15,7 +15,7 @@ from .. import codes
 from ..limits import check_output_interval
 from ..physics import Ball
 from .forcing import ForceTable
-from .settings import DEFAULT_RTOL, MIN_RTOL, PROMISE
+from .phase_machine.settings import DEFAULT_RTOL, MIN_RTOL, PROMISE
 
 
 class EventKind(StrEnum):

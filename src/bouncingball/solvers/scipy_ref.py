@@ -11,7 +11,8 @@ from scipy.integrate import solve_ivp
 from .. import validation
 from ..contact_laws import LAWS
 from ..physics import Ball, Mode, clipped_contact_mode
-from . import ARTICLE_ATOL, ARTICLE_MAX_STEP, ARTICLE_METHOD, ARTICLE_RTOL, forcing
+from . import forcing
+from .article import ARTICLE_ATOL, ARTICLE_MAX_STEP, ARTICLE_METHOD, ARTICLE_RTOL
 from .forcing import ForceTable
 from .result import DEPARTURE, IMPACT, Event, SimulationResult, SolverStats, output_grid
 

@@ -12,9 +12,9 @@ from .. import limits, validation
 from ..contact_laws import summed_bounce_state
 from ..equations import gap_acceleration, load_value
 from ..physics import Ball, Mode
-from . import machine
-from .phases import REST, decide_phase
-from .settings import hop_tolerance
+from .phase_machine import machine
+from .phase_machine.phases import REST, decide_phase
+from .phase_machine.settings import hop_tolerance
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,8 @@ from .. import validation
 from ..contact_laws import has_free_sub_mode
 from ..equations import load_value
 from ..physics import Ball, Mode
-from .phases import frame, on_wrong_side, side_margin
-from .settings import CvodeSettings, hop_tolerance
+from .phase_machine.phases import frame, on_wrong_side, side_margin
+from .phase_machine.settings import CvodeSettings, hop_tolerance
 from .state import IntegratorState, RestartPoint
 
 Counts = tuple[int, int, float | None, int, int]  # impacts, departures, last impact time [s], RHS calls, steps

@@ -13,10 +13,10 @@ import socket
 
 from ..accuracy import event_mismatches, reference_event_mismatches
 from ..bench import runners
-from ..bench.hunt_crossley import REFERENCE_ATOL, REFERENCE_RTOL, against
+from ..bench.hunt_crossley_study import REFERENCE_ATOL, REFERENCE_RTOL, against
 from ..capped import FINISHED, run_capped
 from ..contact_laws import LAWS
-from ..solvers.settings import DEFAULT_RTOL, merged_hop_limit
+from ..solvers.phase_machine.settings import DEFAULT_RTOL, merged_hop_limit
 from .grid import Cell, cell_of, solver_spec, tolerances
 
 DEFAULT_TIME_CAP = 2.0  # s per run

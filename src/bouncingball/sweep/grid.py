@@ -15,7 +15,7 @@ from ..bench import runners
 from ..contact_laws import CONTACT_LAWS, LAWS
 from ..physics import Ball
 from ..scenes import SCENE_DEFAULTS, Scene
-from ..solvers.settings import DEFAULT_ATOL, DEFAULT_RTOL, METHODS
+from ..solvers.phase_machine.settings import DEFAULT_ATOL, DEFAULT_RTOL, METHODS
 
 ARTICLE_BALL = Ball()  # every cell keeps its R and g, and its m by default
 DEFAULT_K = (1e2, 1e14, 13)  # N/m: (low, high, points), log-spaced

@@ -5,7 +5,7 @@ So a wheel's build (the build backend, src/bouncingball_build.py) and an FMU's (
 ``compile_portable``: the engine compiled once in a fresh process for numba's generic CPU of the
 host's architecture (``PORTABLE_CPU``, the baseline instruction set, which every CPU of that
 architecture runs), its numba cache files shipped with the package (``SHIPPED`` inside it) or in
-the FMU's resources. At the engine's first use, solvers/jit.py's ``cache_allowed`` copies them into
+the FMU's resources. At the engine's first use, solvers/engines/jit.py's ``cache_allowed`` copies them into
 the user-wide cache where they fit (this numba, Python and architecture, the sources' digest), else
 numba compiles for the host, saying so before it does.
 
@@ -13,7 +13,7 @@ numba compiles for the host, saying so before it does.
 build of the same sources, on the same Python, numba and architecture, takes the kept compile
 instead of compiling again.
 
-``python -m bouncingball.solvers.engine_cache`` compiles the package it is run from and puts the
+``python -m bouncingball.solvers.engines.ahead_of_time`` compiles the package it is run from and puts the
 files in its SHIPPED folder (what the wheel's build runs in the package it built). Imports neither
 numba nor the engine: the compile runs in a child process.
 """
@@ -85,7 +85,7 @@ def user_cache_root() -> str:
     """The user-wide folder of the compiled code's caches.
 
     $NUMBA_CACHE_DIR/bouncingball if set, else $XDG_CACHE_HOME/bouncingball (default
-    ~/.cache/bouncingball): one sub-folder numba-<digest> per set of sources (solvers/jit.py's
+    ~/.cache/bouncingball): one sub-folder numba-<digest> per set of sources (solvers/engines/jit.py's
     cache_folder), and one portable-<key> per kept compile (compile_kept).
     """
     told = os.environ.get("NUMBA_CACHE_DIR")
@@ -175,7 +175,7 @@ def _forget_old_compiles(root: Path) -> None:
                 shutil.rmtree(path, ignore_errors=True)
 
 
-PACKAGE = Path(__file__).resolve().parents[1]  # this copy of the package
+PACKAGE = Path(__file__).resolve().parents[2]  # this copy of the package
 
 
 def package_shipped() -> str | None:

@@ -3,14 +3,14 @@
 scikit-sundae wraps SUNDIALS' vectors into new numpy arrays on every callback, which costs far
 more than the ball's equations. Here the right-hand side, the root functions and the Jacobian are
 numba ``cfunc`` s compiled from equations.py's and contact_laws/' own plain-float definitions. The phase machine of a
-grid run (solvers/machine.py, with phases.py's decisions and the grid fill of dense_output.py) is
+grid run (solvers/phase_machine/machine.py, with phases.py's decisions and the grid fill of dense_output.py) is
 compiled from the very source the scikit-sundae engine runs interpreted (``run_phases``,
-``advance``, ``fill_grid``), its engine calls (solvers/engine_protocol.py) bound to CVODE's here
+``advance``, ``fill_grid``), its engine calls (solvers/phase_machine/engine_protocol.py) bound to CVODE's here
 (``_engine_start``, ``_engine_steps``, ``_engine_exceeded``), so no Python runs between phases.
 ``PhaseSolver`` is one mode's CVODE, with the same settings and the same step sequence as the
 scikit-sundae engine's; its ``handle`` is what the compiled calls read.
 
-The library is the one in scikit-sundae's wheel, bound in solvers/sundials.py. Every return
+The library is the one in scikit-sundae's wheel, bound in solvers/engines/sundials.py. Every return
 code is checked, and every SUNDIALS object is freed with its solver. C function addresses are passed
 to the compiled code as arguments, never baked into it, so the compiled code is cached on disk
 (numba ``cache=True``) and loads in a fraction of a second after the first run.
@@ -29,15 +29,15 @@ import numpy as np
 from numba import carray, cfunc, from_dtype, njit, types
 from numba.extending import intrinsic
 
-from .. import contact_laws, equations, oscillator, physics, rounding
-from ..contact_laws import BallParameters
-from ..contact_laws import common as laws_common
-from ..contact_laws import hunt_crossley as hunt_crossley_law
-from ..contact_laws import linear as linear_law
-from ..contact_laws import no_pull as no_pull_law
-from ..contact_laws import rigid as rigid_law
-from . import dense_output, drivers, engine_protocol, error_estimate, exact, layout, machine, phases
-from .engine_protocol import CV_ROOT_RETURN, CV_SUCCESS
+from ... import contact_laws, equations, oscillator, physics, rounding
+from ...contact_laws import BallParameters
+from ...contact_laws import common as laws_common
+from ...contact_laws import hunt_crossley as hunt_crossley_law
+from ...contact_laws import linear as linear_law
+from ...contact_laws import no_pull as no_pull_law
+from ...contact_laws import rigid as rigid_law
+from ..phase_machine import dense_output, drivers, engine_protocol, error_estimate, layout, machine, phases
+from ..phase_machine.engine_protocol import CV_ROOT_RETURN, CV_SUCCESS
 from .jit import (
     addresses,
     cache_allowed,
@@ -110,7 +110,7 @@ def _steps(f, memory, vector, state, t_end, out, count, one_step, work):
             return _BUFFER_FULL, count
 
 
-# --- the phase machine's engine (solvers/engine_protocol.py's calls) -----------------------------------
+# --- the phase machine's engine (solvers/phase_machine/engine_protocol.py's calls) -----------------------------------
 # engine: one row per mode (PhaseSolver.handle()): the addresses of its call table and arrays, its CVODE
 # memory and vector. Integers only, so that a call into the compiled machine unpacks no Python objects.
 _H_CALLS, _H_MEMORY, _H_VECTOR, _H_STATE, _H_PARAMETERS, _H_USER_DATA, _H_WORK, _H_COUNTER, _H_SIZE = range(9)
@@ -164,7 +164,7 @@ def _engine_exceeded(engine, mode):
 # the callbacks reach is ever compiled (and cached).
 _compiled = compiled_together(
     functions_of(rounding, oscillator, equations, laws_common, linear_law, rigid_law, no_pull_law, hunt_crossley_law,
-                 contact_laws, physics, exact, phases, error_estimate, machine, drivers, dense_output),
+                 contact_laws, physics, phases, error_estimate, machine, drivers, dense_output),
     {oscillator.oscillator_basis: oscillator.oscillator_basis_value,
      oscillator.unit_response: oscillator.unit_response_value,
      rounding.hypot: rounding.hypot_value, engine_protocol.engine_start: _engine_start,
@@ -370,7 +370,7 @@ class PhaseSolver:
         if self._handles:
             self._finalizer()
 
-    # --- the calls BallIntegrator makes (solvers/stepper.py) ---------------------------------------
+    # --- the calls BallIntegrator makes (solvers/engines/stepper.py) ---------------------------------------
     def bind(self, ball) -> None:
         """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
         parameters = ball.parameters  # b is 0 there under the Hunt-Crossley law (no linear damper)

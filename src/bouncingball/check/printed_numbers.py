@@ -2,7 +2,7 @@
 
 A master prints its result file to full precision (FMPy), to a number of significant digits
 (libcosim's 6, OMSimulator's 12) or to a number of decimals (ecos's 6); a check of such a file
-allows each number its printed resolution (Printing.resolution). bouncingball.result_files reads
+allows each number its printed resolution (Printing.resolution). bouncingball.check.result_files reads
 the files with these.
 """
 

@@ -23,8 +23,8 @@ import math
 
 import numpy as np
 
-from ..codes import CONTACT, DEPARTURE, FLIGHT, FREE, IMPACT, RELEASE
-from ..contact_laws import (
+from ...codes import CONTACT, DEPARTURE, FLIGHT, FREE, IMPACT, RELEASE
+from ...contact_laws import (
     contact_ends_in,
     contact_integrated,
     impact_is_instantaneous,
@@ -34,17 +34,11 @@ from ..contact_laws import (
     side_extreme,
     third_root_releases,
 )
-from ..rounding import later
+from ...rounding import later
 from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, CV_ROOT_RETURN, engine_exceeded, engine_start, engine_steps
 from .error_estimate import carry_error, contact_steps_ellipse, start_contact_ellipses
-from .phases import (
-    frame,
-    on_wrong_side,
-    polish_event,
-    polish_release,
-    side_margin,
-)
+from .phases import frame, on_wrong_side, polish_event, polish_release, side_margin
 
 # What run_phases returns.
 DONE, RETURNED, CVODE_FAILED, TOO_MANY_STEPS, STEPPED_OVER = range(5)

@@ -9,7 +9,7 @@ missed (side_margin). The arguments are the ball's parameters (Ball.parameters: 
 contact law's code, e, v_min), the mode (0 flight, 1 contact), the gap x = h - R [m], v [m/s], the
 load m g - F_ext [N] (equations.load_value), the hop tolerance [m] (settings.hop_tolerance) and rtol.
 
-Every function here takes and returns floats only, so solvers/machine.py runs them as they are
+Every function here takes and returns floats only, so solvers/phase_machine/machine.py runs them as they are
 (the scikit-sundae engine) and the compiled engine compiles the very same source with numba,
 the exact flow's departure search (contact_laws.departure_time) included.
 """
@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import math
 
-from ..codes import CONTACT, FLIGHT, FREE, IMPACT
-from ..contact_laws import (
+from ...codes import CONTACT, FLIGHT, FREE, IMPACT
+from ...contact_laws import (
     BY_CVODE,
     IN_CLOSED_FORM,
     MIN_PHASE_SCALE,
@@ -37,7 +37,7 @@ from ..contact_laws import (
     time_to_impact,
     varying_jacobian,
 )
-from ..equations import gap_flow_value
+from ...equations import gap_flow_value
 from .settings import HOP_RESOLUTION
 
 # Re-exported for the engines' callbacks and the tests: the machine's answers and limits, the laws' hooks it calls.

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..codes import CONTACT, FLIGHT, FREE
-from ..contact_laws import law_flow_value, law_interpolant, own_interpolant
+from ...codes import CONTACT, FLIGHT, FREE
+from ...contact_laws import law_flow_value, law_interpolant, own_interpolant
 
 
 def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):

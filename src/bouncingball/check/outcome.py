@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .scenes import Scene
+from ..scenes import Scene
 
 
 @dataclass(frozen=True)

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import validation
+from .. import validation
+from ..solvers.forcing import ForceTable
 from .printed_numbers import parse_number
 from .result_files import BadResultError, ResultFile, refuse_binary, unreadable
-from .solvers.forcing import ForceTable
 
 
 def read_input_file(path: str | Path) -> tuple[np.ndarray, np.ndarray]:

@@ -10,7 +10,7 @@ from .. import validation
 from ..physics import Ball
 from .exact import ExactSolution
 from .forcing import ForceTable
-from .settings import ENGINES
+from .phase_machine.settings import ENGINES
 
 # engine="auto" (choose_engine): the first use of each engine in a process and what the compiled one
 # saves per CVODE step, measured by `bouncingball bench` (docs/benchmarks.md, "Choosing the engine").
@@ -70,7 +70,7 @@ def choose_engine(engine: str = "auto", steps: float | None = None) -> tuple[str
             return "sksundae", (f"about {steps:.0f} CVODE steps expected, fewer than the {break_even:.0f} over "
                                 "which loading the compiled engine in this process pays back")
     try:
-        from . import compiled
+        from .engines import compiled
     except ImportError as error:
         reason = f"numba is not installed ({error}): {_install_numba()}"
     except Exception as error:  # numba is there but cannot compile the engine (an incompatible release)

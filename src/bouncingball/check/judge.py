@@ -1,11 +1,11 @@
 """Judge a co-simulation master's result against the exact solution: `bouncingball check` as a Python function.
 
 A master (FMPy, OMSimulator, libcosim, ecos, fmusim, your own) writes a CSV of the FMU's
-outputs; check_result() reads it as the master wrote it (see bouncingball.result_files),
+outputs; check_result() reads it as the master wrote it (see bouncingball.check.result_files),
 computes the exact solution at the CSV's own times for the scene and start values the master
 was given, and says how far the heights are from it and whether the impacts column counts right::
 
-    from bouncingball.testing import check_result
+    from bouncingball.check.judge import check_result
 
     outcome = check_result("out.csv", "article", {"g": 1.62}, tolerance=1e-6)
     assert outcome.passed, outcome.report()
@@ -29,10 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import validation
-from .accuracy import event_hops, impact_counts
-from .check_outcome import CheckResult, MergedHops
-from .fmu.variables import (
+from .. import validation
+from ..accuracy import event_hops, impact_counts
+from ..fmu.variables import (
     SCENE_FIELD_OF_START_VALUE,
     SCENE_OWN_FIELDS,
     TEXT_START_VALUES,
@@ -42,15 +41,16 @@ from .fmu.variables import (
     judged_scene,
     start_values_of,
 )
+from ..physics import Ball, Mode, without_unread
+from ..scenes import BALL_KEYS, Scene, load_scene
+from ..solvers.exact import ExactSolution
+from ..solvers.forcing import ForceTable
+from ..solvers.phase_machine.settings import DEFAULT_RTOL, CvodeSettings, merged_hop_limit
+from ..solvers.result import IMPACT
 from .input_files import applied_force
-from .physics import Ball, Mode, without_unread
+from .outcome import CheckResult, MergedHops
 from .printed_numbers import Printing
 from .result_files import BadResultError, FileParameter, ResultFile, read_result_csv, read_result_file
-from .scenes import BALL_KEYS, Scene, load_scene
-from .solvers.exact import ExactSolution
-from .solvers.forcing import ForceTable
-from .solvers.result import IMPACT
-from .solvers.settings import DEFAULT_RTOL, CvodeSettings, merged_hop_limit
 
 __all__ = ["DEFAULT_TOLERANCE", "BadResultError", "CheckResult", "MergedHops", "check_result", "read_result_csv",
            "scene_with_start_values"]
@@ -130,7 +130,7 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
     Parameters
     ----------
     result : str, pathlib.Path, mapping or numpy structured array
-        A CSV file (read by bouncingball.result_files.read_result_file), or columns by name:
+        A CSV file (read by bouncingball.check.result_files.read_result_file), or columns by name:
         "time" [s] and "h" [m], and optionally "impacts" (FMPy's simulate_fmu result will do).
     scene : Scene, str or pathlib.Path
         The scene the master ran (default: the article's, which the FMU's defaults are).
@@ -274,8 +274,8 @@ def _conditioning(scene: Scene, force, start_time: float, t_end: float) -> str:
     The exact solution is evaluated in double precision too: where a run's error estimate passes
     the promise, small errors grow faster than any double-precision solution can follow.
     """
-    from .solvers import simulate
-    from .solvers.result import AccuracyWarning
+    from ..solvers import simulate
+    from ..solvers.result import AccuracyWarning
 
     if not t_end > start_time:
         return ""

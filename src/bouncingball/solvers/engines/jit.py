@@ -12,7 +12,7 @@ the code and it can be cached on disk.
 The rules for the source compiled together
 ------------------------------------------
 compiled.py gives ``compiled_together`` every function of the modules it lists
-(``functions_of(rounding, oscillator, equations, contact_laws, physics, exact, phases, error_estimate,
+(``functions_of(rounding, oscillator, equations, contact_laws, physics, phases, error_estimate,
 machine, drivers, dense_output)``). numba compiles, at their first call, those that the compiled entry points reach
 (the functions compiled.py keeps compiled copies of: run_phases, fill_grid, advance, advance_in_step and the callbacks'
 scaled_rates, root_values, scaled_jacobian), from the very source the scikit-sundae engine runs
@@ -41,7 +41,7 @@ interpreted. A function so reached:
    or one whose constants the compiled code imports (layout.py's fields, settings.py's tolerances),
    goes into ``ENGINE_SOURCES`` too, or a change to it leaves numba's disk cache with the old code.
 
-Functions of those modules that no entry point reaches (exact.simulate_exact, dense_output.interpolate)
+Functions of those modules that no entry point reaches (dense_output.interpolate)
 run interpreted only; rule 1 holds for them too, so that reaching one later does not break it.
 tests/test_jit_rules.py reads the functions compiled.py gives ``compiled_together`` and checks
 these rules on their syntax trees.
@@ -68,23 +68,25 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-from .engine_cache import PORTABLE_CPU, package_shipped, say_on_stderr, user_cache_root
+from .ahead_of_time import PORTABLE_CPU, package_shipped, say_on_stderr, user_cache_root
 
 # Every source the compiled code is compiled from, relative to the package: the modules whose functions
 # compiled.py gives compiled_together, those whose constants they read (rule 5), jit.py and compiled.py.
 ENGINE_SOURCES = ("codes.py", "rounding.py", "oscillator.py", "equations.py", "contact_laws/__init__.py",
                   "contact_laws/common.py", "contact_laws/linear.py", "contact_laws/rigid.py",
                   "contact_laws/no_pull.py", "contact_laws/hunt_crossley.py", "physics.py",
-                  "solvers/settings.py", "solvers/phases.py", "solvers/layout.py", "solvers/error_estimate.py",
-                  "solvers/engine_protocol.py", "solvers/machine.py", "solvers/drivers.py",
-                  "solvers/dense_output.py", "solvers/exact.py", "solvers/jit.py", "solvers/compiled.py")
+                  *(f"solvers/phase_machine/{name}.py" for name in (
+                      "settings", "phases", "layout", "error_estimate", "engine_protocol", "machine", "drivers",
+                      "dense_output")),
+                  "solvers/engines/jit.py", "solvers/engines/compiled.py")
 
-_PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # this module's copy of the package
+_PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this module's package
 
 
 def engine_sources() -> list[str]:
     """The files numba compiles the compiled engine from (ENGINE_SOURCES): an imported module's own file (in an FMU,
-    maybe that of a copy the master deleted since), else the one in this module's copy of the package."""
+    maybe that of a copy the master deleted since), else the one in this module's copy of the package.
+    """
     root = __name__.split(".")[0]
     files = []
     for relative in ENGINE_SOURCES:
@@ -107,7 +109,8 @@ def readable_sources(files) -> list[str]:
 
 def sources_digest(files) -> str:
     """The SHA-256 of the files' contents, in their order, and of the package's name (the compiled code names its
-    modules): what the compiled code's disk cache is keyed by."""
+    modules): what the compiled code's disk cache is keyed by.
+    """
     digest = hashlib.sha256(__name__.split(".")[0].encode() + b"\0")
     for file in files:
         with open(file, "rb") as source:
@@ -129,7 +132,8 @@ _shipped: str | None = package_shipped()
 @contextlib.contextmanager
 def first_use(shipped: str | None, say: Callable[[str], None]):
     """Within: cache_allowed takes a cache that fits this host from folder shipped, and says through say that numba
-    compiles (before it does) where neither the user-wide cache nor shipped holds code for this host."""
+    compiles (before it does) where neither the user-wide cache nor shipped holds code for this host.
+    """
     global _say, _shipped
     saved = _say, _shipped
     _say, _shipped = say, shipped
@@ -190,7 +194,8 @@ def cache_allowed(files) -> bool:
 def cache_misfit(folder: str, digest: str, portable: bool = False) -> str | None:
     """Why the code cached in folder cannot run here (none for this Python, another numba, CPU or set of sources);
     None if it can. portable: code compiled for PORTABLE_CPU on this host's architecture runs here too (a shipped
-    cache, which _copy_cache retargets to this host's CPU as it copies it)."""
+    cache, which _copy_cache retargets to this host's CPU as it copies it).
+    """
     indexes = _indexes(folder)
     if not indexes:
         others = sorted({path.rsplit(".", 2)[-2] for path in glob.glob(os.path.join(folder, "*.nbi"))})
@@ -248,7 +253,8 @@ def _indexes(folder: str) -> list[str]:
 def _copy_cache(source: str, folder: str) -> None:
     """Copy numba's cache files from source into folder, each written whole, the data before the indexes that name
     it; in this Python's indexes (the ones cache_misfit read) the code compiled for PORTABLE_CPU is filed under
-    this host's CPU, where numba looks for it. Other files are copied byte for byte."""
+    this host's CPU, where numba looks for it. Other files are copied byte for byte.
+    """
     from numba.core.serialize import dumps
 
     host = _host_key()
@@ -271,7 +277,8 @@ def _copy_cache(source: str, folder: str) -> None:
 def _index(path: str) -> tuple:
     """(numba's version, the source stamp, {an overload's key: its data file}) of one of numba's index files (.nbi).
 
-    A key is (signature, (LLVM's target triple, the CPU's name, its features), the code's hashes)."""
+    A key is (signature, (LLVM's target triple, the CPU's name, its features), the code's hashes).
+    """
     with open(path, "rb") as file:
         version = pickle.load(file)
         if version != numba.__version__:

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .fmu.variables import VARIABLES
+from ..fmu.variables import VARIABLES
 from .printed_numbers import Printed, Printing, infer_printing, parse_number
 
 # The FMU's variables by their lower-case name; the parameters check takes from a file, with F_ext

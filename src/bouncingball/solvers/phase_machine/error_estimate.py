@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import math
 
-from ..codes import CONTACT, FLIGHT
-from ..contact_laws import contact_integrated, contact_step_transition, law_flow_value
-from ..rounding import hypot
+from ...codes import CONTACT, FLIGHT
+from ...contact_laws import contact_integrated, contact_step_transition, law_flow_value
+from ...rounding import hypot
 from .phases import frame
 from .settings import ERROR_WITHIN_PHASE, ESTIMATE_CAP, ESTIMATE_SAFETY, LOCAL_ERROR_SAFETY, PROMISE
 

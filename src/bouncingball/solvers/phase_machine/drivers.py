@@ -15,8 +15,8 @@ import math
 
 import numpy as np
 
-from ..codes import CONTACT
-from ..contact_laws import law_flow_value
+from ...codes import CONTACT
+from ...contact_laws import law_flow_value
 from .dense_output import step_state
 from .machine import DONE, RETURNED, _take_event, closed_form_phase, grown, phase_steps
 from .phases import BY_CVODE, IN_CLOSED_FORM, REST, decide_phase, taylor_step

@@ -2,14 +2,14 @@
 
 Each engine offers a ``PhaseSolver`` for one mode (compiled.PhaseSolver, numba callbacks over the
 SUNDIALS library; SksundaePhaseSolver, scikit-sundae's CVODE object with Python callbacks) with the
-same CVODE settings, and a phase machine (``phase_machine``: solvers/machine.py, compiled or as
+same CVODE settings, and a phase machine (``phase_machine``: solvers/phase_machine/machine.py, compiled or as
 written) that drives the two modes' solvers through ``handle()``:
 
 - ``bind(ball)``: the ball whose equations it integrates (a pooled solver serves many balls);
 - ``handle()``: what the engine's machine calls it through (for scikit-sundae, the solver itself,
-  whose start, steps and exceeded are the calls of solvers/engine_protocol.py; for the compiled
+  whose start, steps and exceeded are the calls of solvers/phase_machine/engine_protocol.py; for the compiled
   engine a row of integers, the addresses its compiled calls read);
-- ``message(flag)`` and the ``log`` of SUNDIALS' warnings (solvers/sundials_log.py).
+- ``message(flag)`` and the ``log`` of SUNDIALS' warnings (solvers/engines/sundials_log.py).
 
 Creating a CVODE object and its warnings file costs more than integrating a whole phase (~0.1 ms
 each, two per integrator), so solvers are kept per process in a pool, by engine, mode, method and
@@ -27,9 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..physics import Ball, Mode
-from . import drivers, error_estimate, layout, machine, phases, sksundae_events
-from .engine_protocol import CV_ROOT_RETURN, CV_TSTOP_RETURN
+from ...physics import Ball, Mode
+from ..phase_machine import drivers, error_estimate, layout, machine, phases
+from ..phase_machine.engine_protocol import CV_ROOT_RETURN, CV_TSTOP_RETURN
+from . import sksundae_events
 from .sundials_log import ErrorsOffStdout, SundialsLog
 
 CV_RTFUNC_FAIL = -12
@@ -156,7 +157,7 @@ class SksundaePhaseSolver:
         except _TooManyEvaluations as stop:
             return self._exceeded(float(stop.args[0]))
 
-    # --- the phase machine's engine calls (solvers/engine_protocol.py) ---------------------------------
+    # --- the phase machine's engine calls (solvers/phase_machine/engine_protocol.py) ---------------------------------
     def start(self, t_stop: float, y0: float, y1: float, length: float, speed: float, hop: float,
               load: float) -> int:
         """Take the phase's frame; restart CVODE at 0 from (y0, y1) for one-step calls, or in steps() to t_stop."""
@@ -203,7 +204,7 @@ class SksundaePhaseSolver:
 
 @dataclass(frozen=True)
 class PhaseMachine:
-    """An engine's phase machine (solvers/machine.py): its drivers, its grid fill, and its engine argument.
+    """An engine's phase machine (solvers/phase_machine/): its drivers, its grid fill, and its engine argument.
 
     fill_grid None: the grid is filled by dense_output.interpolate, in numpy. engine(solvers): what the
     machine's engine_* calls take, from the two modes' solvers. new_state(): a new state of the machine

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .. import validation
-from ..contact_laws import hunt_crossley_hop_tolerance
-from ..equations import load_value
-from ..physics import Ball, Mode
+from ... import validation
+from ...contact_laws import hunt_crossley_hop_tolerance
+from ...equations import load_value
+from ...physics import Ball, Mode
 
 METHODS = ("auto", "Adams", "BDF")
 ENGINES = ("auto", "compiled", "sksundae")

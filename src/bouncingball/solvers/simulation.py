@@ -1,0 +1,120 @@
+"""simulate: one call, three solvers: CVODE (default), the exact solution and the article's SciPy algorithm."""
+
+from __future__ import annotations
+
+import functools
+import inspect
+
+from .. import limits, validation
+from ..physics import Ball
+from . import forcing
+from .forcing import ForceTable
+from .result import DEFAULT_OUTPUT_INTERVAL, SimulationResult
+
+SOLVERS = ("cvode", "exact", "scipy")
+_COMMON_PARAMETERS = ("ball", "h0", "v0", "t_end", "output_interval", "t_start", "F_ext")
+
+
+def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float = DEFAULT_OUTPUT_INTERVAL,
+             solver: str = "cvode", *, t_start: float = 0.0, F_ext: float | ForceTable | tuple = 0.0,
+             **options) -> SimulationResult:
+    """Simulate the ball from (h0 [m], v0 [m/s]) at t_start to t_end [s] on a grid of output_interval [s].
+
+    Parameters
+    ----------
+    ball : Ball
+        The ball.
+    h0, v0 : float
+        Height of the centre [m] and velocity [m/s], positive upwards, at t_start.
+    t_end : float
+        End time [s], > t_start; the last output point is exactly t_end.
+    output_interval : float, optional
+        Spacing of the output grid [s], in (0, t_end - t_start]; 1 ms by default.
+    solver : {"cvode", "exact", "scipy"}, optional
+        CVODE with root-finding (default), the exact piecewise-analytic solution, or the reference
+        article's SciPy algorithm (needs the [reference] extra).
+    t_start : float, optional
+        Start time [s].
+    F_ext : float or (times, values), optional
+        External force [N], positive upwards: a constant, or a piecewise-constant table (times [s]
+        strictly increasing, values [N], as many) held at values[i] over [times[i], times[i+1]),
+        at values[0] before times[0] and values[-1] after the last time (a ForceTable will do).
+        Every solver runs a table piece by piece: the state is continuous at a change, the mode held.
+    **options
+        For cvode: rtol, atol, method ("auto", "Adams", "BDF"), max_step [s] (0: unbounded),
+        engine ("auto", "compiled", "sksundae"), progress (called with the time reached [s] as the
+        run goes on, for a progress display). For scipy: method, rtol, atol, max_step,
+        max_events, progress. exact takes none.
+
+    Returns
+    -------
+    SimulationResult
+        h and v on the grid t, the events, the rest time (or None) and the work done.
+
+    Raises
+    ------
+    ValueError
+        Before any work, for a value outside its range (the message names it, its value and the
+        allowed range), an option the solver does not take, a scene outside the range double
+        precision resolves (bouncingball.limits.check_scene: magnitudes whose squares would
+        overflow, an output interval below a few ulps of t), or, for cvode, contacts too short to
+        resolve in double precision up to t_end.
+    SolverError
+        CVODE could not deliver the tolerance (its reason in the message).
+    ImportError
+        The solver needs an extra that is not installed (the message says which).
+
+    Examples
+    --------
+    >>> import bouncingball as bb
+    >>> result = bb.simulate(bb.Ball(), h0=2.0, v0=0.0, t_end=8.0)
+    >>> len(result.t), float(result.t[-1])
+    (8001, 8.0)
+    >>> exact = bb.simulate(bb.Ball(), 2.0, 0.0, 8.0, solver="exact")
+    >>> len(result.events) == len(exact.events), bool(abs(result.h - exact.h).max() < 1e-6)
+    (True, True)
+    """
+    if not isinstance(ball, Ball):
+        raise ValueError(f"ball = {ball!r} is not allowed: it must be a bouncingball.Ball")
+    solver = validation.choice("solver", solver, SOLVERS)
+    h0 = validation.finite("h0", h0, "m")
+    v0 = validation.finite("v0", v0, "m/s")
+    t_start = validation.finite("t_start", t_start, "s")
+    F_ext = forcing.as_force(F_ext)
+    t_end = validation.finite("t_end", t_end, "s")
+    if not t_end > t_start:
+        raise ValueError(f"t_end = {t_end!r} s is not allowed: it must be > t_start = {t_start!r} s")
+    output_interval = validation.in_range("output_interval", output_interval, 0.0, t_end - t_start, "s")
+    # Before any solver: what double precision cannot resolve is refused the same way by each.
+    if isinstance(F_ext, ForceTable):
+        for force in sorted(set(F_ext.values)):
+            limits.check_scene(ball, h0, v0, force, t_start, t_end, output_interval)
+    else:
+        limits.check_scene(ball, h0, v0, F_ext, t_start, t_end, output_interval)
+    if solver == "cvode":
+        from .cvode import simulate_cvode as run
+    elif solver == "scipy":
+        try:
+            from .scipy_ref import simulate_scipy as run
+        except ImportError as error:  # scipy is an optional extra
+            from ..extras import install_command
+
+            raise ImportError(f"solver 'scipy' needs SciPy: {install_command('reference')}") from error
+    else:
+        from .exact import simulate_exact as run
+    # A solver's options are the keywords its simulate function takes beyond the common ones.
+    allowed = _options_of(run)
+    unknown = sorted(set(options) - set(allowed))
+    if unknown:
+        raise ValueError(f"option {unknown[0]} = {options[unknown[0]]!r} is not allowed for solver "
+                         f"'{solver}': it takes {', '.join(allowed) or 'no options'}")
+    return run(ball, h0, v0, t_end, output_interval, t_start=t_start, F_ext=F_ext, **options)
+
+
+@functools.cache
+def _options_of(run) -> list[str]:
+    """The keywords a solver's simulate function takes beyond the common ones: its options."""
+    return [name for name in inspect.signature(run).parameters if name not in _COMMON_PARAMETERS]
+
+
+__all__ = ["SOLVERS", "simulate"]
