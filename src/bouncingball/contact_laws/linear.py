@@ -87,7 +87,8 @@ def departure_time(parameters, x0, v0, load):
     """Time [s] from the gap x0 = h0 - R [m] and v0 [m/s] in contact to the first upward crossing of h = R; inf if none.
 
     parameters: Ball.parameters; load: m g - F_ext [N] (equations.load_value). Plain floats, so that the
-    compiled phase machine runs this very search.
+    compiled phase machine runs this very search: a bracket of the crossing (_underdamped_bracket,
+    _overdamped_bracket), then Newton with bisection in it (_departure_root).
     """
     m, k, b = parameters.m, parameters.k, parameters.b
     sigma, w2 = b / (2.0 * m), k / m
@@ -95,56 +96,63 @@ def departure_time(parameters, x0, v0, load):
     q = sigma * v0 + w2 * x0 + g_eff  # v = v0 C - q S (q = sigma v0 + w2 y0, y0 = x0 + d the deflection from rest)
     rising = v0 > 0.0 or (v0 == 0.0 and q < 0.0)
     disc = sigma * sigma - w2
-    guess, at_a = math.nan, math.nan  # NaN: none known
     if disc < 0.0:
-        # Under-damped: extrema every pi/omega; maxima are positive and decay, so the
-        # first maximum decides whether the ball ever leaves.
-        omega = math.sqrt(-disc)
-        # The phase angle of the next extremum, in [0, pi], from the quadrant that holds it: atan2(a, b)
-        # - pi rounds an extremum just ahead (a minimum at v0 = -1e-38) to pi instead of ~0.
-        # (|omega v0|: the sign of a zero, -0.0, would turn atan2's pi into -pi)
-        tau1 = math.atan2(abs(omega * v0), q if rising else -q) / omega
-        # Between two extrema v keeps its sign, so the first one is a maximum when the ball starts
-        # rising and a minimum when it starts falling. Decided on the direction, never on the
-        # value y(tau1): near critical damping that extremum lies many decay times away, and y(tau1)
-        # is below the rounding of d (a lifted ball was held at R for ever).
-        if rising:
-            a, b = 0.0, tau1
-        else:
-            at_a = contact_gap_flow(sigma, w2, g_eff, x0, v0, tau1)[0]
-            a, b = tau1, tau1 + math.pi / omega
-            at_b = contact_gap_flow(sigma, w2, g_eff, x0, v0, b)[0]
-            if at_b <= 0.0:
-                return math.inf
-            # Between a minimum and the next maximum y is close to half a cosine: its crossing
-            # is Newton's start, a few iterations from the root when the damping is light.
-            half = 0.5 * (at_b - at_a)
-            if half > 0.0:  # else the ball does not move (y constant): Newton starts in the middle
-                cosine = min(1.0, max(-1.0, (0.5 * (at_b + at_a)) / half))
-                guess = a + (b - a) * math.acos(cosine) / math.pi
+        a, b, guess, at_a = _underdamped_bracket(sigma, w2, g_eff, x0, v0, q, rising, math.sqrt(-disc))
     else:
-        # Critically or over-damped: at most one extremum, then a monotone approach to rest.
-        mu = math.sqrt(disc)
-        tau_ext = _overdamped_extremum(v0, q, mu)
-        slow_rate = w2 / (sigma + mu)
-        if rising and not math.isnan(tau_ext):
-            a, b = 0.0, tau_ext
-        elif d < 0.0 and (rising or not math.isnan(tau_ext)):
-            a = 0.0 if rising else tau_ext
-            b = a + 1.0 / slow_rate
-            found = False
-            for _ in range(2000):
-                if contact_gap_flow(sigma, w2, g_eff, x0, v0, b)[0] > 0.0:
-                    found = True
-                    break
-                b = a + 2.0 * (b - a)
-            if not found:
-                return math.inf
-        else:
-            return math.inf
+        a, b, guess, at_a = _overdamped_bracket(sigma, w2, g_eff, x0, v0, q, rising, math.sqrt(disc), d)
+    if math.isinf(a):
+        return math.inf
     if math.isnan(guess) and contact_gap_flow(sigma, w2, g_eff, x0, v0, b)[0] <= 0.0:
         return math.inf
     return _departure_root(sigma, w2, g_eff, x0, v0, a, b, guess, at_a)
+
+
+def _underdamped_bracket(sigma, w2, g_eff, x0, v0, q, rising, omega):
+    """(a, b, guess, at_a): an under-damped contact's first departure lies in [a, b] [s]; a = inf: it never departs.
+
+    Extrema come every pi / omega; maxima are positive and decay, so the first maximum decides whether the ball
+    ever leaves. guess: Newton's start where known, at_a: the gap at a where computed (NaN: not known).
+    """
+    guess, at_a = math.nan, math.nan
+    # The phase angle of the next extremum, in [0, pi], from the quadrant that holds it: atan2(a, b)
+    # - pi rounds an extremum just ahead (a minimum at v0 = -1e-38) to pi instead of ~0.
+    # (|omega v0|: the sign of a zero, -0.0, would turn atan2's pi into -pi)
+    tau1 = math.atan2(abs(omega * v0), q if rising else -q) / omega
+    # Between two extrema v keeps its sign, so the first one is a maximum when the ball starts
+    # rising and a minimum when it starts falling. Decided on the direction, never on the
+    # value y(tau1): near critical damping that extremum lies many decay times away, and y(tau1)
+    # is below the rounding of d.
+    if rising:
+        return 0.0, tau1, guess, at_a
+    at_a = contact_gap_flow(sigma, w2, g_eff, x0, v0, tau1)[0]
+    a, b = tau1, tau1 + math.pi / omega
+    at_b = contact_gap_flow(sigma, w2, g_eff, x0, v0, b)[0]
+    if at_b <= 0.0:
+        return math.inf, math.inf, guess, at_a
+    # Between a minimum and the next maximum y is close to half a cosine: its crossing
+    # is Newton's start, a few iterations from the root when the damping is light.
+    half = 0.5 * (at_b - at_a)
+    if half > 0.0:  # else the ball does not move (y constant): Newton starts in the middle
+        cosine = min(1.0, max(-1.0, (0.5 * (at_b + at_a)) / half))
+        guess = a + (b - a) * math.acos(cosine) / math.pi
+    return a, b, guess, at_a
+
+
+def _overdamped_bracket(sigma, w2, g_eff, x0, v0, q, rising, mu, d):
+    """(a, b, nan, nan): _underdamped_bracket's, critically or over-damped: at most one extremum, then rest at -d."""
+    tau_ext = _overdamped_extremum(v0, q, mu)
+    slow_rate = w2 / (sigma + mu)
+    if rising and not math.isnan(tau_ext):
+        return 0.0, tau_ext, math.nan, math.nan
+    if not (d < 0.0 and (rising or not math.isnan(tau_ext))):
+        return math.inf, math.inf, math.nan, math.nan
+    a = 0.0 if rising else tau_ext
+    b = a + 1.0 / slow_rate
+    for _ in range(2000):
+        if contact_gap_flow(sigma, w2, g_eff, x0, v0, b)[0] > 0.0:
+            return a, b, math.nan, math.nan
+        b = a + 2.0 * (b - a)
+    return math.inf, math.inf, math.nan, math.nan
 
 
 def departure_speed(parameters, x0, v0, tau, load):

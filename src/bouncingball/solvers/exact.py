@@ -16,7 +16,15 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import limits
-from ..contact_laws import LAWS, contact_event, free_event, rigid_rebound, summed_bounce_state, time_to_impact
+from ..contact_laws import (
+    LAWS,
+    contact_event,
+    free_event,
+    impact_is_instantaneous,
+    rigid_rebound,
+    summed_bounce_state,
+    time_to_impact,
+)
 from ..equations import load_value
 from ..physics import Ball, Mode
 from ..rounding import later
@@ -60,59 +68,79 @@ class ExactSolution:
         self._build(h0, v0)
 
     def _build(self, h: float, v: float) -> None:
-        ball, R = self.ball, self.ball.R
-        resolvable_until = limits.resolvable_until(ball)
+        """The phases and events from (h [m], v [m/s]) at t_start, one piece of constant F_ext after another."""
         constant_pieces = forcing.pieces(self.F_ext, self.t_start, self.t_end)
-        zeno_end = -math.inf  # where a rigid ball's bounces summed in this piece end (contact_laws.rigid_rebound)
+        zeno_end = -math.inf  # where a rigid ball's bounces summed in the last piece end (contact_laws.rigid_rebound)
         for number, (t, piece_end, F_ext) in enumerate(constant_pieces):
-            last, t_low = number == len(constant_pieces) - 1, 0.0  # t_low: t's rounding error (rounding.later)
             if number == 0:
-                mode = ball.initial_mode(h, v, F_ext)
-            else:  # a change of F_ext: the state where the previous phase has it, the mode held
-                phase = self.phases[-1]
-                h, v = (float(y) for y in ball.flow(phase.mode, phase.h0, phase.v0, t - phase.t_start, phase.F_ext))
-                mode = phase.mode
-                if t < zeno_end:  # inside a rigid ball's summed bounces: on from where the bounce truly is
-                    v_first = -ball.e * self.events[-1].velocity  # the impact that started them, at the phase's start
-                    x, v = summed_bounce_state(ball.parameters, v_first, load_value(phase.F_ext, ball.m, ball.g),
-                                               t - phase.t_start)
-                    h, mode = R + x, Mode.FLIGHT
-            zeno_end = -math.inf
-            parameters = ball.parameters
-            contact_start = t  # the last impact (the no-pull law's engagements start no contact), or this piece's start
-            while True:
-                if mode == Mode.CONTACT and t > resolvable_until:
-                    # contacts too short for the ulps of t: the phases would stop advancing t (it never ended)
-                    limits.check_resolvable(ball, t)
-                self.phases.append(Phase(t, mode, h, v, F_ext))
-                if len(self.phases) >= self._max_phases:
-                    return
-                x_next, load = 0.0, load_value(F_ext, ball.m, ball.g)
-                if mode == Mode.FLIGHT:
-                    tau, v_next = time_to_impact(h - R, v, ball.effective_gravity(F_ext))
-                    kind, next_mode = IMPACT, Mode.CONTACT
-                elif mode == Mode.FREE:  # below R under the no-pull law: on to R, or pressed again
-                    tau, x_next, v_next, departs = free_event(parameters, h - R, v, load)
-                    kind, next_mode = (DEPARTURE, Mode.FLIGHT) if departs else (ENGAGE, Mode.CONTACT)
-                else:
-                    tau, x_next, v_next, code = contact_event(parameters, h - R, v, load)
-                    kind = EVENT_KINDS[code]
-                    if math.isinf(tau):
-                        if last:  # a no-pull ball pressed for good rests from its contact's start
-                            self.rest_time = max(contact_start if kind == RELEASE else t, zeno_end)
-                        break
-                    next_mode = Mode.FREE if kind == RELEASE else Mode.FLIGHT
-                t_event, t_event_low = later(t, t_low, tau)
-                if not t_event <= piece_end:
-                    break
-                t, t_low, h, v, mode = t_event, t_event_low, R + x_next, v_next, next_mode
-                self.events.append(Event(t, kind, v))
-                if kind == IMPACT:
-                    contact_start = t
-                if kind == IMPACT and ball.rigid:  # the bounce: on in flight, or the ball stays on R
+                mode = self.ball.initial_mode(h, v, F_ext)
+            else:
+                h, v, mode = self._state_at_change(t, zeno_end)
+            stopped, zeno_end = self._phases_in_piece(t, piece_end, F_ext, h, v, mode,
+                                                      number == len(constant_pieces) - 1)
+            if stopped:
+                return
+
+    def _state_at_change(self, t: float, zeno_end: float) -> tuple[float, float, Mode]:
+        """(h, v, mode) at a change of F_ext at t: where the last phase has the ball, its mode held."""
+        ball, phase = self.ball, self.phases[-1]
+        h, v = (float(y) for y in ball.flow(phase.mode, phase.h0, phase.v0, t - phase.t_start, phase.F_ext))
+        if t < zeno_end:  # inside a rigid ball's summed bounces: on from where the bounce truly is
+            v_first = -ball.e * self.events[-1].velocity  # the impact that started them, at the phase's start
+            x, v = summed_bounce_state(ball.parameters, v_first, load_value(phase.F_ext, ball.m, ball.g),
+                                       t - phase.t_start)
+            return ball.R + x, v, Mode.FLIGHT
+        return h, v, phase.mode
+
+    def _phases_in_piece(self, t: float, piece_end: float, F_ext: float, h: float, v: float, mode: Mode,
+                         last: bool) -> tuple[bool, float]:
+        """The phases from (h, v) in mode at t to piece_end [s] under F_ext [N]: (stopped at max_phases, zeno_end).
+
+        zeno_end: where a rigid ball's bounces summed in this piece end (-inf: none). In the last piece, a
+        contact that never ends dates the rest (rest_time).
+        """
+        ball, R, t_low = self.ball, self.ball.R, 0.0  # t_low: t's rounding error (rounding.later)
+        resolvable_until, instantaneous = limits.resolvable_until(ball), impact_is_instantaneous(ball.parameters)
+        zeno_end = -math.inf
+        contact_start = t  # the last impact (the no-pull law's engagements start no contact), or this piece's start
+        while True:
+            if mode == Mode.CONTACT and t > resolvable_until:
+                # contacts too short for the ulps of t: the phases would stop advancing t (it never ended)
+                limits.check_resolvable(ball, t)
+            self.phases.append(Phase(t, mode, h, v, F_ext))
+            if len(self.phases) >= self._max_phases:
+                return True, zeno_end
+            tau, x_next, v_next, kind, next_mode = self._next_event(mode, h, v, F_ext)
+            if mode == Mode.CONTACT and math.isinf(tau):
+                if last:  # a no-pull ball pressed for good rests from its contact's start
+                    self.rest_time = max(contact_start if kind == RELEASE else t, zeno_end)
+                return False, zeno_end
+            t_event, t_event_low = later(t, t_low, tau)
+            if not t_event <= piece_end:
+                return False, zeno_end
+            t, t_low, h, v, mode = t_event, t_event_low, R + x_next, v_next, next_mode
+            self.events.append(Event(t, kind, v))
+            if kind == IMPACT:
+                contact_start = t
+                if instantaneous:  # the bounce: on in flight, or the ball stays on R
                     v, zeno = rigid_rebound(ball.parameters, v, load_value(F_ext, ball.m, ball.g))
                     mode = Mode.FLIGHT if v > 0.0 else Mode.CONTACT
                     zeno_end = later(t, t_low, zeno)[0] if zeno > 0.0 else zeno_end
+
+    def _next_event(self, mode: Mode, h: float, v: float, F_ext: float) -> tuple:
+        """(tau [s], x [m], v [m/s], kind, next mode): the event ending the phase from (h, v) in mode; tau inf: none."""
+        ball, R = self.ball, self.ball.R
+        parameters, load = ball.parameters, load_value(F_ext, ball.m, ball.g)
+        if mode == Mode.FLIGHT:
+            tau, v_next = time_to_impact(h - R, v, ball.effective_gravity(F_ext))
+            return tau, 0.0, v_next, IMPACT, Mode.CONTACT
+        if mode == Mode.FREE:  # below R under the no-pull law: on to R, or pressed again
+            tau, x_next, v_next, departs = free_event(parameters, h - R, v, load)
+            return (tau, x_next, v_next, DEPARTURE, Mode.FLIGHT) if departs else \
+                (tau, x_next, v_next, ENGAGE, Mode.CONTACT)
+        tau, x_next, v_next, code = contact_event(parameters, h - R, v, load)
+        kind = EVENT_KINDS[code]
+        return tau, x_next, v_next, kind, Mode.FREE if kind == RELEASE else Mode.FLIGHT
 
     # --- evaluation ---------------------------------------------------------------------------
     def state(self, t) -> tuple[np.ndarray, np.ndarray]:

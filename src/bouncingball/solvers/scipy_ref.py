@@ -39,15 +39,7 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     for the phase by more than atol + rtol R (a bounce stepped over unseen: the results would be wrong
     from there on).
     """
-    if not LAWS[ball.contact].article_algorithm:  # its terminal events switch between flight and contact
-        runs = ", ".join(name for name, law in LAWS.items() if law.article_algorithm)
-        raise ValueError(f"solver = 'scipy' is not allowed with contact = {ball.contact!r}: the reference "
-                         f"article's algorithm models a contact whose force is a function of the state ({runs}); "
-                         "use cvode or exact")
-    method = validation.choice("method", method, METHODS)
-    rtol = validation.in_range("rtol", rtol, 0.0, 1.0)
-    atol = validation.positive("atol", atol)
-    max_step = validation.non_negative("max_step", max_step, "s")
+    method, rtol, atol, max_step = _checked(ball, method, rtol, atol, max_step)
     grid = output_grid(t_start, t_end, output_interval)
     h_out = np.full_like(grid, np.nan)
     v_out = np.full_like(grid, np.nan)
@@ -66,23 +58,7 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
             progress(t)
         # the piece of constant force t lies in: solve_ivp stops at its end, and restarts with the next value
         _, t_stop, force = next(p for p in reversed(constant_pieces) if p[0] <= t)
-
-        def rhs(_t, state, mode=mode, force=force):
-            return [state[1], ball.acceleration(state[0], state[1], mode, force)]
-
-        def crossing(_t, state):
-            return state[0] - ball.R
-
-        crossing.terminal = True
-        crossing.direction = -1.0 if mode == Mode.FLIGHT else 1.0
-        jacobian = ball.jacobian(mode)
-
-        def jac(_t, _state, jacobian=jacobian):  # a callable: LSODA cannot take a constant array
-            return jacobian
-
-        sol = solve_ivp(rhs, (t, t_stop), y, method=method, rtol=rtol, atol=atol,
-                        max_step=max_step or np.inf, events=crossing, dense_output=True,
-                        **({"jac": jac} if method in IMPLICIT and not ball.hunt_crossley else {}))
+        sol = _solve_phase(ball, mode, force, t, t_stop, y, method, rtol, atol, max_step)
         stats.steps += len(sol.t) - 1
         stats.rhs_calls += sol.nfev
         if sol.status == -1:
@@ -108,6 +84,40 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
         rest_time = last_impact
     options = {"method": method, "rtol": rtol, "atol": atol, "max_step": max_step}
     return SimulationResult("scipy", ball, grid, h_out, v_out, events, rest_time, stats, F_ext, options)
+
+
+def _checked(ball: Ball, method: str, rtol: float, atol: float, max_step: float) -> tuple[str, float, float, float]:
+    """(method, rtol, atol, max_step) checked; ValueError naming the one out of range, or the law the article's
+    algorithm cannot run (its terminal events switch between flight and contact)."""
+    if not LAWS[ball.contact].article_algorithm:
+        runs = ", ".join(name for name, law in LAWS.items() if law.article_algorithm)
+        raise ValueError(f"solver = 'scipy' is not allowed with contact = {ball.contact!r}: the reference "
+                         f"article's algorithm models a contact whose force is a function of the state ({runs}); "
+                         "use cvode or exact")
+    return (validation.choice("method", method, METHODS), validation.in_range("rtol", rtol, 0.0, 1.0),
+            validation.positive("atol", atol), validation.non_negative("max_step", max_step, "s"))
+
+
+def _solve_phase(ball: Ball, mode: Mode, force: float, t: float, t_stop: float, y: np.ndarray, method: str,
+                 rtol: float, atol: float, max_step: float):
+    """solve_ivp over one phase in mode under force [N], from (t, y) to its terminal crossing of R or to t_stop."""
+
+    def rhs(_t, state):
+        return [state[1], ball.acceleration(state[0], state[1], mode, force)]
+
+    def crossing(_t, state):
+        return state[0] - ball.R
+
+    crossing.terminal = True
+    crossing.direction = -1.0 if mode == Mode.FLIGHT else 1.0
+    jacobian = ball.jacobian(mode)
+
+    def jac(_t, _state):  # a callable: LSODA cannot take a constant array
+        return jacobian
+
+    return solve_ivp(rhs, (t, t_stop), y, method=method, rtol=rtol, atol=atol, max_step=max_step or np.inf,
+                     events=crossing, dense_output=True,
+                     **({"jac": jac} if method in IMPLICIT and not ball.hunt_crossley else {}))
 
 
 def _refuse_a_crossing_stepped_over(ball: Ball, mode: Mode, sol, slack: float, method: str) -> None:
