@@ -204,7 +204,7 @@ def test_auto_engine_without_numba_runs_on_sksundae(unzipped, numba_hidden, tmp_
         [(status, message)] = ball.log  # said once, with status OK: not a warning that stops a strict master
         assert status == 0 and message.startswith("engine auto runs scikit-sundae's: compiled engine unavailable: "
                                                    "numba is not installed"), ball.log
-        assert not [name for name in sys.modules if name.endswith(".solvers.compiled")]
+        assert not [name for name in sys.modules if name.endswith(".solvers.engines.compiled")]
         ball.free()
         np.save(sys.argv[2], np.array([(row[0], row[5]) for row in rows]))
     """, unzipped, tmp_path / "run.npy", env=numba_hidden)
@@ -225,7 +225,7 @@ _FIRST_RUN = """
         log.append(arguments[-1].decode("utf-8"))
     result = simulate_fmu(extract(sys.argv[1], sys.argv[2]), stop_time=1.0, output_interval=1e-3, logger=logger,
                           debug_logging=True)  # messages of status OK are logged only then
-    [compiled] = [module for name, module in sys.modules.items() if name.endswith(".solvers.compiled")]
+    [compiled] = [module for name, module in sys.modules.items() if name.endswith(".solvers.engines.compiled")]
     dispatchers = [value for value in vars(compiled).values() if hasattr(value, "stats")]
     dispatchers += list(compiled._compiled.values())
     print(json.dumps({"log": log, "h": float(result["h"][-1]),
@@ -255,7 +255,7 @@ def test_the_fmus_first_use_of_the_compiled_engine_reads_the_cache_it_ships(fmu,
     assert report["log"] == [], report["log"]
 
 
-def test_the_fmu_ships_code_compiled_for_any_cpu_of_its_architecture(fmu, tmp_path):
+def test_the_fmu_ships_code_compiled_for_any_cpu_of_its_architecture(fmu, tmp_path, monkeypatch):
     """Every overload in the FMU's cache was compiled for numba's generic CPU (no instruction this host has and
     another CPU of its architecture may lack), for this numba and from the FMU's own sources."""
     import zipfile
@@ -264,8 +264,10 @@ def test_the_fmu_ships_code_compiled_for_any_cpu_of_its_architecture(fmu, tmp_pa
     from bouncingball.solvers.engines import jit
 
     with zipfile.ZipFile(fmu) as archive:
+        archive.extractall(tmp_path, [name for name in archive.namelist() if name.startswith("resources/")])
         names = [name for name in archive.namelist() if name.startswith("resources/numba-cache/")]
-        archive.extractall(tmp_path, names)
+    # the overloads' signatures name the FMU's copy of the package (its BallParameters): importable, as in the FMU
+    monkeypatch.syspath_prepend(str(tmp_path / "resources"))
     indexes = sorted((tmp_path / "resources" / "numba-cache").glob("*.nbi"))
     assert len(indexes) > 10 and len(names) > 2 * len(indexes) - 1
     host = jit._host_key()
@@ -311,7 +313,7 @@ _SECOND_INSTANCE = """
         logs.append([])
         result = simulate_fmu(sys.argv[1], stop_time=1.0, output_interval=1e-3, logger=logger, debug_logging=True,
                               start_values={"engine": engine})
-    [compiled] = [module for name, module in sys.modules.items() if name.endswith(".solvers.compiled")]
+    [compiled] = [module for name, module in sys.modules.items() if name.endswith(".solvers.engines.compiled")]
     dispatchers = [value for value in vars(compiled).values() if hasattr(value, "stats")]
     dispatchers += list(compiled._compiled.values())
     print(json.dumps({"logs": logs, "h": float(result["h"][-1]),

@@ -218,7 +218,7 @@ def test_sundials_warnings_reach_the_master_log_and_a_late_start_raises_none(unz
             f.doStep(1e6 + 0.1 * i, 0.1)
         assert [message for status, message in ball.log if status == 1] == []
         # the FMU's own copy of the package (its name is the digest of its sources)
-        log = next(module for name, module in sys.modules.items() if name.endswith(".solvers.sundials_log"))
+        log = next(module for name, module in sys.modules.items() if name.endswith(".solvers.engines.sundials_log"))
         made = []
 
         def new_messages(self):

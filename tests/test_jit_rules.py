@@ -153,7 +153,7 @@ def test_each_function_numba_compiles_follows_the_rules(function):
 
 def _digest_modules() -> list[str]:
     """The modules whose sources jit.engine_sources gives cache_allowed (compiled.py's call), by their names."""
-    package = Path(compiled.__file__).parents[1]
+    package = Path(compiled.__file__).parents[2]
     return [".".join((package.name, *Path(file).relative_to(package).with_suffix("").parts)).removesuffix(".__init__")
             for file in jit.engine_sources()]
 

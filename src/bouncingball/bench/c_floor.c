@@ -2,7 +2,7 @@
  *
  * A benchmark-only copy of what simulate_cvode does with engine "compiled" at a constant F_ext:
  * the same SUNDIALS (scikit-sundae's wheel, reached through the function pointers of struct sundials,
- * whose prototypes c_floor.py generates from solvers/compiled.py's checked declarations), the same
+ * whose prototypes c_floor.py generates from solvers/engines/compiled.py's checked declarations), the same
  * CVODE settings per mode, the same scaled gap state and root functions, a re-init at each event, the
  * same event polish on the mode's exact flow, the rest on the contact's exact flow, and the grid filled
  * from the step ends. Paths the article never takes (an event or rest decided in closed form by a

@@ -2,7 +2,7 @@
 
 c_floor.c does what ``simulate_cvode(engine="compiled")`` does at a constant F_ext (see its header)
 through the very SUNDIALS functions the compiled engine binds: their addresses come from
-``solvers.sundials.library()`` (scikit-sundae's wheel, its version checked) and their prototypes are
+``solvers.engines.sundials.library()`` (scikit-sundae's wheel, its version checked) and their prototypes are
 generated from ``sundials.FUNCTIONS``, the declarations tests/test_compiled.py checks against the
 .pxd files scikit-sundae ships (the wheel has no headers). The callback types are declared here,
 checked against the same .pxd files by tests/test_bench.py. Its time is what the engine would cost

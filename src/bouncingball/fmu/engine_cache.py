@@ -40,7 +40,8 @@ def shipped_files(cache: Path | None) -> list[tuple[Path, str]]:
 def first_use(resources: str | None, say):
     """Around the slave's integrator made with an engine that may be the compiled one: its first import in this
     process takes the code from the FMU's shipped cache, or says through say (the FMU's log) that numba compiles."""
-    if importlib.util.find_spec("numba") is None or f"{__package__.rpartition('.')[0]}.solvers.compiled" in sys.modules:
+    compiled = f"{__package__.rpartition('.')[0]}.solvers.engines.compiled"
+    if importlib.util.find_spec("numba") is None or compiled in sys.modules:
         return contextlib.nullcontext()
     try:
         from ..solvers.engines import jit

@@ -18,7 +18,7 @@ COMPILED_FIRST_USE = 0.50  # s: numba's import and the compiled code read from i
 SKSUNDAE_FIRST_USE = 0.43  # s: scikit-sundae's import (it loads SciPy)
 STEP_SAVING = 13.5e-6  # s per CVODE step
 STEPS_PER_PHASE = 46  # CVODE's steps per flight or contact at the default rtol (the article: 1925 in 42 phases)
-_COMPILED_MODULE = __name__.rpartition(".")[0] + ".compiled"
+_COMPILED_MODULE = __name__.rpartition(".")[0] + ".engines.compiled"
 _sksundae_steps = 0  # CVODE steps this process ran on scikit-sundae: what engine "auto" paid instead of loading
 
 
