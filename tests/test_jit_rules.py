@@ -112,7 +112,7 @@ def compiled_rule_violations(function, namespace) -> list[str]:
             continue
         value = namespace[name]
         if not (isinstance(value, Dispatcher) or _is_number_constant(value) or value in ALLOWED_MODULES
-                or any(value is module for module in ALLOWED_MODULES)):
+                or any(value is module for module in ALLOWED_MODULES) or value is BallParameters):
             kind = ("a plain function compiled_together was not given" if isinstance(value, FunctionType)
                     else "a module other than math and numpy" if isinstance(value, ModuleType)
                     else f"a {type(value).__name__}")

@@ -98,12 +98,7 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
 
     ball = scene.ball
     print(f"scene {scene.name}: {scene.description}")
-    if ball.rigid:
-        law = f"rigid contact, e = {ball.e:g}, v_min = {ball.v_min:g} m/s"
-    elif ball.hunt_crossley:
-        law = f"Hunt-Crossley contact, k = {ball.k:g} N/m^{ball.n:g}, n = {ball.n:g}, alpha = {ball.alpha:g} s/m"
-    else:
-        law = ("no-pull contact, " if ball.no_pull else "") + f"k = {ball.k:g} N/m, b = {ball.b:g} N s/m"
+    law = LAWS[ball.contact].summary.format(**dataclasses.asdict(ball))
     print(f"  ball        m = {ball.m:g} kg, {law}, R = {ball.R:g} m, g = {ball.g:g} m/s2")
     print(f"  start       h0 = {scene.h0:.15g} m, v0 = {scene.v0:g} m/s; {result.t[0]:g} to {result.t[-1]:g} s, "
           f"output every {result.t[1] - result.t[0]:g} s")
@@ -143,16 +138,16 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
 
 
 def _with_law_options(scene, args: argparse.Namespace):
-    """The scene with the command line's contact law and its parameters (--contact, --e, --v-min, --n, --alpha).
+    """The scene with the command line's contact law and its parameters (--contact, --e, --v-min, --n, --alpha ...).
 
     A law given with --contact keeps the scene's values of the parameters it reads and drops the others (they
     were the scene's law's); a parameter given here that the law does not read is refused by its option.
     """
     from . import validation
-    from .contact_laws import CONTACT_LAWS, LAW_PARAMETERS
+    from .contact_laws import CONTACT_LAWS, CONTACT_PARAMETERS, LAW_PARAMETERS
     from .physics import Ball, unread_message, unread_parameters
 
-    given = {name: getattr(args, name) for name in ("e", "v_min", "n", "alpha") if getattr(args, name) is not None}
+    given = {name: getattr(args, name) for name in CONTACT_PARAMETERS if getattr(args, name, None) is not None}
     if args.contact is None and not given:
         return scene
     ball = scene.ball

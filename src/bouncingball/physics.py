@@ -18,21 +18,19 @@ from . import codes, validation
 from .contact_laws import (
     CONTACT_LAWS,
     CONTACT_PARAMETERS,
-    HC_N_RANGE,
-    HUNT_CROSSLEY,
     LAW_PARAMETERS,
-    LINEAR,
-    NO_PULL,
-    RIGID,
     BallParameters,
-    hunt_crossley_force,
+    ball_parameters,
     hunt_crossley_rest_margin,
-    hunt_crossley_static_deflection,
+    impact_is_instantaneous,
+    law_contact_force,
     law_flow_value,
     law_rest_margin,
+    reported_acceleration,
     starts_free,
 )
-from .equations import effective_gravity_value, load_value, mode_acceleration, static_deflection_value
+from .contact_laws.hunt_crossley import HC_N_RANGE, hunt_crossley_static_deflection
+from .equations import effective_gravity_value, load_value, static_deflection_value
 
 
 class Mode(enum.IntEnum):
@@ -150,12 +148,8 @@ class Ball:
         ball with b = 0 is the linear law's (its force k (R - h) never pulls below R), and has its code: the
         same run. Under the Hunt-Crossley law b is 0.0 here (its damping is alpha's: no linear damper).
         """
-        if self.hunt_crossley:
-            return BallParameters(self.m, self.k, 0.0, self.R, self.g, float(HUNT_CROSSLEY), self.e, self.v_min, self.n,
-                                  self.alpha)
-        law = RIGID if self.rigid else (NO_PULL if self.no_pull and self.b > 0.0 else LINEAR)
-        return BallParameters(self.m, self.k, self.b, self.R, self.g, float(law), self.e, self.v_min, self.n,
-                              self.alpha)
+        fields = ("m", "R", "g", *CONTACT_PARAMETERS)
+        return ball_parameters(self.contact, {name: getattr(self, name) for name in fields})
 
     @property
     def natural_frequency(self) -> float:
@@ -195,13 +189,11 @@ class Ball:
         Under the rigid, no-pull and Hunt-Crossley laws, from the force their contact_force clips at 0: a rigid ball
         resting on R has 0 while the ground carries its load, (F_ext - m g)/m where F_ext lifts it.
         """
-        if mode == Mode.CONTACT and (self.rigid or self.no_pull or self.hunt_crossley):
-            return (self.contact_force(h, v, mode, F_ext) - load_value(F_ext, self.m, self.g)) / self.m
-        return mode_acceleration(h, v, mode, F_ext, self.m, self.k, self.b, self.R, self.g)
+        return reported_acceleration(self.parameters, h - self.R, v, mode, load_value(F_ext, self.m, self.g))
 
     def jacobian(self, mode: Mode) -> np.ndarray:
         """d(h', v')/d(h, v): constant in each mode."""
-        if mode != Mode.CONTACT or self.rigid:
+        if mode != Mode.CONTACT or impact_is_instantaneous(self.parameters):
             return np.array([[0.0, 1.0], [0.0, 0.0]])
         return np.array([[0.0, 1.0], [-self.k / self.m, -self.b / self.m]])
 
@@ -230,15 +222,7 @@ class Ball:
         on R carries its load m g - F_ext. Under the no-pull law the force is max(0, k (R - h) - b v), and
         0 in the free sub-mode.
         """
-        if mode != Mode.CONTACT:
-            return 0.0
-        if self.rigid:
-            return max(load_value(F_ext, self.m, self.g), 0.0)
-        if self.no_pull:
-            return max(self.k * (self.R - h) - self.b * v, 0.0)
-        if self.hunt_crossley:
-            return max(hunt_crossley_force(h - self.R, v, self.k, self.n, self.alpha), 0.0)
-        return self.k * (self.R - h) - self.b * v
+        return law_contact_force(self.parameters, h - self.R, v, mode, load_value(F_ext, self.m, self.g))
 
     def energy(self, h, v, F_ext: float = 0.0):
         """Kinetic + gravitational potential (zero at h = 0) + spring energy [J]; arrays allowed.

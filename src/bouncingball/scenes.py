@@ -8,13 +8,14 @@ from importlib import resources
 from pathlib import Path
 
 from . import limits, validation
+from .contact_laws import CONTACT_PARAMETERS
 from .physics import Ball
 from .solvers.result import DEFAULT_OUTPUT_INTERVAL
 
 BALL_KEYS = ("m", "k", "b", "R", "g")  # the ball's parameters that the FMU shares
 # The contact law and its parameters (physics.Ball's; contact_laws.LAW_PARAMETERS says which law reads which); the FMU
 # calls contact contact_law.
-LAW_KEYS = ("contact", "e", "v_min", "n", "alpha")
+LAW_KEYS = ("contact", *(name for name in CONTACT_PARAMETERS if name not in BALL_KEYS))
 SCENE_DEFAULTS = {"h0": 2.0, "v0": 0.0, "t_end": 8.0, "output_interval": DEFAULT_OUTPUT_INTERVAL, "F_ext": 0.0}
 ALLOWED_KEYS = ("description", *BALL_KEYS, *LAW_KEYS, *SCENE_DEFAULTS)
 REST = "rest"

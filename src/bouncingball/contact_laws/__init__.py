@@ -1,4 +1,4 @@
-"""The contact laws: one module each, their registry, and the one place the phase machine decides on the law.
+"""The contact laws: one module each, their registry, and the one place (dispatch.py) that decides on the law.
 
 - linear (the default, linear.py): the article's spring k and damper b; the damper may pull just before departure.
 - rigid (rigid.py): the ball does not deform; each impact on R reverses it, v+ = -e v-, down to v_min, or to the
@@ -20,378 +20,106 @@ BallParameters, read by name), the gap x = h - R [m], v [m/s] and the load m g -
    from (x, v) is taken (common.BY_CVODE, REST or IN_CLOSED_FORM with its event tau [s] later), where hop [m] is
    the hop tolerance and resolution (HOP_RESOLUTION rtol) what CVODE resolves relative to a phase's length. A law
    with a closed-form flow takes what CVODE cannot resolve on it; one without answers BY_CVODE.
-3. Where its contact differs from the linear spring-damper's: its acceleration (law_acceleration), its root
-   functions (root_values: the terminal event first, the extremum, the rest or release), its flow for the
-   polish of an event (polish_flow_mode), its free sub-mode's event (free_event), its rest margin.
-4. Its registry entry below (LAWS): its name, code (common.py), the Ball fields it reads, whether every phase has
-   a closed form (the exact solver and the check take it), a one-line description.
+3. Where its contact differs from the linear spring-damper's: its acceleration (law_acceleration) and force
+   (law_contact_force), its root functions (root_values: the terminal event first, the extremum, the rest or
+   release), its flow for the polish of an event (polish_flow_mode), its free sub-mode's event (free_event), its
+   rest margin, its terminal event's kind (contact_ends_in). An impact that is a jump of v with no contact phase
+   (impact_is_instantaneous) takes its rebound from the law (rigid_rebound).
+4. Where CVODE integrates every contact (contact_integrated: no closed form): its right-hand side and Jacobian
+   (varying_jacobian), its interpolant (law_interpolant), its step's transition matrix for the error estimate
+   (contact_step_transition: its force must be 0 on R, so that its events carry no saltation), its reported rest
+   (reported_rest_margin), a release at the third root (third_root_releases, root_release_speed).
+5. Its registry entry, ``LAW = ContactLaw(...)`` in its module: its name, code (common.py), the Ball fields it
+   reads, whether every phase has a closed form (the exact solver and the check take it), whether the article's
+   algorithm runs it, k's unit and the sweep's damping axis, a description and a summary line; its module in
+   dispatch.LAW_MODULES, which LAWS is read from (the first the default).
 
 What the machine guarantees a law: each phase starts in one mode with the load held (a change of F_ext ends it);
-an event found by CVODE is polished on the law's flow; the law is decided here, once per hook, never by the
-machine. The dispatch below is written as ``if`` on the code: numba cannot call through a table.
+an event found by CVODE is polished on the law's flow; the law is decided in dispatch.py, once per hook, never by
+the machine. The dispatch is written as ``if`` on the code: numba cannot call through a table.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-
-import numpy as np
-
-from ..codes import CONTACT, DEPARTURE, ENGAGE, FLIGHT, FREE, RELEASE
-from ..equations import gap_acceleration, gap_flow_value, rest_margin_value
-from .common import (
-    BY_CVODE,
-    HUNT_CROSSLEY,
-    IN_CLOSED_FORM,
-    LINEAR,
-    MIN_PHASE_SCALE,
-    NO_PULL,
-    REST,
-    RIGID,
-    SOFT_CONTACT_CAP,
-    BallParameters,
-    time_to_impact,
-)
-from .hunt_crossley import (
-    HC_N_RANGE,
+from .common import BY_CVODE, HUNT_CROSSLEY, IN_CLOSED_FORM, LINEAR, NO_PULL, RIGID, BallParameters, ContactLaw
+from .dispatch import (
+    LAW_MODULES,
+    conserved_speed,
+    contact_ends_in,
+    contact_event,
+    contact_integrated,
+    contact_scales,
+    contact_step_transition,
+    decide_contact,
+    departure_speed,
+    departure_time,
+    free_event,
+    has_free_sub_mode,
+    has_pressed_gap,
     hunt_crossley_acceleration,
     hunt_crossley_force,
     hunt_crossley_free_event,
-    hunt_crossley_hop_tolerance,
     hunt_crossley_jacobian,
-    hunt_crossley_partials,
-    hunt_crossley_rest_depth,
     hunt_crossley_rest_margin,
     hunt_crossley_scales,
     hunt_crossley_state,
-    hunt_crossley_static_deflection,
+    impact_is_instantaneous,
+    jacobian_varies,
+    law_acceleration,
+    law_contact_force,
+    law_flow_value,
+    law_interpolant,
+    law_rest_margin,
+    no_pull_rest_margin_value,
+    own_interpolant,
+    polish_flow_mode,
+    pressed_gap,
     release_speed,
+    release_state,
+    release_time,
+    reported_acceleration,
+    reported_rest_margin,
+    root_release_speed,
+    root_values,
+    side_extreme,
+    starts_free,
+    third_root_releases,
+    varying_jacobian,
 )
-from .hunt_crossley import contact_roots as hunt_crossley_contact_roots
-from .hunt_crossley import step_transition as hunt_crossley_step_transition
-from .linear import contact_scales as linear_contact_scales
-from .linear import contact_unresolved
-from .linear import decide_contact as linear_decide_contact
-from .linear import departure_speed as linear_departure_speed
-from .linear import departure_time as linear_departure_time
-from .no_pull import contact_roots as no_pull_contact_roots
-from .no_pull import decide_contact as no_pull_decide_contact
-from .no_pull import free_event, free_gap_rate, no_pull_rest_margin_value, pressed_gap, release_state, release_time
-from .rigid import ZENO_APEX, rigid_rebound, rigid_rebound_above, summed_bounce_state
-from .rigid import contact_scales as rigid_contact_scales
-from .rigid import decide_contact as rigid_decide_contact
-from .rigid import departure_speed as rigid_departure_speed
-from .rigid import departure_time as rigid_departure_time
+from .rigid import rigid_rebound
 
 __all__ = [
-    "BY_CVODE", "BallParameters", "CONTACT_LAWS", "CONTACT_PARAMETERS", "ContactLaw", "HC_N_RANGE", "HUNT_CROSSLEY",
-    "IN_CLOSED_FORM", "LAWS", "LAW_PARAMETERS", "LINEAR", "MIN_PHASE_SCALE", "NO_PULL", "REST", "RIGID",
-    "SOFT_CONTACT_CAP", "ZENO_APEX", "conserved_speed", "contact_ends_in", "contact_event", "contact_integrated",
-    "contact_scales", "contact_step_transition", "contact_unresolved", "decide_contact", "departure_speed",
-    "departure_time", "free_event", "free_gap_rate", "has_free_sub_mode", "has_pressed_gap",
-    "hunt_crossley_acceleration", "hunt_crossley_force", "hunt_crossley_free_event", "hunt_crossley_hop_tolerance",
-    "hunt_crossley_jacobian", "hunt_crossley_partials", "hunt_crossley_rest_depth", "hunt_crossley_rest_margin",
-    "hunt_crossley_scales", "hunt_crossley_state", "hunt_crossley_static_deflection", "impact_is_instantaneous",
-    "jacobian_varies", "law_acceleration", "law_flow_value", "law_interpolant", "law_rest_margin",
+    "BY_CVODE", "BallParameters", "CONTACT_LAWS", "CONTACT_PARAMETERS", "ContactLaw", "HUNT_CROSSLEY", "IN_CLOSED_FORM",
+    "LAWS", "LAW_MODULES", "LAW_PARAMETERS", "LINEAR", "NO_PULL", "RIGID", "ball_parameters", "conserved_speed",
+    "contact_ends_in", "contact_event", "contact_integrated", "contact_scales", "contact_step_transition",
+    "decide_contact", "departure_speed", "departure_time", "free_event", "has_free_sub_mode", "has_pressed_gap",
+    "hunt_crossley_acceleration", "hunt_crossley_force", "hunt_crossley_free_event", "hunt_crossley_jacobian",
+    "hunt_crossley_rest_margin", "hunt_crossley_scales", "hunt_crossley_state", "impact_is_instantaneous",
+    "jacobian_varies", "law_acceleration", "law_contact_force", "law_flow_value", "law_interpolant", "law_rest_margin",
     "no_pull_rest_margin_value", "own_interpolant", "polish_flow_mode", "pressed_gap", "release_speed", "release_state",
-    "release_time", "reported_rest_margin", "rigid_rebound", "rigid_rebound_above", "root_release_speed", "root_values",
-    "side_extreme", "starts_free", "summed_bounce_state", "third_root_releases", "time_to_impact", "varying_jacobian",
+    "release_time", "reported_acceleration", "reported_rest_margin", "rigid_rebound", "root_release_speed",
+    "root_values", "side_extreme", "starts_free", "third_root_releases", "varying_jacobian",
 ]
 
 
-@dataclass(frozen=True)
-class ContactLaw:
-    """A contact law as the front-ends see it (Ball, the FMU's variables, the sweep, the CLI).
-
-    name: its name (Ball.contact); code: the phase machine's (BallParameters.law); parameters: the Ball fields of
-    its own that it reads, beyond m, R and g; closed_form: whether every phase has a closed-form flow (the exact
-    solver, and so check and validate, take it); description: one line for help texts.
-
-    article_algorithm: whether the reference article's algorithm runs it (solvers/scipy_ref.py: solve_ivp switching
-    between flight and contact where h crosses R): its contact force a function of the state (Ball.acceleration),
-    its contact one phase between two crossings of R.
-    crossings_only: whether its only events are the crossings of R (impacts and departures), so that the FMU's
-    outputs (the impact count and the contact flag) account for every event (fmu/validate.py).
-    k_unit: the unit of its stiffness k, a format string of its parameters (n); None if it has no k.
-    damping_axis: how a grid of its balls (the sweep) gives its damping: "zeta", the damping ratio
-    b / (2 sqrt(k m)) of its linear spring-damper; "alpha", its own parameter alpha [s/m]; None if it has no k and
-    damping to map.
-    """
-
-    name: str
-    code: int
-    parameters: tuple[str, ...]
-    closed_form: bool
-    description: str
-    article_algorithm: bool
-    crossings_only: bool
-    k_unit: str | None
-    damping_axis: str | None
-
-
-LAWS = {law.name: law for law in (
-    ContactLaw("linear", LINEAR, ("k", "b"), closed_form=True,
-               description="the spring-damper k, b (the damper may pull)",
-               article_algorithm=True, crossings_only=True, k_unit="N/m", damping_axis="zeta"),
-    ContactLaw("rigid", RIGID, ("e", "v_min"), closed_form=True,
-               description="an instantaneous impact, v+ = -e v-, resting below v_min",
-               article_algorithm=False, crossings_only=False, k_unit=None, damping_axis=None),
-    ContactLaw("linear-no-pull", NO_PULL, ("k", "b"), closed_form=True,
-               description="the spring-damper whose force never pulls",
-               article_algorithm=False, crossings_only=False, k_unit="N/m", damping_axis="zeta"),
-    ContactLaw("hunt-crossley", HUNT_CROSSLEY, ("k", "n", "alpha"), closed_form=False,
-               description="k delta^n (1 + 3/2 alpha delta'), clipped at 0",
-               article_algorithm=True, crossings_only=False, k_unit="N/m^{n:g}", damping_axis="alpha"),
-)}
-CONTACT_LAWS = tuple(LAWS)  # their names, the default first
+LAWS = {module.LAW.name: module.LAW for module in LAW_MODULES if hasattr(module, "LAW")}  # the default first
+CONTACT_LAWS = tuple(LAWS)  # their names
 # The parameters each law reads besides the ball's m, R and g, by its name: another law's parameter set to a
 # value other than Ball's default is refused by name (Ball, CLI, scene files), logged by the FMU (physics.py).
 LAW_PARAMETERS = {name: law.parameters for name, law in LAWS.items()}
-CONTACT_PARAMETERS = ("k", "b", "e", "v_min", "n", "alpha")  # every law's, in Ball's order
+CONTACT_PARAMETERS = tuple(dict.fromkeys(name for law in LAWS.values() for name in law.parameters))  # every law's
 
 
-# --- the dispatch: each hook decides on the law once ---------------------------------------------------------------
-def law_flow_value(parameters, mode, x0, v0, tau, load):
-    """gap_flow_value under the ball's contact law (parameters: Ball.parameters): a rigid ball in contact rests.
+def ball_parameters(contact, fields):
+    """BallParameters of a ball of the law named contact, from its fields (a mapping of m, R, g and CONTACT_PARAMETERS).
 
-    Under the rigid law the contact mode is the ball resting on R, where it stays (x0, v0 = 0, 0).
+    A no-pull ball with b = 0 is the linear law's (its force k (R - h) never pulls below R), and has its code: the
+    same run. Under the Hunt-Crossley law b is 0.0 (its damping is alpha's: no linear damper).
     """
-    if mode == CONTACT and parameters.law == RIGID:
-        return x0 + 0.0 * tau, v0 + 0.0 * tau
-    if mode == CONTACT and parameters.law == HUNT_CROSSLEY:  # no closed form: never asked for (NaN if it were)
-        return x0 + math.nan * tau, v0 + math.nan * tau
-    return gap_flow_value(mode, x0, v0, tau, load, parameters.m, parameters.k, parameters.b)
-
-
-def conserved_speed(parameters, mode, x_start, v_start):
-    """Whether a phase from the gap x_start [m] at v_start [m/s] in mode ends on R at -v_start exactly.
-
-    It does where it starts on R leaving its own side (up in flight, down in contact) and its exact
-    flow conserves energy (a flight; a contact with b = 0): the phase machine's polish and the exact
-    solver then give the event that speed, not their flows' rounded one, which added up over many
-    bounces to an energy drift. parameters: Ball.parameters.
-    """
-    if x_start != 0.0:
-        return False
-    if parameters.law == HUNT_CROSSLEY:  # alpha = 0: the Hertz contact conserves energy, its force 0 on R
-        return v_start > 0.0 if mode == FLIGHT else (v_start < 0.0 and parameters.alpha == 0.0)
-    return v_start > 0.0 if mode == FLIGHT else (v_start < 0.0 and parameters.b == 0.0)
-
-
-def law_rest_margin(parameters, x, v, d, hop_tolerance):
-    """The rest margin under the ball's contact law (parameters: Ball.parameters); see rest_margin_value."""
-    m, k = parameters.m, parameters.k
-    if parameters.law == NO_PULL:
-        return no_pull_rest_margin_value(x, v, d, hop_tolerance, k / m, parameters.b / (2.0 * m))
-    return rest_margin_value(x, v, d, hop_tolerance, k / m)
-
-
-def starts_free(parameters, x, v, load):
-    """Whether a ball below R (the gap x [m] < 0, v [m/s]) starts in the free sub-mode (Mode.FREE), not pressed.
-
-    Under the no-pull law where its force would pull, or is 0 and turning so (pressed_gap's z); under the
-    Hunt-Crossley law where 1 - 3/2 alpha v < 0 (rising faster than the release speed), or = 0 with the
-    load [N] < 0 (a lift past the weight: v grows past it). Never under the other laws.
-    """
-    if parameters.law == HUNT_CROSSLEY:
-        factor = 1.0 - 1.5 * parameters.alpha * v
-        return factor < 0.0 or (factor == 0.0 and load < 0.0)
-    if parameters.law != NO_PULL:
-        return False
-    z, rate = pressed_gap(parameters, x, v, load)
-    return z > 0.0 or (z == 0.0 and rate > 0.0)
-
-
-def departure_time(parameters, x0, v0, load):
-    """Time [s] from (x0, v0) in contact to the first upward crossing of h = R; inf if none (linear.departure_time)."""
-    if parameters.law == RIGID:
-        return rigid_departure_time(parameters, x0, v0, load)
-    return linear_departure_time(parameters, x0, v0, load)
-
-
-def departure_speed(parameters, x0, v0, tau, load):
-    """v [m/s] where a contact from (x0, v0) ends tau [s] later (departure_time): never < 0 (linear.departure_speed)."""
-    if parameters.law == RIGID:
-        return rigid_departure_speed(parameters, x0, v0, tau, load)
-    return linear_departure_speed(parameters, x0, v0, tau, load)
-
-
-def contact_scales(parameters, x, v, load):
-    """(length [m], speed [m/s]) of a contact from (x, v) under the ball's law: the contract's rule 1."""
-    if parameters.law == RIGID:
-        return rigid_contact_scales(parameters, x, v, load)
-    if parameters.law == HUNT_CROSSLEY:
-        return hunt_crossley_scales(parameters, x, v, load)
-    return linear_contact_scales(parameters, x, v, load)
-
-
-def decide_contact(parameters, mode, x, v, load, hop, resolution):
-    """(answer, tau, x_event, v_event, kind) of a phase below or on R (mode CONTACT or FREE): the contract's rule 2.
-
-    The free sub-mode is always taken in closed form (a parabola): its event a departure on R or an engagement.
-    """
-    if mode == FREE:
-        if parameters.law == HUNT_CROSSLEY:
-            tau, x_event, v_event, departs = hunt_crossley_free_event(parameters, x, v, load)
-        else:
-            tau, x_event, v_event, departs = free_event(parameters, x, v, load)
-        return IN_CLOSED_FORM, tau, x_event, v_event, DEPARTURE if departs else ENGAGE
-    if parameters.law == HUNT_CROSSLEY:  # no closed form: CVODE takes every contact, a rest only reported (HC_REST_T)
-        return BY_CVODE, 0.0, 0.0, 0.0, DEPARTURE
-    if parameters.law == RIGID:
-        answer, tau, x_event, v_event = rigid_decide_contact(parameters, x, v, load, hop, resolution)
-        return answer, tau, x_event, v_event, DEPARTURE
-    if parameters.law == NO_PULL:
-        answer, tau, x_event, v_event = no_pull_decide_contact(parameters, x, v, load, hop, resolution)
-        return answer, tau, x_event, v_event, RELEASE
-    answer, tau, x_event, v_event = linear_decide_contact(parameters, x, v, load, hop, resolution)
-    return answer, tau, x_event, v_event, DEPARTURE
-
-
-def contact_event(parameters, x, v, load):
-    """(tau [s], x_event [m], v_event [m/s], kind) ending a contact from (x, v) on its exact flow; tau = inf if none.
-
-    The exact solver's: a departure on R (the linear and rigid laws), or the no-pull law's release below it.
-    """
-    if parameters.law == NO_PULL:
-        tau = release_time(parameters, x, v, load)
-        if math.isinf(tau):
-            return tau, 0.0, math.nan, RELEASE
-        x_event, v_event = release_state(parameters, x, v, tau, load)
-        return tau, x_event, v_event, RELEASE
-    tau = departure_time(parameters, x, v, load)
-    if math.isinf(tau):
-        return tau, 0.0, math.nan, DEPARTURE
-    return tau, 0.0, departure_speed(parameters, x, v, tau, load), DEPARTURE
-
-
-def has_free_sub_mode(parameters):
-    """Whether the law has a free sub-mode below R (Mode.FREE): where its force would pull (no-pull, Hunt-Crossley)."""
-    return parameters.law == NO_PULL or parameters.law == HUNT_CROSSLEY
-
-
-def polish_flow_mode(parameters, mode):
-    """The mode whose exact flow polishes an event CVODE located in mode (phases.polish_event).
-
-    A Hunt-Crossley contact has no closed form, but its force k delta^n is 0 on R: within the root's few
-    ulps of R the flight's parabola is its flow to within k |x|^n tau / m.
-    """
-    return FLIGHT if parameters.law == HUNT_CROSSLEY else mode
-
-
-def law_acceleration(x, v, mode, load, m, k, b, law, n, alpha):
-    """dv/dt [m/s2] at the gap x [m] and v [m/s] in mode under the law (a code): CVODE's right-hand side's.
-
-    Under the Hunt-Crossley law the pressed contact's is hunt_crossley_acceleration's (its force unclipped: the clip
-    is the release event into the free sub-mode, never a max() here); else equations.gap_acceleration.
-    """
-    if law == HUNT_CROSSLEY and mode == CONTACT:
-        return hunt_crossley_acceleration(x, v, load, m, k, n, alpha)
-    return gap_acceleration(x, v, mode, load, m, k, b)
-
-
-def own_interpolant(parameters, mode):
-    """Whether the law reads a step in mode off an interpolant of its own (law_interpolant), having no closed form.
-
-    Elsewhere the dense output blends the mode's exact flow (solvers/phase_machine/dense_output.py).
-    """
-    return mode == CONTACT and parameters.law == HUNT_CROSSLEY
-
-
-def law_interpolant(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
-    """(x [m], v [m/s]) at t on a step from (t0, x0, v0) to (t1, x1, v1) in mode, where own_interpolant. Floats."""
-    return hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t)
-
-
-def jacobian_varies(law, mode):
-    """Whether CVODE's Jacobian in mode changes with the state under the law (a code); else phases.scaled_jacobian's."""
-    return law == HUNT_CROSSLEY and mode == CONTACT
-
-
-def varying_jacobian(y0, y1, length, speed, load, m, k, n, alpha, law):
-    """(j00, j01, j10, j11): CVODE's Jacobian in the phase's frame at (y0, y1), where jacobian_varies."""
-    return hunt_crossley_jacobian(y0, y1, length, speed, load, m, k, n, alpha)
-
-
-def root_values(y0, y1, mode, length, speed, load, own_side, hop, k, m, b, law, alpha):
-    """CVODE's three root functions: the gap (own_side where it is 0), v, and the rest margin in contact.
-
-    Under zero net load v never changes in flight: a root function identically 0 would only make
-    CVODE warn, so it is 1 there. The rest margin (equations.rest_margin_value, with the static
-    deflection from the phase's load) is -1 where the contact cannot rest. law: Ball.parameters' code.
-    A pressed no-pull or Hunt-Crossley contact has its own (no_pull.contact_roots, hunt_crossley.contact_roots).
-    """
-    if law == HUNT_CROSSLEY and mode == CONTACT:
-        return hunt_crossley_contact_roots(y0, y1, speed, own_side, alpha)
-    if law == NO_PULL and mode == CONTACT:
-        return no_pull_contact_roots(y0, y1, length, speed, load, own_side, hop, k, m, b)
-    d = load / k
-    rest = rest_margin_value(length * y0, speed * y1, d, hop, k / m) if mode == CONTACT and d > 0.0 else -1.0
-    return y0 if y0 != 0.0 else own_side, y1 if mode == CONTACT or load != 0.0 else 1.0, rest
-
-
-def contact_integrated(parameters):
-    """Whether the law's pressed contact has no closed form (rule 3): CVODE integrates every one.
-
-    The phase machine then carries its error step by step (contact_step_transition, in error_estimate's
-    ellipses) and only reports its rest (reported_rest_margin): no closed form takes the ball on from there.
-    """
-    return parameters.law == HUNT_CROSSLEY
-
-
-def contact_step_transition(parameters, load, t0, x0, v0, t1, x1, v1, t):
-    """(p00, p01, p10, p11): the transition matrix of (x, v) over an integrated contact's step from t0 to t <= t1."""
-    return hunt_crossley_step_transition(parameters, load, t0, x0, v0, t1, x1, v1, t)
-
-
-def reported_rest_margin(parameters, x, v, load, hop):
-    """An integrated contact's rest margin at (x [m], v [m/s]): positive where the ball is at rest (within hop [m])."""
-    return hunt_crossley_rest_margin(x, v, load, parameters.m, parameters.k, parameters.n, hop)
-
-
-def contact_ends_in(parameters):
-    """The event kind of a pressed contact's terminal root (root_values' first): DEPARTURE on R, or RELEASE.
-
-    The no-pull law's pressed contact ends where its force would pull (its pressed gap z = 0), below R.
-    """
-    return RELEASE if parameters.law == NO_PULL else DEPARTURE
-
-
-def side_extreme(parameters, mode, x, v):
-    """The extreme, over step ends (arrays x [m], v [m/s]) in mode, of what must keep the phase's side of its event.
-
-    The gap's least in flight (>= 0), its largest in contact (<= 0); in the no-pull law's pressed contact the
-    largest pressed gap z = x + (b / k) v = -force / k, which a missed release leaves above 0.
-    """
-    if mode == FLIGHT:
-        return np.min(x)
-    if parameters.law == NO_PULL:
-        return np.max(x + (parameters.b / parameters.k) * v)
-    return np.max(x)
-
-
-def third_root_releases(parameters, mode):
-    """Whether root_values' third root in mode is a release (the Hunt-Crossley force's clip engaging), not a rest.
-
-    Found where CVODE located it (no closed form to polish it on), at root_release_speed exactly.
-    """
-    return mode == CONTACT and parameters.law == HUNT_CROSSLEY
-
-
-def root_release_speed(parameters):
-    """v [m/s] at a release found by the third root (third_root_releases): the speed where the force would pull."""
-    return release_speed(parameters.alpha)
-
-
-def impact_is_instantaneous(parameters):
-    """Whether an impact is a jump of v on R with no contact phase after it (rigid_rebound), not a compliant contact."""
-    return parameters.law == RIGID
-
-
-def has_pressed_gap(parameters):
-    """Whether the contact below R switches between pressed and free where its pressed gap z crosses 0 (pressed_gap).
-
-    The no-pull law's (with b > 0: with b = 0 its force is the linear law's, never pulling, and its code LINEAR).
-    """
-    return parameters.law == NO_PULL
+    code, b = LAWS[contact].code, fields["b"]
+    if code == NO_PULL and not b > 0.0:
+        code = LINEAR
+    elif code == HUNT_CROSSLEY:
+        b = 0.0
+    values = {**fields, "b": b, "law": float(code)}
+    return BallParameters(*(values[name] for name in BallParameters._fields))

@@ -6,6 +6,7 @@ Imported by each law's module and by the dispatch in contact_laws/__init__.py; i
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import NamedTuple
 
 # The codes the phase machine knows the contact laws by (BallParameters.law; contact_laws.LAWS maps names to them).
@@ -38,6 +39,16 @@ class BallParameters(NamedTuple):
     alpha: float
 
 
+def parameters_at(values, first):
+    """The BallParameters held in values[first:first + len(BallParameters._fields)], in its fields' order.
+
+    The compiled engine's callbacks keep the ball so, in the float block CVODE hands them (engines/compiled.py).
+    """
+    return BallParameters(values[first], values[first + 1], values[first + 2], values[first + 3],
+                          values[first + 4], values[first + 5], values[first + 6], values[first + 7],
+                          values[first + 8], values[first + 9])
+
+
 def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tuple[float, float]:
     """Flight time [s] until h falls to R, and the impact velocity [m/s]; (inf, nan) if never.
 
@@ -53,3 +64,35 @@ def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tupl
         s = math.sqrt(disc)
         return (v0 + s) / g_eff, -s
     return math.inf, math.nan
+
+
+@dataclass(frozen=True)
+class ContactLaw:
+    """A contact law as the front-ends see it (Ball, the FMU's variables, the sweep, the CLI).
+
+    name: its name (Ball.contact); code: the phase machine's (BallParameters.law); parameters: the Ball fields of
+    its own that it reads, beyond m, R and g; closed_form: whether every phase has a closed-form flow (the exact
+    solver, and so check and validate, take it); description: one line for help texts.
+
+    article_algorithm: whether the reference article's algorithm runs it (solvers/scipy_ref.py: solve_ivp switching
+    between flight and contact where h crosses R): its contact force a function of the state (Ball.acceleration),
+    its contact one phase between two crossings of R.
+    crossings_only: whether its only events are the crossings of R (impacts and departures), so that the FMU's
+    outputs (the impact count and the contact flag) account for every event (fmu/validate.py).
+    k_unit: the unit of its stiffness k, a format string of its parameters (n); None if it has no k.
+    damping_axis: how a grid of its balls (the sweep) gives its damping: "zeta", the damping ratio
+    b / (2 sqrt(k m)) of its linear spring-damper; "alpha", its own parameter alpha [s/m]; None if it has no k and
+    damping to map.
+    summary: how `bouncingball run` describes a ball of the law, a format string of Ball's fields.
+    """
+
+    name: str
+    code: int
+    parameters: tuple[str, ...]
+    closed_form: bool
+    description: str
+    article_algorithm: bool
+    crossings_only: bool
+    k_unit: str | None
+    damping_axis: str | None
+    summary: str

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 from ..oscillator import oscillator_basis
-from .common import SOFT_CONTACT_CAP
+from .common import HUNT_CROSSLEY, SOFT_CONTACT_CAP, ContactLaw
 
 # The Hunt-Crossley law's exponent n: 1 (a linear spring) .. 2.5 (beyond Hertz's 1.5 for spheres, as fitted
 # to soft and granular materials); its release speed is 2 / (3 alpha).
@@ -195,3 +195,10 @@ def step_transition(parameters, load, t0, x0, v0, t1, x1, v1, t):
     sigma, w2 = max(-0.5 * a_v, 0.0), max(-a_x, 0.0)
     c, s = oscillator_basis(sigma, w2, tau)
     return c + sigma * s, s, -w2 * s, c - sigma * s
+
+
+# The law's entry in the registry (contact_laws.LAWS).
+LAW = ContactLaw("hunt-crossley", HUNT_CROSSLEY, ("k", "n", "alpha"), closed_form=False,
+                 description="k delta^n (1 + 3/2 alpha delta'), clipped at 0",
+                 article_algorithm=True, crossings_only=False, k_unit="N/m^{n:g}", damping_axis="alpha",
+                 summary="Hunt-Crossley contact, k = {k:g} N/m^{n:g}, n = {n:g}, alpha = {alpha:g} s/m")

@@ -15,7 +15,7 @@ import numpy as np
 from ..equations import rest_margin_value
 from ..oscillator import contact_gap_flow
 from ..rounding import hypot
-from .common import BY_CVODE, IN_CLOSED_FORM, MIN_PHASE_SCALE, REST, SOFT_CONTACT_CAP
+from .common import BY_CVODE, IN_CLOSED_FORM, LINEAR, MIN_PHASE_SCALE, REST, SOFT_CONTACT_CAP, ContactLaw
 
 
 def contact_scales(parameters, x, v, load):
@@ -215,3 +215,10 @@ def _departure_root(sigma, w2, g_eff, x0, v0, a, b, guess, at_a):
             tau_new = 0.5 * (a + b)
         tau = tau_new
     return best
+
+
+# The law's entry in the registry (contact_laws.LAWS).
+LAW = ContactLaw("linear", LINEAR, ("k", "b"), closed_form=True,
+                 description="the spring-damper k, b (the damper may pull)",
+                 article_algorithm=True, crossings_only=True, k_unit="N/m", damping_axis="zeta",
+                 summary="k = {k:g} N/m, b = {b:g} N s/m")

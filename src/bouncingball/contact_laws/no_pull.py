@@ -14,7 +14,7 @@ import math
 from ..codes import CONTACT
 from ..equations import gap_acceleration
 from ..oscillator import contact_gap_flow
-from .common import BY_CVODE, IN_CLOSED_FORM, REST, time_to_impact
+from .common import BY_CVODE, IN_CLOSED_FORM, NO_PULL, REST, ContactLaw, time_to_impact
 from .linear import departure_time, searches
 
 
@@ -140,3 +140,10 @@ def contact_roots(y0, y1, length, speed, load, own_side, hop, k, m, b):
     sigma = b / (2.0 * m)
     rest = no_pull_rest_margin_value(length * y0, speed * y1, d, hop, k / m, sigma) if d > 0.0 else -1.0
     return z if z != 0.0 else own_side, rate, rest
+
+
+# The law's entry in the registry (contact_laws.LAWS).
+LAW = ContactLaw("linear-no-pull", NO_PULL, ("k", "b"), closed_form=True,
+                 description="the spring-damper whose force never pulls",
+                 article_algorithm=False, crossings_only=False, k_unit="N/m", damping_axis="zeta",
+                 summary="no-pull contact, k = {k:g} N/m, b = {b:g} N s/m")

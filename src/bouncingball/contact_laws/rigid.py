@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from .common import IN_CLOSED_FORM, REST
+from .common import IN_CLOSED_FORM, REST, RIGID, ContactLaw
 
 # Under the rigid law with v_min = 0, the bounces after one whose apex is below ZENO_APEX R are summed as
 # the geometric series they are: their heights are below any resolution, their count without end.
@@ -85,3 +85,10 @@ def decide_contact(parameters, x, v, load, hop, resolution):
     if math.isinf(tau):
         return REST, 0.0, 0.0, 0.0
     return IN_CLOSED_FORM, tau, 0.0, departure_speed(parameters, x, v, tau, load)
+
+
+# The law's entry in the registry (contact_laws.LAWS).
+LAW = ContactLaw("rigid", RIGID, ("e", "v_min"), closed_form=True,
+                 description="an instantaneous impact, v+ = -e v-, resting below v_min",
+                 article_algorithm=False, crossings_only=False, k_unit=None, damping_axis=None,
+                 summary="rigid contact, e = {e:g}, v_min = {v_min:g} m/s")

@@ -20,7 +20,9 @@ from pythonfmu3.enums import Fmi3Causality, Fmi3Initial, Fmi3Status, Fmi3Variabi
 from pythonfmu3.modelexchange import ModelExchange
 
 from .. import validation
-from ..contact_laws import free_gap_rate, has_pressed_gap, pressed_gap, rigid_rebound_above
+from ..contact_laws import has_pressed_gap, pressed_gap
+from ..contact_laws.no_pull import free_gap_rate
+from ..contact_laws.rigid import rigid_rebound_above
 from ..equations import load_value
 from ..physics import Ball, Mode, clipped_contact_mode
 from ..solvers.phase_machine.phases import phase_scales

@@ -13,6 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..contact_laws import LAWS
 from ..limits import check_cvode_settings, check_resolvable, resolvable_until
 from ..physics import Ball, Mode
 from . import engine_selection, forcing
@@ -67,7 +68,7 @@ def _integrate_pieces(integrator: BallIntegrator, grid: np.ndarray,
 def _steps_for_auto(ball: Ball, h0: float, v0: float, grid: np.ndarray, F_ext: float | ForceTable,
                     settings: CvodeSettings) -> float | None:
     """The run's expected steps where engine "auto" has to weigh them (see choose_engine), else None."""
-    if ball.hunt_crossley:  # no exact solution to count its phases by: unknown, as an FMU's
+    if not LAWS[ball.contact].closed_form:  # no exact solution to count its phases by: unknown, as an FMU's
         return None
     if settings.engine != "auto" or (break_even := engine_selection.compiled_break_even()) == 0.0:
         return None

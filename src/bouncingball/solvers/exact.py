@@ -16,15 +16,9 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import limits
-from ..contact_laws import (
-    LAWS,
-    contact_event,
-    free_event,
-    impact_is_instantaneous,
-    rigid_rebound,
-    summed_bounce_state,
-    time_to_impact,
-)
+from ..contact_laws import LAWS, contact_event, free_event, impact_is_instantaneous, rigid_rebound
+from ..contact_laws.common import time_to_impact
+from ..contact_laws.rigid import summed_bounce_state
 from ..equations import load_value
 from ..physics import Ball, Mode
 from ..rounding import later
@@ -54,9 +48,9 @@ class ExactSolution:
     def __init__(self, ball: Ball, h0: float, v0: float, t_start: float = 0.0,
                  t_end: float = math.inf, F_ext: float | ForceTable = 0.0, max_phases: int | None = None) -> None:
         """max_phases: stop after that many phases (a count for an estimate, not a solution to t_end)."""
-        if not LAWS[ball.contact].closed_form:  # the Hunt-Crossley contact
-            raise ValueError(f"solver = 'exact' is not allowed with contact = {ball.contact!r}: the Hunt-Crossley "
-                             "contact has no closed form; use cvode")
+        if not LAWS[ball.contact].closed_form:
+            raise ValueError(f"solver = 'exact' is not allowed with contact = {ball.contact!r}: its contact has no "
+                             "closed form; use cvode")
         self.ball = ball
         self._max_phases = math.inf if max_phases is None else max_phases
         self.F_ext = F_ext

@@ -93,7 +93,7 @@ def _checked(ball: Ball, method: str, rtol: float, atol: float, max_step: float)
         runs = ", ".join(name for name, law in LAWS.items() if law.article_algorithm)
         raise ValueError(f"solver = 'scipy' is not allowed with contact = {ball.contact!r}: the reference "
                          f"article's algorithm models a contact whose force is a function of the state ({runs}); "
-                         "use cvode or exact")
+                         + ("use cvode or exact" if LAWS[ball.contact].closed_form else "use cvode"))
     return (validation.choice("method", method, METHODS), validation.in_range("rtol", rtol, 0.0, 1.0),
             validation.positive("atol", atol), validation.non_negative("max_step", max_step, "s"))
 

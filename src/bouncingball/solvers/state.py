@@ -9,8 +9,9 @@ import math
 from dataclasses import dataclass
 
 from .. import limits, validation
-from ..contact_laws import summed_bounce_state
-from ..equations import gap_acceleration, load_value
+from ..contact_laws import contact_integrated, impact_is_instantaneous, law_contact_force, reported_acceleration
+from ..contact_laws.rigid import summed_bounce_state
+from ..equations import load_value
 from ..physics import Ball, Mode
 from .phase_machine import machine
 from .phase_machine.phases import REST, decide_phase
@@ -195,21 +196,14 @@ class IntegratorView:
     @property
     def acceleration(self) -> float:
         """dv/dt [m/s2] at t in the current mode."""
-        ball, state = self.ball, self._state
-        if ball.rigid or ball.hunt_crossley:
-            return ball.acceleration(ball.R + float(state.x), float(state.v), self.mode, self._F_ext)
-        return gap_acceleration(float(state.x), float(state.v), self.mode, self._load, ball.m,
-                                ball.k, ball.b)
+        state = self._state
+        return reported_acceleration(self._parameters, float(state.x), float(state.v), self.mode, self._load)
 
     @property
     def contact_force(self) -> float:
         """Force of the ground on the ball [N] at t, positive upwards; zero in flight."""
-        x, v = float(self._state.x), float(self._state.v)
-        if self.ball.rigid or self.ball.hunt_crossley:
-            return self.ball.contact_force(self.ball.R + x, v, self.mode, self._F_ext)
-        if self.ball.no_pull:  # max(0, ...), and 0 in the free sub-mode
-            return 0.0 if self.mode != Mode.CONTACT else max(-self.ball.k * x - self.ball.b * v, 0.0)
-        return 0.0 if self.mode == Mode.FLIGHT else -self.ball.k * x - self.ball.b * v
+        state = self._state
+        return law_contact_force(self._parameters, float(state.x), float(state.v), self.mode, self._load)
 
     @property
     def rest_time(self) -> float | None:
@@ -221,7 +215,7 @@ class IntegratorView:
         since CVODE last restarted (the state's hc_rest_t): CVODE integrates on through it, there being no
         closed form of the rest flow.
         """
-        if self.ball.hunt_crossley:
+        if contact_integrated(self._parameters):
             rest = float(self._state.hc_rest_t)
             return rest if self.mode == Mode.CONTACT and not math.isnan(rest) else None
         x, v = float(self._state.x), float(self._state.v)
@@ -229,7 +223,7 @@ class IntegratorView:
             return None
         start = self._last_impact_time if self._last_impact_time is not None else self._t_start
         rest = float(self._state.rest_t)
-        return max(start, rest) if self.ball.rigid and not math.isnan(rest) else start
+        return max(start, rest) if impact_is_instantaneous(self._parameters) and not math.isnan(rest) else start
 
     @property
     def _last_impact_time(self) -> float | None:
@@ -259,7 +253,8 @@ class IntegratorView:
     def _zeno_time(self) -> float | None:
         """When the summed bounces of a rigid ball resting on R end [s] (rest_t, after its last impact), else None."""
         rest, impact = float(self._state.rest_t), float(self._state.last_impact)
-        return rest if self.ball.rigid and self.mode == Mode.CONTACT and rest > impact else None
+        return rest if impact_is_instantaneous(self._parameters) and self.mode == Mode.CONTACT and rest > impact \
+            else None
 
     def _errors(self) -> tuple:
         """The error estimate's fields at the restart point, as RestartPoint holds them."""

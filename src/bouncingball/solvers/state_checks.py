@@ -10,7 +10,7 @@ import numbers
 from dataclasses import dataclass
 
 from .. import validation
-from ..contact_laws import has_free_sub_mode
+from ..contact_laws import has_free_sub_mode, impact_is_instantaneous
 from ..equations import load_value
 from ..physics import Ball, Mode
 from .phase_machine.phases import frame, on_wrong_side, side_margin
@@ -45,7 +45,8 @@ def checked(ball: Ball, state: IntegratorState, settings: CvodeSettings) -> Chec
                          "and of the hunt-crossley law")
     t_start = validation.finite("state t_start", state.t_start, "s")
     counts = _counts("state", state)
-    if state.zeno_time is not None and not (ball.rigid and point[3] == Mode.CONTACT and counts[2] is not None
+    rigid = impact_is_instantaneous(ball.parameters)
+    if state.zeno_time is not None and not (rigid and point[3] == Mode.CONTACT and counts[2] is not None
                                             and validation.finite("state zeno_time", state.zeno_time, "s") > counts[2]):
         raise ValueError(f"state zeno_time = {state.zeno_time!r} s is not allowed: it is where a rigid ball resting "
                          "on R ends its summed bounces, after its last impact (None otherwise)")

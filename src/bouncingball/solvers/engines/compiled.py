@@ -29,13 +29,10 @@ import numpy as np
 from numba import carray, cfunc, from_dtype, njit, types
 from numba.extending import intrinsic
 
-from ... import contact_laws, equations, oscillator, physics, rounding
-from ...contact_laws import BallParameters
+from ... import equations, oscillator, physics, rounding
+from ...contact_laws import BallParameters, dispatch
 from ...contact_laws import common as laws_common
-from ...contact_laws import hunt_crossley as hunt_crossley_law
-from ...contact_laws import linear as linear_law
-from ...contact_laws import no_pull as no_pull_law
-from ...contact_laws import rigid as rigid_law
+from ...contact_laws.dispatch import LAW_MODULES
 from ..phase_machine import dense_output, drivers, engine_protocol, error_estimate, layout, machine, phases
 from ..phase_machine.engine_protocol import CV_ROOT_RETURN, CV_SUCCESS
 from .jit import (
@@ -68,8 +65,9 @@ _NUM_ROOTS = 3
 _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_SIZE = range(6)
 # The parameters (float64) the callbacks read.
 # CVODE integrates x / length and v / speed (x = h - R), the phase's frame set by _engine_start.
-(_P_M, _P_K, _P_B, _P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11,
- _P_LENGTH, _P_SPEED, _P_LOAD, _P_LAW, _P_N, _P_ALPHA, _P_SIZE) = range(17)
+# The ball's parameters follow from _P_BALL, in BallParameters' order (contact_laws.common.parameters_at reads them).
+(_P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11, _P_LENGTH, _P_SPEED, _P_LOAD, _P_BALL) = range(11)
+_P_SIZE = _P_BALL + len(BallParameters._fields)
 
 
 
@@ -130,7 +128,7 @@ def _engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load):
     calls, memory, vector, state, parameters, user_data, work, counter = _unpacked(engine, mode)
     parameters[_P_LENGTH], parameters[_P_SPEED], parameters[_P_HOP], parameters[_P_LOAD] = length, speed, hop, load
     parameters[_P_J00], parameters[_P_J01], parameters[_P_J10], parameters[_P_J11] = _scaled_jacobian(
-        mode, length, speed, parameters[_P_M], parameters[_P_K], parameters[_P_B])
+        _parameters_at(parameters, _P_BALL), mode, length, speed)
     user_data[_U_EVALUATIONS] = 0
     state[0], state[1] = y0, y1
     flag = call_i3(calls[_REINIT], memory, 0.0, vector)
@@ -163,8 +161,8 @@ def _engine_exceeded(engine, mode):
 # Lazily: numba compiles a function at its first call from compiled code, so only what the machine and
 # the callbacks reach is ever compiled (and cached).
 _compiled = compiled_together(
-    functions_of(rounding, oscillator, equations, laws_common, linear_law, rigid_law, no_pull_law, hunt_crossley_law,
-                 contact_laws, physics, phases, error_estimate, machine, drivers, dense_output),
+    functions_of(rounding, oscillator, equations, *LAW_MODULES, dispatch, physics, phases, error_estimate, machine,
+                 drivers, dense_output),
     {oscillator.oscillator_basis: oscillator.oscillator_basis_value,
      oscillator.unit_response: oscillator.unit_response_value,
      rounding.hypot: rounding.hypot_value, engine_protocol.engine_start: _engine_start,
@@ -175,6 +173,7 @@ _phase_ends, _run_estimate = _compiled[machine.phase_ends], _compiled[error_esti
 fill_grid = _compiled[dense_output.fill_grid]
 _scaled_rates, _root_values = _compiled[phases.scaled_rates], _compiled[phases.root_values]
 _scaled_jacobian = _compiled[phases.scaled_jacobian]
+_parameters_at = _compiled[laws_common.parameters_at]
 _jacobian_varies, _varying_jacobian = _compiled[phases.jacobian_varies], _compiled[phases.varying_jacobian]
 
 
@@ -233,8 +232,8 @@ def _rhs(t, y, ydot, user_data):
     p = carray(doubles(u[_U_PARAMETERS]), _P_SIZE)
     state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
     out = carray(doubles(call_p1(u[_U_GET_ARRAY], ydot)), 2)
-    out[0], out[1] = _scaled_rates(state[0], state[1], p[_P_MODE], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD], p[_P_M],
-                                   p[_P_K], p[_P_B], p[_P_LAW], p[_P_N], p[_P_ALPHA])
+    out[0], out[1] = _scaled_rates(_parameters_at(p, _P_BALL), state[0], state[1], p[_P_MODE], p[_P_LENGTH],
+                                   p[_P_SPEED], p[_P_LOAD])
     return 0
 
 
@@ -244,9 +243,8 @@ def _roots(t, y, gout, user_data):
     p = carray(doubles(u[_U_PARAMETERS]), _P_SIZE)
     state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
     out = carray(gout, 3)
-    out[0], out[1], out[2] = _root_values(state[0], state[1], p[_P_MODE], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD],
-                                          p[_P_OWN_SIDE], p[_P_HOP], p[_P_K], p[_P_M], p[_P_B], p[_P_LAW],
-                                          p[_P_ALPHA])
+    out[0], out[1], out[2] = _root_values(_parameters_at(p, _P_BALL), state[0], state[1], p[_P_MODE],
+                                          p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD], p[_P_OWN_SIDE], p[_P_HOP])
     u[_U_EVALUATIONS] += 1
     return 1 if u[_U_EVALUATIONS] > u[_U_MAX_EVALUATIONS] else 0
 
@@ -258,10 +256,10 @@ def _jacobian(t, y, fy, matrix, user_data, tmp1, tmp2, tmp3):
     p = carray(doubles(u[_U_PARAMETERS]), _P_SIZE)
     columns = carray(addresses(call_p1(u[_U_COLUMNS], matrix)), 2)
     first, second = carray(doubles(columns[0]), 2), carray(doubles(columns[1]), 2)
-    if _jacobian_varies(p[_P_LAW], p[_P_MODE]):  # evaluated where it changes
+    ball = _parameters_at(p, _P_BALL)
+    if _jacobian_varies(ball, p[_P_MODE]):  # evaluated where it changes
         state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
-        j00, j01, j10, j11 = _varying_jacobian(state[0], state[1], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD], p[_P_M],
-                                               p[_P_K], p[_P_N], p[_P_ALPHA], p[_P_LAW])
+        j00, j01, j10, j11 = _varying_jacobian(ball, state[0], state[1], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD])
         first[0], first[1] = j00, j10  # SUNDIALS' dense matrices are stored by columns
         second[0], second[1] = j01, j11
         return 0
@@ -373,9 +371,7 @@ class PhaseSolver:
     # --- the calls BallIntegrator makes (solvers/engines/stepper.py) ---------------------------------------
     def bind(self, ball) -> None:
         """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
-        parameters = ball.parameters  # b is 0 there under the Hunt-Crossley law (no linear damper)
-        self.parameters[[_P_M, _P_K, _P_B, _P_LAW, _P_N, _P_ALPHA]] = (ball.m, ball.k, parameters.b, parameters.law,
-                                                                       parameters.n, parameters.alpha)
+        self.parameters[_P_BALL:] = ball.parameters
 
     def handle(self) -> np.ndarray:
         """This solver's row of the compiled machine's engine (see _H_*; its CVODE made on first use)."""

@@ -23,9 +23,10 @@ interpreted. A function so reached:
    ``equations.gap_flow_value(...)`` reaches the plain Python function through the module, and numba
    fails to type it, far from its cause.
 2. Reads as globals only those functions, numbers (int, float, bool) and tuples of them, the modules
-   ``math`` and ``numpy`` (the functions numba supports) and the builtins numba supports (abs, min,
-   max, float, int, range, ...). numba freezes a global number into the code it compiles: changing
-   it at run time (a monkeypatch) reaches the interpreted engine, not the compiled one.
+   ``math`` and ``numpy`` (the functions numba supports), the builtins numba supports (abs, min,
+   max, float, int, range, ...) and the type BallParameters (contact_laws.common.parameters_at builds one).
+   numba freezes a global number into the code it compiles: changing it at run time (a monkeypatch)
+   reaches the interpreted engine, not the compiled one.
 3. Takes and returns floats, ints, bools, tuples of them and numpy arrays: no Python object (a Ball,
    a Mode, a settings dataclass); the ball travels as the namedtuple Ball.parameters, read by field
    (``parameters.m``), and the machine's state as a record of layout.STATE_DTYPE (interpreted: a
@@ -68,13 +69,13 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
+from ...contact_laws.dispatch import LAW_MODULES
 from .ahead_of_time import PORTABLE_CPU, package_shipped, say_on_stderr, user_cache_root
 
 # Every source the compiled code is compiled from, relative to the package: the modules whose functions
 # compiled.py gives compiled_together, those whose constants they read (rule 5), jit.py and compiled.py.
-ENGINE_SOURCES = ("codes.py", "rounding.py", "oscillator.py", "equations.py", "contact_laws/__init__.py",
-                  "contact_laws/common.py", "contact_laws/linear.py", "contact_laws/rigid.py",
-                  "contact_laws/no_pull.py", "contact_laws/hunt_crossley.py", "physics.py",
+ENGINE_SOURCES = ("codes.py", "rounding.py", "oscillator.py", "equations.py", "contact_laws/dispatch.py",
+                  *(f"contact_laws/{module.__name__.rpartition('.')[2]}.py" for module in LAW_MODULES), "physics.py",
                   *(f"solvers/phase_machine/{name}.py" for name in (
                       "settings", "phases", "layout", "error_estimate", "engine_protocol", "machine", "drivers",
                       "dense_output")),

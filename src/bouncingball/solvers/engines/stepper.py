@@ -73,28 +73,28 @@ class SksundaePhaseSolver:
         self._evaluations = 0
         self.bind(ball)
         # CVODE integrates x / length and v / speed (the frame's scales), in time from the phase's start.
-        # The frame and the ball's constants are read from self._frame and self._constants (one lookup each):
+        # The frame, the load and the ball are read from self._frame and self._constants (one lookup each):
         # these run for every right-hand side and root evaluation, ~5000 times a run.
         rates, jacobian, roots = phases.scaled_rates, phases.scaled_jacobian, phases.root_values
         varies, varying = phases.jacobian_varies, phases.varying_jacobian
 
         def rhs(t, y, yp):
             length, speed, _ = self._frame
-            load, m, k, b, law, n, alpha = self._constants
-            yp[0], yp[1] = rates(y[0], y[1], mode, length, speed, load, m, k, b, law, n, alpha)
+            load, parameters = self._constants
+            yp[0], yp[1] = rates(parameters, y[0], y[1], mode, length, speed, load)
 
         def jac(t, y, yp, JJ):
             length, speed, _ = self._frame
-            load, m, k, b, law, n, alpha = self._constants
-            if varies(law, mode):  # evaluated where it changes
-                JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = varying(y[0], y[1], length, speed, load, m, k, n, alpha, law)
+            load, parameters = self._constants
+            if varies(parameters, mode):  # evaluated where it changes
+                JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = varying(parameters, y[0], y[1], length, speed, load)
             else:
-                JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = jacobian(mode, length, speed, m, k, b)
+                JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = jacobian(parameters, mode, length, speed)
 
         def event(t, y, out):
             length, speed, hop = self._frame
-            load, m, k, b, law, _, alpha = self._constants
-            out[0], out[1], out[2] = roots(y[0], y[1], mode, length, speed, load, own_side, hop, k, m, b, law, alpha)
+            load, parameters = self._constants
+            out[0], out[1], out[2] = roots(parameters, y[0], y[1], mode, length, speed, load, own_side, hop)
             # CVODE evaluates the root functions once per step (and a few times per root found)
             self._evaluations += 1
             if self._evaluations > max_evaluations:
@@ -113,11 +113,8 @@ class SksundaePhaseSolver:
 
     def bind(self, ball: Ball) -> None:
         """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
-        parameters = ball.parameters  # b is 0 there under the Hunt-Crossley law (no linear damper)
-        self._m, self._k, self._b, self._law = ball.m, ball.k, parameters.b, parameters.law
-        self._n, self._alpha = parameters.n, parameters.alpha
-        # load [N], m, k, b, the contact law's code, the Hunt-Crossley law's n and alpha
-        self._constants = (0.0, ball.m, ball.k, self._b, self._law, self._n, self._alpha)
+        self._parameters = ball.parameters
+        self._constants = (0.0, self._parameters)  # the phase's load [N], the ball
         self.set_frame(1.0, 1.0, 0.0)
 
     def set_frame(self, length: float, speed: float, hop_tolerance: float) -> None:
@@ -162,7 +159,7 @@ class SksundaePhaseSolver:
               load: float) -> int:
         """Take the phase's frame; restart CVODE at 0 from (y0, y1) for one-step calls, or in steps() to t_stop."""
         self.set_frame(length, speed, hop)
-        self._constants = (load, self._m, self._k, self._b, self._law, self._n, self._alpha)
+        self._constants = (load, self._parameters)
         self._start = (y0, y1)
         if t_stop == math.inf:
             with self.log.capturing():

@@ -20,11 +20,6 @@ import math
 
 from ...codes import CONTACT, FLIGHT, FREE, IMPACT
 from ...contact_laws import (
-    BY_CVODE,
-    IN_CLOSED_FORM,
-    MIN_PHASE_SCALE,
-    REST,
-    SOFT_CONTACT_CAP,
     conserved_speed,
     contact_scales,
     decide_contact,
@@ -34,9 +29,9 @@ from ...contact_laws import (
     polish_flow_mode,
     pressed_gap,
     root_values,
-    time_to_impact,
     varying_jacobian,
 )
+from ...contact_laws.common import BY_CVODE, IN_CLOSED_FORM, MIN_PHASE_SCALE, REST, SOFT_CONTACT_CAP, time_to_impact
 from ...equations import gap_flow_value
 from .settings import HOP_RESOLUTION
 
@@ -171,24 +166,23 @@ def on_wrong_side(mode, x, margin):
 
 def taylor_step(parameters, mode, x, v, load, dt):
     """(x, v) after dt [s] by a second-order Taylor step: where dt is a few ulps of t, too short for CVODE."""
-    a = law_acceleration(x, v, mode, load, parameters.m, parameters.k, parameters.b, parameters.law, parameters.n,
-                         parameters.alpha)
+    a = law_acceleration(parameters, x, v, mode, load)
     return x + dt * (v + 0.5 * dt * a), v + dt * a
 
 
 # --- CVODE's functions of a phase, in its frame: (y0, y1) = (x / length, v / speed), both engines' callbacks ---
-def scaled_rates(y0, y1, mode, length, speed, load, m, k, b, law, n, alpha):
+def scaled_rates(parameters, y0, y1, mode, length, speed, load):
     """d(y0, y1)/dt: the mode's equations (equations.gap_acceleration) in the phase's frame.
 
     Under the Hunt-Crossley law the pressed contact's are contact_laws.hunt_crossley_acceleration's (its force
     unclipped: the clip is the release event into the free sub-mode, never a max() here).
     """
-    return (speed / length) * y1, law_acceleration(length * y0, speed * y1, mode, load, m, k, b, law, n, alpha) / speed
+    return (speed / length) * y1, law_acceleration(parameters, length * y0, speed * y1, mode, load) / speed
 
 
-def scaled_jacobian(mode, length, speed, m, k, b):
+def scaled_jacobian(parameters, mode, length, speed):
     """(j00, j01, j10, j11): the constant Jacobian of scaled_rates, row by row (not the Hunt-Crossley contact's)."""
-    contact = mode == CONTACT
+    m, k, b, contact = parameters.m, parameters.k, parameters.b, mode == CONTACT
     return 0.0, 1.0 * speed / length, (-k / m if contact else 0.0) * length / speed, -b / m if contact else 0.0
 
 

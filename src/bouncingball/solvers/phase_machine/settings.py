@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ... import validation
-from ...contact_laws import hunt_crossley_hop_tolerance
+from ...contact_laws.hunt_crossley import hunt_crossley_hop_tolerance
 from ...equations import load_value
 from ...physics import Ball, Mode
 
