@@ -8,6 +8,7 @@ the contact around it. accuracy.event_mismatches lists what that rule does not e
 from __future__ import annotations
 
 from .accuracy import event_hops, event_mismatches
+from .contact_laws import impact_is_instantaneous
 from .solvers.exact import ExactSolution
 from .solvers.result import Event, SimulationResult
 
@@ -62,7 +63,7 @@ def restitution_line(events: list[Event], ball) -> str:
     >>> restitution_line(simulate(Ball(), 2.0, 0.0, 1.0).events, Ball())
     'departure over impact speed: 0.851 (1 bounce)'
     """
-    if ball.rigid:
+    if impact_is_instantaneous(ball.parameters):
         impacts = sum(event.kind == "impact" for event in events)
         return f"e = {ball.e:g} at each impact (the rigid law's), {plural(impacts, 'impact')}" if impacts else ""
     # each impact and the departure that ends its contact (the no-pull law's releases and engagements between)

@@ -68,6 +68,7 @@ from .dispatch import (
     law_acceleration,
     law_contact_force,
     law_flow_value,
+    law_hop_tolerance,
     law_interpolant,
     law_rest_margin,
     no_pull_rest_margin_value,
@@ -95,10 +96,11 @@ __all__ = [
     "decide_contact", "departure_speed", "departure_time", "free_event", "has_free_sub_mode", "has_pressed_gap",
     "hunt_crossley_acceleration", "hunt_crossley_force", "hunt_crossley_free_event", "hunt_crossley_jacobian",
     "hunt_crossley_rest_margin", "hunt_crossley_scales", "hunt_crossley_state", "impact_is_instantaneous",
-    "jacobian_varies", "law_acceleration", "law_contact_force", "law_flow_value", "law_interpolant", "law_rest_margin",
-    "no_pull_rest_margin_value", "own_interpolant", "polish_flow_mode", "pressed_gap", "release_speed", "release_state",
-    "release_time", "reported_acceleration", "reported_rest_margin", "rigid_rebound", "root_release_speed",
-    "root_values", "side_extreme", "starts_free", "third_root_releases", "varying_jacobian",
+    "jacobian_varies", "law_acceleration", "law_contact_force", "law_flow_value", "law_hop_tolerance",
+    "law_interpolant", "law_rest_margin", "no_pull_rest_margin_value", "own_interpolant", "polish_flow_mode",
+    "pressed_gap", "release_speed", "release_state", "release_time", "reported_acceleration", "reported_rest_margin",
+    "rigid_rebound", "root_release_speed", "root_values", "side_extreme", "starts_free", "third_root_releases",
+    "varying_jacobian",
 ]
 
 

@@ -23,6 +23,7 @@ from .hunt_crossley import (
     hunt_crossley_acceleration,
     hunt_crossley_force,
     hunt_crossley_free_event,
+    hunt_crossley_hop_tolerance,
     hunt_crossley_jacobian,
     hunt_crossley_rest_margin,
     hunt_crossley_scales,
@@ -101,6 +102,23 @@ def conserved_speed(parameters, mode, x_start, v_start):
     if parameters.law == HUNT_CROSSLEY:  # alpha = 0: the Hertz contact conserves energy, its force 0 on R
         return v_start > 0.0 if mode == FLIGHT else (v_start < 0.0 and parameters.alpha == 0.0)
     return v_start > 0.0 if mode == FLIGHT else (v_start < 0.0 and parameters.b == 0.0)
+
+
+def law_hop_tolerance(parameters, load, resolution):
+    """The highest hop [m] above R that CVODE may merge into the contact around it (settings.hop_tolerance's rule).
+
+    resolution (HOP_RESOLUTION rtol) times the contact's amplitude near rest, the static deflection d = load / k,
+    which CVODE resolves to rtol: 0 where the contact never comes to rest (b = 0, or d <= 0: lifted) and for an
+    instantaneous impact (no contact to merge a hop into). The Hunt-Crossley law's is its own
+    (hunt_crossley_hop_tolerance).
+    """
+    if parameters.law == HUNT_CROSSLEY:
+        return hunt_crossley_hop_tolerance(load, parameters.m, parameters.k, parameters.n, parameters.alpha,
+                                           resolution)
+    d = load / parameters.k
+    if parameters.law == RIGID or parameters.b == 0.0 or not d > 0.0:
+        return 0.0
+    return resolution * d
 
 
 def law_rest_margin(parameters, x, v, d, hop_tolerance):

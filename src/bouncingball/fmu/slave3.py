@@ -20,7 +20,7 @@ from pythonfmu3.enums import Fmi3Causality, Fmi3Initial, Fmi3Status, Fmi3Variabi
 from pythonfmu3.modelexchange import ModelExchange
 
 from .. import validation
-from ..contact_laws import has_pressed_gap, pressed_gap
+from ..contact_laws import has_pressed_gap, impact_is_instantaneous, pressed_gap
 from ..contact_laws.no_pull import free_gap_rate
 from ..contact_laws.rigid import rigid_rebound_above
 from ..equations import load_value
@@ -93,10 +93,10 @@ def event_indicator(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) ->
         # A rigid ball rising from R (put there by its impact) is out of contact even where a master's integrator
         # error puts it a few ulps below R: at 0 or below, its CVODE found a root every 2e-10 s (31,582 events
         # in FMPy at rtol 1e-4), each putting the ball back on R, while the bounce was below its tolerance.
-        return max(x, SMALLEST_POSITIVE) if ball.rigid and v > 0.0 else x
-    if ball.rigid:
+        return max(x, SMALLEST_POSITIVE) if impact_is_instantaneous(ball.parameters) and v > 0.0 else x
+    if impact_is_instantaneous(ball.parameters):
         return -load_value(F_ext, ball.m, ball.g) / ball.m
-    if not ball.no_pull:  # (with b = 0 the no-pull law's z is x: no Ball.parameters built on this hot path)
+    if not has_pressed_gap(ball.parameters):
         return x
     z = x + (ball.b / ball.k) * v
     return z if mode == Mode.CONTACT else min(z, -x)
@@ -265,7 +265,7 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         h, v, mode, impacts = state[:4]
         ball, F_ext = self._integrator.ball, self._values["F_ext"]
         x = h - ball.R
-        if ball.rigid:
+        if impact_is_instantaneous(ball.parameters):
             if mode == Mode.FLIGHT and (x < 0.0 or (x == 0.0 and v < 0.0)):
                 # A master that noticed the impact -x below R resolves no bounce lower than that.
                 apex_floor = max(UNRESOLVED_APEX_PER_RTOL * self._values["rtol"] * ball.R, -x)

@@ -79,7 +79,7 @@ def simulate_scipy(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     stats.events = len(events)
     stats.wall_time = time.perf_counter() - started
     rest_time = None
-    if mode == Mode.CONTACT and not ball.hunt_crossley and ball.contact_is_permanent(y[0], y[1],
+    if mode == Mode.CONTACT and LAWS[ball.contact].closed_form and ball.contact_is_permanent(y[0], y[1],
                                                                                       constant_pieces[-1][2]):
         rest_time = last_impact
     options = {"method": method, "rtol": rtol, "atol": atol, "max_step": max_step}
@@ -117,7 +117,7 @@ def _solve_phase(ball: Ball, mode: Mode, force: float, t: float, t_stop: float, 
 
     return solve_ivp(rhs, (t, t_stop), y, method=method, rtol=rtol, atol=atol, max_step=max_step or np.inf,
                      events=crossing, dense_output=True,
-                     **({"jac": jac} if method in IMPLICIT and not ball.hunt_crossley else {}))
+                     **({"jac": jac} if method in IMPLICIT and LAWS[ball.contact].closed_form else {}))
 
 
 def _refuse_a_crossing_stepped_over(ball: Ball, mode: Mode, sol, slack: float, method: str) -> None:

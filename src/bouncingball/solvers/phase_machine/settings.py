@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ... import validation
-from ...contact_laws.hunt_crossley import hunt_crossley_hop_tolerance
+from ...contact_laws import law_hop_tolerance
 from ...equations import load_value
 from ...physics import Ball, Mode
 
@@ -108,16 +108,9 @@ def hop_tolerance(ball: Ball, rtol: float = DEFAULT_RTOL, atol: float | None = D
     neither does a lifted one (d <= 0): there the rule is 0, every hop is integrated. A rigid ball has
     no contact to merge a hop into: 0 (its bounces too low to tell are summed, contact_laws.rigid_rebound). The
     Hunt-Crossley law's is HOP_RESOLUTION rtol its contact's length scale near rest, (2 (n + 1) (m g - F_ext) / k)^(1/n)
-    (contact_laws.hunt_crossley_hop_tolerance), 0 with alpha = 0.
+    (contact_laws.hunt_crossley_hop_tolerance), 0 with alpha = 0. Each law's rule: contact_laws.law_hop_tolerance.
     """
-    if ball.hunt_crossley:  # its own, from its energy (contact_laws.hunt_crossley_hop_tolerance)
-        tolerance = hunt_crossley_hop_tolerance(load_value(F_ext, ball.m, ball.g), ball.m, ball.k, ball.n, ball.alpha,
-                                                HOP_RESOLUTION * rtol)
-        return tolerance if atol is None else min(tolerance, HOP_RESOLUTION * atol)
-    d = ball.static_deflection(F_ext)
-    if ball.rigid or ball.b == 0.0 or not d > 0.0:
-        return 0.0
-    tolerance = HOP_RESOLUTION * rtol * d
+    tolerance = law_hop_tolerance(ball.parameters, load_value(F_ext, ball.m, ball.g), HOP_RESOLUTION * rtol)
     return tolerance if atol is None else min(tolerance, HOP_RESOLUTION * atol)
 
 
