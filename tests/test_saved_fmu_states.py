@@ -36,3 +36,15 @@ def test_a_state_of_another_format_is_refused_by_its_name_and_changes_nothing():
     assert len(slave.errors()) == 1 and slave_base.STATE_FORMAT in slave.errors()[0]
     fresh = host(saved["start_values"])
     assert steps(fresh, 0, 3) == before and steps(slave, 3, 2) == steps(fresh, 3, 2)
+
+
+def test_a_state_saved_before_a_contact_parameter_existed_takes_its_default():
+    """A state of an FMU that had not yet the parameter n (as if saved before the Hunt-Crossley law came): the
+    parameter takes its default, which the state's law does not read, and the run continues bit for bit."""
+    saved = SAVED["linear"]
+    state = json.loads(saved["state"])
+    del state["values"]["n"]
+    slave = host(saved["start_values"])
+    slave._set_fmu_state(state)
+    assert slave.errors() == []
+    assert steps(slave, SAVED_AFTER, STEPS_AFTER) == [tuple(row) for row in saved["after"]]

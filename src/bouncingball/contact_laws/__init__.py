@@ -115,13 +115,12 @@ CONTACT_PARAMETERS = tuple(dict.fromkeys(name for law in LAWS.values() for name 
 def ball_parameters(contact, fields):
     """BallParameters of a ball of the law named contact, from its fields (a mapping of m, R, g and CONTACT_PARAMETERS).
 
-    A no-pull ball with b = 0 is the linear law's (its force k (R - h) never pulls below R), and has its code: the
-    same run. Under the Hunt-Crossley law b is 0.0 (its damping is alpha's: no linear damper).
+    A law that does not read b has no linear damper: b is 0.0 (the phase machine's saltation at an event and the
+    hop rule read it). A ball with b = 0 of a law that is then another's run (ContactLaw.undamped_as: the no-pull
+    law's, the linear law's) has that law's code: the same run.
     """
-    code, b = LAWS[contact].code, fields["b"]
-    if code == NO_PULL and not b > 0.0:
-        code = LINEAR
-    elif code == HUNT_CROSSLEY:
-        b = 0.0
+    law = LAWS[contact]
+    b = fields["b"] if "b" in law.parameters else 0.0
+    code = LAWS[law.undamped_as].code if law.undamped_as is not None and not b > 0.0 else law.code
     values = {**fields, "b": b, "law": float(code)}
     return BallParameters(*(values[name] for name in BallParameters._fields))

@@ -84,6 +84,7 @@ class ContactLaw:
     b / (2 sqrt(k m)) of its linear spring-damper; "alpha", its own parameter alpha [s/m]; None if it has no k and
     damping to map.
     summary: how `bouncingball run` describes a ball of the law, a format string of Ball's fields.
+    undamped_as: the law whose run a ball of this law with b = 0 is (its code taken, the same run), or None.
     """
 
     name: str
@@ -96,3 +97,4 @@ class ContactLaw:
     k_unit: str | None
     damping_axis: str | None
     summary: str
+    undamped_as: str | None = None

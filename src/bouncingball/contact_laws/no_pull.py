@@ -146,4 +146,5 @@ def contact_roots(y0, y1, length, speed, load, own_side, hop, k, m, b):
 LAW = ContactLaw("linear-no-pull", NO_PULL, ("k", "b"), closed_form=True,
                  description="the spring-damper whose force never pulls",
                  article_algorithm=False, crossings_only=False, k_unit="N/m", damping_axis="zeta",
-                 summary="no-pull contact, k = {k:g} N/m, b = {b:g} N s/m")
+                 summary="no-pull contact, k = {k:g} N/m, b = {b:g} N s/m",
+                 undamped_as="linear")  # its force k (R - h) - b v with b = 0 never pulls below R

@@ -26,7 +26,8 @@ from dataclasses import fields
 from typing import NamedTuple
 
 from .. import limits, validation
-from ..physics import Ball, Mode, unread_message, without_unread
+from ..contact_laws import CONTACT_PARAMETERS
+from ..physics import BALL_DEFAULTS, Ball, Mode, unread_message, without_unread
 from ..scenes import SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
 from ..solvers.integrator import checked_start
@@ -175,7 +176,7 @@ class BallSlave:
             if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
                 reason = state.get("invalid", "") if isinstance(state, dict) else ""
                 raise ValueError(f"it is not a {self.modelName} state ({STATE_FORMAT}) {reason}")
-            values = dict(state["values"])
+            values = _saved_values(state["values"], self._values)
             if set(values) != set(self._values):
                 raise ValueError(f"its variables {sorted(values)} are not this FMU's")
             start_time = validation.finite("start_time", state["start_time"], "s")
@@ -347,6 +348,12 @@ def tolerance_note(asked: float, rtol: float, used: float, setup_call: str) -> s
 # mode or None, so the fields themselves make the same dict.
 _STATE_FIELDS = tuple(field.name for field in fields(IntegratorState))
 _RESTART_FIELDS = tuple(field.name for field in fields(RestartPoint))
+
+
+def _saved_values(saved: dict, own: dict) -> dict:
+    """A saved state's values; a contact law's parameter this FMU gained since it was saved, which none of the laws
+    then read, at its default."""
+    return {**{name: BALL_DEFAULTS[name] for name in CONTACT_PARAMETERS if name in own}, **saved}
 
 
 def _state_fields(state: IntegratorState) -> dict:

@@ -11,12 +11,11 @@ the code and it can be cached on disk.
 
 The rules for the source compiled together
 ------------------------------------------
-compiled.py gives ``compiled_together`` every function of the modules it lists
-(``functions_of(rounding, oscillator, equations, contact_laws, physics, phases, error_estimate,
-machine, drivers, dense_output)``). numba compiles, at their first call, those that the compiled entry points reach
-(the functions compiled.py keeps compiled copies of: run_phases, fill_grid, advance, advance_in_step and the callbacks'
-scaled_rates, root_values, scaled_jacobian), from the very source the scikit-sundae engine runs
-interpreted. A function so reached:
+compiled.py gives ``compiled_together`` every function of the modules it lists (``functions_of(rounding, oscillator,
+equations, *LAW_MODULES, dispatch, physics, phases, error_estimate, machine, drivers, dense_output)``). numba
+compiles, at their first call, those that the compiled entry points reach (the functions compiled.py keeps compiled
+copies of: run_phases, fill_grid, advance, advance_in_step and the callbacks' scaled_rates, root_values,
+scaled_jacobian), from the very source the scikit-sundae engine runs interpreted. A function so reached:
 
 1. Calls another compiled function by its bare name, defined in its own module or imported with
    ``from .x import name``. ``compiled_together`` re-binds bare global names only: a call written
@@ -42,8 +41,8 @@ interpreted. A function so reached:
    or one whose constants the compiled code imports (layout.py's fields, settings.py's tolerances),
    goes into ``ENGINE_SOURCES`` too, or a change to it leaves numba's disk cache with the old code.
 
-Functions of those modules that no entry point reaches (dense_output.interpolate)
-run interpreted only; rule 1 holds for them too, so that reaching one later does not break it.
+Functions of those modules that no entry point reaches (dense_output.interpolate) run interpreted only; rule 1
+holds for them too, so that reaching one later does not break it.
 tests/test_jit_rules.py reads the functions compiled.py gives ``compiled_together`` and checks
 these rules on their syntax trees.
 
