@@ -16,9 +16,7 @@ from ..codes import CONTACT, DEPARTURE, ENGAGE, FLIGHT, FREE, RELEASE
 from ..equations import gap_acceleration, gap_flow_value, rest_margin_value
 from . import common, hunt_crossley, linear, no_pull, rigid
 from .common import BY_CVODE, HUNT_CROSSLEY, IN_CLOSED_FORM, LINEAR, NO_PULL, RIGID
-from .hunt_crossley import (
-    contact_roots as hunt_crossley_contact_roots,
-)
+from .hunt_crossley import contact_roots as hunt_crossley_contact_roots
 from .hunt_crossley import (
     hunt_crossley_acceleration,
     hunt_crossley_force,
@@ -30,46 +28,18 @@ from .hunt_crossley import (
     hunt_crossley_state,
     release_speed,
 )
-from .hunt_crossley import (
-    step_transition as hunt_crossley_step_transition,
-)
-from .linear import (
-    contact_scales as linear_contact_scales,
-)
-from .linear import (
-    decide_contact as linear_decide_contact,
-)
-from .linear import (
-    departure_speed as linear_departure_speed,
-)
-from .linear import (
-    departure_time as linear_departure_time,
-)
-from .no_pull import (
-    contact_roots as no_pull_contact_roots,
-)
-from .no_pull import (
-    decide_contact as no_pull_decide_contact,
-)
-from .no_pull import (
-    free_event,
-    no_pull_rest_margin_value,
-    pressed_gap,
-    release_state,
-    release_time,
-)
-from .rigid import (
-    contact_scales as rigid_contact_scales,
-)
-from .rigid import (
-    decide_contact as rigid_decide_contact,
-)
-from .rigid import (
-    departure_speed as rigid_departure_speed,
-)
-from .rigid import (
-    departure_time as rigid_departure_time,
-)
+from .hunt_crossley import step_transition as hunt_crossley_step_transition
+from .linear import contact_scales as linear_contact_scales
+from .linear import decide_contact as linear_decide_contact
+from .linear import departure_speed as linear_departure_speed
+from .linear import departure_time as linear_departure_time
+from .no_pull import contact_roots as no_pull_contact_roots
+from .no_pull import decide_contact as no_pull_decide_contact
+from .no_pull import free_event, no_pull_rest_margin_value, pressed_gap, release_state, release_time
+from .rigid import contact_scales as rigid_contact_scales
+from .rigid import decide_contact as rigid_decide_contact
+from .rigid import departure_speed as rigid_departure_speed
+from .rigid import departure_time as rigid_departure_time
 
 # Every module of the package but this one, each a law's but common.py: the compiled engine compiles them all
 # (solvers/engines/compiled.py) and its cache digest covers their sources (solvers/engines/jit.py).
