@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..contact_laws import CONTACT_LAWS, LAWS
+from ..contact_laws import CONTACT_LAWS, CONTACT_PARAMETERS, LAWS
 from ..solvers.phase_machine.settings import MIN_RTOL
 
 MODEL_NAME = "BouncingBall"
@@ -110,8 +110,9 @@ SOLUTION_OUTPUTS = tuple(name for name in OUTPUTS if name != "error_estimate")
 # the slave running the phase machine, which takes each. A law the FMU could not run would be left out here.
 FMU_CONTACT_LAWS = CONTACT_LAWS
 
-SCENE_FIELD_OF_START_VALUE = {"m": "m", "k": "k", "b": "b", "R": "R", "g": "g", "contact_law": "contact", "e": "e",
-                              "v_min": "v_min", "n": "n", "alpha": "alpha", "h": "h0", "v": "v0", "F_ext": "F_ext"}
+SCENE_FIELD_OF_START_VALUE = {"m": "m", "k": "k", "b": "b", "R": "R", "g": "g", "contact_law": "contact",
+                              **{name: name for name in CONTACT_PARAMETERS if name not in ("k", "b")},
+                              "h": "h0", "v": "v0", "F_ext": "F_ext"}
 SCENE_OWN_FIELDS = ("h0", "v0", "F_ext")  # the others are the ball's (physics.Ball's fields)
 TEXT_START_VALUES = ("contact_law",)  # the others are numbers
 
@@ -135,8 +136,9 @@ def judged_scene(scene, judge: str):
 
     Every law the FMU runs has one but Hunt and Crossley's, whose contact has no closed form.
     """
-    if not LAWS[fmu_scene(scene).ball.contact].closed_form:
-        raise ValueError(f"{judge} judges a run against the exact solution, and contact_law = 'hunt-crossley' has none "
+    contact = fmu_scene(scene).ball.contact
+    if not LAWS[contact].closed_form:
+        raise ValueError(f"{judge} judges a run against the exact solution, and contact_law = {contact!r} has none "
                          "(its contact has no closed form); compare the run with bouncingball.simulate at a tight "
                          "rtol (1e-13) instead")
     return scene
