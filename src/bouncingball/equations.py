@@ -15,11 +15,6 @@ from .rounding import product_error
 
 # The equations as functions of plain floats: Ball's methods call them, and the compiled CVODE
 # engine compiles these same functions, so the physics has one definition.
-def mode_acceleration(h, v, mode, F_ext, m, k, b, R, g):
-    """dv/dt [m/s2] in mode (0 or Mode.FLIGHT: flight, 1 or Mode.CONTACT: contact); see gap_acceleration."""
-    return gap_acceleration(h - R, v, mode, load_value(F_ext, m, g), m, k, b)
-
-
 def gap_acceleration(x, v, mode, load, m, k, b):
     """dv/dt [m/s2] in mode at the gap x = h - R [m]; load = load_value(F_ext, m, g) [N], the same for a whole phase.
 
