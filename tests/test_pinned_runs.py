@@ -3,6 +3,9 @@
 The pins (tests/data/pinned_runs.json, written by tests/pinned_runs.py at the reference commit) are the code's own
 output, so they prove nothing about accuracy (the other tests judge that against independent truths); they prove
 that a change meant to move code without changing behaviour did not change one bit of any result.
+
+Changed by design since the pins, and so not compared: the exact solver's error_estimate (once 16 ulps of its height
+scale, now its rounding carried through the run: tests/test_exact_error.py judges it against the mpmath truth).
 """
 
 import json
@@ -33,4 +36,6 @@ def test_results_are_bit_for_bit_as_pinned(key):
         got = {"error": type(error).__name__}
     assert got.keys() == pinned.keys()
     for field in pinned:
+        if field == "error_estimate" and "/exact/" in key:
+            continue
         assert got[field] == pinned[field], f"{key}: {field} differs from the pinned run"

@@ -23,8 +23,22 @@ from ..equations import load_value
 from ..physics import Ball, Mode
 from ..rounding import later
 from . import forcing
+from .exact_error import RoundingCarry
 from .forcing import ForceTable
-from .result import DEPARTURE, ENGAGE, EVENT_KINDS, IMPACT, RELEASE, Event, SimulationResult, SolverStats, output_grid
+from .phase_machine.settings import PROMISE
+from .result import (
+    DEPARTURE,
+    ENGAGE,
+    EVENT_KINDS,
+    IMPACT,
+    RELEASE,
+    AccuracyWarning,
+    Event,
+    SimulationResult,
+    SolverStats,
+    output_grid,
+    warn_at_caller,
+)
 
 
 class Phase(NamedTuple):
@@ -59,7 +73,17 @@ class ExactSolution:
         self.phases: list[Phase] = []
         self.events: list[Event] = []
         self.rest_time: float | None = None
+        self.rounding = RoundingCarry(ball.parameters)
         self._build(h0, v0)
+
+    @property
+    def error_estimate(self) -> float:
+        """A bound on max |h - h_true| [m] at any time up to t_end: the closed forms' rounding, carried.
+
+        Carried by the run's transition and saltation matrices (exact_error.RoundingCarry): the judge's own error,
+        said as the CVODE engines say theirs.
+        """
+        return self.rounding.estimate(self.t_end if self.t_end < math.inf else self.phases[-1].t_start)
 
     def _build(self, h: float, v: float) -> None:
         """The phases and events from (h [m], v [m/s]) at t_start, one piece of constant F_ext after another."""
@@ -105,21 +129,24 @@ class ExactSolution:
             if len(self.phases) >= self._max_phases:
                 return True, zeno_end
             tau, x_next, v_next, kind, next_mode = self._next_event(mode, h, v, F_ext)
-            if mode == Mode.CONTACT and math.isinf(tau):
-                if last:  # a no-pull ball pressed for good rests from its contact's start
-                    self.rest_time = max(contact_start if kind == RELEASE else t, zeno_end)
-                return False, zeno_end
+            load, phase_start, x_start, v_start, mode_before = load_value(F_ext, ball.m, ball.g), t, h - R, v, mode
             t_event, t_event_low = later(t, t_low, tau)
-            if not t_event <= piece_end:
+            if (mode == Mode.CONTACT and math.isinf(tau)) or not t_event <= piece_end:
+                if piece_end < math.inf:  # on its flow to the piece's end
+                    self.rounding.phase(t, int(mode), h - R, v, piece_end - t, load)
+                if mode == Mode.CONTACT and math.isinf(tau) and last:  # a no-pull ball pressed for good rests from
+                    self.rest_time = max(contact_start if kind == RELEASE else t, zeno_end)  # its contact's start
                 return False, zeno_end
             t, t_low, h, v, mode = t_event, t_event_low, R + x_next, v_next, next_mode
             self.events.append(Event(t, kind, v))
             if kind == IMPACT:
                 contact_start = t
                 if instantaneous:  # the bounce: on in flight, or the ball stays on R
-                    v, zeno = rigid_rebound(ball.parameters, v, load_value(F_ext, ball.m, ball.g))
+                    v, zeno = rigid_rebound(ball.parameters, v, load)
                     mode = Mode.FLIGHT if v > 0.0 else Mode.CONTACT
                     zeno_end = later(t, t_low, zeno)[0] if zeno > 0.0 else zeno_end
+            self.rounding.phase(phase_start, int(mode_before), x_start, v_start, tau, load,
+                                EVENT_KINDS.index(kind), v_next, v)
 
     def _next_event(self, mode: Mode, h: float, v: float, F_ext: float) -> tuple:
         """(tau [s], x [m], v [m/s], kind, next mode): the event ending the phase from (h, v) in mode; tau inf: none."""
@@ -184,8 +211,13 @@ def simulate_exact(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     h, v = exact.state(grid)
     stats = SolverStats(steps=len(exact.phases), rhs_calls=0, events=len(exact.events),
                         wall_time=time.perf_counter() - started)
-    # Its error is the rounding of closed forms evaluated once per point from each phase's start (at most a few
-    # ulps of the height scale against the mpmath solution, tests/test_mpmath_oracle.py).
-    rounding = 16.0 * np.finfo(float).eps * max(float(np.max(np.abs(h))), ball.R)
+    estimate, carry = exact.error_estimate, exact.rounding
+    scale = max(carry.scale, float(np.max(np.abs(h))))
+    if not estimate <= PROMISE * scale:
+        warn_at_caller(AccuracyWarning(
+            f"by t = {t_end:.6g} s the exact solution's error estimate (its rounding, carried) is {estimate:.2g} m, "
+            f"{estimate / scale:.2g} of its height scale {scale:.3g} m: past the promise of {PROMISE:g} from t = "
+            f"{carry.untrusted_from:.6g} s on; a small error grows faster here than double precision can follow "
+            "(an ill-conditioned run): shorten the run"))
     return SimulationResult("exact", ball, grid, h, v, list(exact.events), exact.rest_time, stats, F_ext,
-                            error_estimate=rounding)
+                            error_estimate=estimate)

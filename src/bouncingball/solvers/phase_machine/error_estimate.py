@@ -21,8 +21,13 @@ from __future__ import annotations
 
 import math
 
-from ...codes import CONTACT, FLIGHT
-from ...contact_laws import contact_integrated, contact_step_transition, law_flow_value
+from ...codes import CONTACT, DEPARTURE, FLIGHT, IMPACT
+from ...contact_laws import (
+    contact_integrated,
+    contact_step_transition,
+    impact_is_instantaneous,
+    law_flow_value,
+)
 from ...rounding import hypot
 from .phases import frame
 from .settings import ERROR_WITHIN_PHASE, ESTIMATE_CAP, ESTIMATE_SAFETY, LOCAL_ERROR_SAFETY, PROMISE
@@ -38,9 +43,10 @@ def phase_error(parameters, rtol, atol, state):
     the error lies in the sum of two ellipses a and b, of those half-widths and correlations (_carried_ellipses).
 
     bound: on |h - h_true| [m] over the phase from the restart point to the state; height: the phase's
-    height scale max(|h|, R) [m] (a flight's apex, or the state's height). |h - h_true| over the phase is
-    at most the carried error's (at the ends of a flight; in a closed-form contact its energy, which never
-    grows) plus the phase's own: CVODE's inside the phase, which is only measured at its end, counted as
+    height scale max(|h|, R) [m] over what it integrated (the highest point a flight passed so far, or the
+    state's height). |h - h_true| over the phase is at most the carried error's (at the ends of a flight; in a
+    closed-form contact its energy, which never grows) plus the phase's own: CVODE's inside the phase, which is
+    only measured at its end, counted as
     ERROR_WITHIN_PHASE rtol its length scale; and the hop tolerance in contact, the hops it may merge.
     """
     R, mode, load, x0 = parameters.R, int(state.rs_mode), state.load, state.rs_x
@@ -50,7 +56,7 @@ def phase_error(parameters, rtol, atol, state):
     if mode == CONTACT:
         own += state.hop
     elif mode == FLIGHT:
-        height = max(height, R + length)  # the apex
+        height = max(height, R + _flight_top(parameters, state, load))
     if contact_integrated(parameters):
         ax, av, a_rho, bx, bv, b_rho, carried = _carried_ellipses(parameters, rtol, state, mode, load)
     else:
@@ -59,6 +65,19 @@ def phase_error(parameters, rtol, atol, state):
     bound = ESTIMATE_SAFETY * (carried + own)
     # an error grown past double precision (inf, then nan) is no error to drop: it is the run lost
     return ax, av, a_rho, bx, bv, b_rho, bound if bound < math.inf else math.inf, height
+
+
+def _flight_top(parameters, state, load):
+    """The highest gap x [m] the flight from the restart point reached up to the state: an end, or the apex passed.
+
+    Not the apex the flight would reach: a force near m g, soon changed, would make that any height.
+    """
+    x0, v0 = state.rs_x, state.rs_v
+    top = max(x0, state.x)
+    g_eff = load / parameters.m
+    if v0 > 0.0 and g_eff > 0.0 and v0 <= g_eff * ((state.t - state.rs_t) + (state.t_low - state.rs_t_low)):
+        top = max(top, x0 + 0.5 * v0 * (v0 / g_eff))
+    return top
 
 
 def _flow_error(parameters, state, mode, load):
@@ -86,6 +105,27 @@ def _carried_error(parameters, state, mode, load):
     if mode == CONTACT:
         return ex, ev, max(hypot(ex0, ev0 / math.sqrt(parameters.k / parameters.m)), abs(ex))
     return ex, ev, max(abs(ex0), abs(ex))  # a flight, or the no-pull law's free sub-mode below R
+
+
+def event_saltation(parameters, kind, mode, v_impact, v_after, load):
+    """(jump [1/s], reflection): the saltation matrix [[reflection, 0], [jump, reflection]] of an event (carry_error).
+
+    kind: the event's (IMPACT ..), ending a phase in mode at v_impact [m/s], the ball leaving it at v_after [m/s]
+    (a rigid impact's rebound; else v_impact). A rigid impact reflects by -e, its jump -(1 + e) g_eff / v-, or
+    leaves no error where the ball stays on R; a compliant law's field jumps by -+ b/m at an impact or a
+    departure from the pressed contact, and not at the no-pull law's switches below R, where the force is 0 on
+    either side, nor at a departure from its free sub-mode.
+    """
+    if kind == IMPACT and impact_is_instantaneous(parameters):
+        if not v_after > 0.0:
+            return 0.0, -0.0  # on R at rest no error of x or v is left
+        return -(1.0 + parameters.e) * (load / parameters.m) / v_impact, -parameters.e
+    damping = parameters.b / parameters.m
+    if kind == IMPACT:
+        return -damping, 1.0
+    if kind == DEPARTURE:
+        return (damping if mode == CONTACT else 0.0), 1.0
+    return 0.0, 1.0
 
 
 def _untrusted_from(estimate, scale, since, phase_start):

@@ -37,7 +37,7 @@ from ...contact_laws import (
 from ...rounding import later
 from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, CV_ROOT_RETURN, engine_exceeded, engine_start, engine_steps
-from .error_estimate import carry_error, contact_steps_ellipse, start_contact_ellipses
+from .error_estimate import carry_error, contact_steps_ellipse, event_saltation, start_contact_ellipses
 from .phases import frame, on_wrong_side, polish_event, polish_release, side_margin
 
 # What run_phases returns.
@@ -258,20 +258,15 @@ def _take_event(parameters, rtol, atol, state, events, n_events):
     if kind == IMPACT and impact_is_instantaneous(parameters):
         _bounce(parameters, rtol, atol, state)
         return events, n_events + 1
-    # the saltation's jump: the field's, -+ b/m at an impact or a departure from the pressed contact; none at the
-    # no-pull law's switches below R, where the force is 0 on either side, nor at a departure from its free sub-mode
-    damping = parameters.b / parameters.m
+    jump, reflection = event_saltation(parameters, kind, mode, state.v, state.v, state.load)
     if kind == IMPACT:
         state.mode, state.impacts, state.last_impact = CONTACT, state.impacts + 1.0, state.t
-        jump = -damping
     elif kind == DEPARTURE:
         state.mode, state.departures = FLIGHT, state.departures + 1.0
         state.hc_rest_t = math.nan  # a Hunt-Crossley rest ended by a hop below HOP
-        jump = damping if mode == CONTACT else 0.0
     else:
         state.mode = FREE if kind == RELEASE else CONTACT
-        jump = 0.0
-    phase_ends(parameters, rtol, atol, state, jump, 1.0)
+    phase_ends(parameters, rtol, atol, state, jump, reflection)
     return events, n_events + 1
 
 
@@ -283,9 +278,8 @@ def _bounce(parameters, rtol, atol, state):
     """
     v_impact = state.v
     v_after, zeno = rigid_rebound(parameters, v_impact, state.load)
-    e = parameters.e if v_after > 0.0 else 0.0  # on R at rest no error of x or v is left
-    jump = -(1.0 + e) * (state.load / parameters.m) / v_impact if v_after > 0.0 else 0.0
-    carry_error(parameters, rtol, atol, state, jump, -e)  # the error of the state before the impact
+    jump, reflection = event_saltation(parameters, IMPACT, FLIGHT, v_impact, v_after, state.load)
+    carry_error(parameters, rtol, atol, state, jump, reflection)  # the error of the state before the impact
     state.impacts, state.last_impact, state.v = state.impacts + 1.0, state.t, v_after
     state.mode = FLIGHT if v_after > 0.0 else CONTACT
     restart_needed(state)
