@@ -265,7 +265,7 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
                        _first_row(file, replace(scene, F_ext=float(ForceTable.of(force).at(start_time))
                                                 if forcing else scene.F_ext), tolerance, start_time), forcing,
                        file.F_ext is None and input_file is None,
-                       _conditioning(scene, force, start_time, t_last))
+                       _conditioning(scene, force, start_time, t_last), solution.error_estimate)
 
 
 def _conditioning(scene: Scene, force, start_time: float, t_end: float) -> str:

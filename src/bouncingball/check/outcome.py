@@ -98,6 +98,10 @@ class CheckResult:
     conditioning : str
         Where the scene is ill-conditioned (a run of it by CVODE warns that its error estimate passes
         the promise), that warning; "" where it is not. The verdict does not depend on it.
+    judge_error : float
+        The exact solution's own error estimate [m] (ExactSolution.error_estimate): where it is above the
+        tolerance, the judge cannot decide (but where a height is off by more than its allowance and the judge's
+        error together), and the verdict says so instead of PASS or FAIL.
     """
 
     source: str
@@ -127,6 +131,15 @@ class CheckResult:
     forcing: str = ""
     force_unrecorded: bool = False
     conditioning: str = ""
+    judge_error: float = 0.0
+
+    @property
+    def decided(self) -> bool:
+        """False where the judge's own error estimate is above the tolerance: it cannot tell a pass from a fail.
+
+        Unless a height is off by more than its allowance plus the judge's error: that fails whatever the judge's.
+        """
+        return self.judge_error <= self.tolerance or self.over_error - self.over_allowance > self.judge_error
 
     @property
     def heights_pass(self) -> bool:
@@ -135,8 +148,11 @@ class CheckResult:
 
     @property
     def passed(self) -> bool:
-        """True when the heights are within the tolerance and the impacts column (if any) counts right."""
-        return self.heights_pass and not self.impact_mismatches
+        """True when the heights are within the tolerance and the impacts column (if any) counts right.
+
+        Only where the judge decided: its own error within the tolerance.
+        """
+        return self.decided and self.heights_pass and not self.impact_mismatches
 
     @property
     def _within(self) -> str:
@@ -148,6 +164,10 @@ class CheckResult:
     def verdict(self) -> str:
         """PASS or FAIL, with the reason."""
         merged = f"; {self.merged_hops}" if self.merged_hops and self.merged_hops.total else ""
+        if not self.decided:
+            return (f"UNDECIDED: the judge's own error estimate, {self.judge_error:.3e} m (the exact solution's "
+                    f"rounding, carried through an ill-conditioned run), is above the tolerance {self.tolerance:g} m: "
+                    "it cannot tell a pass from a fail; loosen the tolerance above it or check a shorter run")
         if self.passed:
             return f"PASS: max |h - h_exact| = {self.max_height_error:.3e} m is within {self._within}" + \
                    ("" if self.impacts_found is None else f", impacts counted right{merged}")
@@ -203,5 +223,6 @@ class CheckResult:
             lines += [f"    t = {t!r} s: {found}, exact {exact}" for t, found, exact in self.impact_mismatches[:5]]
         if self.conditioning:
             lines.append(f"  ill-conditioned    {self.conditioning}: no master can be trusted there either")
+        lines.append(f"  judge's error      {self.judge_error:.3e} m (the exact solution's own estimate)")
         lines.append(f"  verdict            {self.verdict}")
         return "\n".join(lines)

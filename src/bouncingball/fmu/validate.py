@@ -42,6 +42,7 @@ class Report:
     fmu: Path | None  # None: the FMU stage was skipped
     rows: list[Row]
     impacts_match_at_every_point: bool | None  # None: the FMU stage was skipped
+    judge_error: float = 0.0  # the exact solution's own error estimate [m]: a smaller error cannot be told from 0
 
 
 # The FMI 3.0 FMU's runs beside co-simulation without early return: each is FMPy's simulate_fmu options.
@@ -153,7 +154,7 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
         rows.append(Row(label, accuracy_of_result(run, scene.h0, scene.v0)[0], run.stats.wall_time))
     if "exact" not in skip:
         rows.append(Row("exact", accuracy_of_result(exact, scene.h0, scene.v0)[0], exact.stats.wall_time))
-    return Report(scene, None if "fmu" in skip else fmu, rows, impacts_match)
+    return Report(scene, None if "fmu" in skip else fmu, rows, impacts_match, exact.error_estimate)
 
 
 def _fmu_accuracy(result, scene: Scene) -> Accuracy:
@@ -205,6 +206,10 @@ def format_report(report: Report) -> str:
     if report.impacts_match_at_every_point is not None:
         match = "yes" if report.impacts_match_at_every_point else "NO"
         lines.append(f"FMU impact count equals the exact count at every communication point: {match}")
+    undecided = [row.name for row in report.rows if row.accuracy is not None and row.name != "exact"
+                 and row.accuracy.max_height_error <= report.judge_error]
+    lines.append(f"the exact solution's own error estimate (its rounding, carried): {report.judge_error:.3e} m" +
+                 (f"; the judge cannot decide below it: {', '.join(undecided)} within it" if undecided else ""))
     return "\n".join(lines)
 
 
