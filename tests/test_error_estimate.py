@@ -115,6 +115,44 @@ def test_the_estimate_is_honest_and_useful_over_random_scenes():
     assert np.mean(ratio[above_rounding] <= 1000.0) >= 0.95
 
 
+# --- F_ext tables around m g: light damping, long near-weightless flights (a campaign's ill-conditioned family) ---
+NEAR_WEIGHTLESS = dict(m=8.0, k=43504.55014643605, b=0.45457994783715616, R=0.0011151189940752106, g=9.81)
+NEAR_WEIGHTLESS_H0 = -0.0012094953000260462
+
+
+def near_weightless_table(seed: int) -> ForceTable:
+    """F_ext = m g (1 - 1e-9) until 0.0246 s, then 78 steps of m g (1 +- 1e-9 .. 1e-1) over 15 s."""
+    rng = np.random.default_rng(seed)
+    weight, first = NEAR_WEIGHTLESS["m"] * NEAR_WEIGHTLESS["g"], 0.024573341913365496
+    times = np.sort(rng.uniform(first, 15.0, 78))
+    values = weight * (1 + rng.choice([-1, 1], 78) * 10 ** rng.uniform(-9, -1, 78))
+    return ForceTable.of(([0.0, first, *times.tolist()], [weight * (1 - 1e-9)] * 2 + values.tolist()))
+
+
+def near_weightless_run(seed: int) -> tuple[float, float, float, int]:
+    """(true error, estimate, height scale [m], warnings) of a CVODE run under near_weightless_table(seed)."""
+    result, caught = simulate_quietly(bb.Ball(**NEAR_WEIGHTLESS), NEAR_WEIGHTLESS_H0, 0.0, 15.0, 0.015,
+                                      F_ext=near_weightless_table(seed))
+    scale = max(float(np.max(np.abs(result.h))), NEAR_WEIGHTLESS["R"])
+    return true_error(result, NEAR_WEIGHTLESS_H0, 0.0), result.error_estimate, scale, len(caught)
+
+
+def assert_no_silent_breach(runs) -> None:
+    """Every run within the promise of its real height scale, or warned; its estimate at or above its error."""
+    for truth, estimate, scale, warned in runs:
+        assert truth <= PROMISE * scale or warned == 1, (truth, estimate, scale)
+        assert estimate >= truth
+
+
+def test_no_run_under_a_force_near_the_weight_breaches_the_promise_silently():
+    assert_no_silent_breach([near_weightless_run(seed) for seed in range(6)])
+
+
+@pytest.mark.slow
+def test_no_run_of_a_hundred_under_forces_near_the_weight_breaches_the_promise_silently():
+    assert_no_silent_breach([near_weightless_run(seed) for seed in range(100, 200)])
+
+
 # --- where the promise cannot be kept ----------------------------------------------------------------------
 ILL = dict(m=0.1586318768245209, k=15009.162180823414, b=0.8360369199867079, R=0.8482628446096497, g=9.81)
 ILL_START = (0.8481588870311642, 0.47130231335151107)

@@ -17,11 +17,10 @@ import pytest
 
 import bouncingball as bb
 from bouncingball.check.judge import check_result
-from bouncingball.solvers.forcing import ForceTable
 from closed_forms import first_impact_time, undamped_heights
 from nopull_truth import NoPullTruth
 from rigid_truth import RigidTruth
-from test_error_estimate import random_case, true_error
+from test_error_estimate import NEAR_WEIGHTLESS, NEAR_WEIGHTLESS_H0, near_weightless_table, random_case, true_error
 from test_long_runs import bounce_period
 
 EPS = np.finfo(float).eps
@@ -65,19 +64,6 @@ def test_the_exact_solvers_estimate_covers_its_error_on_a_hundred_random_linear_
 
 
 # --- F_ext tables around m g: light damping, long near-weightless flights (a campaign's ill-conditioned family) ---
-NEAR_WEIGHTLESS = dict(m=8.0, k=43504.55014643605, b=0.45457994783715616, R=0.0011151189940752106, g=9.81)
-NEAR_WEIGHTLESS_H0 = -0.0012094953000260462
-
-
-def near_weightless_table(seed: int) -> ForceTable:
-    """F_ext = m g (1 - 1e-9) until 0.0246 s, then 78 steps of m g (1 +- 1e-9 .. 1e-1) over 15 s."""
-    rng = np.random.default_rng(seed)
-    weight, first = NEAR_WEIGHTLESS["m"] * NEAR_WEIGHTLESS["g"], 0.024573341913365496
-    times = np.sort(rng.uniform(first, 15.0, 78))
-    values = weight * (1 + rng.choice([-1, 1], 78) * 10 ** rng.uniform(-9, -1, 78))
-    return ForceTable.of(([0.0, first, *times.tolist()], [weight * (1 - 1e-9)] * 2 + values.tolist()))
-
-
 def near_weightless_ratios(seeds) -> list[float]:
     ratios = []
     for seed in seeds:

@@ -39,6 +39,7 @@ from .settings import HOP_RESOLUTION
 __all__ = ["BY_CVODE", "IN_CLOSED_FORM", "MIN_PHASE_SCALE", "REST", "SOFT_CONTACT_CAP", "hunt_crossley_scales",
            "jacobian_varies", "root_values", "varying_jacobian"]
 _EPS = 2.0**-52
+UNREACHED_APEX = 1e3
 
 
 def phase_scales(parameters, mode, x, v, load):
@@ -68,9 +69,19 @@ def phase_scales(parameters, mode, x, v, load):
     return contact_scales(parameters, x, v, load)
 
 
-def frame(parameters, mode, x, v, load, rtol, atol):
-    """The phase's scales (length [m], speed [m/s]) from phase_scales, capped so that rtol length <= atol (atol > 0)."""
+def frame(parameters, mode, x, v, load, rtol, atol, horizon):
+    """The phase's scales (length [m], speed [m/s]) from phase_scales, capped so that rtol length <= atol (atol > 0).
+
+    horizon [s]: how long the phase can last at most (inf: not known). A flight whose apex is more than
+    UNREACHED_APEX times higher than it can rise within that (a force near m g, changed long before the apex
+    would come) is scaled by what it can reach: the apex is then any height, and CVODE's error is relative
+    to the scale.
+    """
     length, speed = phase_scales(parameters, mode, x, v, load)
+    if mode == FLIGHT and load > 0.0 and v > 0.0 and horizon < math.inf:
+        reach = max(x, parameters.R) + v * horizon
+        if length > UNREACHED_APEX * reach:
+            length, speed = reach, max(v, reach / horizon)
     if atol > 0.0 and rtol * length > atol:
         speed *= atol / (rtol * length)
         length = atol / rtol
