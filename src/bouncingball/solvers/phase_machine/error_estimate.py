@@ -26,6 +26,7 @@ from ...contact_laws import (
     contact_integrated,
     contact_step_transition,
     impact_is_instantaneous,
+    law_acceleration,
     law_flow_value,
 )
 from ...rounding import hypot
@@ -105,8 +106,18 @@ def _carried_error(parameters, state, mode, load):
     """
     ex0, ev0 = state.err_x, state.err_v
     p00, p01, p10, p11, dx, dv = _flow_error(parameters, state, mode, load)
-    ex = p00 * ex0 + p01 * ev0 + dx
-    ev = p10 * ex0 + p11 * ev0 + dv
+    v0, v1 = state.rs_v, state.v
+    if state.rs_x == 0.0 and state.x == 0.0 and v0 != 0.0 and v1 != 0.0:
+        # From R to R: the error as a delay along the flow and a speed error on R, the delay carried to the flow's
+        # direction at the end exactly (Phi f(start) = f(end)). Phi's rounding would turn an undamped bounce's
+        # shear (the delay growing with the speed error) into a slow rotation: 1e5 bounces undo it.
+        delay = ex0 / v0
+        speed_error = ev0 - delay * law_acceleration(parameters, 0.0, v0, mode, load)
+        ex = delay * v1 + p01 * speed_error + dx
+        ev = delay * law_acceleration(parameters, 0.0, v1, mode, load) + p11 * speed_error + dv
+    else:
+        ex = p00 * ex0 + p01 * ev0 + dx
+        ev = p10 * ex0 + p11 * ev0 + dv
     if mode == CONTACT:
         return ex, ev, max(hypot(ex0, ev0 / math.sqrt(parameters.k / parameters.m)), abs(ex))
     return ex, ev, max(abs(ex0), abs(ex))  # a flight, or the no-pull law's free sub-mode below R
