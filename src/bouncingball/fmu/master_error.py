@@ -68,18 +68,24 @@ class MasterError:
         self.piece = (t, h, v, F_ext)  # where the exact solution starts: the start, or the last change of F_ext
         self._exact: ExactSolution | None = None
 
-    def _exact_height(self, t: float) -> float:
-        """h_exact [m] at t, from the current piece's start (built EXACT_HORIZON ahead, doubled when passed)."""
+    def _exact_state(self, t: float) -> tuple[float, float]:
+        """(h [m], v [m/s]) of the exact solution at t, from the current piece's start (built EXACT_HORIZON ahead,
+        twice as far each time it is passed); NaN where it cannot be had (contacts too short for double precision)."""
         exact = self._exact
         if exact is None or t > exact.t_end:
             start, h, v, F_ext = self.piece
             horizon = EXACT_HORIZON if exact is None else 2.0 * (exact.t_end - start)
-            exact = self._exact = ExactSolution(self.ball, h, v, start, max(start + horizon, t), F_ext)
-        return float(exact.state(t)[0][0])
+            try:
+                exact = self._exact = ExactSolution(self.ball, h, v, start, max(start + horizon, t), F_ext)
+            except ValueError:
+                return math.nan, math.nan
+        h, v = exact.state(t)
+        return float(h[0]), float(v[0])
 
     def _error_of_x(self, t: float, h: float, ex: float) -> float:
         """|h - h_true| [m] at t: the smaller of the carried error's ex and the exact solution's difference."""
-        return min(abs(ex), abs(h - self._exact_height(t)))
+        direct = abs(h - self._exact_state(t)[0])
+        return abs(ex) if math.isnan(direct) else min(abs(ex), direct)
 
     def _start(self, t: float, h: float, v: float, mode: Mode, F_ext: float) -> None:
         """A phase starts at the state: the reference is the exact flow from there."""
@@ -123,7 +129,9 @@ class MasterError:
         """F_ext changes at the state: the phase ends there, the next one starts under the new force."""
         if self.known:
             self.err_x, self.err_v = self.accept(t, h, v)
-            h_exact, v_exact = (float(y[0]) for y in self._exact.state(t))
+            h_exact, v_exact = self._exact_state(t)
+            if math.isnan(h_exact):  # none to be had: the carry's truth
+                h_exact, v_exact = h - self.err_x, v - self.err_v
             self.piece, self._exact = (t, h_exact, v_exact, F_ext), None
         self._start(t, h, v, self.mode, F_ext)
 
