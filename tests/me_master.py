@@ -35,6 +35,7 @@ class MasterRun:
     nominals_changed_between_events: int = 0  # steps after which the nominals differed without an event
     log: list[tuple[int, str]] = field(default_factory=list)
     step_events: int = 0  # events the FMU asked for in fmi3CompletedIntegratorStep
+    error_estimate: np.ndarray | None = None  # the output error_estimate on the grid
 
 
 def run(unzipped: Path, t_end: float = 8.0, output_interval: float = 0.01, rtol: float = 1e-8,
@@ -89,11 +90,11 @@ def run(unzipped: Path, t_end: float = 8.0, output_interval: float = 0.01, rtol:
                    max_num_steps=100_000)
     solver.init_step(0.0, x.copy())
     grid = np.linspace(0.0, t_end, round(t_end / output_interval) + 1)
-    outputs = [references["h"], references["impacts"]]
+    outputs = [references["h"], references["impacts"], references["error_estimate"]]
     rows, events, restarts, t, step_events = [], [], 0, 0.0, 0
 
     def record():
-        rows.append((fmu.getFloat64([outputs[0]])[0], fmu.getInt32([outputs[1]])[0]))
+        rows.append((fmu.getFloat64([outputs[0]])[0], fmu.getInt32([outputs[1]])[0], fmu.getFloat64([outputs[2]])[0]))
 
     record()
     for target in grid[1:]:
@@ -124,8 +125,8 @@ def run(unzipped: Path, t_end: float = 8.0, output_interval: float = 0.01, rtol:
         record()
     fmu.terminate()
     fmu.freeInstance()
-    h, impacts = (np.array(column) for column in zip(*rows, strict=True))
-    return MasterRun(grid, h, impacts, restarts, events, seen, changed_between_events, log, step_events)
+    h, impacts, estimate = (np.array(column) for column in zip(*rows, strict=True))
+    return MasterRun(grid, h, impacts, restarts, events, seen, changed_between_events, log, step_events, estimate)
 
 
 def update_discrete_states(fmu) -> tuple[bool, bool]:

@@ -728,6 +728,16 @@ static int missed_event(Instance *c)
     return contact ? indicator > 0.0 : indicator < 0.0;
 }
 
+/* Tells the slave that the master accepted the state it set: the slave measures the master's error there
+ * (master_error.py). pythonfmu3 does not forward fmi3CompletedIntegratorStep to Python, so the call is a
+ * read of time twice, which the slave answers (slave3.BouncingBall.get_float64) after measuring. */
+static void completed_step(Instance *c)
+{
+    const fmi3ValueReference references[2] = {BB_TIME_REFERENCE, BB_TIME_REFERENCE};
+    fmi3Float64 times[2] = {NAN, NAN};
+    finish(c, inner.GetFloat64(c->inner, references, 2, times, 2));
+}
+
 fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
                                        fmi3Boolean *enterEventMode, fmi3Boolean *terminateSimulation)
 {
@@ -738,6 +748,9 @@ fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetF
     }
     fmi3Status status = finish(c_, inner.CompletedIntegratorStep(c_->inner, noSetFMUStatePriorToCurrentPoint,
                                                                  enterEventMode, terminateSimulation));
+    if (status <= fmi3Warning) {
+        completed_step(c_);
+    }
     if (status <= fmi3Warning && !*enterEventMode && missed_event(c_)) {
         *enterEventMode = fmi3True;
     }

@@ -26,6 +26,7 @@ from ..contact_laws.rigid import rigid_rebound_above
 from ..equations import load_value
 from ..physics import Ball, Mode, clipped_contact_mode
 from ..solvers.phase_machine.phases import phase_scales
+from .master_error import UNKNOWN, MasterError, MeasuredMaster
 from .slave_base import BallSlave
 from .variables import EVENT_INDICATOR, FMI3_VARIABLES, SMALLEST_POSITIVE, VARIABLES
 
@@ -34,6 +35,8 @@ SCRIPT_NAMESPACES: list[dict] = []
 TYPES = {"Real": Float64, "Integer": Int32, "Boolean": Boolean, "String": String}
 REFERENCES = {variable.name: i for i, variable in enumerate(VARIABLES + FMI3_VARIABLES)}
 _TIME_ONLY = [REFERENCES["time"]]
+# The binary's call after each fmi3CompletedIntegratorStep (bouncingball_fmu3_loader.c's completed_step): time twice.
+_COMPLETED_STEP = [REFERENCES["time"], REFERENCES["time"]]
 
 
 def phase_nominals(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> list[float]:
@@ -143,7 +146,7 @@ class DiscreteStatesUpdate(NamedTuple):
     nextEventTime: float = 0.0
 
 
-class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
+class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
     """A ball with compliant contact: co-simulation with early return at each contact, and model exchange."""
 
     STATUS = Fmi3Status
@@ -157,6 +160,7 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         self.time = 0.0
         self._exchange: list | None = None  # model exchange (_model_exchange) once a call of it came
         self._fell_through = False  # said once: a master stepped over an impact unseen (get_event_indicators)
+        self._master_error: MasterError | None = None  # model exchange: the master's error (master_error.py)
         super().__init__(**kwargs)
         self.author, self.description = BallSlave.author, BallSlave.description  # pythonfmu3 resets them
         getters = {"time": self._time, "der(h)": self._v, "der(v)": self._a, "gap": self._gap}
@@ -180,6 +184,9 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         # pythonfmu3's loop over the variables, each checked for its type and dimensions.
         if vrs == _TIME_ONLY:
             return [self._time()]
+        if vrs == _COMPLETED_STEP:
+            self._completed_step()
+            return [self._time()] * 2
         return super().get_float64(vrs)
 
     def set_time(self, time):
@@ -205,7 +212,9 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
                               integrator.impacts,
                               *phase_nominals(integrator.ball, integrator.h, integrator.v, integrator.mode,
                                               self._values["F_ext"])]
+            self._master_error = MasterError(integrator.ball, self.time, *self._exchange[:3], self._values["F_ext"])
         return self._exchange
+
 
     def get_continuous_states(self):
         return self._model_exchange()[:2]
@@ -228,6 +237,8 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
             # Its centre below the ground in flight: a master stepped over an impact unseen and never called
             # fmi3CompletedIntegratorStep, where the FMU would have asked for event mode. Said once.
             self._fell_through = True
+            if self._master_error is not None:
+                self._master_error.lost = True
             self.log(f"h = {state[0]!r} m at t = {self.time!r} s: the ball is below the ground in flight, so the "
                      "master stepped over an impact without an event; this FMU needs fmi3CompletedIntegratorStep "
                      "(needsCompletedIntegratorStep) to ask for event mode there, and the results from here on are "
@@ -270,19 +281,26 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
                 # A master that noticed the impact -x below R resolves no bounce lower than that.
                 apex_floor = max(UNRESOLVED_APEX_PER_RTOL * self._values["rtol"] * ball.R, -x)
                 state[:4] = rigid_impact(ball, v, F_ext, impacts, apex_floor)
+                self._master_error.rigid_impact(self.time, h, v, state[:3], F_ext)
             elif mode == Mode.CONTACT and load_value(F_ext, ball.m, ball.g) < 0.0:
                 state[2] = Mode.FLIGHT
+                self._master_error.switched(self.time, h, v, [mode, Mode.FLIGHT], F_ext)
             else:
                 return DiscreteStatesUpdate()
+            self._tell_master_error()
             state[4:6] = phase_nominals(ball, *state[:3], F_ext)
             return DiscreteStatesUpdate(nominalContinuousStatesChanged=True,
                                         valuesOfContinuousStatesChanged=state[:2] != [h, v])
         switched = switched_mode(ball, h, v, mode, F_ext)
         if switched is None:
             return DiscreteStatesUpdate()
+        modes = [mode]
         while switched is not None:  # a master that noticed an event late may be past the next one too
             state[2], state[3] = switched, state[3] + (mode == Mode.FLIGHT)
             mode, switched = switched, switched_mode(ball, h, v, switched, F_ext)
+            modes.append(mode)
+        self._master_error.switched(self.time, h, v, modes, F_ext)
+        self._tell_master_error()
         state[4:6] = phase_nominals(ball, h, v, state[2], F_ext)
         # Said at every switch, even where the new phase's nominals equal the old ones to the bit (a weightless
         # ball whose impact speed is 2 R w): the equations changed, and the master must restart there.
@@ -314,7 +332,12 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         return self._exchange[3] if self._exchange else super()._impacts()
 
     def _error_estimate(self):
-        return -1.0 if self._exchange else super()._error_estimate()  # the master integrates: unknown
+        """Model exchange: the master's error measured so far, the current state included (master_error.py)."""
+        if not self._exchange:
+            return super()._error_estimate()
+        if self._master_error is None:  # a state saved by an FMU that did not measure it
+            return UNKNOWN
+        return self._master_error.estimate(self.time, *self._exchange[:2])
 
     def _gap(self):
         """The event indicator of the current mode (event_indicator); h - R before initialisation."""
@@ -328,6 +351,7 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         exchange = self._exchange
         state["model_exchange"] = None if exchange is None else [*exchange[:2], int(exchange[2]), exchange[3],
                                                                   self.time, *exchange[4:6]]
+        state["master_error"] = None if self._master_error is None else self._master_error.saved()
         return state
 
     def _set_fmu_state(self, state):
@@ -339,6 +363,8 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
                                                                                                     saved[4], "s"),
                                                    validation.positive("state nominal of h", saved[5], "m"),
                                                    validation.positive("state nominal of v", saved[6], "m/s")]
+            measured = state.get("master_error") if isinstance(state, dict) and exchange is not None else None
+            measured = None if measured is None else MasterError.checked(measured)
         except (TypeError, ValueError, IndexError) as error:
             self._error(f"{self.CALLS['set_state']} failed, nothing was changed: {error}")
             return
@@ -347,8 +373,12 @@ class BouncingBall(BallSlave, Fmi3Slave, ModelExchange):
         if any(message.status >= Fmi3Status.error for message in self.log_queue[before:]):
             return
         if exchange is None:
-            self._exchange = None
+            self._exchange, self._master_error = None, None
             return
         h, v, mode, impacts, time, *nominals = exchange
         self._exchange = [h, v, clipped_contact_mode(self._integrator.ball, mode), impacts, *nominals]
         self.time = time
+        self._master_error = None  # a state saved before the master's error was measured: unknown from there
+        if measured is not None:
+            self._master_error = MasterError(self._integrator.ball, time, h, v, mode, self._values["F_ext"])
+            self._master_error.restore(measured)

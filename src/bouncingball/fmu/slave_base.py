@@ -247,7 +247,7 @@ class BallSlave:
         return 0 if self._integrator is None else self._integrator.impacts
 
     def _error_estimate(self):
-        return 0.0 if self._integrator is None else self._integrator.error_estimate_before_phase
+        return 0.0 if self._integrator is None else self._integrator.error_estimate_at_t
 
     # --- helpers ----------------------------------------------------------------------------------
     def _ball_and_settings(self, values=None, tolerance=None) -> tuple[Ball, CvodeSettings]:

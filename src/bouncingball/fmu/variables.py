@@ -78,10 +78,12 @@ VARIABLES = (
                 "must have) or auto (compiled where numba is installed, else sksundae); compiled makes each "
                 "doStep cheaper but its first use in a process takes seconds, so it pays only in a long "
                 "co-simulation"),
-    FmuVariable("error_estimate", "Real", "output", "discrete", "estimate of max |h - h_true| since the start, "
-                "from the run's own errors carried by its sensitivity, as of the last impact, departure or change "
-                "of F_ext; above 1e-6 of the height scale the log says from when the run cannot be trusted; -1 in "
-                "model exchange (the master integrates)", "m"),
+    FmuVariable("error_estimate", "Real", "output", "continuous", "estimate of max |h - h_true| since the start, "
+                "at or above the error already made at each communication point: co-simulation, from the run's own "
+                "errors carried by its sensitivity, the current phase so far included; model exchange, the "
+                "master's states measured against each phase's exact flow and carried across events (-1, unknown, "
+                "under contact_law hunt-crossley, which has no closed form); above 1e-6 of the height scale the log "
+                "says from when the run cannot be trusted", "m"),
     # After the seed's variables, so that theirs keep their value references.
     FmuVariable("contact_law", "String", "parameter", "fixed", "the contact law: linear (the spring k and damper "
                 "b, the default), rigid (an instantaneous impact on h = R with restitution e; k and b play no "

@@ -211,7 +211,8 @@ class BallIntegrator(IntegratorView):
         """
         if type(t_target) is not float:  # None, text, an int beyond 1e308: named
             t_target = validation.finite("t_target", t_target, "s")
-        if self._machine.advance_in_step(self._machine_parameters, self._machine_state, self._state.t, t_target):
+        if self._machine.advance_in_step(self._machine_parameters, self.settings.rtol, self._atol, self._machine_state,
+                                         self._state.t, t_target):
             return []
         try:
             return self._advance(t_target, stop_at_event)
@@ -232,7 +233,8 @@ class BallIntegrator(IntegratorView):
             t_from = self._state.t
         elif type(t_from) is not float:
             t_from = validation.finite("t_from", t_from, "s")
-        return self._machine.advance_in_step(self._machine_parameters, self._machine_state, t_from, t_target)
+        return self._machine.advance_in_step(self._machine_parameters, self.settings.rtol, self._atol,
+                                             self._machine_state, t_from, t_target)
 
     def _advance(self, t_target: float, stop_at_event: bool = False) -> list[Event]:
         if not t_target >= self._state.t:

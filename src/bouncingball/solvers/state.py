@@ -144,10 +144,25 @@ class IntegratorView:
         return int(self._state.rhs_calls + self._state.nfev)
 
     @property
+    def error_estimate_at_t(self) -> float:
+        """error_estimate [m], for a caller that asks at every step (an FMU's communication points).
+
+        The compiled engine takes it at the end of each advance (drivers.keep_estimate), so reading it costs a
+        field's read; otherwise (scikit-sundae's engine, or the state changed since) it is computed and kept for
+        the next read at the same state.
+        """
+        state = self._state
+        if state.est_t == state.t:
+            return float(state.est)
+        estimate = self.error_estimate
+        state.est, state.est_t = estimate, state.t
+        return estimate
+
+    @property
     def error_estimate_before_phase(self) -> float:
         """The error estimate [m] as of the current phase's start: the last event or change of F_ext.
 
-        An array read, for a caller that asks at every step (error_estimate adds the phase so far).
+        An array read (error_estimate and error_estimate_at_t add the phase so far).
         """
         return float(self._state.err_max)
 

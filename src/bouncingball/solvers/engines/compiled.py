@@ -168,7 +168,7 @@ _compiled = compiled_together(
      rounding.hypot: rounding.hypot_value, engine_protocol.engine_start: _engine_start,
      engine_protocol.engine_steps: _engine_steps, engine_protocol.engine_exceeded: _engine_exceeded}, _CACHE)
 _run_phases, _advance = _compiled[drivers.run_phases], _compiled[drivers.advance]
-_advance_in_step = _compiled[drivers.advance_in_step]
+_advance_in_step, _keep_estimate = _compiled[drivers.advance_in_step], _compiled[drivers.keep_estimate]
 _phase_ends, _run_estimate = _compiled[machine.phase_ends], _compiled[error_estimate.run_estimate]
 fill_grid = _compiled[dense_output.fill_grid]
 _scaled_rates, _root_values = _compiled[phases.scaled_rates], _compiled[phases.root_values]
@@ -204,13 +204,19 @@ def run_phases(engine, values, rtol, atol, memory, t_end, points, n_points, even
 
 @njit(cache=_CACHE)
 def advance(engine, values, rtol, atol, memory, t_target, stop_at_event, events, n_events, scratch):
-    return _advance(engine, BallParameters(*values), rtol, atol, _record(memory), t_target, stop_at_event, events,
-                    n_events, scratch)
+    parameters, state = BallParameters(*values), _record(memory)
+    answer = _advance(engine, parameters, rtol, atol, state, t_target, stop_at_event, events, n_events, scratch)
+    _keep_estimate(parameters, rtol, atol, state)
+    return answer
 
 
 @njit(cache=_CACHE)
-def advance_in_step(values, memory, t_from, t_target):
-    return _advance_in_step(BallParameters(*values), _record(memory), t_from, t_target)
+def advance_in_step(values, rtol, atol, memory, t_from, t_target):
+    parameters, state = BallParameters(*values), _record(memory)
+    if not _advance_in_step(parameters, state, t_from, t_target):
+        return False
+    _keep_estimate(parameters, rtol, atol, state)
+    return True
 
 
 @njit(cache=_CACHE)

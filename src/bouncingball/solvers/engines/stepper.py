@@ -209,7 +209,9 @@ class PhaseMachine:
     them as the machine's calls take them (a plain tuple for the compiled one's entry points, which numba types
     in half the time of a namedtuple: ~3 us a call, measured, a tenth of a doStep). phase_ends (machine.py) and
     run_estimate (error_estimate.py) as the machine runs them: the compiled engine's cost ~6 us
-    a call, where Python takes ~60 us, a fifth of a short run's time outside CVODE.
+    a call, where Python takes ~60 us, a fifth of a short run's time outside CVODE. advance_in_step takes
+    (parameters, rtol, atol, state, t_from, t_target); the compiled engine's advance and advance_in_step keep
+    the run's estimate at their end (drivers.keep_estimate), the interpreted ones do not.
     """
 
     run_phases: Callable
@@ -232,12 +234,18 @@ def phase_machine(engine: str) -> PhaseMachine:
         return PhaseMachine(compiled.run_phases, compiled.advance, compiled.advance_in_step, compiled.fill_grid,
                             lambda solvers: np.stack([solver.handle() for solver in solvers]),
                             layout.compiled_state, tuple, compiled.phase_ends, compiled.run_estimate)
-    return PhaseMachine(drivers.run_phases, drivers.advance, drivers.advance_in_step, None, tuple,
+    return PhaseMachine(drivers.run_phases, drivers.advance, _advance_in_step, None, tuple,
                         layout.interpreted_state, _as_given, machine.phase_ends, error_estimate.run_estimate)
 
 
 def _as_given(parameters):
     return parameters
+
+
+def _advance_in_step(parameters, rtol, atol, state, t_from, t_target):
+    """drivers.advance_in_step as the interpreted machine runs it: no estimate kept (run_estimate in Python costs
+    ~60 us; the integrator takes it where it is read)."""
+    return drivers.advance_in_step(parameters, state, t_from, t_target)
 
 
 _pool: dict[tuple, list] = {}

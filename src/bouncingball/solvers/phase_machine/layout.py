@@ -110,6 +110,8 @@ ERROR_ESTIMATE = (  # error_estimate.py, at the restart point
     Field("err_max", 0.0, "the bound on |h - h_true| [m] over the phases before the restart"),
     Field("err_from", _NAN, "the start [s] of the first phase whose bound passed the promise (NaN: none)"),
     Field("scale", 0.0, "the largest height [m] of the phases so far, max(|h|, R)"),
+    Field("est_t", _NAN, "the time [s] the run's estimate est was taken at (drivers.keep_estimate; NaN: none)"),
+    Field("est", 0.0, "the run's estimate [m] at est_t, the current phase so far included (run_estimate's)"),
 )
 HUNT_CROSSLEY_OWN = (  # the law's contact, which CVODE integrates: its ellipses in the phase's frame
     Field("hc_rest_t", _NAN, "when the pressed contact's rest criterion became true [s] (NaN: not at rest)"),

@@ -49,7 +49,7 @@ def restart_needed(state):
     """CVODE restarts at the current state, which becomes the restart point (the last step and any rest forgotten)."""
     state.rhs_calls += state.nfev
     state.nfev, state.needs_init, state.segment, state.pending = 0.0, 1.0, 0.0, 0.0
-    state.rest_t, state.hc_rest_t = math.nan, math.nan
+    state.rest_t, state.hc_rest_t, state.est_t = math.nan, math.nan, math.nan  # est: of the state before
     state.rs_t, state.rs_x, state.rs_v, state.rs_mode = state.t, state.x, state.v, state.mode
     state.rs_t_low = state.t_low
     state.rs_impacts, state.rs_departures = state.impacts, state.departures
