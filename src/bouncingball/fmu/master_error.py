@@ -28,10 +28,12 @@ from __future__ import annotations
 
 import math
 
+from ..codes import DEPARTURE, IMPACT
 from ..contact_laws import LAWS, law_flow_value
 from ..equations import load_value
 from ..physics import Ball, Mode
 from ..solvers.exact import ExactSolution
+from ..solvers.phase_machine.error_estimate import event_saltation
 from ..solvers.phase_machine.settings import ESTIMATE_SAFETY, PROMISE
 
 UNKNOWN = -1.0  # error_estimate where the law has no closed form to measure against
@@ -147,8 +149,9 @@ class MasterError:
             ex, ev = self.accept(t, h, v)
             parameters, x = self.parameters, h - self.ball.R
             for old, new in zip(modes, modes[1:], strict=False):
+                kind = IMPACT if new == Mode.CONTACT and old == Mode.FLIGHT else DEPARTURE
                 if {old, new} == {Mode.FLIGHT, Mode.CONTACT}:
-                    jump = (-1.0 if new == Mode.CONTACT else 1.0) * parameters.b / parameters.m
+                    jump, _ = event_saltation(parameters, kind, int(old), v, v, self.load)
                     ev = ev + jump * (ex - x)
             self.err_x, self.err_v = ex, ev
         self._start(t, h, v, modes[-1], F_ext)
@@ -169,9 +172,9 @@ class MasterError:
             if v >= 0.0:  # found below R moving up: put on R, v kept
                 ex, ev = ex + (h_after - h), ev
             elif mode_after == Mode.FLIGHT:
-                e = parameters.e
+                jump, reflection = event_saltation(parameters, IMPACT, int(Mode.FLIGHT), v, after[1], self.load)
                 dx = ex - x
-                ex, ev = -e * dx, -(1.0 + e) * g_eff / v * dx - e * ev
+                ex, ev = reflection * dx, jump * dx + reflection * ev
             else:
                 v_true = -parameters.e * v
                 if v_true >= parameters.v_min and g_eff > 0.0:  # the truth bounces on
