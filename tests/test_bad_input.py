@@ -215,6 +215,11 @@ def test_the_stepping_api_and_the_fmu_refuse_the_same_alpha_with_the_same_messag
     with pytest.raises(ValueError) as from_integrator:
         BallIntegrator(ball, 2.0, 0.0)
     assert str(from_integrator.value) == str(from_simulate.value)
+    integrator = BallIntegrator(Ball(alpha=5e10, **HC_BALL), 2.0, 0.0)  # allowed: up to 1.08e11 s/m from 2 m
+    with pytest.raises(ValueError, match=r"^alpha = 50000000000.0 s/m is not allowed for this scene \(h0 = 2.0 m, "
+                                         r"v0 = 0.0 m/s, g - F_ext/m = 109.8 m/s2: a contact speed up to 20.65 m/s"):
+        integrator.F_ext = -100.0  # pushed down: it lands faster, and alpha's bound is 3.2e10 s/m
+    assert integrator.F_ext == 0.0 and integrator.t == 0.0
     slave = _Host(stop_at_event=False)
     for name, value in dict(contact_law="hunt-crossley", k=1e6, n=1.5, alpha=1e20, h=2.0).items():
         slave.setters[name](value)
