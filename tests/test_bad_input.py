@@ -261,9 +261,10 @@ def test_a_force_table_beyond_its_limit_is_refused_naming_the_limit():
     many = np.broadcast_to(0.0, (MAX_TABLE_ENTRIES + 1,))  # no memory: the size is refused before any copy
     with pytest.raises(ValueError) as info:
         bouncingball.simulate(BALL, 2.0, 0.0, 1.0, F_ext=(many, many))
-    assert str(info.value) == ("F_ext table of 10000001 entries is not allowed: it must have at most 1e+07 (about "
-                               "0.5 GB, and seconds of checks before the run); resample it coarser, or split the run "
-                               "into shorter ones (t_start, and the state at the end of the one before)")
+    assert str(info.value) == ("F_ext table of 1000001 entries is not allowed: it must have at most 1e+06 (each is "
+                               "checked before the run, up to a second for the most, and each change of force inside "
+                               "the run restarts the integrator); resample it coarser, or split the run into shorter "
+                               "ones (t_start, and the state at the end of the one before)")
 
 
 @pytest.mark.parametrize("table, message", [
