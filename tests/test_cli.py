@@ -135,6 +135,8 @@ def test_bad_input_is_one_line_and_exit_code_2():
         (["run", "--output-interval", "100"], "output_interval = 100.0 s is not allowed"),
         (["run", "--contact", "hunt-crossley", "--n", "3"], "n = 3.0 is not allowed: it must be in [1, 2.5]"),
         (["run", "--contact", "hunt-crossley", "--alpha", "-1"], "alpha = -1.0 s/m is not allowed"),
+        (["run", "--contact", "hunt-crossley", "--alpha", "1e20"], "alpha = 1e+20 s/m is not allowed for this scene "
+                                                                   "(h0 = 2.0 m, v0 = 0.0 m/s"),
     ]:
         completed = _cli(*args)
         assert completed.returncode == 2, args

@@ -19,6 +19,8 @@ from __future__ import annotations
 import math
 import sys
 
+import numpy as np
+
 from . import validation
 from .physics import Ball
 from .validation import exact
@@ -86,7 +88,7 @@ def check_output_interval(t_start: float, t_end: float, output_interval: float) 
 
 
 def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: float = 0.0,
-                t_end: float | None = None, output_interval: float | None = None) -> None:
+                t_end: float | None = None, output_interval: float | None = None, rtol: float | None = None) -> None:
     """Raise ValueError if double precision cannot resolve this scene; else return None.
 
     The resolvable range, checked in this order (each bound holds given the ones before it):
@@ -101,6 +103,8 @@ def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: f
     - h0's part of the energy below B: (k/m) (h0 - R + d)^2 starting in contact (d the static
       deflection), 2 (g - F_ext/m) (h0 - R) + (k/m) d^2 falling onto the spring; h0 <= 1e300 m.
     - v0^2 plus that below B.
+    - Hunt-Crossley's alpha below the bound check_alpha gives at the scene's largest contact speed
+      (with rtol: also a release speed CVODE resolves).
     - With t_end: t_end - t_start finite; the ball's reach over the run (how far it can fly away with
       the speed it has, pulled up if F_ext > m g) below 1e300 m, and its speed^2 and m v^2 below 1e300.
     - With output_interval: at least MIN_GRID_ULPS ulps of max(|t_start|, |t_end|).
@@ -119,6 +123,8 @@ def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: f
         End time [s], > t_start; None (a stepping integrator): no rule on the run's length.
     output_interval : float, optional
         The output grid's spacing [s]; None: no grid.
+    rtol : float, optional
+        CVODE's relative tolerance, a checked float; None: no rule that depends on it.
 
     Raises
     ------
@@ -187,6 +193,7 @@ def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: f
     if not abs(v0) <= v_max:
         raise ValueError(f"v0 = {v0!r} m/s is not allowed from h0 = {h0!r} m for this ball ({about}): it must be in "
                          f"[{exact(-v_max)}, {exact(v_max)}] m/s; {why}")
+    check_alpha(ball, h0, v0, g_eff, rtol)
 
     # --- the run --------------------------------------------------------------------------------------
     if t_end is None:
@@ -204,6 +211,92 @@ def check_scene(ball: Ball, h0: float, v0: float, F_ext: float = 0.0, t_start: f
                          f"speed^2 or energy m v^2 {SQUARE_LIMIT:g}")
     if output_interval is not None:
         check_output_interval(t_start, t_end, output_interval)
+
+
+def largest_contact_speed(ball: Ball, h0: float, v0: float, g_eff: float) -> float:
+    """A bound [m/s] on the speed of a Hunt-Crossley ball in contact, from its energy under g_eff = g - F_ext/m.
+
+    Per unit mass, e = v^2 / 2 + g_eff (h - R) + (k/m) delta^(n+1) / (n + 1), delta = max(R - h, 0), is kept in
+    flight and never grows in contact (contact_laws.hunt_crossley_rest_margin): the ball reaches R at sqrt(2 e)
+    at most, and is fastest in contact at the static deflection d = (g_eff / (k/m))^(1/n), where
+    v^2 = 2 e + 2 g_eff d n / (n + 1). 0 for a ball above R that never comes down (g_eff <= 0, v0 >= 0).
+    """
+    m, k, R, n = ball.m, ball.k, ball.R, ball.n
+    if h0 >= R and g_eff <= 0.0 and v0 >= 0.0:
+        return 0.0
+    depth = max(R - h0, 0.0)
+    twice_energy = v0 * v0 + 2.0 * g_eff * (h0 - R) + 2.0 * (k / m) * depth ** (n + 1.0) / (n + 1.0)
+    if g_eff > 0.0:
+        twice_energy += 2.0 * g_eff * (g_eff * m / k) ** (1.0 / n) * n / (n + 1.0)
+    return math.sqrt(max(twice_energy, 0.0))
+
+
+def check_alpha(ball: Ball, h0: float, v0: float, g_eff: float, rtol: float | None = None) -> None:
+    """Raise ValueError naming alpha if the Hunt-Crossley law's damping cannot be resolved in this scene.
+
+    With v the scene's largest contact speed (largest_contact_speed) and alpha > 0:
+
+    - 3/2 alpha v <= SCALE_LIMIT: the force's factor 1 + 3/2 alpha delta', multiplied by k delta^n, would
+      overflow beyond it.
+    - with rtol, the release speed 2 / (3 alpha) >= rtol v: CVODE resolves a contact's speed to about rtol of
+      its impact speed, so it cannot tell a slower release (where the force would pull) from a rest, nor
+      integrate the contact it ends (the damping stiffer than any step CVODE can take).
+
+    So alpha <= min(2 SCALE_LIMIT / (3 v), 2 / (3 rtol v)) s/m; other laws, and alpha = 0, have no rule.
+    """
+    if not (ball.hunt_crossley and ball.alpha > 0.0):
+        return
+    speed = largest_contact_speed(ball, h0, v0, g_eff)
+    if speed == 0.0:
+        return
+    overflow = 2.0 * SCALE_LIMIT / (3.0 * speed)
+    release = math.inf if rtol is None else 2.0 / (3.0 * rtol * speed)
+    if ball.alpha <= min(overflow, release):
+        return
+    scene = (f"h0 = {h0!r} m, v0 = {v0!r} m/s, g - F_ext/m = {g_eff:.4g} m/s2: a contact speed up to "
+             f"{speed:.4g} m/s")
+    if release < overflow:
+        why = (f"its release speed 2 / (3 alpha) = {2.0 / (3.0 * ball.alpha):.3g} m/s must be >= rtol = {rtol:g} "
+               f"times that speed, which CVODE resolves; lower alpha, or tighten rtol (a tighter rtol resolves a "
+               f"slower release)")
+    else:
+        why = f"3/2 alpha v must stay <= {SCALE_LIMIT:g}, or the force k delta^n (1 + 3/2 alpha v) overflows"
+    raise ValueError(f"alpha = {ball.alpha!r} s/m is not allowed for this scene ({scene}): it must be in "
+                     f"[0, {exact(min(overflow, release))}] s/m; {why}")
+
+
+def check_forces(ball: Ball, h0: float, v0: float, forces, t_start: float = 0.0, t_end: float | None = None,
+                 output_interval: float | None = None, rtol: float | None = None) -> None:
+    """check_scene for each of the forces [N] a table holds (a scene per force), in time linear in their number.
+
+    check_scene depends on the force through g_eff = g - F_ext/m alone, and every rule but the run's length
+    bounds a quantity convex in g_eff (g_eff itself, the energies, the largest contact speed): where a force
+    breaks one, the smallest or the largest force breaks one too, so those two are checked. The run's length
+    (with t_end) is shortest at the most negative g_eff where the ball flies away, and at least
+    (HEIGHT_LIMIT - max(|h0|, R)) / (the largest speed) where it comes back: only a run longer than that
+    (beyond 1e140 s for realistic scenes) has every force checked.
+    """
+    values = np.asarray(forces, dtype=float)
+    low, high = float(values.min()), float(values.max())
+    for force in sorted({low, high}):
+        check_scene(ball, h0, v0, force, t_start, t_end, output_interval, rtol)
+    if t_end is None or t_end - t_start <= _shortest_run(ball, h0, v0, low, high):
+        return
+    for force in np.unique(values).tolist():
+        check_scene(ball, h0, v0, force, t_start, t_end, output_interval, rtol)
+
+
+def _shortest_run(ball: Ball, h0: float, v0: float, low: float, high: float) -> float:
+    """A lower bound [s] on check_scene's longest run for every force in [low, high] [N] (check_forces)."""
+    m, w2, start = ball.m, ball.k / ball.m, max(abs(h0), ball.R)
+    g_low, g_high = ball.g - high / m, ball.g - low / m
+    speed_low, speed_high = (math.sqrt(_energy_of_height(ball, h0, v0, force, w2, g_eff / w2, g_eff) + v0 * v0)
+                             for force, g_eff in ((high, g_low), (low, g_high)))
+    fastest = max(speed_low, speed_high)
+    shortest = (HEIGHT_LIMIT - start) / fastest if fastest > 0.0 else math.inf
+    if g_low <= 0.0:  # the fastest flight away, at the largest speed of the flights away
+        shortest = min(shortest, _longest_run(g_low, speed_low, start, SQUARE_LIMIT * min(1.0, 1.0 / m)))
+    return shortest
 
 
 def _weight_out_of_range(ball: Ball, F_ext: float, g_eff: float, g_max: float, rest: str) -> str:
@@ -268,8 +361,8 @@ def _longest_run(g_eff: float, speed: float, start: float, speed_squared_limit: 
     return min(by_speed, by_reach)
 
 
-__all__ = ["HEIGHT_LIMIT", "MIN_GRID_ULPS", "SCALE_LIMIT", "SQUARE_LIMIT", "check_cvode_settings",
-           "check_output_interval", "check_scene", "min_output_interval"]
+__all__ = ["HEIGHT_LIMIT", "MIN_GRID_ULPS", "SCALE_LIMIT", "SQUARE_LIMIT", "check_alpha", "check_cvode_settings",
+           "check_forces", "check_output_interval", "check_scene", "largest_contact_speed", "min_output_interval"]
 
 
 def contact_duration(ball: Ball) -> float:

@@ -1,9 +1,13 @@
 """The hunt-crossley law: Hunt and Crossley's k delta^n (1 + 3/2 alpha delta'), delta = R - h, clipped at 0.
 
 Free (Mode.FREE, the flight's parabola below R) above the release speed 2 / (3 alpha), where the force would pull;
-pressed (Mode.CONTACT) below it. No closed form: CVODE integrates every pressed contact, with the law's own
-right-hand side and state-dependent Jacobian; its rest is only reported (hunt_crossley_rest_margin), and its
-error carried step by step (solvers/phase_machine/error_estimate.py).
+pressed (Mode.CONTACT) below it. alpha's range depends on the scene (limits.check_alpha): with v its largest contact
+speed, 3/2 alpha v <= 1e150 (the force would overflow), and under CVODE at rtol 2 / (3 alpha) >= rtol v (a slower
+release than CVODE resolves), so alpha <= min(1e150, 1 / rtol) 2 / (3 v).
+
+No closed form: CVODE integrates every pressed contact, with the law's own right-hand side and state-dependent
+Jacobian; its rest is only reported (hunt_crossley_rest_margin), and its error carried step by step
+(solvers/phase_machine/error_estimate.py).
 """
 
 from __future__ import annotations

@@ -305,7 +305,7 @@ class BallIntegrator(IntegratorView):
 def checked_start(ball: Ball, h0, v0, t0, F_ext, settings: CvodeSettings) -> tuple[float, float, float, float]:
     """(h0, v0, t0, F_ext) as floats, each checked as BallIntegrator checks its start; ValueError names a bad one."""
     t0 = validation.finite("t0", t0, "s")
-    limits.check_scene(ball, h0, v0, F_ext, t0)  # each value checked and named there
+    limits.check_scene(ball, h0, v0, F_ext, t0, rtol=settings.rtol)  # each value checked and named there
     h0, v0, F_ext = float(h0), float(v0), float(F_ext)
     limits.check_cvode_settings(ball, h0, settings.atol, settings.max_step, t0)
     check_resolvable(ball, t0)

@@ -9,6 +9,7 @@ from .. import limits, validation
 from ..physics import Ball
 from . import forcing
 from .forcing import ForceTable
+from .phase_machine.settings import DEFAULT_RTOL, CvodeSettings
 from .result import DEFAULT_OUTPUT_INTERVAL, SimulationResult
 
 SOLVERS = ("cvode", "exact", "scipy")
@@ -85,12 +86,6 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     if not t_end > t_start:
         raise ValueError(f"t_end = {t_end!r} s is not allowed: it must be > t_start = {t_start!r} s")
     output_interval = validation.in_range("output_interval", output_interval, 0.0, t_end - t_start, "s")
-    # Before any solver: what double precision cannot resolve is refused the same way by each.
-    if isinstance(F_ext, ForceTable):
-        for force in sorted(set(F_ext.values)):
-            limits.check_scene(ball, h0, v0, force, t_start, t_end, output_interval)
-    else:
-        limits.check_scene(ball, h0, v0, F_ext, t_start, t_end, output_interval)
     if solver == "cvode":
         from .cvode import simulate_cvode as run
     elif solver == "scipy":
@@ -108,6 +103,13 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     if unknown:
         raise ValueError(f"option {unknown[0]} = {options[unknown[0]]!r} is not allowed for solver "
                          f"'{solver}': it takes {', '.join(allowed) or 'no options'}")
+    # Before any solver: what double precision cannot resolve is refused the same way by each; what CVODE
+    # cannot resolve at its rtol (limits.check_alpha) by the cvode solver.
+    rtol = CvodeSettings(rtol=options.get("rtol", DEFAULT_RTOL)).rtol if solver == "cvode" else None
+    if isinstance(F_ext, ForceTable):
+        limits.check_forces(ball, h0, v0, F_ext.arrays[1], t_start, t_end, output_interval, rtol)
+    else:
+        limits.check_scene(ball, h0, v0, F_ext, t_start, t_end, output_interval, rtol)
     return run(ball, h0, v0, t_end, output_interval, t_start=t_start, F_ext=F_ext, **options)
 
 

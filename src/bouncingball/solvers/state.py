@@ -181,7 +181,7 @@ class IntegratorView:
         value = validation.finite("F_ext", value, "N")
         if value != self._F_ext:
             # the range double precision resolves from the current state (simulate checks it from the start)
-            limits.check_scene(self.ball, self.h, self.v, value, self.t)
+            limits.check_scene(self.ball, self.h, self.v, value, self.t, rtol=self.settings.rtol)
             bouncing = self._summed_bounce()
             # the phase at the old load ends here: its error carried into the next one
             self._machine.phase_ends(self._machine_parameters, self.settings.rtol, self._atol, self._machine_state,

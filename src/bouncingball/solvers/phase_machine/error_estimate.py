@@ -23,11 +23,13 @@ import math
 
 from ...codes import CONTACT, DEPARTURE, FLIGHT, IMPACT
 from ...contact_laws import (
+    conserved_speed,
     contact_integrated,
     contact_step_transition,
     impact_is_instantaneous,
     law_acceleration,
     law_flow_value,
+    law_interpolant,
 )
 from ...rounding import hypot
 from .phases import frame
@@ -251,12 +253,36 @@ def _contact_step(parameters, load, rtol, length, speed, t0, x0, v0, t1, x1, v1,
     """
     p00, p01, p10, p11 = contact_step_transition(parameters, load, t0, x0, v0, t1, x1, v1, t)
     ratio = speed / length
-    a00, a01, a11 = ellipse_image(p00, p01 * ratio, p10 / ratio, p11, a00, a01, a11)
-    b00, b01, b11 = ellipse_image(p00, p01 * ratio, p10 / ratio, p11, b00, b01, b11)
+    p00, p01, p10, p11 = _along_the_flow(parameters, load, length, speed, t0, x0, v0, t1, x1, v1, t,
+                                         p00, p01 * ratio, p10 / ratio, p11)
+    a00, a01, a11 = ellipse_image(p00, p01, p10, p11, a00, a01, a11)
+    b00, b01, b11 = ellipse_image(p00, p01, p10, p11, b00, b01, b11)
     w0 = LOCAL_ERROR_SAFETY * rtol * (abs(x0) / length + 1.0)
     w1 = LOCAL_ERROR_SAFETY * rtol * (abs(v0) / speed + 1.0)
     b00, b01, b11 = ellipse_sum(b00, b01, b11, 2.0 * (w0 * w0), 0.0, 2.0 * (w1 * w1))
     return a00, a01, a11, b00, b01, b11
+
+
+def _along_the_flow(parameters, load, length, speed, t0, x0, v0, t1, x1, v1, t, p00, p01, p10, p11):
+    """The step's transition matrix in the frame, made exact along the flow: it maps the field at t0 to the field at t.
+
+    A shift in time of the trajectory is an error along the field f = (v, a), which the exact transition matrix
+    carries from f(t0) to f(t) (the contact's equation is autonomous); the linearised one only to its own order.
+    In a stiff contact f's v-part is w times its x-part (a = w^2 delta, v = w delta): the linearisation's small
+    relative error there becomes an error of v w times that of the impact's time, carried to the departure and
+    the flight after. A rank-one correction along f(t0) puts it back; other directions keep their matrix.
+    """
+    if t < t1:
+        xt, vt = law_interpolant(parameters, load, CONTACT, t0, x0, v0, t1, x1, v1, t)
+    else:
+        xt, vt = x1, v1
+    f0x, f0v = v0 / length, law_acceleration(parameters, x0, v0, CONTACT, load) / speed
+    f1x, f1v = vt / length, law_acceleration(parameters, xt, vt, CONTACT, load) / speed
+    norm = f0x * f0x + f0v * f0v
+    if not norm > 0.0:
+        return p00, p01, p10, p11
+    rx, rv = (f1x - (p00 * f0x + p01 * f0v)) / norm, (f1v - (p10 * f0x + p11 * f0v)) / norm
+    return p00 + rx * f0x, p01 + rx * f0v, p10 + rv * f0x, p11 + rv * f0v
 
 
 def contact_steps_ellipse(parameters, rtol, state, rows, count):
@@ -321,7 +347,21 @@ def _contact_ellipses(parameters, rtol, state, load):
     ax, av, a_rho = widths_of(a00, a01, a11)
     bx, bv, b_rho = widths_of(b00, b01, b11)
     ax, av, bx, bv = ax * sx, av * sv, bx * sx, bv * sv
+    if state.x == 0.0 and state.v == -state.rs_v and conserved_speed(parameters, CONTACT, state.rs_x, state.rs_v):
+        bv, b_rho = _departure_shift(parameters, load, state.v, bx)
     return ax, av, a_rho, bx, bv, b_rho, max(state.hc_xmax, ax + bx)
+
+
+def _departure_shift(parameters, load, v, bx):
+    """(bv [m/s], b_rho): the contact's own error at a departure whose speed is the impact's (conserved_speed).
+
+    Undamped, the polish gives the departure the impact's speed -v0 exactly (phases.polish_event), not CVODE's: of
+    CVODE's own error only its error of x at the root is kept, as an error of the departure's time dt = -bx / v.
+    The parabola shifted by dt is off by (-v dt, g_eff dt) at the departure: an error along (1, -g_eff / v), of
+    x's half-width bx (the impact's error, in the other ellipse, is carried to the departure by the steps).
+    """
+    g_eff = load / parameters.m
+    return bx * abs(g_eff) / v, -1.0 if g_eff > 0.0 else 1.0
 
 
 def _phase_ellipses(parameters, state, mode, load, ax, av, a_rho, bx, bv, b_rho):
