@@ -86,19 +86,12 @@ def random_scenes(count: int, seed: int = 7):
 PROPERTY_SCENES = 24
 
 
-@pytest.mark.slow  # the truth: 2 to 60 s a scene on a loaded 2-core machine
-def test_the_estimate_over_random_scenes_is_honest_and_within_1000x_in_95_percent():
-    """Every estimate at or above its true error; within 1000x of it in >= 95% of the scenes whose true error is above
-    rounding (64 ulps of the height scale, as tests/test_error_estimate.py judges); no warning where the true error
-    is 1000x below the promise.
-
-    Measured: 22 of the 24 above rounding, their ratios 13.9 to 1271 (median 35; the 8 undamped 82 to 1271), 21 of
-    them (95.5%) within 1000x. Above it an undamped drop whose true error is 8.8e-15 m (1271x: phase_error's floor of
-    10 rtol of the flight's length is 4.8e-12 m, the contact's own error counted from CVODE's error test 3.2e-12 m);
-    at rounding two more undamped ones, 1.9e-15 m (3610x) and 1.3e-16 m (6350x). No warning. 800 s under load.
-    """
+def _assert_honest_and_within_1000x(cases) -> None:
+    """Every estimate at or above its true error; within 1000x of it in >= 95% of the scenes whose true error is
+    above rounding (64 ulps of the height scale, as tests/test_error_estimate.py judges); no warning where the true
+    error is 1000x below the promise."""
     ratios, spurious = [], []
-    for case in random_scenes(PROPERTY_SCENES):
+    for case in cases:
         result, warned = _run(case)
         error, scale = _true_error(case, result)
         assert error <= result.error_estimate, (case, error, result.error_estimate)
@@ -108,3 +101,26 @@ def test_the_estimate_over_random_scenes_is_honest_and_within_1000x_in_95_percen
             spurious.append(case)
     assert np.mean(np.array(ratios) <= 1000.0) >= 0.95, ratios
     assert spurious == []
+
+
+@pytest.mark.slow  # the truth: ~25 s a scene
+def test_the_estimate_over_every_third_random_scene_is_honest_and_within_1000x():
+    """The test suite's share of the 24 scenes below (every third, 8 of them, ~200 s): the study is too long for it.
+
+    Measured: scenes 0, 3, .., 21 at 265, 15, 15, 25, 21, (15: at rounding, 3610x, left out), 41 and 24 times
+    their true errors; 20 to 45 s a scene.
+    """
+    _assert_honest_and_within_1000x(list(random_scenes(PROPERTY_SCENES))[::3])
+
+
+@pytest.mark.slow
+@pytest.mark.study  # ~10 min: `pytest -m study` runs it
+def test_the_estimate_over_random_scenes_is_honest_and_within_1000x_in_95_percent():
+    """All 24 scenes.
+
+    Measured: 22 of the 24 above rounding, their ratios 13.9 to 1271 (median 35; the 8 undamped 82 to 1271), 21 of
+    them (95.5%) within 1000x. Above it an undamped drop whose true error is 8.8e-15 m (1271x: phase_error's floor of
+    10 rtol of the flight's length is 4.8e-12 m, the contact's own error counted from CVODE's error test 3.2e-12 m);
+    at rounding two more undamped ones, 1.9e-15 m (3610x) and 1.3e-16 m (6350x). No warning. 800 s under load.
+    """
+    _assert_honest_and_within_1000x(random_scenes(PROPERTY_SCENES))
