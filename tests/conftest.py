@@ -67,10 +67,17 @@ def pytest_runtest_logreport(report):
     _measured[module] = _measured.get(module, 0.0) + report.duration
 
 
+DEFAULT_MARKS = "not study"  # pyproject.toml's addopts
+
+
 def whole_suite_ran(session, exitstatus) -> bool:
-    """Did every test module run whole: no selection (-k, -m, --lf, a node id, a file), no early stop?"""
+    """Did every test module run whole: no selection (-k, -m, --lf, a node id, a file), no early stop?
+
+    The default run leaves out the studies (addopts' -m 'not study'): that is the whole suite.
+    """
     option = session.config.option
-    selected = (option.keyword or option.markexpr or getattr(option, "lf", False) or getattr(option, "deselect", None)
+    selected = (option.keyword or option.markexpr not in ("", DEFAULT_MARKS) or getattr(option, "lf", False)
+                or getattr(option, "deselect", None)
                 or option.maxfail or getattr(option, "stepwise", False))
     here = session.config.invocation_params.dir
     everything = all("::" not in argument and (here / argument).resolve() in (TESTS, *TESTS.parents)

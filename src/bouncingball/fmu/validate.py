@@ -208,8 +208,9 @@ def format_report(report: Report) -> str:
         lines.append(f"FMU impact count equals the exact count at every communication point: {match}")
     undecided = [row.name for row in report.rows if row.accuracy is not None and row.name != "exact"
                  and row.accuracy.max_height_error <= report.judge_error]
-    lines.append(f"the exact solution's own error estimate (its rounding, carried): {report.judge_error:.3e} m" +
-                 (f"; the judge cannot decide below it: {', '.join(undecided)} within it" if undecided else ""))
+    if undecided:  # the judge's own error estimate is above theirs: it cannot tell them from exact
+        lines.append(f"the exact solution's own error estimate (its rounding, carried) is {report.judge_error:.3e} m: "
+                     f"the judge cannot decide below it, and {', '.join(undecided)} are within it")
     return "\n".join(lines)
 
 

@@ -97,8 +97,7 @@ VARIABLES = (
     FmuVariable("n", "Real", "parameter", "fixed", "contact_law hunt-crossley: exponent of the penetration delta "
                 "= R - h in the force, in [1, 2.5] (1.5: Hertz's sphere on a flat)", min=1.0, max=2.5),
     FmuVariable("alpha", "Real", "parameter", "fixed", "contact_law hunt-crossley: damping of the force, its "
-                "restitution about 1 - alpha v at impact speed v (>= 0, and at most 2 / (3 rtol v) at the scene's "
-                "largest contact speed v)", "s/m", 0.0),
+                "restitution about 1 - alpha v at impact speed v (>= 0)", "s/m", 0.0),
 )
 
 
