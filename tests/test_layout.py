@@ -13,9 +13,9 @@ import bouncingball
 PACKAGE = Path(bouncingball.__file__).parent
 MODULES = sorted(m.name for m in pkgutil.walk_packages([str(PACKAGE)], "bouncingball."))
 # What each layer may import from this package: codes, rounding, oscillator <- equations <- contact_laws <- physics
-# <- limits <- the phase machine <- its engines <- the solvers' front-ends <- the rest.
+# (the ground beside it) <- limits <- the phase machine <- its engines <- the solvers' front-ends <- the rest.
 MODEL = {"bouncingball.codes", "bouncingball.rounding", "bouncingball.oscillator", "bouncingball.equations",
-         "bouncingball.contact_laws", "bouncingball.physics"}
+         "bouncingball.contact_laws", "bouncingball.physics", "bouncingball.ground"}
 LOWER_LAYERS = {
     "bouncingball.codes": set(),
     "bouncingball.rounding": set(),
@@ -25,6 +25,7 @@ LOWER_LAYERS = {
                                   "bouncingball.equations", "bouncingball.contact_laws"},
     "bouncingball.physics": {"bouncingball.codes", "bouncingball.validation", "bouncingball.equations",
                              "bouncingball.contact_laws"},
+    "bouncingball.ground": {"bouncingball.validation"},
     "bouncingball.limits": {*MODEL, "bouncingball.validation"},
     "bouncingball.solvers.phase_machine": {*MODEL, "bouncingball.validation", "bouncingball.solvers.phase_machine"},
     "bouncingball.solvers.engines": {*MODEL, "bouncingball.validation", "bouncingball.solvers.phase_machine",
@@ -34,7 +35,7 @@ LOWER_LAYERS = {
                              "bouncingball.extras"},
 }
 SINGLE_FILE_LAYERS = ("bouncingball.codes", "bouncingball.rounding", "bouncingball.oscillator",
-                      "bouncingball.equations", "bouncingball.physics", "bouncingball.limits")
+                      "bouncingball.equations", "bouncingball.physics", "bouncingball.limits", "bouncingball.ground")
 
 
 @pytest.mark.slow

@@ -20,10 +20,12 @@ from ..contact_laws import LAWS, contact_event, free_event, impact_is_instantane
 from ..contact_laws.common import time_to_impact
 from ..contact_laws.rigid import summed_bounce_state
 from ..equations import load_value
+from ..ground import Ground, as_ground
 from ..physics import Ball, Mode
 from ..rounding import later
 from . import forcing
 from .exact_error import RoundingCarry
+from .exact_ground import build_on_moving_ground, check_moving_ground
 from .forcing import ForceTable
 from .phase_machine.settings import PROMISE
 from .result import (
@@ -56,17 +58,21 @@ class ExactSolution:
 
     F_ext [N] is a constant or a forcing.ForceTable (piecewise constant): the phases restart at each
     change time inside (t_start, t_end), the state continuous and the mode held there; a rest is
-    only a rest under the last value.
+    only a rest under the last value. ground: a moving one (a rigid ball's, exact_ground) or the still
+    one at 0 (a still ground elsewhere is the same run shifted: simulate does it).
     """
 
     def __init__(self, ball: Ball, h0: float, v0: float, t_start: float = 0.0,
-                 t_end: float = math.inf, F_ext: float | ForceTable = 0.0, max_phases: int | None = None) -> None:
+                 t_end: float = math.inf, F_ext: float | ForceTable = 0.0, max_phases: int | None = None,
+                 ground: Ground | None = None) -> None:
         """max_phases: stop after that many phases (a count for an estimate, not a solution to t_end)."""
         if not LAWS[ball.contact].closed_form:
             raise ValueError(f"solver = 'exact' is not allowed with contact = {ball.contact!r}: its contact has no "
                              "closed form; use cvode")
+        self.ground = as_ground(ground)
+        check_moving_ground(ball, self.ground)
         self.ball = ball
-        self._max_phases = math.inf if max_phases is None else max_phases
+        self.max_phases = math.inf if max_phases is None else max_phases
         self.F_ext = F_ext
         self.t_start = t_start
         self.t_end = t_end
@@ -85,8 +91,16 @@ class ExactSolution:
         """
         return self.rounding.estimate(self.t_end if self.t_end < math.inf else self.phases[-1].t_start)
 
+    def add_phase(self, t: float, mode: Mode, h: float, v: float, F_ext: float) -> bool:
+        """Record the phase from (h [m], v [m/s]) at t [s]; whether max_phases are reached."""
+        self.phases.append(Phase(t, mode, h, v, F_ext))
+        return len(self.phases) >= self.max_phases
+
     def _build(self, h: float, v: float) -> None:
         """The phases and events from (h [m], v [m/s]) at t_start, one piece of constant F_ext after another."""
+        if self.ground.moves:
+            build_on_moving_ground(self, h, v)
+            return
         constant_pieces = forcing.pieces(self.F_ext, self.t_start, self.t_end)
         zeno_end = -math.inf  # where a rigid ball's bounces summed in the last piece end (contact_laws.rigid_rebound)
         for number, (t, piece_end, F_ext) in enumerate(constant_pieces):
@@ -125,8 +139,7 @@ class ExactSolution:
             if mode == Mode.CONTACT and t > resolvable_until:
                 # contacts too short for the ulps of t: the phases would stop advancing t (it never ended)
                 limits.check_resolvable(ball, t)
-            self.phases.append(Phase(t, mode, h, v, F_ext))
-            if len(self.phases) >= self._max_phases:
+            if self.add_phase(t, mode, h, v, F_ext):
                 return True, zeno_end
             tau, x_next, v_next, kind, next_mode = self._next_event(mode, h, v, F_ext)
             load, phase_start, x_start, v_start, mode_before = load_value(F_ext, ball.m, ball.g), t, h - R, v, mode
@@ -187,6 +200,10 @@ class ExactSolution:
                     i = index[selected]
                     h[selected], v[selected] = self.ball.flow(mode, h_start[i], v_start[i], t[selected] - starts[i],
                                                               float(F_ext))
+        if self.ground.moves:  # a rigid ball's contact there is a ride: on the ground, with it
+            riding = point_modes == Mode.CONTACT
+            h[riding] = self.ball.R + self.ground.position(t[riding])
+            v[riding] = self.ground.velocity(t[riding])
         return h, v
 
     def modes(self, t) -> np.ndarray:
@@ -203,11 +220,12 @@ class ExactSolution:
 
 
 def simulate_exact(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
-                   t_start: float = 0.0, F_ext: float | ForceTable = 0.0) -> SimulationResult:
+                   t_start: float = 0.0, F_ext: float | ForceTable = 0.0,
+                   ground: Ground | None = None) -> SimulationResult:
     """The piecewise-analytic solution on the output grid; F_ext a constant [N] or a forcing.ForceTable."""
     started = time.perf_counter()
     grid = output_grid(t_start, t_end, output_interval)
-    exact = ExactSolution(ball, h0, v0, t_start, t_end, F_ext)
+    exact = ExactSolution(ball, h0, v0, t_start, t_end, F_ext, ground=ground)
     h, v = exact.state(grid)
     stats = SolverStats(steps=len(exact.phases), rhs_calls=0, events=len(exact.events),
                         wall_time=time.perf_counter() - started)
@@ -220,4 +238,4 @@ def simulate_exact(ball: Ball, h0: float, v0: float, t_end: float, output_interv
             f"{carry.untrusted_from:.6g} s on; a small error grows faster here than double precision can follow "
             "(an ill-conditioned run): shorten the run"))
     return SimulationResult("exact", ball, grid, h, v, list(exact.events), exact.rest_time, stats, F_ext,
-                            error_estimate=estimate)
+                            error_estimate=estimate, ground=exact.ground)

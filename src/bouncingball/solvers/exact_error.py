@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 
-from ..codes import CONTACT, FLIGHT
+from ..codes import CONTACT, FLIGHT, IMPACT
 from ..contact_laws import impact_is_instantaneous, law_acceleration, law_flow_value
 from .phase_machine.error_estimate import ellipse_image, ellipse_sum, event_saltation
 from .phase_machine.phases import phase_scales
@@ -80,6 +80,48 @@ class RoundingCarry:
         self.p00, self.p01, self.p11 = p00, p01, p11
         if math.isnan(self.untrusted_from) and not self.bound <= PROMISE * self.scale:
             self.untrusted_from = t_start
+
+    def moving_impact(self, t: float, tau: float, relative: float, rebound: float, relative_load: float,
+                      rounding: float) -> None:
+        """A rigid impact on a moving ground at t [s], tau [s] after its flight's start (after phase() of it).
+
+        relative: the speed relative to the ground [m/s] it meets it at (< 0), rebound: the relative speed it leaves
+        at (0: it rides), relative_load: m (g_eff + s'') [N], rounding: the gap's rounding at the root [m]. The
+        root's time error d (a few ulps of tau, and the rounding over the relative speed, or for a grazing impact
+        over the relative acceleration) leaves the ball off the ground's true meeting point by |relative| d: the
+        ground has moved meanwhile, so unlike on a still ground this is no delay along the flow; it is added to
+        the ellipse, then the impact's saltation matrix (the rigid law's in the ground's frame) maps it.
+        """
+        acceleration = abs(relative_load / self.parameters.m)
+        delay = ULPS * _EPS * tau + min(rounding / abs(relative) if relative != 0.0 else math.inf,
+                                        math.sqrt(2.0 * rounding / acceleration) if acceleration > 0.0 else math.inf)
+        if not math.isfinite(delay):
+            delay = ULPS * _EPS * tau
+        offset = abs(relative) * delay
+        p00, p01, p11 = ellipse_sum(self.p00, self.p01, self.p11, offset * offset, 0.0, 0.0)
+        jump, reflection = event_saltation(self.parameters, IMPACT, FLIGHT, relative, rebound, relative_load)
+        self.p00, self.p01, self.p11 = ellipse_image(reflection, 0.0, jump, reflection, p00, p01, p11)
+        self.bound = max(self.bound, math.sqrt(max(self.p00, 0.0)))
+        self._judge(t)
+
+    def restart(self, t: float, length: float, speed: float) -> None:
+        """A flight leaving a ride at t [s]: the ride forgot the errors before it; the state's own rounding is left.
+
+        length [m], speed [m/s]: the scales of the state (R + |s|, |s'|) rounded there.
+        """
+        ex, ev = ULPS * _EPS * length, ULPS * _EPS * speed
+        self.p00, self.p01, self.p11 = 2.0 * ex * ex, 0.0, 2.0 * ev * ev
+        self.speed_max = max(self.speed_max, speed)
+        self._judge(t)
+
+    def charge(self, t: float, amount: float) -> None:
+        """An error of amount [m] at t [s] outside the carried ellipse (summed bounces taken on the ground)."""
+        self.bound = max(self.bound, math.sqrt(max(self.p00, 0.0)) + amount)
+        self._judge(t)
+
+    def _judge(self, t: float) -> None:
+        if math.isnan(self.untrusted_from) and not self.bound <= PROMISE * self.scale:
+            self.untrusted_from = t
 
     def _terms(self, mode: int, x0: float, v0: float, tau: float, load: float) -> tuple[float, float]:
         """(length [m], speed [m/s]): the largest terms the closed form of a phase tau [s] long sums, for x and v.

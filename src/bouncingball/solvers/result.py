@@ -12,6 +12,7 @@ from enum import StrEnum
 import numpy as np
 
 from .. import codes
+from ..ground import Ground
 from ..limits import check_output_interval
 from ..physics import Ball
 from .forcing import ForceTable
@@ -96,6 +97,8 @@ class SimulationResult:
         each phase's own error against its exact flow, carried by the run's sensitivity: see
         README, "How far from the truth"); the exact solver's is its rounding; None for the SciPy
         reference, which does not estimate it.
+    ground : Ground
+        The ground under the ball (still at 0 unless the run was given another).
 
     Examples
     --------
@@ -120,6 +123,7 @@ class SimulationResult:
     F_ext: float | ForceTable = 0.0
     options: dict = field(default_factory=dict)
     error_estimate: float | None = None
+    ground: Ground = field(default_factory=Ground)
 
     @property
     def event_times(self) -> np.ndarray:

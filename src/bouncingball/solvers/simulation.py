@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import inspect
 
 from .. import limits, validation
+from ..ground import Ground, as_ground
 from ..physics import Ball
 from . import forcing
 from .forcing import ForceTable
@@ -13,12 +15,12 @@ from .phase_machine.settings import DEFAULT_RTOL, CvodeSettings
 from .result import DEFAULT_OUTPUT_INTERVAL, SimulationResult
 
 SOLVERS = ("cvode", "exact", "scipy")
-_COMMON_PARAMETERS = ("ball", "h0", "v0", "t_end", "output_interval", "t_start", "F_ext")
+_COMMON_PARAMETERS = ("ball", "h0", "v0", "t_end", "output_interval", "t_start", "F_ext", "ground")
 
 
 def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float = DEFAULT_OUTPUT_INTERVAL,
              solver: str = "cvode", *, t_start: float = 0.0, F_ext: float | ForceTable | tuple = 0.0,
-             **options) -> SimulationResult:
+             ground: Ground | None = None, **options) -> SimulationResult:
     """Simulate the ball from (h0 [m], v0 [m/s]) at t_start to t_end [s] on a grid of output_interval [s].
 
     Parameters
@@ -41,6 +43,10 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
         strictly increasing, values [N], as many) held at values[i] over [times[i], times[i+1]),
         at values[0] before times[0] and values[-1] after the last time (a ForceTable will do).
         Every solver runs a table piece by piece: the state is continuous at a change, the mode held.
+    ground : Ground, optional
+        The ground under the ball: still at height 0 by default (Ground.still(height) is the same run
+        shifted, for every solver); a vibrating table (Ground.sine) is taken by solver="exact" under
+        the rigid law. h stays the centre's height in the world frame.
     **options
         For cvode: rtol, atol, method ("auto", "Adams", "BDF"), max_step [s] (0: unbounded),
         engine ("auto", "compiled", "sksundae"), progress (called with the time reached [s] as the
@@ -56,7 +62,8 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     ------
     ValueError
         Before any work, for a value outside its range (the message names it, its value and the
-        allowed range), an option the solver does not take, a scene outside the range double
+        allowed range), a moving ground a solver or law does not take, an option the solver does
+        not take, a scene outside the range double
         precision resolves (bouncingball.limits.check_scene: magnitudes whose squares would
         overflow, an output interval below a few ulps of t), or, for cvode, contacts too short to
         resolve in double precision up to t_end.
@@ -86,6 +93,15 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     if not t_end > t_start:
         raise ValueError(f"t_end = {t_end!r} s is not allowed: it must be > t_start = {t_start!r} s")
     output_interval = validation.in_range("output_interval", output_interval, 0.0, t_end - t_start, "s")
+    ground = as_ground(ground)
+    if ground.moves and solver != "exact":
+        raise ValueError(f"ground = {ground.describe()} is not allowed with solver = {solver!r}: a moving ground "
+                         "is taken by solver = 'exact' (contact = 'rigid') so far")
+    ground.check_covers(t_start, t_end)
+    if not ground.moves and ground.height != 0.0:  # the same run, shifted
+        result = simulate(ball, h0 - ground.height, v0, t_end, output_interval, solver, t_start=t_start,
+                          F_ext=F_ext, **options)
+        return dataclasses.replace(result, h=result.h + ground.height, ground=ground)
     if solver == "cvode":
         from .cvode import simulate_cvode as run
     elif solver == "scipy":
@@ -106,11 +122,13 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     # Before any solver: what double precision cannot resolve is refused the same way by each; what CVODE
     # cannot resolve at its rtol (limits.check_alpha) by the cvode solver.
     rtol = CvodeSettings(rtol=options.get("rtol", DEFAULT_RTOL)).rtol if solver == "cvode" else None
+    above = h0 - ground.position(t_start) if ground.moves else h0  # the range checks' height: above the ground
     if isinstance(F_ext, ForceTable):
-        limits.check_forces(ball, h0, v0, F_ext.arrays[1], t_start, t_end, output_interval, rtol)
+        limits.check_forces(ball, above, v0, F_ext.arrays[1], t_start, t_end, output_interval, rtol)
     else:
-        limits.check_scene(ball, h0, v0, F_ext, t_start, t_end, output_interval, rtol)
-    return run(ball, h0, v0, t_end, output_interval, t_start=t_start, F_ext=F_ext, **options)
+        limits.check_scene(ball, above, v0, F_ext, t_start, t_end, output_interval, rtol)
+    on_ground = {"ground": ground} if ground.moves else {}
+    return run(ball, h0, v0, t_end, output_interval, t_start=t_start, F_ext=F_ext, **on_ground, **options)
 
 
 @functools.cache
