@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from . import AccuracyWarning
 from .cli_parser import build_parser as _build_parser
 from .contact_laws import LAWS
+from .ground import Ground
 from .output import STANDARD_OUTPUT
 
 EXIT_BAD_INPUT = 2
@@ -64,7 +65,7 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
     from .run_report import first_use_note, plural, restitution_line
     from .scenes import load_scene
 
-    scene = _with_law_options(load_scene(args.scene), args)
+    scene = _with_ground_options(_with_law_options(load_scene(args.scene), args), args)
     _check_outputs(args)
     plot_range = None
     if args.plot_range is not None:
@@ -102,6 +103,8 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
     print(f"  ball        m = {ball.m:g} kg, {law}, R = {ball.R:g} m, g = {ball.g:g} m/s2")
     print(f"  start       h0 = {scene.h0:.15g} m, v0 = {scene.v0:g} m/s; {result.t[0]:g} to {result.t[-1]:g} s, "
           f"output every {result.t[1] - result.t[0]:g} s")
+    if scene.ground != Ground():
+        print(f"  ground      {scene.ground.describe()}")
     settings = ", ".join(f"{key} {value}" for key, value in result.options.items())
     print(f"  solver      {result.solver}" + (f" ({settings})" if settings else ""))
     _print_events(result, exact, exact_on_grid)
@@ -160,6 +163,54 @@ def _with_law_options(scene, args: argparse.Namespace):
     return dataclasses.replace(scene, ball=law_ball)
 
 
+def _with_ground_options(scene, args: argparse.Namespace):
+    """The scene on the command line's ground (--ground-amplitude, -frequency, -phase; or --ground-table)."""
+    from .ground import Ground
+
+    sine = {name: getattr(args, f"ground_{name}") for name in ("amplitude", "frequency", "phase")
+            if getattr(args, f"ground_{name}") is not None}
+    if sine and args.ground_table:
+        raise ValueError(f"--ground-table = {args.ground_table!r} is not allowed with --ground-{next(iter(sine))}: "
+                         "the ground is either a sine or a table")
+    if args.ground_table:
+        return dataclasses.replace(scene, ground=_ground_table(args.ground_table))
+    if not sine:
+        return scene
+    for name in ("amplitude", "frequency"):
+        if name not in sine:
+            raise ValueError(f"--ground-{name} is missing: a vibrating ground needs --ground-amplitude and "
+                             "--ground-frequency (and --ground-phase, 0 by default)")
+    return dataclasses.replace(scene, ground=Ground.sine(sine["amplitude"], sine["frequency"], sine.get("phase", 0.0)))
+
+
+def _ground_table(path: str):
+    """The Ground through the points of a CSV file (time [s], height [m]; a header line allowed)."""
+    import numpy as np
+
+    from .ground import Ground
+
+    try:
+        with open(path, encoding="utf-8") as stream:
+            lines = [line for line in stream.read().splitlines() if line.strip()]
+    except OSError as error:
+        raise ValueError(f"--ground-table = {path!r} cannot be read: {error.strerror or error}") from None
+    rows = []
+    for number, line in enumerate(lines, start=1):
+        cells = [cell.strip() for cell in line.split(",")]
+        try:
+            rows.append([float(cell) for cell in cells])
+        except ValueError:
+            if number == 1:  # a header
+                continue
+            raise ValueError(f"--ground-table = {path!r} line {number} ({line!r}) is not allowed: it must be two "
+                             "numbers, time [s] and height [m]") from None
+        if len(cells) != 2:
+            raise ValueError(f"--ground-table = {path!r} line {number} ({line!r}) is not allowed: it must be two "
+                             "numbers, time [s] and height [m]")
+    table = np.asarray(rows, dtype=float).reshape(-1, 2)
+    return Ground.table(table[:, 0], table[:, 1])
+
+
 def _print_events(result, exact, exact_on_grid) -> None:
     """The events line, the first and last events, how they differ from the exact ones and why, the rest."""
     from .accuracy import max_height_error
@@ -174,7 +225,8 @@ def _print_events(result, exact, exact_on_grid) -> None:
         tolerance = max_height_error(result.h, exact_on_grid.h)
         for number, line in enumerate(event_differences(result, exact_on_grid.solution, tolerance)):
             print(f"  {'' if number else 'differences':11s} {line}")
-    rest = "none" if result.rest_time is None else f"at rest from t = {result.rest_time:.12g} s"
+    still = "at rest" if not result.ground.moves else "riding the ground for good"
+    rest = "none" if result.rest_time is None else f"{still} from t = {result.rest_time:.12g} s"
     print(f"  rest        {rest}")
 
 

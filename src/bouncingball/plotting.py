@@ -253,9 +253,10 @@ def _height_panel(ax, result, t, h, exact, selected, events) -> None:
             h_exact = exact.h[selected]
             keep = decimate(t, h_exact)
             ax.plot(t[keep], h_exact[keep], color=EXACT_COLOUR, lw=0.8, ls=(0, (4, 3)), label="exact solution")
-    ax.axhline(R, color="0.4", lw=0.6, ls="--", label=f"h = R = {R:g} m (contact)")
+    _draw_ground(ax, result, t, f"h = R = {R:g} m (contact)")
     if result.rest_time is not None and t[0] <= result.rest_time <= t[-1]:
-        ax.axvline(result.rest_time, color="0.4", lw=0.8, ls=":", label=f"at rest from {result.rest_time:.4g} s")
+        rest = "riding the ground" if result.ground.moves else "at rest"
+        ax.axvline(result.rest_time, color="0.4", lw=0.8, ls=":", label=f"{rest} from {result.rest_time:.4g} s")
     ax.set_ylabel("height of the centre h [m]")
     ax.grid(True, color="0.92")
 
@@ -343,14 +344,29 @@ def _zoom_panel(ax, result: SimulationResult, exact: SimulationResult | None, ev
     for times, marker, colour, kind in ((impacts, "v", IMPACT_COLOUR, "impact"), (others, "^", DEPARTURE_COLOUR,
                                                                                   "departure")):
         if times:
-            ax.plot(times, [R] * len(times), marker, color=colour, ms=6, label=plural(len(times), kind))
-    ax.axhline(R, color="0.4", lw=0.6, ls="--", label="_contact")
+            ax.plot(times, R + result.ground.position(np.asarray(times)), marker, color=colour, ms=6,
+                    label=plural(len(times), kind))
+    _draw_ground(ax, result, t, "_contact")
     ax.set_xlim(*window)
     ax.set_title(f"the last {window[1] - window[0]:.3g} s (shaded above), zoomed: "
                  f"{plural(len(impacts), 'impact')}, {plural(len(others), 'departure')}", fontsize=10)
     ax.set_xlabel("time t [s]")
     ax.set_ylabel("h [m]")
     ax.grid(True, color="0.92")
+
+
+def _draw_ground(ax, result: SimulationResult, t: np.ndarray, label: str) -> None:
+    """Where the centre touches the ground: h = R on a still ground; on a moving one R + s(t), the ground s(t) below."""
+    R, ground = result.ball.R, result.ground
+    if not ground.moves and ground.height == 0.0:
+        ax.axhline(R, color="0.4", lw=0.6, ls="--", label=label)
+        return
+    fine = np.linspace(t[0], t[-1], max(20 * COLUMNS, 2))
+    surface = np.asarray(ground.position(fine), dtype=float)
+    ax.plot(fine, R + surface, color="0.4", lw=0.6, ls="--",
+            label=label if label.startswith("_") else "h = R + s(t) (contact)")
+    ax.fill_between(fine, surface, np.min(surface) - 0.05 * (np.max(surface) - np.min(surface) + R), color="0.75",
+                    lw=0, label="_ground" if label.startswith("_") else "the ground s(t)")
 
 
 def require_matplotlib() -> None:

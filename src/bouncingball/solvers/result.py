@@ -84,7 +84,8 @@ class SimulationResult:
     events : list of Event
         Every impact and departure in time order, located by the solver (not at grid points).
     rest_time : float or None
-        Start [s] of the contact that never ends (the ball at rest), or None.
+        Start [s] of the contact that never ends (the ball at rest; on a moving ground, riding it for
+        good), or None.
     stats : SolverStats
         Steps, right-hand-side calls, events, wall time; for CVODE the engine and why.
     F_ext : float or ForceTable
