@@ -27,8 +27,9 @@ it, so no root (a grazing one included) can be stepped over:
 Near a transversal root the order-2 steps converge quadratically; once the gap is below its rounding noise the
 local quadratic model decides: a crossing (real roots) is an impact, polished by findroot; no real root is a
 touch at zero relative speed, which is no impact (the velocity is unchanged by the law, and there the gap's
-curvature -a - s'' > 0: the table falls away faster than the ball, so it cannot ride). Grazes that cross by less
-than the rounding noise (~1e-38 m) are therefore decided by the computed sign.
+curvature -a - s'' > 0: the table falls away faster than the ball, so it cannot ride). A crossing is a minimum
+of that model below minus the gap's rounding noise (~1e-40 of the terms of the gap, below 1e-38 m here): a graze
+shallower than that, at a relative speed below ~sqrt(2 a_rel 1e-38 m) ~ 1e-18 m/s, is taken as a touch.
 
 Accuracy: each impact time to ~1e-38 s (relative to t of order 1-100 s at DPS = 40), relative speeds to about
 1e-40 m/s absolute; an accumulation time to the sum of the enumerated impacts' rounding plus the tail's neglect of
@@ -112,7 +113,7 @@ class Flight:
                 return None
             g0, g1, g2 = self.derivatives(tau)
             if g0 <= self._noise(tau):
-                if g1 < 0 and (g2 <= 0 or g1 * g1 >= 2 * g2 * max(g0, 0)):
+                if g1 < 0 and (g2 <= 0 or g0 - g1 * g1 / (2 * g2) < -self._noise(tau)):
                     return self._polish(tau)
                 if g2 <= 0:
                     raise RuntimeError(f"the gap has a non-negative maximum 0 at t = {self.t0 + tau}")
