@@ -112,6 +112,8 @@ class Flight:
             if tau > tau_max:
                 return None
             g0, g1, g2 = self.derivatives(tau)
+            if g0 < -4 * self._noise(tau):  # a step to a lower bound's root cannot land inside the table
+                raise RuntimeError(f"a scan step crossed the table, at t = {self.t0 + tau}")
             if g0 <= self._noise(tau):
                 if g1 < 0 and (g2 <= 0 or g0 - g1 * g1 / (2 * g2) < -self._noise(tau)):
                     return self._polish(tau)
@@ -233,6 +235,8 @@ class SineTableTruth:
     def state(self, t):
         """(h [m], v [m/s]) at the time t [s], as mpf."""
         t = t if isinstance(t, mp.mpf) else _mpf(t)
+        if t < 0:
+            raise ValueError("the motion starts at t = 0")
         if t > self.t_known:
             raise ValueError(f"the motion is known up to t = {float(self.t_known)} s only")
         t0, kind, h0, v0 = self._segments[bisect.bisect_right(self._times, t) - 1]
