@@ -35,7 +35,7 @@ def test_a_still_table_is_the_rigid_ball(v_min):
     rigid = RigidTruth(0.1, G + 4.0, 0.6, v_min, 1.0, 0.5, 10.0)
     # the rigid truth sums its Zeno tail from apexes below 1e-30 R, this one from speeds below 1e-25 m/s
     assert len(table.impacts) == len(rigid.impacts) >= 10 if v_min else len(table.impacts) > len(rigid.impacts) > 50
-    for (t, v_before, v_after), (t_rigid, v_rigid) in zip(table.impacts, rigid.impacts):
+    for (t, v_before, v_after), (t_rigid, v_rigid) in zip(table.impacts, rigid.impacts, strict=False):
         assert abs(t - t_rigid) < 1e-35 and abs(v_before - v_rigid) < 1e-35 and abs(v_after + 0.6 * v_rigid) < 1e-35
     assert len(table.rides) == 1 and table.rides[0][1] is None and abs(table.rides[0][0] - rigid.rest_time) < 1e-35
     assert table.accumulations == ([] if v_min else [table.rides[0][0]])
@@ -53,6 +53,15 @@ def test_period_one_orbit_is_reached_at_its_closed_form_phase_and_speed(e, fract
     assert abs(first - 1 / F) > 1e-4  # started off the orbit
     for t, v_before, v_after in truth.impacts[-10:]:
         assert abs(truth.phase(t) - phi) < 1e-9 and abs(v_after - u) < 1e-9 and abs(v_before + u) < 1e-9
+    assert all(abs(interval - 1 / F) < 1e-9 for interval in truth.intervals()[-10:])
+
+
+@pytest.mark.parametrize("e", [0.5, 0.8])
+def test_just_below_the_period_doubling_threshold_the_orbit_keeps_period_one(e):
+    gamma_1, gamma_pd = closed_forms.period_n_threshold(1, e), closed_forms.period_doubling_threshold(1, e)
+    truth, phi, _ = _on_the_orbit(e, 0.97 * gamma_pd, 200)
+    assert 0.97 * gamma_pd > gamma_1 + 0.8 * (gamma_pd - gamma_1)  # closer to the threshold than the tests above
+    assert all(abs(truth.phase(t) - phi) < 1e-9 for t, _, _ in truth.impacts[-10:])
     assert all(abs(interval - 1 / F) < 1e-9 for interval in truth.intervals()[-10:])
 
 
@@ -75,7 +84,8 @@ def test_below_one_g_the_ball_chatters_and_rides_for_good():
     truth = _dropped(0.9, 3.0)
     assert len(truth.accumulations) == 1 and truth.rides == [(truth.accumulations[0], None)]
     intervals = truth.intervals()
-    assert all(abs(later / earlier - 0.5) < 1e-9 for earlier, later in zip(intervals[-20:], intervals[-19:]))
+    ratios = [later / earlier for earlier, later in zip(intervals[-20:], intervals[-19:], strict=False)]
+    assert len(ratios) == 19 and all(abs(ratio - 0.5) < 1e-9 for ratio in ratios)
     # the tail summed from the intervals, not the speeds: the last interval's e / (1 - e) = 1 times more
     t_last = truth.impacts[-1][0]
     assert abs(truth.accumulations[0] - (t_last + intervals[-1])) < 1e-30
