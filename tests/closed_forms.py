@@ -65,3 +65,51 @@ def undamped_heights(m: float, k: float, R: float, g: float, h0: float, t):
     before = t < fall_hi
     x = np.where(before, (h0 - R) - 0.5 * g * t * t, x)
     return R + x
+
+
+# The rigid ball on a table s(t) = A sin(w t + p) (Holmes 1982, J. Sound Vib. 84, 173; Luck and Mehta 1993, Phys.
+# Rev. E 48, 3988). A period-n orbit leaves the table at the phase phi with the absolute speed u and meets it n
+# table periods T = 2 pi / w later at the same phase and height, so u n T - g (n T)^2 / 2 = 0: u = n pi g / w, and
+# it lands at -u. The restitution there, u - s' = -e (-u - s') with s' = A w cos(phi), gives u (1 - e) =
+# A w cos(phi) (1 + e): cos(phi) = Gamma_n / Gamma. Linearised in (impact time, take-off speed), the map's
+# Jacobian has determinant e^2 and trace 1 + e^2 + (1 + e)^2 s''(phi) / g, s'' = -A w^2 sin(phi): stable between
+# trace = 1 + e^2 (sin(phi) = 0, Gamma = Gamma_n) and trace = -(1 + e^2) (period doubling, Gamma sin(phi) =
+# 2 (1 + e^2) / (1 + e)^2), for sin(phi) > 0.
+
+
+def table_gamma(amplitude: float, frequency: float, g: float) -> float:
+    """Gamma = A w^2 / g, the table's peak acceleration in units of g."""
+    return amplitude * (2.0 * math.pi * frequency) ** 2 / g
+
+
+def table_amplitude(gamma: float, frequency: float, g: float) -> float:
+    """The amplitude A [m] of the table at frequency f [Hz] whose Gamma = A w^2 / g is gamma."""
+    return gamma * g / (2.0 * math.pi * frequency) ** 2
+
+
+def period_n_threshold(n: int, e: float) -> float:
+    """Gamma_n = n pi (1 - e) / (1 + e): a period-n orbit (one impact every n table periods) exists from it on."""
+    return n * math.pi * (1.0 - e) / (1.0 + e)
+
+
+def period_n_phase(n: int, e: float, gamma: float) -> float:
+    """The stable period-n orbit's impact phase phi [rad] in (0, pi/2]: cos(phi) = Gamma_n / Gamma, sin(phi) > 0."""
+    return math.acos(period_n_threshold(n, e) / gamma)
+
+
+def period_n_takeoff_speed(n: int, frequency: float, g: float) -> float:
+    """The period-n orbit's absolute take-off speed u = n pi g / w [m/s]."""
+    return n * math.pi * g / (2.0 * math.pi * frequency)
+
+
+def period_doubling_threshold(n: int, e: float) -> float:
+    """Gamma_pd = sqrt(Gamma_n^2 + (2 (1 + e^2) / (1 + e)^2)^2): the period-n orbit doubles its period there."""
+    return math.hypot(period_n_threshold(n, e), 2.0 * (1.0 + e * e) / (1.0 + e) ** 2)
+
+
+def ride_end_phase(amplitude: float, frequency: float, a: float) -> float:
+    """The phase [rad] where a ride ends: s'' = -A w^2 sin = -a while decreasing, asin(a / (A w^2)) in (0, pi/2).
+
+    a = g - F_ext/m; a ride on a table with A w^2 <= a never ends (a ValueError here).
+    """
+    return math.asin(a / (amplitude * (2.0 * math.pi * frequency) ** 2))
