@@ -269,11 +269,14 @@ def first_touch(ground: Ground, t0: float, x0: float, v0: float, a: float, horiz
         if steps > MAX_TOUCH_STEPS:
             raise RuntimeError(f"the search for the flight's touch from t = {t0!r} s made {steps} steps: "
                                "neither a touch nor a way past one")
+        if tau == 0.0 and on_ground and slope == 0.0:  # a lift-off with the ground: its gap's curvature is >= 0
+            curve = max(curve, 0.0)  # (0 at a ride's end, but for the rounding of s'' there)
         step = _safe_step(ground, t0 + tau, max(gap, 0.0), slope, curve, jerk, rate_bound)
         if not step > 0.0:
             return tau
         tau += step
     return math.inf
+
 
 def _gap_terms(ground, t0, gap0, v0, a, tau):
     """(gap, its first three derivatives, rounding) of the flight tau after t0; rounding: the gap's own [m]."""

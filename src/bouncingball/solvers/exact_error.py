@@ -86,7 +86,8 @@ class RoundingCarry:
         """A rigid impact on a moving ground at t [s], tau [s] after its flight's start (after phase() of it).
 
         relative: the speed relative to the ground [m/s] it meets it at (< 0), rebound: the relative speed it leaves
-        at (0: it rides), relative_load: m (g_eff + s'') [N], rounding: the gap's rounding at the root [m]. The
+        at (0: it rides, or, where relative_load < 0, leaves with the ground at once), relative_load: m (g_eff + s'')
+        [N], rounding: the gap's rounding at the root [m]. The
         root's time error d (a few ulps of tau, and the rounding over the relative speed, or for a grazing impact
         over the relative acceleration) leaves the ball off the ground's true meeting point by |relative| d: the
         ground has moved meanwhile, so unlike on a still ground this is no delay along the flow; it is added to
@@ -99,7 +100,10 @@ class RoundingCarry:
             delay = ULPS * _EPS * tau
         offset = abs(relative) * delay
         p00, p01, p11 = ellipse_sum(self.p00, self.p01, self.p11, offset * offset, 0.0, 0.0)
-        jump, reflection = event_saltation(self.parameters, IMPACT, FLIGHT, relative, rebound, relative_load)
+        if rebound > 0.0 or relative_load >= 0.0 or relative == 0.0:
+            jump, reflection = event_saltation(self.parameters, IMPACT, FLIGHT, relative, rebound, relative_load)
+        else:  # no rebound, but the ground pulls away at once: it leaves with it, as after an impact with e = 0
+            jump, reflection = -(relative_load / self.parameters.m) / relative, 0.0
         self.p00, self.p01, self.p11 = ellipse_image(reflection, 0.0, jump, reflection, p00, p01, p11)
         self.bound = max(self.bound, math.sqrt(max(self.p00, 0.0)))
         self._judge(t)

@@ -101,12 +101,13 @@ def _phases_in_piece(solution, t, piece_end, F_ext, a, mode, h, v, on_ground, la
         carry.phase(solution.phases[-1].t_start, FLIGHT_CODE, x_start, v_start, tau, load)
         carry.moving_impact(t, tau, relative, rebound, relative_load,
                             ground.touch_rounding(solution.phases[-1].t_start, x_start, v_start, a, tau))
-        if rebound > 0.0:
-            v, on_ground = ground_speed + rebound, True
-            continue
-        v, mode, on_ground, ride_from = ground_speed, Mode.CONTACT, True, later(t, t_low, zeno)[0]
         if zeno > 0.0:  # the summed bounces rise at most ZENO_APEX R above the ground
             carry.charge(t, ZENO_APEX * R)
+        ride_from = later(t, t_low, zeno)[0]
+        if rebound > 0.0 or (zeno == 0.0 and ground.ride_end(t, a) == t):  # on in flight (a ride that would end at
+            v, on_ground = ground_speed + rebound, True  # once is none: the ball leaves with the ground)
+            continue
+        v, mode, on_ground = ground_speed, Mode.CONTACT, True
 
 
 def check_moving_ground(ball, ground) -> None:
