@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import re
 import socket
@@ -361,3 +362,29 @@ def test_hunt_crossley_restitution_example_against_the_truth_and_the_separable_i
                                 (0.0, min(1.0, 1.0 / (c * v) - 1e-12)), solver="anderson")
         assert abs(separable - float(e)) < 1.5e-6 and linear == pytest.approx(1.0 - alpha * v, abs=1e-6), (alpha, v)
     assert (tmp_path / "out" / "hunt_crossley_restitution.png").stat().st_size > 10_000
+
+
+@pytest.mark.slow
+def test_vibrating_table_example_against_the_closed_forms_and_the_truth(tmp_path):
+    """Its phi, u and interval against the closed forms (tests/closed_forms.py), period 1 and 2 on either side of
+    Gamma_pd, and the ride's start against the mpmath truth's accumulation time."""
+    from closed_forms import period_doubling_threshold, period_n_phase, period_n_takeoff_speed, period_n_threshold
+    from table_truth import SineTableTruth
+
+    out = run_example([sys.executable, EXAMPLES / "vibrating_table.py", tmp_path / "out"], tmp_path)
+    e, f, g = 0.5, 10.0, 9.81
+    low, high = period_n_threshold(1, e), period_doubling_threshold(1, e)
+    assert f"Gamma_1 = {low:.6f}, Gamma_pd = {high:.6f}" in out
+    found = re.search(rf"phi measured ({NUMBER}) rad, closed form ({NUMBER}) rad; take-off speed ({NUMBER}) m/s, "
+                      rf"closed form ({NUMBER}) m/s; interval ({NUMBER}) s", out)
+    phi, u = period_n_phase(1, e, low + 0.5 * (high - low)), period_n_takeoff_speed(1, f, g)
+    measured_phi, said_phi, speed, said_u, interval = (float(x) for x in found.groups())
+    assert abs(measured_phi - phi) < 1e-11 and abs(said_phi - phi) < 1e-12
+    assert abs(speed - u) < 1e-11 and abs(said_u - u) < 1e-12 and abs(interval - 1.0 / f) < 1e-11
+    assert "0.97 Gamma_pd: the last intervals between impacts [0.1 0.1 0.1 0.1] s (period 1)" in out
+    assert re.search(r"1\.03 Gamma_pd: .*\(period 2\)", out)
+    amplitude = 0.9 * g / (2.0 * math.pi * f) ** 2
+    truth = SineTableTruth(0.01, g, e, 0.0, amplitude, f, 0.0, 0.06, 0.0, 2.0)
+    found = re.search(rf"(\d+) impacts, then riding the table from t = ({NUMBER}) s", out)
+    assert abs(float(found[2]) - float(truth.accumulations[-1])) < 1e-9
+    assert (tmp_path / "out" / "vibrating_table.png").stat().st_size > 10_000
