@@ -112,3 +112,24 @@ def test_run_takes_a_vibrating_ground_and_says_so(capsys, tmp_path):
     assert main(["run", "article", "--contact", "rigid", "--ground-amplitude", "0.002", "--ground-frequency",
                  "10"]) == 2
     assert "a moving ground is taken by solver = 'exact'" in capsys.readouterr().err
+
+
+def test_check_judges_a_result_on_a_vibrating_table(tmp_path, capsys):
+    """A master's CSV of a ball on a table, judged against the exact solution on that table (not a still one)."""
+    scene = tmp_path / "table.toml"
+    scene.write_text('contact = "rigid"\ne = 0.5\nR = 0.01\nh0 = 0.06\nt_end = 1.0\n'
+                     "[ground]\namplitude = 0.003\nfrequency = 10.0\n", encoding="utf-8")
+    result = load_scene(scene).simulate("exact", output_interval=1e-3)
+    still = bb.simulate(bb.Ball(contact="rigid", e=0.5, R=0.01), 0.06, 0.0, 1.0, solver="exact")
+    assert np.max(np.abs(still.h - result.h)) > 1e-3  # the table makes a difference to judge
+    for name, run in (("right", result), ("still", still)):
+        rows = "".join(f"{t!r},{h!r}\n" for t, h in zip(run.t.tolist(), run.h.tolist(), strict=True))
+        (tmp_path / f"{name}.csv").write_text("time,h\n" + rows, encoding="utf-8")
+    assert main(["check", str(tmp_path / "right.csv"), str(scene)]) == 0
+    assert "PASS" in capsys.readouterr().out
+    assert main(["check", str(tmp_path / "still.csv"), str(scene)]) == 1
+    assert "FAIL" in capsys.readouterr().out
+    with pytest.raises(ValueError, match="the FMU has no ground yet"):
+        from bouncingball.fmu.validate import validate
+
+        validate(str(scene))

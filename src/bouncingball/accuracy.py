@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .ground import Ground
 from .physics import Ball, Mode
 from .solvers.exact import ExactSolution
 from .solvers.forcing import ForceTable
@@ -38,11 +39,11 @@ class ExactOnGrid:
         solution = self.solution
         stats = SolverStats(steps=len(solution.phases), events=len(solution.events))
         return SimulationResult("exact", solution.ball, self.t, self.h, self.v, list(solution.events),
-                                solution.rest_time, stats, solution.F_ext)
+                                solution.rest_time, stats, solution.F_ext, ground=solution.ground)
 
 
 def exact_on_grid(t, ball: Ball, h0: float, v0: float, F_ext: float | ForceTable = 0.0,
-                  t_start: float | None = None) -> ExactOnGrid:
+                  t_start: float | None = None, ground: Ground | None = None) -> ExactOnGrid:
     """The exact solution from (h0 [m], v0 [m/s]) at t_start (default: t[0]) sampled at the times t [s].
 
     Parameters
@@ -57,6 +58,8 @@ def exact_on_grid(t, ball: Ball, h0: float, v0: float, F_ext: float | ForceTable
         External force [N], positive upwards: a constant or piecewise constant.
     t_start : float, optional
         Time [s] of the start state; t[0] if not given.
+    ground : Ground, optional
+        The ground under the ball (still at 0 by default).
 
     Returns
     -------
@@ -64,7 +67,8 @@ def exact_on_grid(t, ball: Ball, h0: float, v0: float, F_ext: float | ForceTable
         The solution, and h, v and the number of impacts up to (and at) each time.
     """
     t = np.asarray(t, dtype=float)
-    solution = ExactSolution(ball, h0, v0, float(t[0]) if t_start is None else t_start, float(t[-1]), F_ext)
+    solution = ExactSolution(ball, h0, v0, float(t[0]) if t_start is None else t_start, float(t[-1]), F_ext,
+                             ground=ground)
     h, v = solution.state(t)
     impact_times = [event.time for event in solution.events if event.kind == IMPACT]
     return ExactOnGrid(solution, t, h, v, np.searchsorted(impact_times, t, side="right"))
@@ -131,7 +135,7 @@ def accuracy_of(exact: ExactOnGrid, h, *, events: list[Event] | None = None, imp
 
 def accuracy_of_result(result: SimulationResult, h0: float, v0: float) -> tuple[Accuracy, ExactOnGrid]:
     """A result against the exact solution from (h0 [m], v0 [m/s]) on its own grid: the record, and that solution."""
-    exact = exact_on_grid(result.t, result.ball, h0, v0, result.F_ext)
+    exact = exact_on_grid(result.t, result.ball, h0, v0, result.F_ext, ground=result.ground)
     return accuracy_of(exact, result.h, events=result.events), exact
 
 

@@ -233,7 +233,7 @@ def check_result(result, scene: Scene | str | Path = "article", start_values: Ma
                              "(give the start time the master used)")
     t_last = max(float(np.max(t + t_res)), start_time)
     force, forcing = applied_force(file, scene.F_ext, start_time, float(t[-1]), input_file, step_size)
-    solution = ExactSolution(ball, scene.h0, scene.v0, start_time, t_last, force)
+    solution = ExactSolution(ball, scene.h0, scene.v0, start_time, t_last, force, ground=scene.ground)
     h_exact, v_exact = solution.state(t)
     allowance = tolerance + h_res
     if np.any(t_res > 0.0):  # the time printed to t_res: the ball moves |v| t_res in that time
@@ -283,7 +283,7 @@ def _conditioning(scene: Scene, force, start_time: float, t_end: float) -> str:
         warnings.simplefilter("always", AccuracyWarning)
         try:
             simulate(scene.ball, scene.h0, scene.v0, t_end, (t_end - start_time) / 1000, t_start=start_time,
-                     F_ext=force)
+                     F_ext=force, ground=scene.ground, **({"solver": "exact"} if scene.ground.moves else {}))
         except (ValueError, RuntimeError):  # a run that cannot be made: nothing to say about it
             return ""
     return next((str(w.message) for w in caught if issubclass(w.category, AccuracyWarning)), "")

@@ -106,6 +106,11 @@ def validate(scene_name: str = "article", fmu: str | Path | None = None,
     skip = {validation.choice("--skip", stage, STAGES) for stage in skip}
     time_cap = validation.positive("--time-cap", time_cap, "s")
     scene = judged_scene(load_scene(scene_name), "validate")
+    if scene.ground.moves or scene.ground.height != 0.0:
+        raise ValueError(f"scene {scene.name!r} on its ground ({scene.ground.describe()}) is not allowed for "
+                         "validate: the FMU has no ground yet (it runs on the still ground at 0); run the scene with "
+                         "`bouncingball run --solver exact`, or judge a master's result of it with "
+                         "`bouncingball check`")
     if not LAWS[scene.ball.contact].article_algorithm and "scipy" not in skip:
         skip.add("scipy")
         progress("the article's SciPy algorithm is not run: it models the linear contact law, not "

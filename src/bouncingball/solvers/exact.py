@@ -58,8 +58,8 @@ class ExactSolution:
 
     F_ext [N] is a constant or a forcing.ForceTable (piecewise constant): the phases restart at each
     change time inside (t_start, t_end), the state continuous and the mode held there; a rest is
-    only a rest under the last value. ground: a moving one (a rigid ball's, exact_ground) or the still
-    one at 0 (a still ground elsewhere is the same run shifted: simulate does it).
+    only a rest under the last value. ground: a moving one (a rigid ball's, exact_ground) or a still one
+    (at a height: the same run raised; phases keep the heights above it).
     """
 
     def __init__(self, ball: Ball, h0: float, v0: float, t_start: float = 0.0,
@@ -71,6 +71,7 @@ class ExactSolution:
                              "closed form; use cvode")
         self.ground = as_ground(ground)
         check_moving_ground(ball, self.ground)
+        self._raised = 0.0 if self.ground.moves else self.ground.height  # a still ground's: the same run, raised
         self.ball = ball
         self.max_phases = math.inf if max_phases is None else max_phases
         self.F_ext = F_ext
@@ -80,7 +81,7 @@ class ExactSolution:
         self.events: list[Event] = []
         self.rest_time: float | None = None
         self.rounding = RoundingCarry(ball.parameters)
-        self._build(h0, v0)
+        self._build(h0 - self._raised, v0)
 
     @property
     def error_estimate(self) -> float:
@@ -204,7 +205,7 @@ class ExactSolution:
             riding = point_modes == Mode.CONTACT
             h[riding] = self.ball.R + self.ground.position(t[riding])
             v[riding] = self.ground.velocity(t[riding])
-        return h, v
+        return (h + self._raised if self._raised else h), v
 
     def modes(self, t) -> np.ndarray:
         """The mode (0 flight, 1 contact; Mode's values) at the times t [s]; at an event, the mode it starts."""
