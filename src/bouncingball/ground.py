@@ -162,6 +162,10 @@ class Ground:
         return np.asarray(self.times, dtype=float)
 
     @functools.cached_property
+    def _position_array(self) -> np.ndarray:
+        return np.asarray(self.positions, dtype=float)
+
+    @functools.cached_property
     def _largest_position(self) -> float:
         return max((abs(p) for p in self.positions), default=abs(self.height))
 
@@ -275,6 +279,8 @@ def first_touch(ground: Ground, t0: float, x0: float, v0: float, a: float, horiz
         if not step > 0.0:
             return tau
         tau += step
+        if ground.kind == "table":  # past the pieces the gap is certified positive on, in one numpy pass
+            tau = _certified_pieces_end(ground, t0, gap0, v0, a, tau, horizon)
     return math.inf
 
 
@@ -287,12 +293,14 @@ def _gap_terms(ground, t0, gap0, v0, a, tau):
     jerk = -float(ground.derivative(t, 3))
     return gap, slope, curve, jerk, ground.touch_rounding(t0, gap0, v0, a, tau)
 
+
 def _safe_step(ground, t, gap, slope, curve, jerk, rate_bound):
     """The first root of the gap's lower bound from t: a step it cannot vanish within."""
     if ground.kind == "table":
         return _table_step(ground, t, gap, slope, curve, jerk)
     coefficients = [-rate_bound / 24.0, jerk / 6.0, curve / 2.0, slope, gap]
     return _SHORT_OF_ROOT * _first_positive_root(coefficients)
+
 
 def _table_step(ground, t, gap, slope, curve, jerk):
     """To the next knot, or to the exact cubic's first root before it (a spline's gap is a cubic per piece)."""
@@ -303,6 +311,34 @@ def _table_step(ground, t, gap, slope, curve, jerk):
     piece = times[i] - t
     root = _first_positive_root([jerk / 6.0, curve / 2.0, slope, gap])
     return min(piece, _SHORT_OF_ROOT * root) if root < piece else piece
+
+
+def _certified_pieces_end(ground, t0, gap0, v0, a, tau, horizon, chunk=512):
+    """tau, or, where t0 + tau is a knot, the start of the first piece on from it whose gap may vanish.
+
+    On a piece of length h whose |gap''| <= M (s'' is linear on it: M at an end), the gap is at least the
+    smaller of its ends' less M h^2 / 8; a piece where that is above the gap's rounding has no root.
+    """
+    knots, spline = ground._knots, ground._spline
+    i = int(np.searchsorted(knots, t0 + tau, side="left"))
+    if i >= len(knots) - 1 or knots[i] - (t0 + tau) > 4.0 * _EPS * abs(knots[i]):
+        return tau
+    start = float(ground.position(t0))
+    while i < len(knots) - 1 and knots[i] - t0 < horizon:
+        j = min(i + chunk, len(knots) - 1)
+        times = knots[i:j + 1] - t0
+        gap = gap0 + times * (v0 - 0.5 * a * times) - (ground._position_array[i:j + 1] - start)
+        length = np.diff(times)
+        left = a + 2.0 * spline.c[1, i:j]
+        right = left + 6.0 * spline.c[0, i:j] * length
+        pull = np.maximum(np.abs(left), np.abs(right))
+        rounding = 16.0 * _EPS * (abs(gap0) + abs(v0) * times[1:] + 0.5 * abs(a) * times[1:] ** 2
+                                  + ground._largest_position)
+        uncertain = np.flatnonzero(np.minimum(gap[:-1], gap[1:]) - pull * length**2 / 8.0 <= rounding)
+        if len(uncertain):
+            return float(times[uncertain[0]])
+        i = j
+    return float(knots[i] - t0)
 
 
 def _first_positive_root(coefficients) -> float:
