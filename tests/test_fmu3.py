@@ -202,7 +202,9 @@ def test_model_exchange_in_fmpy_cvode_follows_the_masters_tolerance(fmu3):
                            f"{_metres(loose.error)}, {loose.impacts}/{exact} (its integrator's accuracy)")
 
 
-@pytest.mark.parametrize("step", [1e-3, pytest.param(1e-4, marks=pytest.mark.slow)], ids=["1 ms", "0.1 ms"])
+# 0.1 ms: 80,000 Euler steps through the Python FMU, 170 s on a loaded machine for one figure of docs/fmu.md: a study
+@pytest.mark.parametrize("step", [1e-3, pytest.param(1e-4, marks=[pytest.mark.slow, pytest.mark.study])],
+                         ids=["1 ms", "0.1 ms"])
 def test_model_exchange_in_fmpy_euler_cannot_follow_the_stiff_contact(fmu3, step):
     """FMPy's forward Euler, one step per output interval: the stiff contact (w dt = 0.1 at 1 ms) comes out wrong."""
     run = _fmpy_model_exchange(fmu3, solver="Euler", step_size=step, output_interval=step)

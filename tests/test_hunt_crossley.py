@@ -204,8 +204,8 @@ def test_no_rest_while_bouncing():
     assert result.rest_time is None
 
 
-@pytest.mark.slow  # ~2 s an example, the truth's: measured errors 3e-14 to 3e-12 of the height scale
-@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@pytest.mark.slow  # ~2 s an example (13 s loaded), the truth's: measured errors 3e-14 to 3e-12 of the height scale
+@settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(log_speed=st.sampled_from([-2.0, -1.5, -1.0, -0.5, 0.0, 0.5, 1.0]), n=st.floats(1.0, 2.5),
        alpha=st.floats(0.0, 1.0), engine=st.sampled_from(["sksundae", "compiled"]))
 @example(log_speed=1.0, n=1.0, alpha=1.0, engine="compiled")  # the corner: fastest, most damped, still departing
