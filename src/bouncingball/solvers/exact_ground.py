@@ -32,10 +32,10 @@ from .result import DEPARTURE, IMPACT, Event
 def build_on_moving_ground(solution, h: float, v: float) -> None:
     """Fill solution's phases, events and rest_time (an ExactSolution on a moving ground) from (h, v) at t_start."""
     ball, ground, R = solution.ball, solution.ground, solution.ball.R
-    gap = h - R - ground.position(solution.t_start)
-    if gap < -16.0 * 2.0**-52 * (abs(h) + R + ground.acceleration_bound):
+    surface = ground.position(solution.t_start)
+    if h - R - surface < -16.0 * 2.0**-52 * (abs(h) + R + abs(surface)):  # below it by more than a rounding
         raise ValueError(f"h0 = {h!r} m is not allowed: under the rigid contact law it must be >= R + s(t_start) = "
-                         f"{R + ground.position(solution.t_start)!r} m (the ball cannot start inside the ground)")
+                         f"{R + surface!r} m (the ball cannot start inside the ground)")
     pieces = forcing.pieces(solution.F_ext, solution.t_start, solution.t_end)
     mode, on_ground = None, False
     for number, (t, piece_end, F_ext) in enumerate(pieces):
