@@ -23,6 +23,10 @@ from bouncingball.scenes import load_scene, scene_from_mapping
                                                         "must increase strictly"),
     (lambda: Ground.table([0, 1, 2, 3], [0, 0, "x", 0]), "ground table positions[2] = 'x' is not allowed"),
     (lambda: Ground.table([0, 1, 2, 3], [0, 0, 0]), "ground table is not allowed: 4 times but 3 positions"),
+    (lambda: Ground(kind="banana"), "ground kind = 'banana' is not allowed: it must be one of still, sine, table"),
+    (lambda: Ground(kind="sine", amplitude=1e-3), "ground frequency = 0.0 Hz is not allowed"),
+    (lambda: Ground(kind="table"), "ground kind = 'table' is not allowed without its spline: make it with "
+                                   "Ground.table(t, s)"),
 ])
 def test_a_bad_ground_is_refused_by_name(make, words):
     with pytest.raises(ValueError, match=words.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[")

@@ -55,6 +55,18 @@ class Ground:
     positions: tuple[float, ...] = ()
     _spline: object = field(default=None, repr=False, compare=False)
 
+    def __post_init__(self) -> None:
+        """A Ground made other than by its three constructors is checked as they check theirs."""
+        kind = validation.choice("ground kind", self.kind, ("still", "sine", "table"))
+        if kind == "sine":
+            validation.positive("ground amplitude", self.amplitude, "m")
+            validation.positive("ground frequency", self.frequency, "Hz")
+            validation.finite("ground phase", self.phase, "rad")
+        if kind == "table" and self._spline is None:
+            raise ValueError("ground kind = 'table' is not allowed without its spline: make it with Ground.table(t, s)")
+        if kind == "still":
+            validation.finite("ground height", self.height, "m")
+
     @classmethod
     def still(cls, height: float = 0.0) -> Ground:
         """A ground at rest at height [m] (0: the ground of a Ball alone)."""
@@ -214,21 +226,7 @@ class Ground:
             start = math.asin(c)  # where sin rises through c (cos > 0)
             turns = math.ceil((angle - start) / (2.0 * math.pi))
             return max(t + (start + 2.0 * math.pi * turns - angle) / w, t)
-        return self._table_ride_end(t, a)
-
-    def _table_ride_end(self, t: float, a: float) -> float:
-        times = self._knots
-        if float(self.acceleration(t)) < -a:
-            return t
-        i = max(int(np.searchsorted(times, t, side="right")) - 1, 0)
-        knots = np.concatenate(([t], times[i + 1:]))
-        second = np.asarray(self._spline(knots, 2)) + a  # linear between knots
-        below = np.flatnonzero(second[1:] < 0.0)
-        if len(below) == 0:
-            return math.inf
-        j = int(below[0])
-        t0, t1, y0, y1 = knots[j], knots[j + 1], second[j], second[j + 1]
-        return float(min(max(t0 + (t1 - t0) * y0 / (y0 - y1), t0), t1))
+        return _table_ride_end(self, t, a)
 
     def touch_rounding(self, t0: float, x0: float, v0: float, a: float, tau: float) -> float:
         """The rounding [m] of a flight's gap to the ground tau [s] after t0, as first_touch computes it.
@@ -245,21 +243,31 @@ class Ground:
         return 16.0 * _EPS * spread
 
 
+def _table_ride_end(ground: Ground, t: float, a: float) -> float:
+    """The first time >= t [s] at which a table ground's s'' < -a: on its spline s'' is linear between knots."""
+    times = ground._knots
+    if float(ground.acceleration(t)) < -a:
+        return t
+    i = max(int(np.searchsorted(times, t, side="right")) - 1, 0)
+    knots = np.concatenate(([t], times[i + 1:]))
+    second = np.asarray(ground._spline(knots, 2)) + a  # linear between knots
+    below = np.flatnonzero(second[1:] < 0.0)
+    if len(below) == 0:
+        return math.inf
+    j = int(below[0])
+    t0, t1, y0, y1 = knots[j], knots[j + 1], second[j], second[j + 1]
+    return float(min(max(t0 + (t1 - t0) * y0 / (y0 - y1), t0), t1))
+
+
 def first_touch(ground: Ground, t0: float, x0: float, v0: float, a: float, horizon: float,
                 on_ground: bool = False) -> float:
     """tau [s]: the first time after t0 at which a flight reaches the ground; inf if not within horizon [s].
 
-    The flight: the centre's height above R is x0 + v0 tau - a tau^2 / 2 (x0 [m], v0 [m/s], a [m/s2]);
-    its gap to the ground is that minus s(t0 + tau). on_ground: the flight starts on the ground (an impact's
-    rebound, a ride's end), its gap 0 there exactly.
-
-    The root is certified, so no grazing impact is stepped over: from each point the gap is bounded
-    below by its Taylor polynomial with the remainder's bound (a sine's |s''''| <= A w^4; a spline's
-    gap is a cubic between its points, taken exactly), and the step goes to that bound's first root,
-    before which the gap cannot vanish. The steps converge to the first root from before it; a gap
-    that reaches 0 within its rounding there is a touch. A flight that leaves the ground with no
-    relative speed (a ride's end, where the gap is cubic) needs the Taylor bound's third derivative;
-    it is there.
+    The flight's height above R is x0 + v0 tau - a tau^2 / 2 (x0 [m], v0 [m/s], a [m/s2]), its gap that less
+    s(t0 + tau); on_ground: it starts on the ground (a rebound, a ride's end), its gap 0 there exactly. Certified:
+    each step goes to the first root of a lower bound of the gap (_safe_step; a spline's gap is a cubic per piece,
+    taken exactly), so the steps converge on the first root from before it and no graze is stepped over; a gap
+    within its rounding of 0 is a touch.
     """
     gap0 = 0.0 if on_ground else x0 - float(ground.position(t0))
     if ground.kind == "still":
