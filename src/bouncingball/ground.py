@@ -270,8 +270,6 @@ def first_touch(ground: Ground, t0: float, x0: float, v0: float, a: float, horiz
     within its rounding of 0 is a touch.
     """
     gap0 = 0.0 if on_ground else x0 - float(ground.position(t0))
-    if ground.kind == "still":
-        gap0 = x0 - ground.height
     tau, steps = 0.0, 0
     rate_bound = ground.amplitude * ground.omega**4 if ground.kind == "sine" else 0.0
     while tau <= horizon:
@@ -376,14 +374,13 @@ def _first_positive_root(coefficients) -> float:
 
 
 def _entries(name: str, values, unit: str) -> np.ndarray:
-    """values as a 1-d float array of finite numbers; ValueError naming the first that is not (name[i])."""
+    """values as a 1-d float array of finite numbers (validation.finite_entries); ValueError if not a sequence."""
     try:
-        array = np.asarray([validation.finite(f"{name}[{i}]", value, unit) for i, value in enumerate(values)],
-                           dtype=float)
+        values = values if isinstance(values, np.ndarray) and values.ndim == 1 else list(values)
     except TypeError:
         raise ValueError(f"{name} = {validation.shown(values)} is not allowed: it must be a sequence of "
                          f"numbers [{unit}]") from None
-    return array
+    return validation.finite_entries(name, values, unit)
 
 
 def as_ground(ground) -> Ground:

@@ -6,6 +6,8 @@ import math
 import numbers
 from collections.abc import Iterable
 
+import numpy as np
+
 
 def _as_float(name: str, value: object) -> float:
     if type(value) is float:  # most values: no isinstance against the numbers ABCs (slow), nothing to convert
@@ -78,6 +80,25 @@ def in_closed_range(name: str, value: object, low: float, high: float, unit: str
         raise ValueError(f"{name} = {shown(value)}{_unit(unit)} is not allowed: it must be in "
                          f"[{exact(low)}, {exact(high)}]" + (f" ({why})" if why else ""))
     return x
+
+
+def finite_entries(name: str, entries: list | np.ndarray, unit: str) -> np.ndarray:
+    """entries as an array of floats, each a finite number; ValueError naming the first that is not (name[i]).
+
+    In numpy, in linear time: a table of 1e7 entries takes a fraction of a second. A float array or a list of
+    floats converts as it is; anything else is checked entry by entry, so that text or a bool is named.
+    """
+    if isinstance(entries, np.ndarray) and entries.dtype.kind in "fiu":
+        array = entries.astype(float)
+    elif all(type(entry) is float for entry in entries):
+        array = np.array(entries, dtype=float)
+    else:
+        array = np.array([finite(f"{name}[{i}]", entry, unit) for i, entry in enumerate(entries)], dtype=float)
+    allowed = np.isfinite(array)
+    if not allowed.all():
+        i = int(np.flatnonzero(~allowed)[0])
+        finite(f"{name}[{i}]", float(array[i]), unit)
+    return array
 
 
 def exact(x: float) -> str:

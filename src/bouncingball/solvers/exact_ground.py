@@ -39,21 +39,17 @@ def build_on_moving_ground(solution, h: float, v: float) -> None:
     pieces = forcing.pieces(solution.F_ext, solution.t_start, solution.t_end)
     mode, on_ground = None, False
     for number, (t, piece_end, F_ext) in enumerate(pieces):
-        a = load_value(F_ext, ball.m, ball.g) / ball.m
+        a = ball.effective_gravity(F_ext)
         if mode is None:
             mode, on_ground = _initial_mode(ground, R, t, h, v, a)
         elif mode == Mode.FLIGHT:
             phase = solution.phases[-1]
             tau = t - phase.t_start
-            h, v = phase.h0 + tau * (phase.v0 - 0.5 * _acceleration(ball, phase.F_ext) * tau), \
-                phase.v0 - _acceleration(ball, phase.F_ext) * tau
+            a_before = ball.effective_gravity(phase.F_ext)
+            h, v = phase.h0 + tau * (phase.v0 - 0.5 * a_before * tau), phase.v0 - a_before * tau
             on_ground = False
         mode, h, v, on_ground = _phases_in_piece(solution, t, piece_end, F_ext, a, mode, h, v, on_ground,
                                                  number == len(pieces) - 1)
-
-
-def _acceleration(ball, F_ext: float) -> float:
-    return load_value(F_ext, ball.m, ball.g) / ball.m
 
 
 def _initial_mode(ground, R, t, h, v, a):

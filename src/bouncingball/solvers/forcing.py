@@ -83,8 +83,8 @@ class ForceTable:
                              "and each change of force inside the run restarts the integrator); resample it "
                              "coarser, or split the run into shorter ones (t_start, and the state at the end of "
                              "the one before)")
-        times = _checked_entries(f"{name} times", times, "s")
-        values = _checked_entries(f"{name} values", values, "N")
+        times = validation.finite_entries(f"{name} times", times, "s")
+        values = validation.finite_entries(f"{name} values", values, "N")
         later = times[1:] > times[:-1]
         if not later.all():
             i = int(np.flatnonzero(~later)[0]) + 1
@@ -122,26 +122,6 @@ class ForceTable:
     def largest(self) -> float:
         """The value of largest magnitude [N] (for the scene's range checks)."""
         return max(self.values, key=abs)
-
-
-def _checked_entries(name: str, entries: list | np.ndarray, unit: str) -> np.ndarray:
-    """entries as an array of floats, each a finite number; ValueError naming the first that is not (name[i]).
-
-    In numpy, in linear time: a table of 1e7 entries takes a fraction of a second. A float array or a list of
-    floats converts as it is; anything else is checked entry by entry, so that text or a bool is named.
-    """
-    if isinstance(entries, np.ndarray) and entries.dtype.kind in "fiu":
-        array = entries.astype(float)
-    elif all(type(entry) is float for entry in entries):
-        array = np.array(entries, dtype=float)
-    else:
-        array = np.array([validation.finite(f"{name}[{i}]", entry, unit) for i, entry in enumerate(entries)],
-                         dtype=float)
-    finite = np.isfinite(array)
-    if not finite.all():
-        i = int(np.flatnonzero(~finite)[0])
-        validation.finite(f"{name}[{i}]", float(array[i]), unit)
-    return array
 
 
 def as_force(F_ext, name: str = "F_ext") -> float | ForceTable:
