@@ -20,7 +20,7 @@ import numpy as np
 from . import validation
 
 _EPS = 2.0**-52
-MAX_TABLE_ENTRIES = 1_000_000
+MAX_TABLE_ENTRIES = validation.MAX_TABLE_ENTRIES
 # The search for a flight's first touch gives up (RuntimeError, saying where) after this many certified steps
 # rather than loop for ever: a safeguard; the grazing family's flights (tests/table_scenes.py) take at most 12.
 MAX_TOUCH_STEPS = 100_000

@@ -8,6 +8,11 @@ from collections.abc import Iterable
 
 import numpy as np
 
+# A table's entries (F_ext's, the ground's) are checked in numpy, in linear time, and kept twice, as tuples and
+# arrays: 1e6 of them take 0.8 s before the run on a loaded 2-core machine (a scene check per distinct value took
+# 40 s), 1e7 4 to 8 s (mostly making the tuples) and 0.5 GB.
+MAX_TABLE_ENTRIES = 1_000_000
+
 
 def _as_float(name: str, value: object) -> float:
     if type(value) is float:  # most values: no isinstance against the numbers ABCs (slow), nothing to convert

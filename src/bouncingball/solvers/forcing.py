@@ -15,10 +15,7 @@ import numpy as np
 
 from .. import validation
 
-# A table's entries are checked in numpy, in linear time, and kept twice, as tuples and arrays: 1e6 of them take
-# 0.8 s before the run on a loaded 2-core machine (main took 40 s, a scene check per distinct value), 1e7 4 to 8 s
-# (mostly making the tuples) and 0.5 GB.
-MAX_TABLE_ENTRIES = 1_000_000
+MAX_TABLE_ENTRIES = validation.MAX_TABLE_ENTRIES
 
 
 @dataclass(frozen=True)
