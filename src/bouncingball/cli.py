@@ -62,7 +62,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
 def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
     from .accuracy import accuracy_of_result
     from .output import print_solution_csv, write_events_csv, write_solution_csv
-    from .run_report import first_use_note, plural, restitution_line
+    from .run_report import first_use_note, lyapunov_line, plural, restitution_line
     from .scenes import load_scene
 
     scene = _with_ground_options(_with_law_options(load_scene(args.scene), args), args)
@@ -122,6 +122,8 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
         print(f"  engine      {stats.engine} ({stats.engine_reason})")
     if result.error_estimate is not None:
         print(f"  error estimate             {result.error_estimate:.3e} m (the run's own, without the exact solution)")
+    if result.lyapunov is not None:
+        print(f"  Lyapunov exponent          {lyapunov_line(result.lyapunov)}")
     if accuracy is not None:
         print(f"  max |h - h_exact|          {accuracy.max_height_error:.3e} m")
         print(f"  max event time error       {accuracy.max_event_time_error:.3e} s")

@@ -10,6 +10,7 @@ from __future__ import annotations
 from .accuracy import event_hops, event_mismatches
 from .contact_laws import impact_is_instantaneous
 from .solvers.exact import ExactSolution
+from .solvers.lyapunov import MIN_IMPACTS, LyapunovExponent
 from .solvers.result import Event, SimulationResult
 
 EVENTS_SHOWN = 3  # the first and the last this many events are listed
@@ -25,6 +26,24 @@ def plural(count: int, noun: str) -> str:
     ('1 impact', '0 departures', '41 events')
     """
     return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
+
+
+def lyapunov_line(exponent: LyapunovExponent) -> str:
+    """The run's largest Lyapunov exponent in words: its value per impact and per second, or why there is none.
+
+    Examples
+    --------
+    >>> lyapunov_line(LyapunovExponent(-0.693, -6.93, 2000, 200.0))
+    '-0.693 per impact, -6.93 per second (< 0: a small error dies out)'
+    >>> lyapunov_line(LyapunovExponent(float("nan"), float("nan"), 3, 1.0))
+    'none: 3 impacts, too few to say (20 or more)'
+    """
+    if exponent.per_impact != exponent.per_impact:
+        return f"none: {plural(exponent.impacts, 'impact')}, too few to say ({MIN_IMPACTS} or more)"
+    if exponent.per_impact == float("-inf"):
+        return "-inf: a rest or a ride forgot where the ball was (a small error vanishes there)"
+    verdict = "> 0: a small error grows, chaos" if exponent.per_impact > 0.0 else "< 0: a small error dies out"
+    return f"{exponent.per_impact:+.3g} per impact, {exponent.per_second:+.3g} per second ({verdict})"
 
 
 def event_counts(events: list[Event]) -> str:

@@ -27,6 +27,7 @@ from . import forcing
 from .exact_error import RoundingCarry
 from .exact_ground import build_on_moving_ground, check_moving_ground
 from .forcing import ForceTable
+from .lyapunov import LyapunovExponent
 from .phase_machine.settings import PROMISE
 from .result import (
     DEPARTURE,
@@ -91,6 +92,13 @@ class ExactSolution:
         said as the CVODE engines say theirs.
         """
         return self.rounding.estimate(self.t_end if self.t_end < math.inf else self.phases[-1].t_start)
+
+    @property
+    def lyapunov_exponent(self) -> LyapunovExponent:
+        """The run's largest Lyapunov exponent (solvers.lyapunov), from the matrices its error estimate carries."""
+        end = self.t_end if self.t_end < math.inf else self.phases[-1].t_start
+        impacts = sum(event.kind == IMPACT for event in self.events)
+        return self.rounding.tangent.exponent(impacts, end - self.t_start)
 
     def add_phase(self, t: float, mode: Mode, h: float, v: float, F_ext: float) -> bool:
         """Record the phase from (h [m], v [m/s]) at t [s]; whether max_phases are reached."""
@@ -239,4 +247,4 @@ def simulate_exact(ball: Ball, h0: float, v0: float, t_end: float, output_interv
             f"{carry.untrusted_from:.6g} s on; a small error grows faster here than double precision can follow "
             "(an ill-conditioned run): shorten the run"))
     return SimulationResult("exact", ball, grid, h, v, list(exact.events), exact.rest_time, stats, F_ext,
-                            error_estimate=estimate, ground=exact.ground)
+                            error_estimate=estimate, ground=exact.ground, lyapunov=exact.lyapunov_exponent)

@@ -17,6 +17,7 @@ import math
 
 from ..codes import CONTACT, FLIGHT, IMPACT
 from ..contact_laws import impact_is_instantaneous, law_acceleration, law_flow_value
+from .lyapunov import TangentCarry
 from .phase_machine.error_estimate import ellipse_image, ellipse_sum, event_saltation
 from .phase_machine.phases import phase_scales
 from .phase_machine.settings import ESTIMATE_CAP, PROMISE
@@ -44,6 +45,7 @@ class RoundingCarry:
         # the events' times' errors [s], summed: an error along the flow stays one, through every phase's flow and
         # every event's saltation (S f- = f+), so it is carried apart from the ellipse, as a delay
         self.delay = 0.0
+        self.tangent = TangentCarry()  # a perturbation of the start through the same matrices: the Lyapunov exponent
 
     def phase(self, t_start: float, mode: int, x0: float, v0: float, tau: float, load: float,
               kind: int = -1, v_event: float = 0.0, v_after: float = 0.0) -> None:
@@ -62,6 +64,7 @@ class RoundingCarry:
         f00, f10 = law_flow_value(parameters, mode, 1.0, 0.0, tau, 0.0)
         f01, f11 = law_flow_value(parameters, mode, 0.0, 1.0, tau, 0.0)
         p00, p01, p11 = ellipse_image(f00, f01, f10, f11, p00, p01, p11)
+        self.tangent.apply(f00, f01, f10, f11)
         ex = ULPS * _EPS * (length + R + abs(x_end))
         ev = ULPS * _EPS * (speed + abs(v_end))
         if kind >= 0:
@@ -77,6 +80,7 @@ class RoundingCarry:
         if kind >= 0:
             jump, reflection = event_saltation(parameters, kind, mode, v_event, v_after, load)
             p00, p01, p11 = ellipse_image(reflection, 0.0, jump, reflection, p00, p01, p11)
+            self.tangent.apply(reflection, 0.0, jump, reflection)
         self.p00, self.p01, self.p11 = p00, p01, p11
         if math.isnan(self.untrusted_from) and not self.bound <= PROMISE * self.scale:
             self.untrusted_from = t_start
@@ -105,6 +109,7 @@ class RoundingCarry:
         else:  # no rebound, but the ground pulls away at once: it leaves with it, as after an impact with e = 0
             jump, reflection = -(relative_load / self.parameters.m) / relative, 0.0
         self.p00, self.p01, self.p11 = ellipse_image(reflection, 0.0, jump, reflection, p00, p01, p11)
+        self.tangent.apply(reflection, 0.0, jump, reflection)
         self.bound = max(self.bound, math.sqrt(max(self.p00, 0.0)))
         self._judge(t)
 
@@ -115,6 +120,7 @@ class RoundingCarry:
         """
         ex, ev = ULPS * _EPS * length, ULPS * _EPS * speed
         self.p00, self.p01, self.p11 = 2.0 * ex * ex, 0.0, 2.0 * ev * ev
+        self.tangent.apply(0.0, 0.0, 0.0, 0.0)  # where it leaves is the ground's doing alone
         self.speed_max = max(self.speed_max, speed)
         self._judge(t)
 

@@ -16,6 +16,7 @@ from ..ground import Ground
 from ..limits import check_output_interval
 from ..physics import Ball
 from .forcing import ForceTable
+from .lyapunov import LyapunovExponent
 from .phase_machine.settings import DEFAULT_RTOL, MIN_RTOL, PROMISE
 
 
@@ -100,6 +101,10 @@ class SimulationResult:
         reference, which does not estimate it.
     ground : Ground
         The ground under the ball (still at 0 unless the run was given another).
+    lyapunov : LyapunovExponent or None
+        The run's largest Lyapunov exponent, per impact and per second, from the same transition and saltation
+        matrices as its error estimate (solvers.lyapunov): NaN where the run is too short to say, -inf after a
+        rest or a ride; None for the solvers that do not compute it (so far all but "exact").
 
     Examples
     --------
@@ -125,6 +130,7 @@ class SimulationResult:
     options: dict = field(default_factory=dict)
     error_estimate: float | None = None
     ground: Ground = field(default_factory=Ground)
+    lyapunov: LyapunovExponent | None = None
 
     @property
     def event_times(self) -> np.ndarray:
