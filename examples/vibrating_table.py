@@ -7,11 +7,13 @@ The table moves as s(t) = A sin(w t), f = 10 Hz, Gamma = A w^2 / g its peak acce
 e, a period-1 orbit (one impact per table period) exists from Gamma_1 = pi (1 - e)/(1 + e) on; it meets the
 table at the phase phi, cos(phi) = Gamma_1 / Gamma, leaves it at u = pi g / w, and doubles its period at
 Gamma_pd = sqrt(Gamma_1^2 + (2 (1 + e^2)/(1 + e)^2)^2) (Holmes 1982; Luck and Mehta 1993). Below
-min(1, Gamma_1) the ball chatters down onto the table and rides it. Each run is the exact solver's.
+min(1, Gamma_1) the ball chatters down onto the table and rides it; at Gamma = 2.5 a dropped ball bounces
+chaotically (a positive Lyapunov exponent). Each run is the exact solver's.
 """
 
 import math
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -52,10 +54,17 @@ take_off = [event.time for event in result.events][-1]
 speed = ground.velocity(take_off) - e * (result.events[-1].velocity - ground.velocity(take_off))
 print(f"Gamma = {gamma:.6f} (period 1):  phi measured {measured_phi[-1]:.12f} rad, closed form {phi:.12f} rad; "
       f"take-off speed {speed:.12f} m/s, closed form {u:.12f} m/s; interval {np.diff(last)[-1]:.12f} s")
+print(f"  its Lyapunov exponent {result.lyapunov.per_impact:.4f} per impact over {result.lyapunov.impacts} impacts "
+      f"(complex multipliers of modulus e: ln(e) = {math.log(e):.4f})")
 for factor in (0.97, 1.03):
     intervals = np.diff(impacts(near_orbit(factor * gamma_pd, 20.0)[0]))[-4:]
     print(f"Gamma = {factor:.2f} Gamma_pd: the last intervals between impacts {np.round(intervals, 6)} s "
           f"({'period 2' if abs(intervals[0] - intervals[1]) > 1e-4 else 'period 1'})")
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore", bb.AccuracyWarning)  # chaos: the run's error passes the promise after ~8 s
+    chaotic, _ = run(2.5, 60.0)
+print(f"Gamma = 2.5, dropped from 5 cm: chaotic, Lyapunov exponent {chaotic.lyapunov.per_impact:+.3f} per impact, "
+      f"{chaotic.lyapunov.per_second:+.3f} per second over {chaotic.lyapunov.impacts} impacts")
 result, _ = run(0.9, 2.0)
 print(f"Gamma = 0.9 < min(1, Gamma_1): {result.impacts} impacts, then riding the table from t = "
       f"{result.rest_time:.9f} s")

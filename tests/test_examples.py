@@ -381,6 +381,9 @@ def test_vibrating_table_example_against_the_closed_forms_and_the_truth(tmp_path
     measured_phi, said_phi, speed, said_u, interval = (float(x) for x in found.groups())
     assert abs(measured_phi - phi) < 1e-11 and abs(said_phi - phi) < 1e-12
     assert abs(speed - u) < 1e-11 and abs(said_u - u) < 1e-12 and abs(interval - 1.0 / f) < 1e-11
+    exponent = re.search(rf"its Lyapunov exponent ({NUMBER}) per impact over (\d+) impacts", out)
+    assert int(exponent[2]) >= 240 and abs(float(exponent[1]) - math.log(e)) < 3e-3  # ln(e): complex multipliers
+    assert float(re.search(rf"chaotic, Lyapunov exponent ({NUMBER}) per impact", out)[1]) > 0.1
     assert "0.97 Gamma_pd: the last intervals between impacts [0.1 0.1 0.1 0.1] s (period 1)" in out
     assert re.search(r"1\.03 Gamma_pd: .*\(period 2\)", out)
     amplitude = 0.9 * g / (2.0 * math.pi * f) ** 2
