@@ -40,8 +40,12 @@ def test_a_moving_ground_is_refused_where_it_is_not_taken_yet():
     with pytest.raises(ValueError, match="is not allowed with solver = 'cvode': a moving ground is taken by solver = "
                                          "'exact'"):
         bb.simulate(rigid, 1.0, 0.0, 1.0, ground=ground)
-    with pytest.raises(ValueError, match="contact = 'linear' is not allowed on a moving ground"):
-        bb.simulate(bb.Ball(), 1.0, 0.0, 1.0, solver="exact", ground=ground)
+    with pytest.raises(ValueError, match="contact = 'linear-no-pull' is not allowed on a moving ground"):
+        bb.simulate(bb.Ball(contact="linear-no-pull"), 1.0, 0.0, 1.0, solver="exact", ground=ground)
+    with pytest.raises(ValueError, match="contact = 'linear' is not allowed on a ground table"):
+        bb.simulate(bb.Ball(), 1.0, 0.0, 1.0, solver="exact", ground=Ground.table([0, 1, 2, 3], [0, 1e-3, 0, 0]))
+    with pytest.raises(ValueError, match=r"b = 0 N s/m is not allowed with k = 10000.0 N/m on ground .*: undamped"):
+        bb.simulate(bb.Ball(b=0.0), 1.0, 0.0, 1.0, solver="exact", ground=Ground.sine(1e-3, 100.0 / (2.0 * math.pi)))
     with pytest.raises(ValueError, match="it must be >= R \\+ s\\(t_start\\)"):
         bb.simulate(rigid, rigid.R - 1e-3, 0.0, 1.0, solver="exact", ground=ground)
     with pytest.raises(ValueError, match="ground = 3 is not allowed: it must be a bouncingball.Ground"):

@@ -108,7 +108,7 @@ def _run_and_summarise(args: argparse.Namespace, csv_stream=None) -> int:
     settings = ", ".join(f"{key} {value}" for key, value in result.options.items())
     print(f"  solver      {result.solver}" + (f" ({settings})" if settings else ""))
     _print_events(result, exact, exact_on_grid)
-    restitution = restitution_line(result.events, ball)
+    restitution = restitution_line(result.events, ball, result.ground)
     if restitution:
         print(f"  restitution {restitution}")
     print(f"  final state h = {result.h[-1]:.12g} m, v = {result.v[-1]:.6g} m/s at t = {result.t[-1]:g} s")

@@ -131,3 +131,27 @@ def _oscillator_basis(xp, sigma: float, w2: float, tau):
         return 0.5 * (slow + fast), (slow - fast) / (2.0 * mu)
     near = fast * np.expm1(2.0 * mu * tau) / (2.0 * mu)
     return 0.5 * (slow + fast), np.where(2.0 * mu * tau < 1.0, near, (slow - fast) / (2.0 * mu))
+
+
+def sine_response(sigma: float, w2: float, forcing: float, w: float, theta):
+    """(x, x'): the periodic response to a sinusoidal forcing, x'' + 2 sigma x' + w2 x = forcing sin(theta), theta' = w.
+
+    x = forcing Im(H e^{i theta}), H = 1 / (w2 - w^2 + 2 i sigma w): the steady oscillation any damped motion
+    settles to, and with the homogeneous flow (contact_gap_flow) the general solution. theta [rad] a float or an
+    array. Undamped resonance (sigma = 0, w2 = w^2) has no periodic response: the caller refuses it
+    (sine_response_gain is inf there).
+    """
+    detuning, friction = w2 - w * w, 2.0 * sigma * w
+    size = detuning * detuning + friction * friction
+    real, imaginary = detuning / size, -friction / size
+    if isinstance(theta, float):
+        sin, cos = math.sin(theta), math.cos(theta)
+    else:
+        sin, cos = np.sin(theta), np.cos(theta)
+    return forcing * (real * sin + imaginary * cos), forcing * w * (real * cos - imaginary * sin)
+
+
+def sine_response_gain(sigma: float, w2: float, w: float) -> float:
+    """|H| = 1 / |w2 - w^2 + 2 i sigma w| [s2]: the periodic response's amplitude per unit forcing (inf: resonance)."""
+    size = math.hypot(w2 - w * w, 2.0 * sigma * w)
+    return 1.0 / size if size > 0.0 else math.inf

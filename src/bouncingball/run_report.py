@@ -70,11 +70,12 @@ def event_lines(events: list[Event], shown: int = EVENTS_SHOWN) -> list[str]:
             + [line(len(events) - shown + i + 1, e) for i, e in enumerate(events[-shown:])])
 
 
-def restitution_line(events: list[Event], ball) -> str:
+def restitution_line(events: list[Event], ball, ground=None) -> str:
     """Each bounce's coefficient of restitution, departure over impact speed (first and last EVENTS_SHOWN), or "".
 
     Under the rigid law it is the law's e at every impact (a bounce that would leave slower than v_min,
-    or below the Zeno resolution, ends on R instead).
+    or below the Zeno resolution, ends on R instead). On a moving ground (ground: a Ground) the speeds are
+    relative to it.
 
     Examples
     --------
@@ -92,13 +93,18 @@ def restitution_line(events: list[Event], ball) -> str:
         end = impacts[number + 1][0] if number + 1 < len(impacts) else len(events)
         departure = next((event for event in events[i + 1:end] if event.kind == "departure"), None)
         if departure is not None:
-            ratios.append(departure.velocity / -impact.velocity)
+            if ground is not None and ground.moves:
+                ratios.append((departure.velocity - float(ground.velocity(departure.time)))
+                              / (float(ground.velocity(impact.time)) - impact.velocity))
+            else:
+                ratios.append(departure.velocity / -impact.velocity)
     if not ratios:
         return ""
     shown = [f"{ratio:.3g}" for ratio in ratios]
     if len(shown) > 2 * EVENTS_SHOWN + 1:
         shown = [*shown[:EVENTS_SHOWN], "...", *shown[-EVENTS_SHOWN:]]
-    return f"departure over impact speed: {', '.join(shown)} ({plural(len(ratios), 'bounce')})"
+    relative = " relative to the ground" if ground is not None and ground.moves else ""
+    return f"departure over impact speed{relative}: {', '.join(shown)} ({plural(len(ratios), 'bounce')})"
 
 
 def hop_limit(result: SimulationResult) -> float:

@@ -13,9 +13,14 @@ import math
 import numpy as np
 
 from ..equations import rest_margin_value
-from ..oscillator import contact_gap_flow
+from ..oscillator import contact_gap_flow, sine_response, sine_response_gain
 from ..rounding import hypot
 from .common import BY_CVODE, IN_CLOSED_FORM, LINEAR, MIN_PHASE_SCALE, REST, SOFT_CONTACT_CAP, ContactLaw
+
+_EPS = 2.0**-52
+# The departure search on a vibrating table gives up (RuntimeError, saying where) after this many certified steps.
+MAX_SINE_STEPS = 1_000_000
+_SHORT_OF_ROOT = 1.0 - 1e-9  # a step to a bound's root stops just short of it: the root is computed in floats
 
 
 def contact_scales(parameters, x, v, load):
@@ -216,6 +221,81 @@ def _departure_root(sigma, w2, g_eff, x0, v0, a, b, guess, at_a):
         tau = tau_new
     return best
 
+
+
+# --- on a sinusoidally vibrating ground s = A sin(theta), theta = w t + p: the contact in the ground's frame ---
+# x = h - R - s and u = v - s' obey x'' + 2 sigma x' + w2 x = -g_eff + A w^2 sin(theta): the still ground's contact
+# (contact_gap_flow) plus the periodic response to the ground's acceleration (oscillator.sine_response).
+def sine_ground_flow(parameters, x0, u0, tau, load, forcing, w, theta0):
+    """(x [m], u [m/s]) relative to a vibrating ground, tau [s] after (x0, u0) in contact at the ground's angle theta0.
+
+    forcing = A w^2 [m/s2] (the ground's peak acceleration), w [rad/s]; tau a float or an array (x0, u0 may be
+    arrays of its shape). The homogeneous flow from the start less the periodic response there, plus the
+    periodic response at the end.
+    """
+    m, k, b = parameters.m, parameters.k, parameters.b
+    sigma, w2 = b / (2.0 * m), k / m
+    x_p0, u_p0 = sine_response(sigma, w2, forcing, w, theta0)
+    x_p1, u_p1 = sine_response(sigma, w2, forcing, w, theta0 + w * tau)
+    x, u = contact_gap_flow(sigma, w2, load / m, x0 - x_p0, u0 - u_p0, tau)
+    return x + x_p1, u + u_p1
+
+
+def sine_ground_departure(parameters, x0, u0, load, forcing, w, theta0, horizon):
+    """(tau [s], u [m/s]): the first upward crossing of x = 0 of sine_ground_flow from (x0 <= 0, u0); (inf, 0) if none.
+
+    Certified, never a crossing stepped over: the motion is the periodic response plus a homogeneous one whose
+    energy E = y'^2 + w2 y^2 never grows (y = x - x_p + g_eff / w2), so |x''| <= M = (2 sigma + sqrt(w2)) sqrt(E) +
+    forcing w^2 |H| from any point on, and x stays below x + u d + M d^2 / 2: each step goes to that bound's first
+    root, converging on the first crossing from before it (the last steps as Newton's). Once even
+    -g_eff / w2 + sqrt(E / w2) + forcing |H| < 0 the ball can never reach the ground's surface again: none. A
+    crossing within the rounding of x at no upward speed is a touch, not a departure. None within horizon [s]:
+    (tau, 0) with tau > horizon, the first certified point past it.
+    """
+    m, k, b = parameters.m, parameters.k, parameters.b
+    sigma, w2 = b / (2.0 * m), k / m
+    omega0, d, gain = math.sqrt(w2), load / k, sine_response_gain(sigma, w2, w)
+    steady = forcing * gain  # the periodic response's amplitude [m]
+    tau, x, u, tau_before = 0.0, x0, u0, 0.0
+    for _ in range(MAX_SINE_STEPS):
+        x_p, u_p = sine_response(sigma, w2, forcing, w, theta0 + w * tau)
+        y, y_rate = x - x_p + d, u - u_p
+        swing = hypot(y, y_rate / omega0)  # sqrt(E / w2): the homogeneous part's amplitude bound
+        noise = 16.0 * _EPS * (abs(x) + abs(d) + steady + swing)
+        if swing + steady - d < -noise:  # never again at the surface
+            return math.inf, 0.0
+        if x >= -noise and u > 0.0 and tau > 0.0:
+            return _sine_polish(parameters, (x0, u0, load, forcing, w, theta0), tau_before, tau, x, u)
+        bound = (2.0 * sigma + omega0) * swing * omega0 + forcing * w * w * gain
+        depth = max(-x, noise)
+        root = math.sqrt(u * u + 2.0 * bound * depth)
+        step = 2.0 * depth / (u + root) if u > 0.0 else (root - u) / bound
+        tau_before, tau = tau, tau + _SHORT_OF_ROOT * step
+        if not tau <= horizon:  # none within it: a certified point past it
+            return tau, 0.0
+        x, u = sine_ground_flow(parameters, x0, u0, tau, load, forcing, w, theta0)
+    raise RuntimeError(f"the departure search on the vibrating ground made {MAX_SINE_STEPS} steps from the angle "
+                       f"{theta0!r} rad: neither a departure nor a way past a touch")
+
+
+def _sine_polish(parameters, start, tau_before, tau, x, u):
+    """(tau, u) at the crossing a certified step to tau ended within the rounding of x.
+
+    Newton on the flow from start (x0, u0, load, forcing, w, theta0), kept after tau_before, where the gap was
+    certified below the surface.
+    """
+    best = (tau, u)
+    for _ in range(4):
+        tau -= x / u
+        if not (tau_before < tau and math.isfinite(tau)):
+            break
+        x, u = sine_ground_flow(parameters, *start[:2], tau, *start[2:])
+        if not u > 0.0:
+            break
+        best = (tau, u)
+        if abs(x) <= 2.0 * _EPS * abs(u) * tau:
+            break
+    return best[0], max(best[1], 0.0)
 
 # The law's entry in the registry (contact_laws.LAWS).
 LAW = ContactLaw("linear", LINEAR, ("k", "b"), closed_form=True,

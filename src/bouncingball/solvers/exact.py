@@ -25,7 +25,7 @@ from ..physics import Ball, Mode
 from ..rounding import later
 from . import forcing
 from .exact_error import RoundingCarry
-from .exact_ground import build_on_moving_ground, check_moving_ground
+from .exact_ground import build_on_moving_ground, check_moving_ground, contact_state
 from .forcing import ForceTable
 from .lyapunov import LyapunovExponent
 from .phase_machine.settings import PROMISE
@@ -59,7 +59,7 @@ class ExactSolution:
 
     F_ext [N] is a constant or a forcing.ForceTable (piecewise constant): the phases restart at each
     change time inside (t_start, t_end), the state continuous and the mode held there; a rest is
-    only a rest under the last value. ground: a moving one (a rigid ball's, exact_ground) or a still one
+    only a rest under the last value. ground: a moving one (a rigid or linear ball's, exact_ground) or a still one
     (at a height: the same run raised; phases keep the heights above it).
     """
 
@@ -209,10 +209,16 @@ class ExactSolution:
                     i = index[selected]
                     h[selected], v[selected] = self.ball.flow(mode, h_start[i], v_start[i], t[selected] - starts[i],
                                                               float(F_ext))
-        if self.ground.moves:  # a rigid ball's contact there is a ride: on the ground, with it
+        if self.ground.moves:  # a rigid ball's contact there is a ride: on the ground, with it; a linear one's forced
             riding = point_modes == Mode.CONTACT
-            h[riding] = self.ball.R + self.ground.position(t[riding])
-            v[riding] = self.ground.velocity(t[riding])
+            if self.ball.rigid:
+                h[riding] = self.ball.R + self.ground.position(t[riding])
+                v[riding] = self.ground.velocity(t[riding])
+            elif np.any(riding):
+                i = index[riding]
+                loads = load_value(point_forces[riding], self.ball.m, self.ball.g)
+                h[riding], v[riding] = contact_state(self, starts[i], h_start[i], v_start[i], t[riding] - starts[i],
+                                                     loads)
         return (h + self._raised if self._raised else h), v
 
     def modes(self, t) -> np.ndarray:

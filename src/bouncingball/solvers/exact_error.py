@@ -48,14 +48,16 @@ class RoundingCarry:
         self.tangent = TangentCarry()  # a perturbation of the start through the same matrices: the Lyapunov exponent
 
     def phase(self, t_start: float, mode: int, x0: float, v0: float, tau: float, load: float,
-              kind: int = -1, v_event: float = 0.0, v_after: float = 0.0) -> None:
+              kind: int = -1, v_event: float = 0.0, v_after: float = 0.0, forced: tuple = (0.0, 0.0)) -> None:
         """The phase from the gap x0 [m] and v0 [m/s] at t_start [s] in mode, tau [s] long under load [N].
 
         kind: the event that ends it (IMPACT ..), where the ball is at v_event [m/s] and leaves at v_after [m/s]
-        (a rigid impact's rebound); -1: none (a change of F_ext or the run's end, x and v continuous).
+        (a rigid impact's rebound); -1: none (a change of F_ext or the run's end, x and v continuous). forced: the
+        (length [m], speed [m/s]) of a contact's periodic response to a vibrating ground, terms its closed form sums.
         """
         parameters, R = self.parameters, self.parameters.R
         length, speed = self._terms(mode, x0, v0, tau, load)
+        length, speed = length + forced[0], speed + forced[1]
         self.speed_max = max(self.speed_max, speed)
         x_end, v_end = law_flow_value(parameters, mode, x0, v0, tau, load)
         p00, p01, p11 = self.p00, self.p01, self.p11
@@ -91,23 +93,46 @@ class RoundingCarry:
 
         relative: the speed relative to the ground [m/s] it meets it at (< 0), rebound: the relative speed it leaves
         at (0: it rides, or, where relative_load < 0, leaves with the ground at once), relative_load: m (g_eff + s'')
-        [N], rounding: the gap's rounding at the root [m]. The
-        root's time error d (a few ulps of tau, and the rounding over the relative speed, or for a grazing impact
-        over the relative acceleration) leaves the ball off the ground's true meeting point by |relative| d: the
-        ground has moved meanwhile, so unlike on a still ground this is no delay along the flow; it is added to
-        the ellipse, then the impact's saltation matrix (the rigid law's in the ground's frame) maps it.
+        [N], rounding: the gap's rounding at the root [m]. The root's time error (_moving_offset) is added to the
+        ellipse, then the impact's saltation matrix (the rigid law's in the ground's frame) maps it.
         """
-        acceleration = abs(relative_load / self.parameters.m)
+        p00, p01, p11 = self._moving_offset(tau, relative, relative_load / self.parameters.m, rounding)
+        if rebound > 0.0 or relative_load >= 0.0 or relative == 0.0:
+            jump, reflection = event_saltation(self.parameters, IMPACT, FLIGHT, relative, rebound, relative_load)
+        else:  # no rebound, but the ground pulls away at once: it leaves with it, as after an impact with e = 0
+            jump, reflection = -(relative_load / self.parameters.m) / relative, 0.0
+        self._saltation(t, jump, reflection, p00, p01, p11)
+
+    def moving_switch(self, t: float, tau: float, kind: int, mode: int, relative: float, acceleration: float,
+                      rounding: float) -> None:
+        """A compliant law's impact or departure (kind) on a moving ground at t [s], ending a phase in mode tau long.
+
+        relative: the speed relative to the ground [m/s] there, acceleration: the relative acceleration [m/s2] (for a
+        grazing event's time error), rounding: the gap's rounding at the root [m]. As moving_impact, with the
+        law's saltation (its field's jump -+ b/m, unchanged in the ground's frame: the ground's speed enters both
+        the jump of the field and the rate the gap crosses 0 at, and cancels).
+        """
+        p00, p01, p11 = self._moving_offset(tau, relative, acceleration, rounding)
+        jump, reflection = event_saltation(self.parameters, kind, mode, relative, relative, 0.0)
+        self._saltation(t, jump, reflection, p00, p01, p11)
+
+    def _moving_offset(self, tau: float, relative: float, acceleration: float, rounding: float):
+        """The ellipse with the state error an event's time error leaves on a moving ground.
+
+        The root's time error d (a few ulps of tau, and the rounding over the relative speed, or for a grazing
+        event over the relative acceleration) leaves the ball off the ground's true meeting point by |relative| d:
+        the ground has moved meanwhile, so unlike on a still ground this is no delay along the flow.
+        """
+        acceleration = abs(acceleration)
         delay = ULPS * _EPS * tau + min(rounding / abs(relative) if relative != 0.0 else math.inf,
                                         math.sqrt(2.0 * rounding / acceleration) if acceleration > 0.0 else math.inf)
         if not math.isfinite(delay):
             delay = ULPS * _EPS * tau
         offset = abs(relative) * delay
-        p00, p01, p11 = ellipse_sum(self.p00, self.p01, self.p11, offset * offset, 0.0, 0.0)
-        if rebound > 0.0 or relative_load >= 0.0 or relative == 0.0:
-            jump, reflection = event_saltation(self.parameters, IMPACT, FLIGHT, relative, rebound, relative_load)
-        else:  # no rebound, but the ground pulls away at once: it leaves with it, as after an impact with e = 0
-            jump, reflection = -(relative_load / self.parameters.m) / relative, 0.0
+        return ellipse_sum(self.p00, self.p01, self.p11, offset * offset, 0.0, 0.0)
+
+    def _saltation(self, t: float, jump: float, reflection: float, p00: float, p01: float, p11: float) -> None:
+        """The ellipse (p00, p01, p11) and the tangent through an event's saltation matrix at t [s]."""
         self.p00, self.p01, self.p11 = ellipse_image(reflection, 0.0, jump, reflection, p00, p01, p11)
         self.tangent.apply(reflection, 0.0, jump, reflection)
         self.bound = max(self.bound, math.sqrt(max(self.p00, 0.0)))

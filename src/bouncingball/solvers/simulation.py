@@ -45,8 +45,9 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
         Every solver runs a table piece by piece: the state is continuous at a change, the mode held.
     ground : Ground, optional
         The ground under the ball: still at height 0 by default (Ground.still(height) is the same run
-        shifted, for every solver); a vibrating table (Ground.sine) is taken by solver="exact" under
-        the rigid law. h stays the centre's height in the world frame.
+        shifted, for every solver); a moving one is taken by solver="exact", under the rigid law
+        (Ground.sine, Ground.table) and the linear law (Ground.sine). h stays the centre's height in the
+        world frame.
     **options
         For cvode: rtol, atol, method ("auto", "Adams", "BDF"), max_step [s] (0: unbounded),
         engine ("auto", "compiled", "sksundae"), progress (called with the time reached [s] as the

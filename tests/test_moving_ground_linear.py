@@ -1,0 +1,87 @@
+"""The linear law on a vibrating table: the exact solver against an independent mpmath truth.
+
+The truth (tests/linear_table_truth.py) solves the contact as a forced damped oscillator from complex exponentials
+and finds its departure by a fine scan and findroot; the solver takes the still ground's closed form plus the
+periodic response and a certified departure search. Issue 46's first Done-when, for the linear law.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import bouncingball as bb
+from bouncingball import Ground
+from linear_table_truth import LinearTableTruth
+
+G, F, R = 9.81, 10.0, 0.05  # gravity [m/s2], the table's frequency [Hz], the ball's radius [m]
+W = 2.0 * math.pi * F
+
+
+def _both(gamma, k, b, phase, drop, t_end, m=1.0, output_interval=1e-3):
+    ground = Ground.sine(gamma * G / W**2, F, phase)
+    ball = bb.Ball(m=m, k=k, b=b, R=R, g=G)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", bb.AccuracyWarning)  # judged below against the truth
+        result = bb.simulate(ball, R + drop, 0.0, t_end, output_interval, solver="exact", ground=ground)
+    truth = LinearTableTruth(R, G, m, k, b, ground.amplitude, F, phase, R + drop, 0.0, t_end)
+    return result, truth
+
+
+def _height_errors(result, truth, every=1):
+    return np.array([abs(float(truth.state(t)[0]) - h) for t, h in zip(result.t[::every], result.h[::every],
+                                                                       strict=True)])
+
+
+def test_bouncing_on_a_gently_vibrating_table_is_the_truth_within_1e_12_of_its_scale():
+    result, truth = _both(0.5, 1e5, 20.0, 0.3, 0.05, 2.0)
+    events = [(event.time, str(event.kind)) for event in result.events]
+    assert [kind for _, kind in events] == [kind for _, kind in truth.events] and len(events) == 20
+    assert max(abs(t - float(t_true)) for (t, _), (t_true, _) in zip(events, truth.events, strict=True)) < 1e-12
+    scale = max(float(np.max(np.abs(result.h))), R)
+    errors = _height_errors(result, truth, every=5)
+    assert np.max(errors) < 1e-12 * scale
+    assert np.max(errors) <= result.error_estimate
+
+
+@pytest.mark.parametrize(("gamma", "k", "b"), [(1.2, 1e5, 20.0), (1.2, 1e4, 10.0), (2.0, 1e5, 30.0)])
+def test_thrown_by_the_table_every_event_and_height_is_the_truths_within_the_estimate(gamma, k, b):
+    result, truth = _both(gamma, k, b, 0.3, 0.05, 2.0)
+    times = np.array([event.time for event in result.events])
+    true_times = np.array([float(t) for t, _ in truth.events])
+    assert [str(event.kind) for event in result.events] == [kind for _, kind in truth.events]
+    assert np.max(np.abs(times - true_times)) < 1e-10
+    errors = _height_errors(result, truth, every=5)
+    assert np.max(errors) <= result.error_estimate < 1e-7 * R
+
+
+def test_a_ball_that_settles_rests_on_the_table_and_moves_with_it():
+    """Heavily damped on a gently vibrating table: a last contact that energy proves permanent is the rest."""
+    result, truth = _both(0.3, 1e4, 100.0, 1.0, 0.01, 3.0)
+    assert result.rest_time is not None
+    assert result.events[-1].kind == bb.EventKind.IMPACT and result.rest_time == result.events[-1].time
+    assert abs(result.rest_time - float(truth.events[-1][0])) < 1e-12
+    after = result.t > result.rest_time
+    assert np.ptp(result.h[after] - result.ground.position(result.t[after])) > 1e-5  # it oscillates with the table
+    assert np.max(_height_errors(result, truth, every=20)) < 1e-12
+
+
+@pytest.mark.slow
+def test_random_scenes_lose_no_event_the_truth_has():  # ~20 s
+    """Random scenes (Gamma 0.3 to 3, k 1e4 to 1e6 N/m, damping ratio 0.02 to 0.5, any phase, dropped 0 to 5 cm):
+    events one for one with the truth, every height within the run's estimate."""
+    rng = np.random.default_rng(46)
+    for _ in range(20):
+        gamma, k, zeta = rng.uniform(0.3, 3.0), 10.0 ** rng.uniform(4.0, 6.0), rng.uniform(0.02, 0.5)
+        b = 2.0 * zeta * math.sqrt(k)
+        result, truth = _both(gamma, k, b, rng.uniform(0.0, 2.0 * math.pi), rng.uniform(0.0, 0.05), 1.0,
+                              output_interval=1e-2)
+        scene = f"Gamma {gamma}, k {k}, b {b}"
+        assert [str(event.kind) for event in result.events] == [kind for _, kind in truth.events], scene
+        times = np.array([event.time for event in result.events] or [0.0])
+        true_times = np.array([float(t) for t, _ in truth.events] or [0.0])
+        assert np.max(np.abs(times - true_times)) < 1e-9, scene
+        assert np.max(_height_errors(result, truth)) <= result.error_estimate, scene
