@@ -69,6 +69,34 @@ result, _ = run(0.9, 2.0)
 print(f"Gamma = 0.9 < min(1, Gamma_1): {result.impacts} impacts, then riding the table from t = "
       f"{result.rest_time:.9f} s")
 
+
+def restitution_damping(k, speed):
+    """b [N s/m] giving e at one impact at speed [m/s] on a still ground (m = 1 kg): the linear law's e there."""
+    from scipy.optimize import brentq
+
+    def ratio(b):
+        events = bb.simulate(bb.Ball(k=k, b=b, R=R, g=g), R, -speed, 0.2, 1e-2, solver="exact").events
+        return next((event.velocity / speed for event in events if event.kind == "departure"), 0.0) - e
+
+    return brentq(ratio, 0.02 * math.sqrt(k), 0.7 * math.sqrt(k), xtol=1e-12 * math.sqrt(k))
+
+
+# Where a compliant contact parts from the rigid law: the linear law on the period-1 orbit above, its damping giving
+# e at the orbit's impact speed; the impact phase, against the rigid law's phi, as the spring softens.
+print(f"the linear law against the rigid one on the period-1 orbit (Gamma = {gamma:.6f}):")
+impact_speed = (u - gamma * g / w * math.cos(phi)) / e  # relative to the table
+for k in (1e9, 1e8, 1e7, 1e6, 1e5):
+    b = restitution_damping(k, impact_speed)
+    ground = bb.Ground.sine(gamma * g / w**2, f, phi)
+    compliant = bb.Ball(k=k, b=b, R=R, g=g)
+    linear = bb.simulate(compliant, math.nextafter(R + ground.position(0.0), 1.0), 1.01 * u, 30.0, 1e-2,
+                         solver="exact", ground=ground)
+    ends = [i for i, event in enumerate(linear.events) if event.kind == "departure"]
+    contact = linear.events[ends[-1]].time - linear.events[ends[-1] - 1].time  # the last complete contact
+    offset = math.remainder(w * impacts(linear)[-1], 2.0 * math.pi)
+    print(f"  k = {k:.0e} N/m, b = {b:.6g} N s/m: contact {contact * 1e3:.4f} ms, impact phase - phi = "
+          f"{offset:+.3e} rad")
+
 try:
     import matplotlib
 

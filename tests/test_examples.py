@@ -385,6 +385,9 @@ def test_vibrating_table_example_against_the_closed_forms_and_the_truth(tmp_path
     assert int(exponent[2]) >= 240 and abs(float(exponent[1]) - math.log(e)) < 3e-3  # ln(e): complex multipliers
     assert float(re.search(rf"chaotic, Lyapunov exponent ({NUMBER}) per impact", out)[1]) > 0.1
     assert "0.97 Gamma_pd: the last intervals between impacts [0.1 0.1 0.1 0.1] s (period 1)" in out
+    offsets = [float(x) for x in re.findall(rf"impact phase - phi = ({NUMBER}) rad", out)]
+    assert len(offsets) == 5 and abs(offsets[0]) < 1e-3  # k = 1e9: a 0.1 ms contact is the rigid law's
+    assert all(abs(a) < abs(b) for a, b in zip(offsets, offsets[1:], strict=False))  # parting as k falls
     assert re.search(r"1\.03 Gamma_pd: .*\(period 2\)", out)
     amplitude = 0.9 * g / (2.0 * math.pi * f) ** 2
     truth = SineTableTruth(0.01, g, e, 0.0, amplitude, f, 0.0, 0.06, 0.0, 2.0)
