@@ -120,3 +120,26 @@ def test_a_stiff_contact_orbits_at_the_rigid_laws_phase(k, tolerance):
     assert np.max(np.abs(np.diff(impacts[-10:]) - 1.0 / F)) < 1e-9  # period 1
     offset = math.remainder(W * impacts[-1], 2.0 * math.pi)  # the impact phase W t + phi, less phi
     assert abs(offset) < tolerance
+
+
+def test_a_ball_started_pressed_into_the_table_is_the_truth():
+    ground = Ground.sine(1.2 * G / W**2, F, 0.3)
+    ball = bb.Ball(m=1.0, k=1e5, b=20.0, R=R, g=G)
+    h0 = R + ground.position(0.0) - 1e-4
+    result = bb.simulate(ball, h0, 0.0, 1.0, 1e-3, solver="exact", ground=ground)
+    truth = LinearTableTruth(R, G, 1.0, 1e5, 20.0, ground.amplitude, F, 0.3, h0, 0.0, 1.0)
+    assert result.events[0].kind == bb.EventKind.DEPARTURE and truth.events[0][1] == "departure"
+    assert abs(result.events[0].time - float(truth.events[0][0])) < 1e-13
+    assert np.max(_height_errors(result, truth, every=5)) <= result.error_estimate
+
+
+def test_a_force_table_of_zeros_changes_nothing_inside_contacts():
+    """F_ext's pieces cut contacts and flights: each piece restarts from the forced flow's state, as if uncut."""
+    ground = Ground.sine(1.2 * G / W**2, F, 0.3)
+    ball = bb.Ball(m=1.0, k=1e5, b=20.0, R=R, g=G)
+    whole = bb.simulate(ball, R + 0.05, 0.0, 2.0, 1e-3, solver="exact", ground=ground)
+    times = np.arange(0.0, 2.0, 0.0137)
+    cut = bb.simulate(ball, R + 0.05, 0.0, 2.0, 1e-3, solver="exact", ground=ground,
+                      F_ext=(times, np.zeros_like(times)))
+    assert [event.kind for event in cut.events] == [event.kind for event in whole.events]
+    assert np.max(np.abs(cut.h - whole.h)) <= whole.error_estimate

@@ -46,7 +46,7 @@ def build_on_moving_ground(solution, h: float, v: float) -> None:
     """Fill solution's phases, events and rest_time (an ExactSolution on a moving ground) from (h, v) at t_start."""
     ball, ground, R = solution.ball, solution.ground, solution.ball.R
     surface = ground.position(solution.t_start)
-    if h - R - surface < -16.0 * 2.0**-52 * (abs(h) + R + abs(surface)):  # below it by more than a rounding
+    if ball.rigid and h - R - surface < -16.0 * 2.0**-52 * (abs(h) + R + abs(surface)):  # below by more than a rounding
         raise ValueError(f"h0 = {h!r} m is not allowed: under the rigid contact law it must be >= R + s(t_start) = "
                          f"{R + surface!r} m (the ball cannot start inside the ground)")
     pieces = forcing.pieces(solution.F_ext, solution.t_start, solution.t_end)
