@@ -15,7 +15,7 @@ from ..codes import CONTACT
 from ..equations import gap_acceleration
 from ..oscillator import contact_gap_flow
 from .common import BY_CVODE, IN_CLOSED_FORM, NO_PULL, REST, ContactLaw, time_to_impact
-from .linear import departure_time, searches
+from .linear import departure_time, searches, sine_ground_departure, sine_ground_flow
 
 
 def no_pull_rest_margin_value(x, v, d, hop_tolerance, w2, sigma):
@@ -126,6 +126,25 @@ def decide_contact(parameters, x, v, load, hop, resolution):
         return IN_CLOSED_FORM, tau, x_event, v_event
     return BY_CVODE, 0.0, 0.0, 0.0
 
+
+def sine_ground_release(parameters, x0, u0, load, forcing, w, theta0, horizon):
+    """(tau [s], x [m], u [m/s]) at the release of a pressed contact on a vibrating ground; (tau, nan, nan) if none.
+
+    In the ground's frame (x = h - R - s, u = v - s', linear.sine_ground_flow) the force is -k z, z = x + c u,
+    c = b / k, and z obeys the contact's equation forced by the ground's acceleration and its rate:
+    z'' + 2 sigma z' + w2 z = -g_eff + forcing (sin theta + c w cos theta) = -g_eff + forcing_z sin(theta + delta),
+    forcing_z = forcing sqrt(1 + (c w)^2), tan delta = c w. Its release is linear.sine_ground_departure's
+    certified search of (z, z'); tau inf: never (a rest), tau > horizon [s]: none within it.
+    """
+    m, k, b = parameters.m, parameters.k, parameters.b
+    c = b / k
+    acceleration = gap_acceleration(x0, u0, CONTACT, load, m, k, b) + forcing * math.sin(theta0)
+    tau, _ = sine_ground_departure(parameters, x0 + c * u0, u0 + c * acceleration, load,
+                                   forcing * math.hypot(1.0, c * w), w, theta0 + math.atan2(c * w, 1.0), horizon)
+    if not tau <= horizon:
+        return tau, math.nan, math.nan
+    x, u = sine_ground_flow(parameters, x0, u0, tau, load, forcing, w, theta0)
+    return tau, x, max(u, 0.0)  # where the force is 0 below the surface, k x = -b u: the ball rises
 
 def contact_roots(y0, y1, length, speed, load, own_side, hop, k, m, b):
     """CVODE's three root functions in a pressed contact, in the phase's frame (phases.root_values).

@@ -59,7 +59,7 @@ class ExactSolution:
 
     F_ext [N] is a constant or a forcing.ForceTable (piecewise constant): the phases restart at each
     change time inside (t_start, t_end), the state continuous and the mode held there; a rest is
-    only a rest under the last value. ground: a moving one (a rigid or linear ball's, exact_ground) or a still one
+    only a rest under the last value. ground: a moving one (exact_ground: rigid, linear, no-pull) or a still one
     (at a height: the same run raised; phases keep the heights above it).
     """
 

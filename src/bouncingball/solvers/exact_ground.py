@@ -13,7 +13,9 @@ ground's frame, x = h - R - s, forced by the ground's acceleration -s'' (contact
 still ground's closed form plus the periodic response), left at the first upward crossing of x = 0, a certified
 first root (sine_ground_departure); a contact that energy proves can never reach the surface again is a rest.
 The still ground's rest shortcuts (the rest at R - m g / k, the hop tolerance) do not apply: a ball resting on a
-vibrating table keeps oscillating with it.
+vibrating table keeps oscillating with it. The no-pull law's pressed contact ends at its release (the same search on
+its force, contact_laws.no_pull.sine_ground_release), its free spell below the surface at a departure or an
+engagement, each a flight's certified first touch (_free_spell).
 
 The error estimate (exact_error.RoundingCarry) carries each parabola's rounding through its flow; an impact's
 time error enters as the state error it leaves (on a moving ground it is no pure delay), and the impact's
@@ -29,17 +31,19 @@ from .. import limits
 from ..codes import CONTACT as CONTACT_CODE
 from ..codes import DEPARTURE as DEPARTURE_CODE
 from ..codes import FLIGHT as FLIGHT_CODE
+from ..codes import FREE as FREE_CODE
 from ..codes import IMPACT as IMPACT_CODE
-from ..contact_laws import rigid_rebound
+from ..contact_laws import rigid_rebound, starts_free
 from ..contact_laws.linear import sine_ground_departure, sine_ground_flow
+from ..contact_laws.no_pull import sine_ground_release
 from ..contact_laws.rigid import ZENO_APEX
 from ..equations import load_value
-from ..ground import first_touch
+from ..ground import Ground, first_touch
 from ..oscillator import sine_response_gain
 from ..physics import Mode
 from ..rounding import later
 from . import forcing
-from .result import DEPARTURE, IMPACT, Event
+from .result import DEPARTURE, ENGAGE, IMPACT, RELEASE, Event
 
 
 def build_on_moving_ground(solution, h: float, v: float) -> None:
@@ -54,8 +58,8 @@ def build_on_moving_ground(solution, h: float, v: float) -> None:
     for number, (t, piece_end, F_ext) in enumerate(pieces):
         a = ball.effective_gravity(F_ext)
         if mode is None:
-            mode, on_ground = _initial_mode(ball, ground, t, h, v, a)
-        elif mode == Mode.FLIGHT:
+            mode, on_ground = _initial_mode(ball, ground, t, h, v, a, F_ext)
+        elif mode in (Mode.FLIGHT, Mode.FREE):  # a parabola (the no-pull law's free spell too)
             phase = solution.phases[-1]
             tau = t - phase.t_start
             a_before = ball.effective_gravity(phase.F_ext)
@@ -69,16 +73,18 @@ def build_on_moving_ground(solution, h: float, v: float) -> None:
                                                  number == len(pieces) - 1)
 
 
-def _initial_mode(ball, ground, t, h, v, a):
+def _initial_mode(ball, ground, t, h, v, a, F_ext):
     """(mode, on_ground) of a ball starting at (h, v) at t.
 
     A rigid ball rides where it is on the ground with it and pressed; a compliant one is in contact below the
-    surface, or on it moving into it (or with it, pressed).
+    surface (the no-pull law's free where its force would pull), or on it moving into it (or with it, pressed).
     """
     R = ball.R
     gap, relative = h - R - ground.position(t), v - ground.velocity(t)
     pressed = a + ground.acceleration(t) >= 0.0
     if not ball.rigid:
+        if gap < 0.0 and starts_free(ball.parameters, gap, relative, load_value(F_ext, ball.m, ball.g)):
+            return Mode.FREE, False
         if gap < 0.0 or (gap == 0.0 and (relative < 0.0 or (relative == 0.0 and pressed))):
             return Mode.CONTACT, False
         return Mode.FLIGHT, gap == 0.0
@@ -97,13 +103,21 @@ def _phases_in_piece(solution, t, piece_end, F_ext, a, mode, h, v, on_ground, la
         if solution.add_phase(t, mode, h, v, F_ext):
             return mode, h, v, on_ground
         if mode == Mode.CONTACT and not ball.rigid:
-            departure = _forced_contact(solution, t, piece_end, load, h, v, last)
-            if departure is None:
+            ended = _forced_contact(solution, t, piece_end, load, h, v, last)
+            if ended is None:
                 end = solution.phases[-1]
                 return (mode, *contact_state(solution, end.t_start, end.h0, end.v0, piece_end - end.t_start, load),
                         False)
-            t, h, v = departure
-            mode, on_ground = Mode.FLIGHT, True
+            t, h, v, mode = ended
+            on_ground = mode == Mode.FLIGHT  # departed (the linear law), or released below the surface (no-pull)
+            continue
+        if mode == Mode.FREE:
+            ended = _free_spell(solution, t, piece_end, load, a, h, v)
+            if ended is None:
+                tau = piece_end - t
+                return mode, h + tau * (v - 0.5 * a * tau), v - a * tau, False
+            t, h, v, mode = ended
+            on_ground = mode == Mode.FLIGHT
             continue
         if mode == Mode.CONTACT:  # riding
             t_leave = ground.ride_end(ride_from, a)
@@ -149,21 +163,26 @@ def _phases_in_piece(solution, t, piece_end, F_ext, a, mode, h, v, on_ground, la
 
 
 def _forced_contact(solution, t, piece_end, load, h, v, last):
-    """The linear law's contact from (h, v) at t on a sine ground: (t, h, v) at its departure, or None past piece_end.
+    """A compliant contact from (h, v) at t on a sine ground: (t, h, v, mode) where it ends, or None past piece_end.
 
-    Its event is a certified first root (contact_laws.linear.sine_ground_departure); a contact that can never
-    reach the surface again in the last piece dates the rest (rest_time).
+    The linear law's departure (contact_laws.linear.sine_ground_departure) into flight, the no-pull law's release
+    (no_pull.sine_ground_release) into its free spell below the surface: certified first roots. A contact that can
+    never end, in the last piece, dates the rest (rest_time).
     """
     ball, ground, R, carry = solution.ball, solution.ground, solution.ball.R, solution.rounding
     if t > limits.resolvable_until(ball):  # contacts too short for the ulps of t
         limits.check_resolvable(ball, t)
     w, forcing, theta0 = ground.omega, ground.amplitude * ground.omega**2, ground.omega * t + ground.phase
     x0, u0 = h - R - ground.position(t), v - ground.velocity(t)
-    tau, u = sine_ground_departure(ball.parameters, x0, u0, load, forcing, w, theta0, piece_end - t)
+    no_pull = ball.contact == "linear-no-pull"
+    if no_pull:
+        tau, x, u = sine_ground_release(ball.parameters, x0, u0, load, forcing, w, theta0, piece_end - t)
+    else:
+        (tau, u), x = sine_ground_departure(ball.parameters, x0, u0, load, forcing, w, theta0, piece_end - t), 0.0
     sigma, w2 = ball.b / (2.0 * ball.m), ball.k / ball.m
     steady = forcing * sine_response_gain(sigma, w2, w)
     forced = (steady + abs(ground.position(t)), w * steady + abs(ground.velocity(t)))
-    t_event, t_low = later(t, 0.0, tau) if tau < math.inf else (math.inf, 0.0)
+    t_event = later(t, 0.0, tau)[0] if tau < math.inf else math.inf
     if not t_event <= piece_end:
         if piece_end < math.inf:
             carry.phase(t, CONTACT_CODE, h - R, v, piece_end - t, load, forced=forced)
@@ -171,12 +190,47 @@ def _forced_contact(solution, t, piece_end, load, h, v, last):
             solution.rest_time = t
         return None
     carry.phase(t, CONTACT_CODE, h - R, v, tau, load, forced=forced)
+    v_event = float(ground.velocity(t_event)) + u
+    h_event = R + float(ground.position(t_event)) + x
+    if no_pull:  # the force is 0 on either side of a release: no saltation, its time's error no state error
+        solution.events.append(Event(t_event, RELEASE, v_event))
+        return t_event, h_event, v_event, Mode.FREE
     acceleration = -2.0 * sigma * u - load / ball.m - float(ground.acceleration(t_event))  # x'' at x = 0
     rounding = 16.0 * 2.0**-52 * (abs(x0) + abs(load / ball.k) + steady + abs(u0) / math.sqrt(w2))
     carry.moving_switch(t_event, tau, DEPARTURE_CODE, CONTACT_CODE, u, acceleration, rounding)
-    v_event = float(ground.velocity(t_event)) + u
     solution.events.append(Event(t_event, DEPARTURE, v_event))
-    return t_event, R + float(ground.position(t_event)), v_event
+    return t_event, h_event, v_event, Mode.FLIGHT
+
+
+def _free_spell(solution, t, piece_end, load, a, h, v):
+    """The no-pull law's free spell from (h, v) at t below a sine ground: (t, h, v, mode) at its end, or None.
+
+    The ball flies its parabola; it departs where its gap x = h - R - s reaches 0 going up, or is pressed again
+    (engages) where z = x + (b / k) u falls to 0: each a flight's certified first touch (ground.first_touch) of a
+    ground of its own, -s for the gap seen from inside, s + (b / k) s' (a sine of its own amplitude and phase)
+    for z. The first of the two, a departure on a tie. Neither switch jumps the force (0 on either side).
+    """
+    ball, ground, R, carry = solution.ball, solution.ground, solution.ball.R, solution.rounding
+    c, w, horizon = ball.b / ball.k, ground.omega, piece_end - t
+    released = bool(solution.events) and solution.events[-1].kind == RELEASE and solution.events[-1].time == t
+    engaged_by = Ground.sine(ground.amplitude * math.hypot(1.0, c * w), ground.frequency,
+                             ground.phase + math.atan2(c * w, 1.0))
+    tau_engage = first_touch(engaged_by, t, h - R + c * v, v - c * a, a, horizon, on_ground=released)
+    inside = Ground.sine(ground.amplitude, ground.frequency, ground.phase + math.pi)
+    tau_depart = first_touch(inside, t, R - h, -v, -a, min(horizon, tau_engage))
+    tau = min(tau_depart, tau_engage)
+    t_event = later(t, 0.0, tau)[0] if tau < math.inf else math.inf
+    if not t_event <= piece_end:
+        if piece_end < math.inf:
+            carry.phase(t, FREE_CODE, h - R, v, horizon, load)
+        return None
+    carry.phase(t, FREE_CODE, h - R, v, tau, load)
+    h_event, v_event = h + tau * (v - 0.5 * a * tau), v - a * tau
+    if tau_depart <= tau_engage:
+        solution.events.append(Event(t_event, DEPARTURE, v_event))
+        return t_event, R + float(ground.position(t_event)), v_event, Mode.FLIGHT
+    solution.events.append(Event(t_event, ENGAGE, v_event))
+    return t_event, h_event, v_event, Mode.CONTACT
 
 
 def contact_state(solution, t0, h0, v0, tau, load):
@@ -197,15 +251,15 @@ def check_moving_ground(ball, ground) -> None:
     """ValueError where the exact solver cannot take this ground under this ball's law (before any work)."""
     if not ground.moves:
         return
-    if ball.contact not in ("rigid", "linear"):
+    if ball.contact not in ("rigid", "linear", "linear-no-pull"):
         raise ValueError(f"contact = {ball.contact!r} is not allowed on a moving ground ({ground.describe()}): "
-                         "a moving ground is taken by the rigid and linear laws so far (contact = 'rigid' or "
-                         "'linear'); run the other laws on a still ground")
-    if ball.contact == "linear" and ground.kind != "sine":
-        raise ValueError(f"contact = 'linear' is not allowed on a ground table ({ground.describe()}): the linear "
-                         "law's contact on a moving ground is in closed form for a sine (Ground.sine); use the rigid "
-                         "law on a table")
-    if ball.contact == "linear" and math.isinf(sine_response_gain(ball.b / (2.0 * ball.m), ball.k / ball.m,
+                         "a moving ground is taken by the rigid, linear and linear-no-pull laws so far; run the "
+                         "Hunt-Crossley law on a still ground")
+    if not ball.rigid and ground.kind != "sine":
+        raise ValueError(f"contact = {ball.contact!r} is not allowed on a ground table ({ground.describe()}): a "
+                         "compliant law's contact on a moving ground is in closed form for a sine (Ground.sine); use "
+                         "the rigid law on a table")
+    if not ball.rigid and math.isinf(sine_response_gain(ball.b / (2.0 * ball.m), ball.k / ball.m,
                                                                    ground.omega)):
         raise ValueError(f"b = 0 N s/m is not allowed with k = {ball.k!r} N/m on {ground.describe()}: undamped, the "
                          "contact is in resonance with the ground (k / m = (2 pi f)^2) and has no steady motion; "

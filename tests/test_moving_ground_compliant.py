@@ -1,8 +1,9 @@
-"""The linear law on a vibrating table: the exact solver against an independent mpmath truth.
+"""The linear and no-pull laws on a vibrating table: the exact solver against an independent mpmath truth.
 
 The truth (tests/linear_table_truth.py) solves the contact as a forced damped oscillator from complex exponentials
-and finds its departure by a fine scan and findroot; the solver takes the still ground's closed form plus the
-periodic response and a certified departure search. Issue 46's first Done-when, for the linear law.
+and finds its departure (no-pull: release, departure from the free spell, engagement) by a fine scan and findroot;
+the solver takes the still ground's closed form plus the periodic response and certified searches. Issue 46's
+first Done-when, for these laws.
 """
 
 from __future__ import annotations
@@ -21,13 +22,14 @@ G, F, R = 9.81, 10.0, 0.05  # gravity [m/s2], the table's frequency [Hz], the ba
 W = 2.0 * math.pi * F
 
 
-def _both(gamma, k, b, phase, drop, t_end, m=1.0, output_interval=1e-3):
+def _both(gamma, k, b, phase, drop, t_end, m=1.0, output_interval=1e-3, law="linear"):
     ground = Ground.sine(gamma * G / W**2, F, phase)
-    ball = bb.Ball(m=m, k=k, b=b, R=R, g=G)
+    ball = bb.Ball(m=m, k=k, b=b, R=R, g=G, contact=law)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", bb.AccuracyWarning)  # judged below against the truth
         result = bb.simulate(ball, R + drop, 0.0, t_end, output_interval, solver="exact", ground=ground)
-    truth = LinearTableTruth(R, G, m, k, b, ground.amplitude, F, phase, R + drop, 0.0, t_end)
+    truth = LinearTableTruth(R, G, m, k, b, ground.amplitude, F, phase, R + drop, 0.0, t_end,
+                             no_pull=law == "linear-no-pull")
     return result, truth
 
 
@@ -70,15 +72,16 @@ def test_a_ball_that_settles_rests_on_the_table_and_moves_with_it():
 
 
 @pytest.mark.slow
-def test_random_scenes_lose_no_event_the_truth_has():  # ~20 s
+@pytest.mark.parametrize("law", ["linear", "linear-no-pull"])
+def test_random_scenes_lose_no_event_the_truth_has(law):  # ~20 s each, loaded
     """Random scenes (Gamma 0.3 to 3, k 1e4 to 1e6 N/m, damping ratio 0.02 to 0.5, any phase, dropped 0 to 5 cm):
     events one for one with the truth, every height within the run's estimate."""
     rng = np.random.default_rng(46)
-    for _ in range(20):
+    for _ in range(14):
         gamma, k, zeta = rng.uniform(0.3, 3.0), 10.0 ** rng.uniform(4.0, 6.0), rng.uniform(0.02, 0.5)
         b = 2.0 * zeta * math.sqrt(k)
         result, truth = _both(gamma, k, b, rng.uniform(0.0, 2.0 * math.pi), rng.uniform(0.0, 0.05), 1.0,
-                              output_interval=1e-2)
+                              output_interval=1e-2, law=law)
         scene = f"Gamma {gamma}, k {k}, b {b}"
         assert [str(event.kind) for event in result.events] == [kind for _, kind in truth.events], scene
         times = np.array([event.time for event in result.events] or [0.0])
@@ -120,6 +123,19 @@ def test_a_stiff_contact_orbits_at_the_rigid_laws_phase(k, tolerance):
     assert np.max(np.abs(np.diff(impacts[-10:]) - 1.0 / F)) < 1e-9  # period 1
     offset = math.remainder(W * impacts[-1], 2.0 * math.pi)  # the impact phase W t + phi, less phi
     assert abs(offset) < tolerance
+
+
+@pytest.mark.parametrize(("gamma", "k", "b"), [(0.5, 1e5, 200.0), (1.2, 1e5, 200.0), (2.0, 1e4, 60.0)])
+def test_the_no_pull_law_releases_flies_free_and_departs_or_engages_as_the_truth(gamma, k, b):
+    """Pressed, released where the force would pull, free below the surface, out of it or pressed again."""
+    result, truth = _both(gamma, k, b, 0.3, 0.05, 1.0, law="linear-no-pull")
+    kinds = [str(event.kind) for event in result.events]
+    assert kinds == [kind for _, kind in truth.events] and "release" in kinds
+    times = np.array([event.time for event in result.events])
+    assert np.max(np.abs(times - np.array([float(t) for t, _ in truth.events]))) < 1e-13
+    scale = max(float(np.max(np.abs(result.h))), R)
+    errors = _height_errors(result, truth, every=5)
+    assert np.max(errors) <= result.error_estimate and np.max(errors) < 1e-12 * scale
 
 
 def test_a_ball_started_pressed_into_the_table_is_the_truth():
