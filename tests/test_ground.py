@@ -44,8 +44,12 @@ def test_a_moving_ground_is_refused_where_it_is_not_taken_yet():
         bb.simulate(bb.Ball(contact="hunt-crossley"), 1.0, 0.0, 1.0, ground=ground)
     with pytest.raises(ValueError, match="contact = 'linear' is not allowed on a ground table"):
         bb.simulate(bb.Ball(), 1.0, 0.0, 1.0, solver="exact", ground=Ground.table([0, 1, 2, 3], [0, 1e-3, 0, 0]))
-    with pytest.raises(ValueError, match=r"b = 0 N s/m is not allowed with k = 10000.0 N/m on ground .*: undamped"):
+    with pytest.raises(ValueError, match=r"b = 0.0 N s/m is not allowed with k = 10000.0 N/m and m = 1.0 kg on "
+                                         r"ground .*: the contact is so near resonance"):
         bb.simulate(bb.Ball(b=0.0), 1.0, 0.0, 1.0, solver="exact", ground=Ground.sine(1e-3, 100.0 / (2.0 * math.pi)))
+    with pytest.raises(ValueError, match=r"b = 1e-09 N s/m is not allowed .* steady response, 1e\+08 m"):
+        bb.simulate(bb.Ball(b=1e-9, R=0.01), 1.0, 0.0, 1.0, solver="exact",
+                    ground=Ground.sine(1e-3, 100.0 / (2.0 * math.pi)))
     with pytest.raises(ValueError, match="it must be >= R \\+ s\\(t_start\\)"):
         bb.simulate(rigid, rigid.R - 1e-3, 0.0, 1.0, solver="exact", ground=ground)
     with pytest.raises(ValueError, match="ground = 3 is not allowed: it must be a bouncingball.Ground"):

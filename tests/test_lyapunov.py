@@ -79,16 +79,33 @@ def test_the_carried_perturbation_is_the_truths_separation(impacts):
     assert np.all(np.abs(carried - separation) <= 1e-6 * np.abs(separation))
 
 
-def test_a_ride_forgets_the_start_the_exponent_is_minus_infinity():
-    """Below one g the ball chatters onto the table and rides it: where it is no longer depends on where it was."""
+def test_a_run_that_ends_riding_has_forgotten_its_start():
+    """Below one g the ball chatters onto the table and rides it for good: its end no longer depends on its start."""
     result = _table_run(0.9, 5.0)
-    assert result.rest_time is not None and result.lyapunov.impacts >= 20
-    assert result.lyapunov.per_impact == -math.inf and result.lyapunov.per_second == -math.inf
+    exponent = result.lyapunov
+    assert result.rest_time is not None and exponent.forgotten == 1
+    assert exponent.per_impact == -math.inf and exponent.per_second == -math.inf
+
+
+def test_a_chaotic_run_that_rode_is_measured_on_its_flights_since():
+    """Gamma = 5: chaotic bouncing interrupted by a ride; measured from the ride's end, the exponent is positive."""
+    ground = Ground.sine(table_amplitude(5.0, F, G), F, 0.3)
+    ball = bb.Ball(R=R, g=G, contact="rigid", e=E, v_min=0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", bb.AccuracyWarning)
+        result = bb.simulate(ball, R + 0.01, 0.0, 20.0, 1e-3, solver="exact", ground=ground)
+    exponent = result.lyapunov
+    last_ride_end = [event.time for event in result.events if event.kind == bb.EventKind.DEPARTURE][-1]
+    assert exponent.forgotten >= 1 and exponent.since == last_ride_end
+    assert exponent.impacts == sum(event.kind == bb.EventKind.IMPACT and event.time > last_ride_end
+                                   for event in result.events) >= 20
+    assert exponent.per_impact > 0.1
 
 
 def test_a_rest_on_a_still_ground_forgets_the_start_too():
     result = bb.simulate(bb.Ball(contact="rigid", e=0.8, v_min=0.01), 2.0, 0.0, 8.0, solver="exact")
-    assert result.rest_time is not None and result.lyapunov.per_impact == -math.inf
+    assert result.rest_time is not None and result.lyapunov.forgotten == 1
+    assert result.lyapunov.per_impact == -math.inf
 
 
 def test_a_run_with_few_impacts_is_too_short_to_say():

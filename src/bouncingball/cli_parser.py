@@ -41,12 +41,13 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--alpha", type=float, help="the Hunt-Crossley law's damping [s/m], >= 0 (default: the "
                      "scene's, 0; the other laws do not read it)")
     run.add_argument("--ground-amplitude", type=float, metavar="A", help="a vibrating ground, s(t) = A sin(2 pi F t + "
-                     "P): its amplitude [m] (with --ground-frequency; solver exact, contact rigid)")
+                     "P): its amplitude [m] (with --ground-frequency; solver exact; contact rigid, linear or "
+                     "linear-no-pull)")
     run.add_argument("--ground-frequency", type=float, metavar="F", help="the vibrating ground's frequency [Hz]")
     run.add_argument("--ground-phase", type=float, metavar="P", help="the vibrating ground's phase [rad] "
                      "(default: 0)")
     run.add_argument("--ground-table", metavar="CSV", help="a ground through the points of this file: two columns, "
-                     "time [s] and height [m], a header line allowed (a cubic spline through them)")
+                     "time [s] and height [m], a header line allowed (a cubic spline through them; contact rigid)")
     run.add_argument("--t-end", type=float, help="end time [s] (default: the scene's)")
     run.add_argument("--output-interval", type=float, help="output interval [s] (default: the scene's)")
     run.add_argument("--output", metavar="CSV", help="write time,h,v to this file (-: to stdout, the summary then "

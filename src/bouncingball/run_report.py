@@ -35,15 +35,21 @@ def lyapunov_line(exponent: LyapunovExponent) -> str:
     --------
     >>> lyapunov_line(LyapunovExponent(-0.693, -6.93, 2000, 200.0))
     '-0.693 per impact, -6.93 per second (< 0: a small error dies out)'
+    >>> lyapunov_line(LyapunovExponent(0.345, 1.72, 300, 60.0, 2, 4.2))
+    '+0.345 per impact, +1.72 per second (> 0: a small error grows), since the last rest or ride ended at 4.2 s'
+    >>> lyapunov_line(LyapunovExponent(float("-inf"), float("-inf"), 22, 4.6, 1, 0.0))
+    '-inf: the run ends resting or riding, where it no longer depends on where it started'
     >>> lyapunov_line(LyapunovExponent(float("nan"), float("nan"), 3, 1.0))
     'none: 3 impacts, too few to say (20 or more)'
     """
-    if exponent.per_impact != exponent.per_impact:
-        return f"none: {plural(exponent.impacts, 'impact')}, too few to say ({MIN_IMPACTS} or more)"
     if exponent.per_impact == float("-inf"):
-        return "-inf: a rest or a ride forgot where the ball was (a small error vanishes there)"
-    verdict = "> 0: a small error grows, chaos" if exponent.per_impact > 0.0 else "< 0: a small error dies out"
-    return f"{exponent.per_impact:+.3g} per impact, {exponent.per_second:+.3g} per second ({verdict})"
+        return "-inf: the run ends resting or riding, where it no longer depends on where it started"
+    since = f" since the last rest or ride ended at {exponent.since:.6g} s" if exponent.forgotten else ""
+    if exponent.per_impact != exponent.per_impact:
+        return f"none: {plural(exponent.impacts, 'impact')}{since}, too few to say ({MIN_IMPACTS} or more)"
+    verdict = "> 0: a small error grows" if exponent.per_impact > 0.0 else "< 0: a small error dies out"
+    line = f"{exponent.per_impact:+.3g} per impact, {exponent.per_second:+.3g} per second ({verdict})"
+    return line + ("," + since if since else "")
 
 
 def event_counts(events: list[Event]) -> str:

@@ -81,7 +81,7 @@ class ExactSolution:
         self.phases: list[Phase] = []
         self.events: list[Event] = []
         self.rest_time: float | None = None
-        self.rounding = RoundingCarry(ball.parameters)
+        self.rounding = RoundingCarry(ball.parameters, t_start)
         self._build(h0 - self._raised, v0)
 
     @property
@@ -97,8 +97,9 @@ class ExactSolution:
     def lyapunov_exponent(self) -> LyapunovExponent:
         """The run's largest Lyapunov exponent (solvers.lyapunov), from the matrices its error estimate carries."""
         end = self.t_end if self.t_end < math.inf else self.phases[-1].t_start
-        impacts = sum(event.kind == IMPACT for event in self.events)
-        return self.rounding.tangent.exponent(impacts, end - self.t_start)
+        tangent = self.rounding.tangent
+        impacts = sum(event.kind == IMPACT and event.time > tangent.since for event in self.events)
+        return tangent.exponent(impacts, end)
 
     def add_phase(self, t: float, mode: Mode, h: float, v: float, F_ext: float) -> bool:
         """Record the phase from (h [m], v [m/s]) at t [s]; whether max_phases are reached."""
@@ -247,10 +248,12 @@ def simulate_exact(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     estimate, carry = exact.error_estimate, exact.rounding
     scale = max(carry.scale, float(np.max(np.abs(h))))
     if not estimate <= PROMISE * scale:
+        # from the first phase past it; where only the output's own rounding takes it past (none did), the end
+        since = carry.untrusted_from if not math.isnan(carry.untrusted_from) else t_end
         warn_at_caller(AccuracyWarning(
             f"by t = {t_end:.6g} s the exact solution's error estimate (its rounding, carried) is {estimate:.2g} m, "
             f"{estimate / scale:.2g} of its height scale {scale:.3g} m: past the promise of {PROMISE:g} from t = "
-            f"{carry.untrusted_from:.6g} s on; a small error grows faster here than double precision can follow "
+            f"{since:.6g} s on; a small error grows faster here than double precision can follow "
             "(an ill-conditioned run): shorten the run"))
     return SimulationResult("exact", ball, grid, h, v, list(exact.events), exact.rest_time, stats, F_ext,
                             error_estimate=estimate, ground=exact.ground, lyapunov=exact.lyapunov_exponent)

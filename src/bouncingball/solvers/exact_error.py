@@ -35,7 +35,7 @@ class RoundingCarry:
         The ball's (Ball.parameters).
     """
 
-    def __init__(self, parameters) -> None:
+    def __init__(self, parameters, t_start: float = 0.0) -> None:
         self.parameters = parameters
         self.p00, self.p01, self.p11 = 0.0, 0.0, 0.0  # the ellipse holding the error of (x, v) at the phase's start
         self.bound = 0.0  # on |h - h_true| [m] so far
@@ -45,7 +45,7 @@ class RoundingCarry:
         # the events' times' errors [s], summed: an error along the flow stays one, through every phase's flow and
         # every event's saltation (S f- = f+), so it is carried apart from the ellipse, as a delay
         self.delay = 0.0
-        self.tangent = TangentCarry()  # a perturbation of the start through the same matrices: the Lyapunov exponent
+        self.tangent = TangentCarry(t_start)  # a perturbation carried through the same matrices: the Lyapunov exponent
 
     def phase(self, t_start: float, mode: int, x0: float, v0: float, tau: float, load: float,
               kind: int = -1, v_event: float = 0.0, v_after: float = 0.0, forced: tuple = (0.0, 0.0)) -> None:
@@ -66,7 +66,10 @@ class RoundingCarry:
         f00, f10 = law_flow_value(parameters, mode, 1.0, 0.0, tau, 0.0)
         f01, f11 = law_flow_value(parameters, mode, 0.0, 1.0, tau, 0.0)
         p00, p01, p11 = ellipse_image(f00, f01, f10, f11, p00, p01, p11)
-        self.tangent.apply(f00, f01, f10, f11)
+        if mode == CONTACT and impact_is_instantaneous(parameters):  # a rigid ball resting on R: forgotten
+            self.tangent.forget()
+        else:
+            self.tangent.apply(f00, f01, f10, f11, t_start)
         ex = ULPS * _EPS * (length + R + abs(x_end))
         ev = ULPS * _EPS * (speed + abs(v_end))
         if kind >= 0:
@@ -82,7 +85,7 @@ class RoundingCarry:
         if kind >= 0:
             jump, reflection = event_saltation(parameters, kind, mode, v_event, v_after, load)
             p00, p01, p11 = ellipse_image(reflection, 0.0, jump, reflection, p00, p01, p11)
-            self.tangent.apply(reflection, 0.0, jump, reflection)
+            self.tangent.apply(reflection, 0.0, jump, reflection, t_start + tau)
         self.p00, self.p01, self.p11 = p00, p01, p11
         if math.isnan(self.untrusted_from) and not self.bound <= PROMISE * self.scale:
             self.untrusted_from = t_start
@@ -134,7 +137,7 @@ class RoundingCarry:
     def _saltation(self, t: float, jump: float, reflection: float, p00: float, p01: float, p11: float) -> None:
         """The ellipse (p00, p01, p11) and the tangent through an event's saltation matrix at t [s]."""
         self.p00, self.p01, self.p11 = ellipse_image(reflection, 0.0, jump, reflection, p00, p01, p11)
-        self.tangent.apply(reflection, 0.0, jump, reflection)
+        self.tangent.apply(reflection, 0.0, jump, reflection, t)
         self.bound = max(self.bound, math.sqrt(max(self.p00, 0.0)))
         self._judge(t)
 
@@ -145,7 +148,7 @@ class RoundingCarry:
         """
         ex, ev = ULPS * _EPS * length, ULPS * _EPS * speed
         self.p00, self.p01, self.p11 = 2.0 * ex * ex, 0.0, 2.0 * ev * ev
-        self.tangent.apply(0.0, 0.0, 0.0, 0.0)  # where it leaves is the ground's doing alone
+        self.tangent.forget()  # where it leaves is the ground's doing alone
         self.speed_max = max(self.speed_max, speed)
         self._judge(t)
 

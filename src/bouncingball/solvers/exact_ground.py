@@ -247,6 +247,12 @@ def contact_state(solution, t0, h0, v0, tau, load):
     return R + ground.position(t) + x, ground.velocity(t) + u
 
 
+# A compliant contact whose periodic response to the ground is more than this many times the scene's size (R, the
+# ground's amplitude) is refused: near an undamped resonance the certified departure search would crawl through
+# steps of 1e-10 s (a run of 1 s took 49 s at b = 1e-9 N s/m) and its closed form would cancel every digit.
+RESONANCE_LIMIT = 1e6
+
+
 def check_moving_ground(ball, ground) -> None:
     """ValueError where the exact solver cannot take this ground under this ball's law (before any work)."""
     if not ground.moves:
@@ -259,11 +265,16 @@ def check_moving_ground(ball, ground) -> None:
         raise ValueError(f"contact = {ball.contact!r} is not allowed on a ground table ({ground.describe()}): a "
                          "compliant law's contact on a moving ground is in closed form for a sine (Ground.sine); use "
                          "the rigid law on a table")
-    if not ball.rigid and math.isinf(sine_response_gain(ball.b / (2.0 * ball.m), ball.k / ball.m,
-                                                                   ground.omega)):
-        raise ValueError(f"b = 0 N s/m is not allowed with k = {ball.k!r} N/m on {ground.describe()}: undamped, the "
-                         "contact is in resonance with the ground (k / m = (2 pi f)^2) and has no steady motion; "
-                         "give a damping b > 0 or another frequency")
+    if not ball.rigid:
+        gain = sine_response_gain(ball.b / (2.0 * ball.m), ball.k / ball.m, ground.omega)
+        steady = ground.amplitude * ground.omega**2 * gain
+        if not steady <= RESONANCE_LIMIT * max(ball.R, ground.amplitude):
+            raise ValueError(
+                f"b = {ball.b!r} N s/m is not allowed with k = {ball.k!r} N/m and m = {ball.m!r} kg on "
+                f"{ground.describe()}: the contact is so near resonance with the ground (k / m against (2 pi f)^2) "
+                f"and so little damped that its steady response, {steady:.3g} m, is more than {RESONANCE_LIMIT:g} "
+                "times the scene's size max(R, A); give more damping b or "
+                "another k or frequency")
 
 
 __all__ = ["build_on_moving_ground", "check_moving_ground", "contact_state"]

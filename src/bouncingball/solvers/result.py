@@ -103,8 +103,9 @@ class SimulationResult:
         The ground under the ball (still at 0 unless the run was given another).
     lyapunov : LyapunovExponent or None
         The run's largest Lyapunov exponent, per impact and per second, from the same transition and saltation
-        matrices as its error estimate (solvers.lyapunov): NaN where the run is too short to say, -inf after a
-        rest or a ride; None for the solvers that do not compute it (so far all but "exact").
+        matrices as its error estimate (solvers.lyapunov): over its flights since the last rest or ride (-inf
+        where it ends resting or riding), NaN where too short to say; None for the solvers that do not compute it
+        (so far all but "exact").
 
     Examples
     --------
