@@ -33,7 +33,7 @@ from ..codes import DEPARTURE as DEPARTURE_CODE
 from ..codes import FLIGHT as FLIGHT_CODE
 from ..codes import FREE as FREE_CODE
 from ..codes import IMPACT as IMPACT_CODE
-from ..contact_laws import rigid_rebound, starts_free
+from ..contact_laws import has_pressed_gap, rigid_rebound, starts_free
 from ..contact_laws.linear import sine_ground_departure, sine_ground_flow
 from ..contact_laws.no_pull import sine_ground_release
 from ..contact_laws.rigid import ZENO_APEX
@@ -174,7 +174,7 @@ def _forced_contact(solution, t, piece_end, load, h, v, last):
         limits.check_resolvable(ball, t)
     w, forcing, theta0 = ground.omega, ground.amplitude * ground.omega**2, ground.omega * t + ground.phase
     x0, u0 = h - R - ground.position(t), v - ground.velocity(t)
-    no_pull = ball.contact == "linear-no-pull"
+    no_pull = has_pressed_gap(ball.parameters)  # the no-pull law (with b = 0 its force is the linear law's)
     if no_pull:
         tau, x, u = sine_ground_release(ball.parameters, x0, u0, load, forcing, w, theta0, piece_end - t)
     else:
