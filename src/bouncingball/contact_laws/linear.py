@@ -265,7 +265,7 @@ def sine_ground_departure(parameters, x0, u0, load, forcing, w, theta0, horizon)
         if swing + steady - d < -noise:  # never again at the surface
             return math.inf, 0.0
         if x >= -noise and u > 0.0 and tau > 0.0:
-            return _sine_polish(parameters, (x0, u0, load, forcing, w, theta0), tau_before, tau, x, u)
+            return _sine_polish(parameters, x0, u0, load, forcing, w, theta0, tau_before, tau, x, u)
         bound = (2.0 * sigma + omega0) * swing * omega0 + forcing * w * w * gain
         depth = max(-x, noise)
         root = math.sqrt(u * u + 2.0 * bound * depth)
@@ -278,18 +278,17 @@ def sine_ground_departure(parameters, x0, u0, load, forcing, w, theta0, horizon)
                        f"{theta0!r} rad: neither a departure nor a way past a touch")
 
 
-def _sine_polish(parameters, start, tau_before, tau, x, u):
+def _sine_polish(parameters, x0, u0, load, forcing, w, theta0, tau_before, tau, x, u):
     """(tau, u) at the crossing a certified step to tau ended within the rounding of x.
 
-    Newton on the flow from start (x0, u0, load, forcing, w, theta0), kept after tau_before, where the gap was
-    certified below the surface.
+    Newton on sine_ground_flow from (x0, u0), kept after tau_before, where the gap was certified below the surface.
     """
     best = (tau, u)
     for _ in range(4):
         tau -= x / u
         if not (tau_before < tau and math.isfinite(tau)):
             break
-        x, u = sine_ground_flow(parameters, *start[:2], tau, *start[2:])
+        x, u = sine_ground_flow(parameters, x0, u0, tau, load, forcing, w, theta0)
         if not u > 0.0:
             break
         best = (tau, u)

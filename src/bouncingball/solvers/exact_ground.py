@@ -143,16 +143,15 @@ def _phases_in_piece(solution, t, piece_end, F_ext, a, mode, h, v, on_ground, la
         h, ground_speed = R + ground.position(t), ground.velocity(t)
         relative, relative_load = v_minus - ground_speed, ball.m * (a + ground.acceleration(t))
         solution.events.append(Event(t, IMPACT, v_minus))
+        flight_start = solution.phases[-1].t_start
+        carry.phase(flight_start, FLIGHT_CODE, x_start, v_start, tau, load)
+        rounding = ground.touch_rounding(flight_start, x_start, v_start, a, tau)
         if not ball.rigid:  # into the forced contact: the law's saltation, the velocity unchanged
-            carry.phase(solution.phases[-1].t_start, FLIGHT_CODE, x_start, v_start, tau, load)
-            carry.moving_switch(t, tau, IMPACT_CODE, FLIGHT_CODE, relative, relative_load / ball.m,
-                                ground.touch_rounding(solution.phases[-1].t_start, x_start, v_start, a, tau))
+            carry.moving_switch(t, tau, IMPACT_CODE, FLIGHT_CODE, relative, relative_load / ball.m, rounding)
             v, mode, on_ground = v_minus, Mode.CONTACT, False
             continue
         rebound, zeno = rigid_rebound(parameters, min(relative, 0.0), relative_load)
-        carry.phase(solution.phases[-1].t_start, FLIGHT_CODE, x_start, v_start, tau, load)
-        carry.moving_impact(t, tau, relative, rebound, relative_load,
-                            ground.touch_rounding(solution.phases[-1].t_start, x_start, v_start, a, tau))
+        carry.moving_impact(t, tau, relative, rebound, relative_load, rounding)
         if zeno > 0.0:  # the summed bounces rise at most ZENO_APEX R above the ground
             carry.charge(t, ZENO_APEX * R)
         ride_from = later(t, t_low, zeno)[0]
