@@ -8,6 +8,8 @@ on them.
 
 from __future__ import annotations
 
+import math
+
 from .codes import CONTACT
 from .oscillator import contact_gap_flow
 from .rounding import product_error
@@ -70,3 +72,181 @@ def gap_flow_value(mode, x0, v0, tau, load, m, k, b):
     if mode != CONTACT:
         return x0 + tau * (v0 - 0.5 * g_eff * tau), v0 - g_eff * tau
     return contact_gap_flow(b / (2.0 * m), k / m, g_eff, x0, v0, tau)
+
+
+# --- a vibrating ground s(t) = A sin(w t + p), as the phase machine takes it (BallParameters' ground_* fields) ---
+# In the ground's frame the gap x = h - R - s and the relative velocity v - s' obey the still ground's equations
+# under the load m g - F_ext + m s''(t): the ground enters the machine as that load and the flows below.
+_EPS = 2.0**-52
+_SHORT_OF_ROOT = 1.0 - 1e-9  # a certified step stops this much short of its bound's root
+MAX_TOUCH_STEPS = 100_000
+
+
+def ground_value(parameters, t, order):
+    """s, s', s'' or s''' (order 0 .. 3) of the ground at t [s]: A w^order sin(w t + p + order pi / 2); 0 if still."""
+    amplitude, w = parameters.ground_amplitude, parameters.ground_omega
+    if amplitude == 0.0:
+        return 0.0
+    scale = amplitude
+    for _ in range(order):  # not w ** order, which numba and Python may round differently
+        scale *= w
+    return scale * math.sin(w * t + parameters.ground_phase + 0.5 * math.pi * order)
+
+
+def load_at(parameters, load, t):
+    """The load [N] in the ground's frame at t [s]: load + m s''(t); the load itself on a still ground."""
+    if parameters.ground_amplitude == 0.0:
+        return load
+    return load + parameters.m * ground_value(parameters, t, 2)
+
+
+def ground_rise_value(parameters, t0, tau):
+    """s(t0 + tau) - s(t0) [m] without the cancellation of two heights: 2 A cos(w (t0 + tau / 2) + p) sin(w tau / 2)."""
+    w = parameters.ground_omega
+    return (2.0 * parameters.ground_amplitude * math.cos(w * (t0 + 0.5 * tau) + parameters.ground_phase)
+            * math.sin(0.5 * w * tau))
+
+
+def ground_flight_flow(parameters, x0, v0, t0, tau, load):
+    """(x [m], v [m/s]) relative to the ground tau [s] after (x0, v0) at t0 [s] in flight (or a force-free mode).
+
+    The world's parabola less the ground's motion: x0 + v0 tau - g_eff tau^2 / 2 - (s(t0 + tau) - s(t0) - s'(t0) tau).
+    """
+    g_eff = load / parameters.m
+    slope = ground_value(parameters, t0, 1)
+    x = x0 + tau * (v0 - 0.5 * g_eff * tau) - (ground_rise_value(parameters, t0, tau) - slope * tau)
+    return x, v0 - g_eff * tau - (ground_value(parameters, t0 + tau, 1) - slope)
+
+
+def ride_end_value(parameters, t, g_eff):
+    """The first time >= t [s] at which s'' < -g_eff [m/s2]: where a ball riding the ground leaves it; inf if never.
+
+    s'' = -A w^2 sin(angle) < -g_eff  <=>  sin(angle) > g_eff / (A w^2). A still ground: t if g_eff < 0, else inf.
+    """
+    amplitude, w = parameters.ground_amplitude, parameters.ground_omega
+    if amplitude == 0.0:
+        return t if g_eff < 0.0 else math.inf
+    c = g_eff / (amplitude * w * w)
+    if c >= 1.0:
+        return math.inf
+    angle = w * t + parameters.ground_phase
+    if c < -1.0 or math.sin(angle) > c:
+        return t
+    start = math.asin(c)  # where sin rises through c (cos > 0)
+    turns = math.ceil((angle - start) / (2.0 * math.pi))
+    return max(t + (start + 2.0 * math.pi * turns - angle) / w, t)
+
+
+def flight_touch(parameters, t0, x0, v0, load, horizon, on_ground):
+    """tau [s]: the first time a flight from the gap x0 [m] at t0 [s], relative speed v0 [m/s], meets the ground.
+
+    inf if not within horizon [s]. Certified: each step goes to the first root of a lower bound of the gap (the
+    quadratic gap + gap' d - M d^2 / 2, M = |g_eff| + A w^2 >= |gap''|, or where that step is short, a graze or the
+    cubic start after a ride, the quartic Taylor bound with |gap''''| <= A w^4), so the steps converge on the first
+    root from before it and no graze is stepped over; a gap within its rounding of 0 is a touch. on_ground: the
+    flight leaves the ground at t0 (its gap 0 there is no touch).
+    """
+    g_eff = load / parameters.m
+    amplitude, w = parameters.ground_amplitude, parameters.ground_omega
+    bound = abs(g_eff) + amplitude * w * w
+    rate_bound = amplitude * w * w * w * w
+    tau = 0.0
+    for _ in range(MAX_TOUCH_STEPS):
+        if not tau <= horizon:
+            return math.inf
+        t = t0 + tau
+        gap, slope = ground_flight_flow(parameters, x0, v0, t0, tau, load)
+        curve = -g_eff - ground_value(parameters, t, 2)
+        jerk = -ground_value(parameters, t, 3)
+        spread = abs(x0) + abs(v0) * tau + 0.5 * abs(g_eff) * tau * tau
+        rounding = 16.0 * _EPS * (spread + amplitude * (1.0 + abs(w * t + parameters.ground_phase)
+                                                        * min(w * tau, 2.0)))
+        if gap <= rounding and (tau > 0.0 or (slope < 0.0 and not on_ground)):
+            return tau
+        if tau == 0.0 and on_ground:
+            gap, slope, curve = 0.0, max(slope, 0.0), max(curve, 0.0)  # leaving the ground: its gap's start
+        gap = max(gap, 0.0)
+        root = math.sqrt(slope * slope + 2.0 * bound * gap)
+        step = (slope + root) / bound if slope >= 0.0 else 2.0 * gap / (root - slope) if root > slope else 0.0
+        if not step * w > 1e-2:
+            step = max(step, first_quartic_root(-rate_bound / 24.0, jerk / 6.0, 0.5 * curve, slope, gap))
+        if not step > 0.0:
+            return tau
+        tau += _SHORT_OF_ROOT * step
+    raise RuntimeError("the certified search for a flight's touch of the vibrating ground made MAX_TOUCH_STEPS "
+                       "steps: neither a touch nor a way past one")
+
+
+def first_quartic_root(c4, c3, c2, c1, c0):
+    """The smallest positive root of the quartic c4 d^4 + c3 d^3 + c2 d^2 + c1 d + c0 (c4 < 0 <= c0).
+
+    In plain floats, the same in both engines: the roots of its derivative (a cubic, whose turning points are the
+    roots of a quadratic) split (0, inf) into pieces where it is monotonic; the first piece whose end is <= 0 holds
+    the root, found by bisection.
+    """
+    turn0, turn1 = _quadratic_roots(12.0 * c4, 6.0 * c3, 2.0 * c2)
+    point0, point1, point2 = _cubic_roots(4.0 * c4, 3.0 * c3, 2.0 * c2, c1, turn0, turn1)
+    start, value = 0.0, c0
+    for end in (point0, point1, point2, _past_roots(c4, c3, c2, c1, c0)):
+        if not end > start:
+            continue
+        end_value = _quartic(c4, c3, c2, c1, c0, end)
+        if end_value <= 0.0:
+            return _bisected(c4, c3, c2, c1, c0, start, end) if value > 0.0 else start
+        start, value = end, end_value
+    return math.inf
+
+
+def _quartic(c4, c3, c2, c1, c0, d):
+    return (((c4 * d + c3) * d + c2) * d + c1) * d + c0
+
+
+def _quadratic_roots(a2, a1, a0):
+    """The real roots of a2 x^2 + a1 x + a0, ascending; nan where there is none."""
+    if a2 == 0.0:
+        return (-a0 / a1, math.nan) if a1 != 0.0 else (math.nan, math.nan)
+    disc = a1 * a1 - 4.0 * a2 * a0
+    if disc < 0.0:
+        return math.nan, math.nan
+    q = -0.5 * (a1 + math.copysign(math.sqrt(disc), a1))
+    if q == 0.0:
+        return 0.0, 0.0
+    r0, r1 = q / a2, a0 / q
+    return min(r0, r1), max(r0, r1)
+
+
+def _cubic_roots(a3, a2, a1, a0, turn0, turn1):
+    """The positive real roots (ascending, nan-padded to three) of the cubic a3 x^3 + a2 x^2 + a1 x + a0, a3 < 0.
+
+    Given its turning points turn0 <= turn1 (nan: none): one bisection per monotonic piece that changes sign.
+    """
+    roots = [math.nan, math.nan, math.nan]
+    count, start, value = 0, 0.0, a0
+    for end in (turn0, turn1, 1.0 + (abs(a2) + abs(a1) + abs(a0)) / abs(a3)):
+        if not end > start:
+            continue
+        end_value = _quartic(0.0, a3, a2, a1, a0, end)
+        if value == 0.0 or (value > 0.0) != (end_value > 0.0):
+            roots[count] = start if value == 0.0 else _bisected(0.0, a3, a2, a1, a0, start, end)
+            count += 1
+        start, value = end, end_value
+    return roots[0], roots[1], roots[2]
+
+
+def _past_roots(c4, c3, c2, c1, c0):
+    """A point beyond every real root of the quartic (Cauchy's bound)."""
+    return 1.0 + (abs(c3) + abs(c2) + abs(c1) + abs(c0)) / abs(c4)
+
+
+def _bisected(c4, c3, c2, c1, c0, low, high):
+    """The root of the quartic between low and high, where it changes sign once, to the last bit; its low side."""
+    low_side = _quartic(c4, c3, c2, c1, c0, low) > 0.0
+    for _ in range(2100):
+        mid = 0.5 * (low + high)
+        if not low < mid < high:
+            break
+        if (_quartic(c4, c3, c2, c1, c0, mid) > 0.0) == low_side:
+            low = mid
+        else:
+            high = mid
+    return low

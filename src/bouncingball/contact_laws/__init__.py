@@ -54,6 +54,7 @@ from .dispatch import (
     departure_speed,
     departure_time,
     free_event,
+    ground_moves,
     has_free_sub_mode,
     has_pressed_gap,
     hunt_crossley_acceleration,
@@ -67,6 +68,7 @@ from .dispatch import (
     jacobian_varies,
     law_acceleration,
     law_contact_force,
+    law_flow_at,
     law_flow_value,
     law_hop_tolerance,
     law_interpolant,
@@ -93,10 +95,11 @@ __all__ = [
     "BY_CVODE", "BallParameters", "CONTACT_LAWS", "CONTACT_PARAMETERS", "ContactLaw", "HUNT_CROSSLEY", "IN_CLOSED_FORM",
     "LAWS", "LAW_MODULES", "LAW_PARAMETERS", "LINEAR", "NO_PULL", "RIGID", "ball_parameters", "conserved_speed",
     "contact_ends_in", "contact_event", "contact_integrated", "contact_scales", "contact_step_transition",
-    "decide_contact", "departure_speed", "departure_time", "free_event", "has_free_sub_mode", "has_pressed_gap",
+    "decide_contact", "departure_speed", "departure_time", "free_event", "ground_moves", "has_free_sub_mode",
+    "has_pressed_gap",
     "hunt_crossley_acceleration", "hunt_crossley_force", "hunt_crossley_free_event", "hunt_crossley_jacobian",
     "hunt_crossley_rest_margin", "hunt_crossley_scales", "hunt_crossley_state", "impact_is_instantaneous",
-    "jacobian_varies", "law_acceleration", "law_contact_force", "law_flow_value", "law_hop_tolerance",
+    "jacobian_varies", "law_acceleration", "law_contact_force", "law_flow_at", "law_flow_value", "law_hop_tolerance",
     "law_interpolant", "law_rest_margin", "no_pull_rest_margin_value", "own_interpolant", "polish_flow_mode",
     "pressed_gap", "release_speed", "release_state", "release_time", "reported_acceleration", "reported_rest_margin",
     "rigid_rebound", "root_release_speed", "root_values", "side_extreme", "starts_free", "third_root_releases",
@@ -123,4 +126,5 @@ def ball_parameters(contact, fields):
     b = fields["b"] if "b" in law.parameters else 0.0
     code = LAWS[law.undamped_as].code if law.undamped_as is not None and not b > 0.0 else law.code
     values = {**fields, "b": b, "law": float(code)}
+    values.update(ground_amplitude=0.0, ground_omega=0.0, ground_phase=0.0)  # a still ground; the ball's own
     return BallParameters(*(values[name] for name in BallParameters._fields))

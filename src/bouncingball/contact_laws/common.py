@@ -24,7 +24,9 @@ SOFT_CONTACT_CAP = 1e3  # a contact's length scale is at most this many max(R, |
 class BallParameters(NamedTuple):
     """The ball as plain floats, by name, as the phase machine takes it (Ball.parameters; numba compiles it as a tuple).
 
-    law is the contact law's code as a float (LINEAR .. HUNT_CROSSLEY); the rest are Ball's fields in SI units.
+    law is the contact law's code as a float (LINEAR .. HUNT_CROSSLEY); the rest are Ball's fields in SI units, and
+    the ground's sine s(t) = ground_amplitude sin(ground_omega t + ground_phase) [m, rad/s, rad] (amplitude 0: a
+    still ground at 0; Ground.machine_parameters sets them).
     """
 
     m: float
@@ -37,6 +39,9 @@ class BallParameters(NamedTuple):
     v_min: float
     n: float
     alpha: float
+    ground_amplitude: float = 0.0
+    ground_omega: float = 0.0
+    ground_phase: float = 0.0
 
 
 def parameters_at(values, first):
@@ -46,7 +51,8 @@ def parameters_at(values, first):
     """
     return BallParameters(values[first], values[first + 1], values[first + 2], values[first + 3],
                           values[first + 4], values[first + 5], values[first + 6], values[first + 7],
-                          values[first + 8], values[first + 9])
+                          values[first + 8], values[first + 9], values[first + 10], values[first + 11],
+                          values[first + 12])
 
 
 def time_to_impact(height_above_contact: float, v0: float, g_eff: float) -> tuple[float, float]:

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from ..codes import CONTACT, DEPARTURE, ENGAGE, FLIGHT, FREE, RELEASE
-from ..equations import gap_acceleration, gap_flow_value, rest_margin_value
+from ..equations import gap_acceleration, gap_flow_value, ground_flight_flow, rest_margin_value
 from . import common, hunt_crossley, linear, no_pull, rigid
 from .common import BY_CVODE, HUNT_CROSSLEY, IN_CLOSED_FORM, LINEAR, NO_PULL, RIGID
 from .hunt_crossley import contact_roots as hunt_crossley_contact_roots
@@ -33,6 +33,7 @@ from .linear import contact_scales as linear_contact_scales
 from .linear import decide_contact as linear_decide_contact
 from .linear import departure_speed as linear_departure_speed
 from .linear import departure_time as linear_departure_time
+from .linear import sine_ground_flow
 from .no_pull import contact_roots as no_pull_contact_roots
 from .no_pull import decide_contact as no_pull_decide_contact
 from .no_pull import free_event, no_pull_rest_margin_value, pressed_gap, release_state, release_time
@@ -59,15 +60,39 @@ def law_flow_value(parameters, mode, x0, v0, tau, load):
     return gap_flow_value(mode, x0, v0, tau, load, parameters.m, parameters.k, parameters.b)
 
 
+def law_flow_at(parameters, mode, x0, v0, t0, tau, load):
+    """law_flow_value from (x0, v0) at t0 [s], on the ball's ground: in its frame where it vibrates (floats).
+
+    On a still ground (ground_amplitude 0) law_flow_value itself. On a vibrating one, x = h - R - s and v - s':
+    a flight's (and the no-pull law's free sub-mode's) parabola less the ground's motion (equations.ground_flight_flow),
+    the linear spring-damper's contact its forced oscillation (linear.sine_ground_flow), the rigid law's contact the
+    ride (0, 0).
+    """
+    if parameters.ground_amplitude == 0.0 or (mode == CONTACT and parameters.law == RIGID):
+        return law_flow_value(parameters, mode, x0, v0, tau, load)
+    if mode != CONTACT:
+        return ground_flight_flow(parameters, x0, v0, t0, tau, load)
+    if parameters.law == HUNT_CROSSLEY:
+        return x0 + math.nan * tau, v0 + math.nan * tau
+    w = parameters.ground_omega
+    return sine_ground_flow(parameters, x0, v0, tau, load, parameters.ground_amplitude * w * w, w,
+                            w * t0 + parameters.ground_phase)
+
+
+def ground_moves(parameters):
+    """Whether the ball's ground vibrates (BallParameters' ground_amplitude > 0): the machine works in its frame."""
+    return parameters.ground_amplitude != 0.0
+
+
 def conserved_speed(parameters, mode, x_start, v_start):
     """Whether a phase from the gap x_start [m] at v_start [m/s] in mode ends on R at -v_start exactly.
 
     It does where it starts on R leaving its own side (up in flight, down in contact) and its exact
     flow conserves energy (a flight; a contact with b = 0): the phase machine's polish and the exact
     solver then give the event that speed, not their flows' rounded one, which added up over many
-    bounces to an energy drift. parameters: Ball.parameters.
+    bounces to an energy drift. parameters: Ball.parameters. Never on a vibrating ground, which gives and takes energy.
     """
-    if x_start != 0.0:
+    if x_start != 0.0 or parameters.ground_amplitude != 0.0:
         return False
     if parameters.law == HUNT_CROSSLEY:  # alpha = 0: the Hertz contact conserves energy, its force 0 on R
         return v_start > 0.0 if mode == FLIGHT else (v_start < 0.0 and parameters.alpha == 0.0)

@@ -8,12 +8,14 @@ importable from here too.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 
 import numpy as np
 
 from ..contact_laws import LAWS
+from ..ground import Ground
 from ..limits import check_cvode_settings, check_resolvable, resolvable_until
 from ..physics import Ball, Mode
 from . import engine_selection, forcing
@@ -92,21 +94,24 @@ def _ready_compiled_engine(settings: CvodeSettings) -> None:
 def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interval: float,
                    t_start: float = 0.0, F_ext: float | ForceTable = 0.0, rtol: float = DEFAULT_RTOL,
                    atol: float | None = DEFAULT_ATOL, method: str = "auto", max_step: float = 0.0,
-                   engine: str = "auto", progress: Callable[[float], None] | None = None) -> SimulationResult:
+                   engine: str = "auto", progress: Callable[[float], None] | None = None,
+                   ground: Ground | None = None) -> SimulationResult:
     """Integrate with CVODE from t_start to t_end and return the solution on the output grid.
 
     engine: see CvodeSettings; the engine that ran and why are in result.stats, and the time its
     first use in the process took (stats.first_use_time), which stats.wall_time leaves out. F_ext:
     a constant [N] or a forcing.ForceTable, integrated piece by piece of constant force. progress:
     called with the time reached [s] at the start and then at a phase start every PROGRESS_STEPS (20,000)
-    CVODE steps or so, for a progress display.
+    CVODE steps or so, for a progress display. ground: see BallIntegrator (a vibrating table: the rigid law).
     """
     settings = CvodeSettings(rtol=rtol, atol=atol, method=method, max_step=max_step, engine=engine)
     check_cvode_settings(ball, h0, settings.atol, settings.max_step, t_start, t_end)
     grid = output_grid(t_start, t_end, output_interval)
     table = F_ext if isinstance(F_ext, ForceTable) else None
+    moving = ground is not None and ground.moves
     integrator = BallIntegrator(ball, h0, v0, t_start, F_ext if table is None else float(table.at(t_start)),
-                                settings, _steps_for_auto(ball, h0, v0, grid, F_ext, settings))
+                                settings, None if moving else _steps_for_auto(ball, h0, v0, grid, F_ext, settings),
+                                ground)
     integrator.progress = progress
     try:
         first_use_time = integrator.first_use_time
@@ -132,4 +137,5 @@ def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interv
                "contact_method": integrator.methods[Mode.CONTACT], "max_step": settings.max_step,
                "engine": settings.engine}
     estimate = integrator.error_estimate
-    return SimulationResult("cvode", ball, grid, h, v, events, integrator.rest_time, stats, F_ext, options, estimate)
+    result = SimulationResult("cvode", ball, grid, h, v, events, integrator.rest_time, stats, F_ext, options, estimate)
+    return dataclasses.replace(result, ground=ground) if moving else result

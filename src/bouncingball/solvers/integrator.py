@@ -28,6 +28,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .. import limits, validation
+from ..ground import Ground, as_ground
 from ..limits import check_resolvable, resolvable_until
 from ..physics import Ball, Mode
 from . import engine_selection, state_checks
@@ -35,10 +36,11 @@ from .engine_selection import choose_engine
 from .engines import stepper
 from .engines.stepper import SolverError
 from .phase_machine import machine
-from .phase_machine.dense_output import interpolate
+from .phase_machine.dense_output import fill_grid, interpolate
 from .phase_machine.settings import CvodeSettings, choose_method, too_many_steps_cause
 from .result import EVENT_KINDS, Event, accuracy_warning, warn_at_caller
 from .state import IntegratorState, IntegratorView
+from .vibrating_ground import machine_ground, relative_start
 
 # The modes CVODE integrates, one solver each: the no-pull law's free sub-mode (Mode.FREE) is a parabola,
 # always taken in closed form (phases.decide_phase).
@@ -71,6 +73,11 @@ class BallIntegrator(IntegratorView):
     expected_steps : float, optional
         The CVODE steps the caller expects to ask for (see expected_steps), for engine "auto"
         (see choose_engine); None: unknown.
+    ground : Ground, optional
+        The ground under the ball: still at 0 by default, or a vibrating table (Ground.sine; the rigid law).
+        h0 and v0, h, v and the events' velocities are the world's; the machine integrates the gap to the
+        ground and the velocity relative to it, the ground's acceleration a load of its own
+        (vibrating_ground.machine_ground).
 
     Raises
     ------
@@ -98,37 +105,45 @@ class BallIntegrator(IntegratorView):
     held_warnings: list[Warning] | None = None
 
     def __init__(self, ball: Ball, h0: float, v0: float, t0: float = 0.0, F_ext: float = 0.0,
-                 settings: CvodeSettings | None = None, expected_steps: float | None = None) -> None:
+                 settings: CvodeSettings | None = None, expected_steps: float | None = None,
+                 ground: Ground | None = None) -> None:
         self.ball = ball
+        self.ground = ground = as_ground(ground)
+        parameters = machine_ground(ball, ground)  # before any work: a ground the engines cannot take, named
         self.settings = s = settings or CvodeSettings()
         if s.method == "auto":
             # The parabola of flight is never stiff, and Adams integrates it exactly in a few steps.
             self.methods = {Mode.FLIGHT: "Adams", Mode.CONTACT: choose_method(ball)}
         else:
             self.methods = dict.fromkeys(Mode, s.method)
-        h0, v0, t0, F_ext = checked_start(ball, h0, v0, t0, F_ext, s)
+        if ground.moves:  # checked and started relative to the ground, under its acceleration's load
+            h0, v0, t0, F_ext = relative_start(ball, ground, h0, v0, t0, F_ext, s, checked_start)
+        else:
+            h0, v0, t0, F_ext = checked_start(ball, h0, v0, t0, F_ext, s)
         self.resolvable_until = resolvable_until(ball)
         self._unreported, self._accuracy_warned = (), False  # _unreported: the SUNDIALS logs to read next
         loaded, started = engine_selection.loaded(), time.perf_counter()
         self.engine, self.engine_reason = choose_engine(s.engine, expected_steps)
         self._solvers = {mode: stepper.acquire(self.engine, ball, mode, self.methods[mode], s.rtol, s.max_step,
                                                _MAX_STEPS_PER_CALL, _own_side(mode),
-                                               _root_directions(mode), MAX_STEPS_PER_PHASE)
+                                               _root_directions(mode), MAX_STEPS_PER_PHASE,
+                                               None if parameters is ball.parameters else parameters)
                          for mode in _CVODE_MODES}
         self._machine = stepper.phase_machine(self.engine)
         self._engine = self._machine.engine([self._solvers[mode] for mode in _CVODE_MODES])
         self._logs = tuple(self._solvers[mode].log for mode in _CVODE_MODES)  # indexed by the mode's value
         # s: the engine's first use in the process (its import, and its first CVODE objects); 0 after
         self.first_use_time = 0.0 if self.engine in loaded else time.perf_counter() - started
-        self._parameters, self._atol = ball.parameters, 0.0 if s.atol is None else s.atol
-        self._machine_parameters = self._machine.parameters(ball.parameters)  # as the machine's calls take them
+        self._parameters, self._atol = parameters, 0.0 if s.atol is None else s.atol
+        self._machine_parameters = self._machine.parameters(parameters)  # as the machine's calls take them
         # _state: the machine's state as Python reads it, by name; _machine_state: what the engine's machine takes
         # (the same object on scikit-sundae's engine; a record over the same memory on the compiled one)
         self._state, self._machine_state = self._machine.new_state()
         self._scratch = np.empty((_SCRATCH_ROWS, 3))
         self._event_rows = np.empty((4, 3))  # advance's events (t, kind, v); the machine grows a copy if need be
         # What set_state would check of this state, check_scene did; its mode is the start's by construction.
-        self._restart_at((t0, h0 - ball.R, v0, ball.initial_mode(h0, v0, F_ext)), F_ext, (0, 0, None, 0, 0), t0)
+        mode = ball.initial_mode(h0, v0, F_ext - ball.m * self._ground_motion(t0, 2))
+        self._restart_at((t0, h0 - ball.R, v0, mode), F_ext, (0, 0, None, 0, 0), t0)
 
     def _warn_if_untrusted(self, whole: bool) -> None:
         """AccuracyWarning, once, where the estimate passed the promise.
@@ -148,8 +163,12 @@ class BallIntegrator(IntegratorView):
         """Resume from state (one of get_state()); ValueError names a bad field, and then nothing changed.
 
         With a restart point, CVODE restarts there and integrates to state.t again (at most the
-        current phase), then the state is exactly the one taken.
+        current phase), then the state is exactly the one taken. Not on a vibrating ground (ValueError): a saved
+        state there does not yet carry the ground's frame.
         """
+        if self.ground.moves:
+            raise ValueError(f"set_state is not allowed on ground = {self.ground.describe()}: a state is restored "
+                             "on a still ground only; start a new BallIntegrator there instead")
         checked = state_checks.checked(self.ball, state, self.settings)
         t, x, v, mode, F_ext = checked.point
         counts, t_start = checked.counts, checked.t_start
@@ -244,6 +263,9 @@ class BallIntegrator(IntegratorView):
         status, events, n_events = self._machine.advance(
             self._engine, self._machine_parameters, self.settings.rtol, self._atol, self._machine_state, t_target,
             stop_at_event, self._event_rows, 0, self._scratch)
+        if self.ground.moves:
+            events = self._world_events(_events(events, n_events))
+            n_events = 0 if not events else n_events
         # Without an event the mode never changed: its solver alone ran (one file to read, not two).
         mode = int(self._state.mode)
         self._unreported = (self._logs if n_events or status != machine.DONE or mode >= len(self._logs)
@@ -251,7 +273,7 @@ class BallIntegrator(IntegratorView):
         if status != machine.DONE:
             raise _machine_failure(self, status)
         self._warn_if_untrusted(whole=False)
-        return _events(events, n_events)
+        return events if self.ground.moves else _events(events, n_events)
 
     def integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
         """Integrate through the increasing output times grid (grid[0] = current time).
@@ -288,11 +310,14 @@ class BallIntegrator(IntegratorView):
         state.rest_t, state.rest_x, state.rest_v, state.hc_rest_t = rest  # a rest goes on
         self._warn_if_untrusted(whole=True)
         points = points[:n_points]
-        if self._machine.fill_grid is None:
+        if self._machine.fill_grid is None and not self.ground.moves:
             x_out, v_out = interpolate(self._parameters, self._load, points, grid)
-        else:
+        else:  # (on a vibrating ground the interpreted engine's too: its flows take floats)
             x_out, v_out = np.empty_like(grid), np.empty_like(grid)
-            self._machine.fill_grid(self._parameters, self._load, points, n_points, grid, x_out, v_out)
+            (self._machine.fill_grid or fill_grid)(self._parameters, self._load, points, n_points, grid, x_out, v_out)
+        if self.ground.moves:
+            return (self.ball.R + x_out + self.ground.position(grid), v_out + self.ground.velocity(grid),
+                    self._world_events(_events(events, n_events)))
         return self.ball.R + x_out, v_out, _events(events, n_events)
 
     def _report_sundials_warnings(self) -> None:

@@ -99,9 +99,16 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
         from .exact_ground import check_moving_ground  # a still ground's run does not pay for its import
 
         check_moving_ground(ball, ground)  # the laws that cannot take it, named before the solver
-    if ground.moves and solver != "exact":
-        raise ValueError(f"ground = {ground.describe()} is not allowed with solver = {solver!r}: a moving ground "
-                         "is taken by solver = 'exact' so far")
+    if ground.moves and solver == "scipy":
+        raise ValueError(f"ground = {ground.describe()} is not allowed with solver = 'scipy': the article's "
+                         "algorithm has a still ground; solver = 'exact' or 'cvode' take a moving one")
+    if ground.moves and solver == "cvode":
+        from .vibrating_ground import machine_ground
+
+        machine_ground(ball, ground)  # a table, or a law CVODE does not take there, named before any work
+        if isinstance(F_ext, ForceTable):
+            raise ValueError(f"F_ext table is not allowed with solver = 'cvode' on ground = {ground.describe()}: "
+                             "give a constant F_ext there, or use solver = 'exact'")
     ground.check_covers(t_start, t_end)
     if not ground.moves and ground.height != 0.0:  # the same run, shifted
         result = simulate(ball, h0 - ground.height, v0, t_end, output_interval, solver, t_start=t_start,

@@ -5,13 +5,14 @@ BallIntegrator.get_state takes one; set_state checks every field (state_checks.p
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 from .. import limits, validation
 from ..contact_laws import contact_integrated, impact_is_instantaneous, law_contact_force, reported_acceleration
 from ..contact_laws.rigid import summed_bounce_state
-from ..equations import load_value
+from ..equations import load_at, load_value
 from ..physics import Ball, Mode
 from .phase_machine import machine
 from .phase_machine.phases import REST, decide_phase
@@ -101,12 +102,25 @@ class IntegratorView:
     @property
     def h(self) -> float:
         """Height of the centre [m] at t."""
+        if self.ground.moves:  # the machine's gap is to the vibrating ground
+            return self.ball.R + float(self._state.x) + self._ground_motion(self.t, 0)
         return self.ball.R + float(self._state.x)
 
     @property
     def v(self) -> float:
         """Velocity [m/s] at t, positive upwards."""
+        if self.ground.moves:  # the machine's is relative to the vibrating ground
+            return float(self._state.v) + self._ground_motion(self.t, 1)
         return float(self._state.v)
+
+    def _ground_motion(self, t: float, order: int) -> float:
+        """The ground's s, s' or s'' (order 0, 1, 2) at t [s]; 0 on a still ground (the run shifted by its height)."""
+        return float(self.ground.derivative(t, order)) if self.ground.moves else 0.0
+
+    def _world_events(self, events: list) -> list:
+        """The machine's events, their velocities relative to a vibrating ground, with the world's velocities."""
+        return [dataclasses.replace(event, velocity=event.velocity + self._ground_motion(event.time, 1))
+                for event in events]
 
     @property
     def error_estimate(self) -> float:
@@ -201,7 +215,7 @@ class IntegratorView:
         the Reference-FMUs' drop, 9.4e-5 m after 100 s at F_ext = m g).
         """
         rest, t = self._zeno_time(), self.t
-        if rest is None or not t < rest:
+        if rest is None or not t < rest or self.ground.moves:  # (on a vibrating ground a ride: on it)
             return None
         impact, parameters = float(self._state.last_impact), self.ball.parameters
         e, g_eff = parameters.e, self._load / parameters.m
@@ -211,14 +225,17 @@ class IntegratorView:
     @property
     def acceleration(self) -> float:
         """dv/dt [m/s2] at t in the current mode."""
-        state = self._state
-        return reported_acceleration(self._parameters, float(state.x), float(state.v), self.mode, self._load)
+        state, t = self._state, self.t
+        relative = reported_acceleration(self._parameters, float(state.x), float(state.v), self.mode,
+                                         load_at(self._parameters, self._load, t))
+        return relative + self._ground_motion(t, 2)
 
     @property
     def contact_force(self) -> float:
         """Force of the ground on the ball [N] at t, positive upwards; zero in flight."""
         state = self._state
-        return law_contact_force(self._parameters, float(state.x), float(state.v), self.mode, self._load)
+        return law_contact_force(self._parameters, float(state.x), float(state.v), self.mode,
+                                 load_at(self._parameters, self._load, self.t))
 
     @property
     def rest_time(self) -> float | None:
@@ -234,7 +251,8 @@ class IntegratorView:
             rest = float(self._state.hc_rest_t)
             return rest if self.mode == Mode.CONTACT and not math.isnan(rest) else None
         x, v = float(self._state.x), float(self._state.v)
-        if decide_phase(self._parameters, self.mode, x, v, self._load, self._hop, self.settings.rtol)[0] != REST:
+        if decide_phase(self._parameters, self.mode, x, v, self._load, self._hop, self.settings.rtol,
+                        float(self._state.t))[0] != REST:
             return None
         start = self._last_impact_time if self._last_impact_time is not None else self._t_start
         rest = float(self._state.rest_t)

@@ -66,10 +66,10 @@ _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_
 # The parameters (float64) the callbacks read.
 # CVODE integrates x / length and v / speed (x = h - R), the phase's frame set by _engine_start.
 # The ball's parameters follow from _P_BALL, in BallParameters' order (contact_laws.common.parameters_at reads them).
-(_P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11, _P_LENGTH, _P_SPEED, _P_LOAD, _P_BALL) = range(11)
+# _P_ORIGIN: the phase's start [s], CVODE's time 0 (for a vibrating ground's load, equations.load_at).
+_P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11, _P_LENGTH, _P_SPEED, _P_LOAD, _P_ORIGIN, _P_BALL = \
+    range(12)
 _P_SIZE = _P_BALL + len(BallParameters._fields)
-
-
 
 _CACHE = cache_allowed(engine_sources())
 
@@ -124,9 +124,10 @@ def _unpacked(engine, mode):
 
 
 @njit(cache=_CACHE)
-def _engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load):
+def _engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load, origin):
     calls, memory, vector, state, parameters, user_data, work, counter = _unpacked(engine, mode)
     parameters[_P_LENGTH], parameters[_P_SPEED], parameters[_P_HOP], parameters[_P_LOAD] = length, speed, hop, load
+    parameters[_P_ORIGIN] = origin
     parameters[_P_J00], parameters[_P_J01], parameters[_P_J10], parameters[_P_J11] = _scaled_jacobian(
         _parameters_at(parameters, _P_BALL), mode, length, speed)
     user_data[_U_EVALUATIONS] = 0
@@ -173,7 +174,7 @@ _phase_ends, _run_estimate = _compiled[machine.phase_ends], _compiled[error_esti
 fill_grid = _compiled[dense_output.fill_grid]
 _scaled_rates, _root_values = _compiled[phases.scaled_rates], _compiled[phases.root_values]
 _scaled_jacobian = _compiled[phases.scaled_jacobian]
-_parameters_at = _compiled[laws_common.parameters_at]
+_parameters_at, _load_at = _compiled[laws_common.parameters_at], _compiled[equations.load_at]
 _jacobian_varies, _varying_jacobian = _compiled[phases.jacobian_varies], _compiled[phases.varying_jacobian]
 
 
@@ -238,8 +239,9 @@ def _rhs(t, y, ydot, user_data):
     p = carray(doubles(u[_U_PARAMETERS]), _P_SIZE)
     state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
     out = carray(doubles(call_p1(u[_U_GET_ARRAY], ydot)), 2)
-    out[0], out[1] = _scaled_rates(_parameters_at(p, _P_BALL), state[0], state[1], p[_P_MODE], p[_P_LENGTH],
-                                   p[_P_SPEED], p[_P_LOAD])
+    ball = _parameters_at(p, _P_BALL)
+    out[0], out[1] = _scaled_rates(ball, state[0], state[1], p[_P_MODE], p[_P_LENGTH], p[_P_SPEED],
+                                   _load_at(ball, p[_P_LOAD], p[_P_ORIGIN] + t))
     return 0
 
 
@@ -249,8 +251,9 @@ def _roots(t, y, gout, user_data):
     p = carray(doubles(u[_U_PARAMETERS]), _P_SIZE)
     state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
     out = carray(gout, 3)
-    out[0], out[1], out[2] = _root_values(_parameters_at(p, _P_BALL), state[0], state[1], p[_P_MODE],
-                                          p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD], p[_P_OWN_SIDE], p[_P_HOP])
+    ball = _parameters_at(p, _P_BALL)
+    out[0], out[1], out[2] = _root_values(ball, state[0], state[1], p[_P_MODE], p[_P_LENGTH], p[_P_SPEED],
+                                          _load_at(ball, p[_P_LOAD], p[_P_ORIGIN] + t), p[_P_OWN_SIDE], p[_P_HOP])
     u[_U_EVALUATIONS] += 1
     return 1 if u[_U_EVALUATIONS] > u[_U_MAX_EVALUATIONS] else 0
 
@@ -265,7 +268,8 @@ def _jacobian(t, y, fy, matrix, user_data, tmp1, tmp2, tmp3):
     ball = _parameters_at(p, _P_BALL)
     if _jacobian_varies(ball, p[_P_MODE]):  # evaluated where it changes
         state = carray(doubles(call_p1(u[_U_GET_ARRAY], y)), 2)
-        j00, j01, j10, j11 = _varying_jacobian(ball, state[0], state[1], p[_P_LENGTH], p[_P_SPEED], p[_P_LOAD])
+        j00, j01, j10, j11 = _varying_jacobian(ball, state[0], state[1], p[_P_LENGTH], p[_P_SPEED],
+                                               _load_at(ball, p[_P_LOAD], p[_P_ORIGIN] + t))
         first[0], first[1] = j00, j10  # SUNDIALS' dense matrices are stored by columns
         second[0], second[1] = j01, j11
         return 0
@@ -375,9 +379,9 @@ class PhaseSolver:
             self._finalizer()
 
     # --- the calls BallIntegrator makes (solvers/engines/stepper.py) ---------------------------------------
-    def bind(self, ball) -> None:
-        """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
-        self.parameters[_P_BALL:] = ball.parameters
+    def bind(self, ball, parameters=None) -> None:
+        """Integrate ball's equations (or parameters, the machine's: a vibrating ground's) from now on."""
+        self.parameters[_P_BALL:] = ball.parameters if parameters is None else parameters
 
     def handle(self) -> np.ndarray:
         """This solver's row of the compiled machine's engine (see _H_*; its CVODE made on first use)."""

@@ -76,25 +76,27 @@ class SksundaePhaseSolver:
         # The frame, the load and the ball are read from self._frame and self._constants (one lookup each):
         # these run for every right-hand side and root evaluation, ~5000 times a run.
         rates, jacobian, roots = phases.scaled_rates, phases.scaled_jacobian, phases.root_values
-        varies, varying = phases.jacobian_varies, phases.varying_jacobian
+        varies, varying, load_at = phases.jacobian_varies, phases.varying_jacobian, phases.load_at
 
         def rhs(t, y, yp):
             length, speed, _ = self._frame
-            load, parameters = self._constants
-            yp[0], yp[1] = rates(parameters, y[0], y[1], mode, length, speed, load)
+            load, parameters, origin = self._constants
+            yp[0], yp[1] = rates(parameters, y[0], y[1], mode, length, speed, load_at(parameters, load, origin + t))
 
         def jac(t, y, yp, JJ):
             length, speed, _ = self._frame
-            load, parameters = self._constants
+            load, parameters, origin = self._constants
             if varies(parameters, mode):  # evaluated where it changes
-                JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = varying(parameters, y[0], y[1], length, speed, load)
+                JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = varying(parameters, y[0], y[1], length, speed,
+                                                                 load_at(parameters, load, origin + t))
             else:
                 JJ[0, 0], JJ[0, 1], JJ[1, 0], JJ[1, 1] = jacobian(parameters, mode, length, speed)
 
         def event(t, y, out):
             length, speed, hop = self._frame
-            load, parameters = self._constants
-            out[0], out[1], out[2] = roots(parameters, y[0], y[1], mode, length, speed, load, own_side, hop)
+            load, parameters, origin = self._constants
+            out[0], out[1], out[2] = roots(parameters, y[0], y[1], mode, length, speed,
+                                           load_at(parameters, load, origin + t), own_side, hop)
             # CVODE evaluates the root functions once per step (and a few times per root found)
             self._evaluations += 1
             if self._evaluations > max_evaluations:
@@ -111,10 +113,13 @@ class SksundaePhaseSolver:
         self._cvode = CVODE(rhs, method=method, rtol=rtol, atol=rtol, max_step=max_step, eventsfn=event,
                             num_events=3, jacfn=jac, max_num_steps=max_num_steps)
 
-    def bind(self, ball: Ball) -> None:
-        """Integrate ball's equations from now on (the phase's frame and load set at each start)."""
-        self._parameters = ball.parameters
-        self._constants = (0.0, self._parameters)  # the phase's load [N], the ball
+    def bind(self, ball: Ball, parameters=None) -> None:
+        """Integrate ball's equations from now on (the phase's frame and load set at each start).
+
+        parameters: the machine's BallParameters, if not ball.parameters (a vibrating ground's, Ground.on).
+        """
+        self._parameters = ball.parameters if parameters is None else parameters
+        self._constants = (0.0, self._parameters, 0.0)  # the phase's load [N], the ball, the phase's start [s]
         self.set_frame(1.0, 1.0, 0.0)
 
     def set_frame(self, length: float, speed: float, hop_tolerance: float) -> None:
@@ -156,10 +161,10 @@ class SksundaePhaseSolver:
 
     # --- the phase machine's engine calls (solvers/phase_machine/engine_protocol.py) ---------------------------------
     def start(self, t_stop: float, y0: float, y1: float, length: float, speed: float, hop: float,
-              load: float) -> int:
+              load: float, origin: float) -> int:
         """Take the phase's frame; restart CVODE at 0 from (y0, y1) for one-step calls, or in steps() to t_stop."""
         self.set_frame(length, speed, hop)
-        self._constants = (load, self._parameters)
+        self._constants = (load, self._parameters, origin)
         self._start = (y0, y1)
         if t_stop == math.inf:
             with self.log.capturing():
@@ -253,8 +258,11 @@ _pool_lock = threading.Lock()
 
 
 def acquire(engine: str, ball: Ball, mode: Mode, method: str, rtol: float, max_step: float, max_num_steps: int,
-            own_side: float, directions, max_evaluations: int):
-    """A solver of engine ("compiled" or "sksundae") for ball's mode, from the pool or new; see the module's doc."""
+            own_side: float, directions, max_evaluations: int, parameters=None):
+    """A solver of engine ("compiled" or "sksundae") for ball's mode, from the pool or new; see the module's doc.
+
+    parameters: the machine's BallParameters where they are not ball.parameters (a vibrating ground's).
+    """
     key = (engine, mode, method, rtol, max_step, max_num_steps, own_side, tuple(directions), max_evaluations)
     with _pool_lock:
         kept = _pool.get(key)
@@ -267,8 +275,10 @@ def acquire(engine: str, ball: Ball, mode: Mode, method: str, rtol: float, max_s
         solver = PhaseSolver(ball, mode, method, rtol, max_step, max_num_steps, own_side, directions,
                              max_evaluations)
         solver.pool_key = key
+        if parameters is not None:
+            solver.bind(ball, parameters)
     else:
-        solver.bind(ball)
+        solver.bind(ball, parameters)
         solver.log.forget_causes()
     return solver
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...codes import CONTACT, FLIGHT, FREE
-from ...contact_laws import law_flow_value, law_interpolant, own_interpolant
+from ...contact_laws import law_flow_at, law_interpolant, own_interpolant
 
 
 def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
@@ -32,7 +32,7 @@ def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
     parameters: Ball.parameters; load: m g - F_ext [N]. In the gap, which carries the
     digits of a deflection that h = R + x rounds away. Floats, or arrays with one step per element;
     t0 <= t <= t1. A step of zero length gives its start. A mode with no closed form (a Hunt-Crossley contact) is
-    read off its law's own interpolant (contact_laws.law_interpolant), floats only.
+    read off its law's own interpolant (contact_laws.law_interpolant), floats only; so is a step on a vibrating ground.
     """
     if own_interpolant(parameters, mode):
         return law_interpolant(parameters, load, mode, t0, x0, v0, t1, x1, v1, t)
@@ -43,7 +43,7 @@ def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
 def step_mismatch(parameters, load, mode, t0, x0, v0, t1, x1, v1):
     """(dt, dx, dv): the step's length [s], and how far its end lies from the mode's flow from its start [m, m/s]."""
     dt = t1 - t0
-    x_end, v_end = law_flow_value(parameters, mode, x0, v0, dt, load)
+    x_end, v_end = law_flow_at(parameters, mode, x0, v0, t0, dt, load)
     return dt, x1 - x_end, v1 - v_end
 
 
@@ -54,7 +54,7 @@ def blended_state(parameters, load, mode, t0, x0, v0, dt, dx, dv, t):
         s = tau / dt if dt > 0.0 else 0.0
     else:
         s = tau / np.where(dt > 0.0, dt, np.inf)
-    x, v = law_flow_value(parameters, mode, x0, v0, tau, load)
+    x, v = law_flow_at(parameters, mode, x0, v0, t0, tau, load)
     return x + s * dx, v + s * dv
 
 

@@ -16,7 +16,8 @@ import math
 import numpy as np
 
 from ...codes import CONTACT
-from ...contact_laws import law_flow_value
+from ...contact_laws import law_flow_at, law_flow_value
+from ...equations import load_at
 from .dense_output import step_state
 from .error_estimate import run_estimate
 from .machine import DONE, RETURNED, _take_event, closed_form_phase, grown, phase_steps
@@ -26,7 +27,7 @@ from .phases import BY_CVODE, IN_CLOSED_FORM, REST, decide_phase, taylor_step
 def _decided_by_cvode(parameters, rtol, state):
     """Whether CVODE takes the phase starting at the state (phases.decide_phase); else its rest or event is set."""
     answer, tau, x_event, v_event, kind = decide_phase(parameters, int(state.mode), state.x, state.v, state.load,
-                                                       state.hop, rtol)
+                                                       state.hop, rtol, state.t)
     if answer == REST:
         state.rest_t, state.rest_x, state.rest_v = state.t, state.x, state.v
     elif answer == IN_CLOSED_FORM:
@@ -39,7 +40,8 @@ def _finish_by_taylor(parameters, state, t_target):
     dt = t_target - state.t
     if dt > 32.0 * _ulp(max(abs(t_target), abs(state.t), 1e-300)):
         return False
-    state.x, state.v = taylor_step(parameters, int(state.mode), state.x, state.v, state.load, dt)
+    state.x, state.v = taylor_step(parameters, int(state.mode), state.x, state.v, load_at(parameters, state.load,
+                                                                                          state.t), dt)
     state.t, state.t_low = t_target, 0.0
     return True
 
@@ -71,7 +73,7 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
             if state.pend_t <= t_end:
                 events, n_events = _take_event(parameters, rtol, atol, state, events, n_events)
             else:
-                state.x, state.v = law_flow_value(parameters, mode, state.x, state.v, t_end - t, state.load)
+                state.x, state.v = law_flow_at(parameters, mode, state.x, state.v, t, t_end - t, state.load)
                 state.t, state.t_low = t_end, 0.0
             points, n_points = _record(points, n_points, state.t, state.x, state.v, mode)
             continue

@@ -2,10 +2,11 @@
 
 Both engines implement them; the phase machine (machine.py) is written against them alone.
 
-``engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load) -> flag``
-    Restart the mode's CVODE at time 0 (the phase's start) from the scaled state (y0, y1) =
+``engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load, origin) -> flag``
+    Restart the mode's CVODE at time 0 (the phase's start, origin [s]) from the scaled state (y0, y1) =
     (x / length, v / speed), in the phase's frame (length [m], speed [m/s]), with the hop
-    tolerance [m] of the rest root and the load m g - F_ext [N] of the right-hand side. t_stop:
+    tolerance [m] of the rest root and the load m g - F_ext [N] of the right-hand side (on a vibrating
+    ground, equations.load_at's at origin + CVODE's time). t_stop:
     CVODE's stop time from the phase's start [s], or inf for none. flag: CVODE's (< 0 failed).
 ``engine_steps(engine, mode, scratch, t_toward, one_step) -> (flag, count, rows, gap_root, rest_root, rhs_calls)``
     CVODE's steps toward t_toward (in the phase's time): with one_step, one CVode call (which may
@@ -33,9 +34,9 @@ CV_SUCCESS, CV_TSTOP_RETURN, CV_ROOT_RETURN = 0, 1, 2  # CVode's return flags (c
 BUFFER_FULL = 99  # engine_steps' flag: the buffer is full, call again for the phase's further steps
 
 
-def engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load):
+def engine_start(engine, mode, t_stop, y0, y1, length, speed, hop, load, origin):
     """See the module's doc."""
-    return engine[mode].start(t_stop, y0, y1, length, speed, hop, load)
+    return engine[mode].start(t_stop, y0, y1, length, speed, hop, load, origin)
 
 
 def engine_steps(engine, mode, scratch, t_toward, one_step):

@@ -27,6 +27,7 @@ from ...codes import CONTACT, DEPARTURE, FLIGHT, FREE, IMPACT, RELEASE
 from ...contact_laws import (
     contact_ends_in,
     contact_integrated,
+    ground_moves,
     impact_is_instantaneous,
     reported_rest_margin,
     rigid_rebound,
@@ -34,11 +35,13 @@ from ...contact_laws import (
     side_extreme,
     third_root_releases,
 )
+from ...equations import load_at, ride_end_value
 from ...rounding import later
 from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, CV_ROOT_RETURN, engine_exceeded, engine_start, engine_steps
 from .error_estimate import carry_error, contact_steps_ellipse, event_saltation, start_contact_ellipses
-from .phases import frame, on_wrong_side, polish_event, polish_release, side_margin
+from .phases import frame, on_wrong_side, polish_event, polish_release, side_margin, vibrating_flight_touch
+from .settings import ERROR_WITHIN_PHASE, ESTIMATE_SAFETY
 
 # What run_phases returns.
 DONE, RETURNED, CVODE_FAILED, TOO_MANY_STEPS, STEPPED_OVER = range(5)
@@ -114,7 +117,13 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     released = rest_root != 0 and gap_root == 0 and third_root_releases(parameters, mode)
     if released:
         rest_root = 0
-    ends_in_event = gap_root != 0 or released
+    unconfirmed = False
+    if mode == FLIGHT and ground_moves(parameters):  # each step searched on the exact flow: the touch, certified
+        count, touched = _vibrating_flight_steps(parameters, rtol, atol, state, rows, count)
+        unconfirmed = gap_root != 0 and not touched
+        ends_in_event, gap_root = touched, 0
+    else:
+        ends_in_event = gap_root != 0 or released
     _root_event(parameters, state, mode, rows, count, tau_before, gap_root != 0, released)
     _world_rows(state, rows, count, t_stop, flag, ends_in_event)
     checked = count - 1 if ends_in_event else count  # the event's row is on R (or, a release, below it)
@@ -127,15 +136,19 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     _keep_last_step(state, mode, rows, count)
     if rest_root != 0:
         state.rest_t, state.rest_x, state.rest_v = rows[count - 1, 0], rows[count - 1, 1], rows[count - 1, 2]
+    if unconfirmed:  # CVODE's root, off the exact flow by its error (a near graze): the flight goes on, from there
+        state.t, state.x, state.v, state.t_low = state.step_t, state.step_x, state.step_v, 0.0
+        phase_ends(parameters, rtol, atol, state, 0.0, 1.0)
     return DONE, rows, count
 
 
 def _start_phase(engine, parameters, rtol, atol, state, mode, t_stop):
     """CVODE restarts in the phase's frame (phases.frame) from the state; the engine's flag (< 0: it failed)."""
-    length, speed = frame(parameters, mode, state.x, state.v, state.load, rtol, atol, t_stop - state.t)
+    length, speed = frame(parameters, mode, state.x, state.v, load_at(parameters, state.load, state.t), rtol, atol,
+                          t_stop - state.t)
     state.origin, state.length, state.speed, state.origin_low = state.t, length, speed, state.t_low
     flag = engine_start(engine, mode, t_stop - state.t, state.x / length, state.v / speed, length, speed, state.hop,
-                        state.load)
+                        state.load, state.t)
     if flag < 0:
         return flag
     state.needs_init = 0.0
@@ -171,6 +184,38 @@ def _root_event(parameters, state, mode, rows, count, tau_before, gap_root, rele
         x = 0.0
     state.pending, state.pend_v, state.pend_x, state.pend_kind = 1.0, v, x, kind
     state.pend_t, state.pend_t_low = later(origin, state.origin_low, tau)
+
+
+def _vibrating_flight_steps(parameters, rtol, atol, state, rows, count):
+    """(count, touched): a flight's steps rows[:count] (in the phase's frame) on a vibrating ground, up to its touch.
+
+    Each step is searched from its start on the exact flow (phases.vibrating_flight_touch, certified): where the
+    flight meets the ground within one, that is the impact, kept pending on the ground at its relative speed, and
+    the steps end there (CVODE's root function sees no change of sign across a graze inside a step, and its own
+    root is off by its tolerance). A graze that the gap's error could turn the other way (a touch that may be a
+    miss, a miss that may be a touch) is not decided: the motion after it may differ by the flight's whole size,
+    its length scale, which is charged to the estimate from there (it then passes the promise and warns).
+    """
+    origin, length, speed = state.origin, state.length, state.speed
+    t0, x0, v0 = state.step_t, state.step_x, state.step_v
+    for i in range(count):
+        t1 = origin + rows[i, 0]
+        # the error of the gap on this step: the phase's start's, carried (a flight's transition: x + v tau), and
+        # CVODE's own, with the estimate's safety
+        error_x = ESTIMATE_SAFETY * (abs(state.err_x) + abs(state.err_v) * (t1 - state.rs_t)
+                                     + ERROR_WITHIN_PHASE * rtol * length)
+        tau, v, decided = vibrating_flight_touch(parameters, state.load, t0, x0, v0, t1, error_x)
+        if not decided:
+            state.err_max = max(state.err_max, length)
+            state.err_from = t0 if math.isnan(state.err_from) else state.err_from
+        if not math.isinf(tau):
+            tau_event = (t0 - origin) + tau
+            state.pending, state.pend_v, state.pend_x, state.pend_kind = 1.0, v, 0.0, IMPACT
+            state.pend_t, state.pend_t_low = later(origin, state.origin_low, tau_event)
+            rows[i, 0], rows[i, 1], rows[i, 2] = tau_event, 0.0, v / speed
+            return i + 1, True
+        t0, x0, v0 = t1, length * rows[i, 1], speed * rows[i, 2]
+    return count, False
 
 
 def _world_rows(state, rows, count, t_stop, flag, ends_in_event):
@@ -258,7 +303,8 @@ def _take_event(parameters, rtol, atol, state, events, n_events):
     if kind == IMPACT and impact_is_instantaneous(parameters):
         _bounce(parameters, rtol, atol, state)
         return events, n_events + 1
-    jump, reflection = event_saltation(parameters, kind, mode, state.v, state.v, state.load)
+    jump, reflection = event_saltation(parameters, kind, mode, state.v, state.v, load_at(parameters, state.load,
+                                                                                            state.t))
     if kind == IMPACT:
         state.mode, state.impacts, state.last_impact = CONTACT, state.impacts + 1.0, state.t
     elif kind == DEPARTURE:
@@ -276,15 +322,37 @@ def _bounce(parameters, rtol, atol, state):
     Where it stays after bounces summed as their series, its rest starts at the Zeno time, after the
     state's time; between them the ball is taken on R (the bounces there are lower than ZENO_APEX R).
     """
-    v_impact = state.v
-    v_after, zeno = rigid_rebound(parameters, v_impact, state.load)
-    jump, reflection = event_saltation(parameters, IMPACT, FLIGHT, v_impact, v_after, state.load)
+    v_impact, load = state.v, load_at(parameters, state.load, state.t)
+    v_after, zeno = rigid_rebound(parameters, v_impact, load)
+    jump, reflection = event_saltation(parameters, IMPACT, FLIGHT, v_impact, v_after, load)
     carry_error(parameters, rtol, atol, state, jump, reflection)  # the error of the state before the impact
     state.impacts, state.last_impact, state.v = state.impacts + 1.0, state.t, v_after
     state.mode = FLIGHT if v_after > 0.0 else CONTACT
+    if state.mode == CONTACT and ground_moves(parameters):
+        _ride(parameters, state, later(state.t, state.t_low, zeno)[0])
+        return
     restart_needed(state)
     if zeno > 0.0:
         state.rest_t, state.rest_x, state.rest_v = later(state.t, state.t_low, zeno)[0], 0.0, 0.0
+
+
+def _ride(parameters, state, t_ride):
+    """A rigid ball stays on a vibrating ground from its impact at the state: its ride, from t_ride [s] on.
+
+    Its bounces until t_ride (the Zeno time of those summed; else the impact's) are taken on the ground, as on a
+    still one. The ride ends where s'' falls below -g_eff (equations.ride_end_value), the departure pending in
+    closed form; at once, it is none: the ball leaves with the ground (as the exact solution has it); never, a rest.
+    """
+    t_leave = ride_end_value(parameters, t_ride, state.load / parameters.m)
+    if t_leave == state.t:
+        state.mode = FLIGHT
+    restart_needed(state)
+    if t_leave == state.t:
+        return
+    if math.isinf(t_leave):
+        state.rest_t, state.rest_x, state.rest_v = t_ride, 0.0, 0.0
+        return
+    closed_form_phase(state, t_leave - state.t, 0.0, 0.0, DEPARTURE)
 
 
 def grown(rows):

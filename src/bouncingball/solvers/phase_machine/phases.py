@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import math
 
-from ...codes import CONTACT, FLIGHT, FREE, IMPACT
+from ...codes import CONTACT, DEPARTURE, FLIGHT, FREE, IMPACT
 from ...contact_laws import (
     conserved_speed,
     contact_scales,
     decide_contact,
     hunt_crossley_scales,
+    impact_is_instantaneous,
     jacobian_varies,
     law_acceleration,
     polish_flow_mode,
@@ -32,12 +33,12 @@ from ...contact_laws import (
     varying_jacobian,
 )
 from ...contact_laws.common import BY_CVODE, IN_CLOSED_FORM, MIN_PHASE_SCALE, REST, SOFT_CONTACT_CAP, time_to_impact
-from ...equations import gap_flow_value
+from ...equations import flight_touch, gap_flow_value, ground_flight_flow, load_at, ride_end_value
 from .settings import HOP_RESOLUTION
 
 # Re-exported for the engines' callbacks and the tests: the machine's answers and limits, the laws' hooks it calls.
 __all__ = ["BY_CVODE", "IN_CLOSED_FORM", "MIN_PHASE_SCALE", "REST", "SOFT_CONTACT_CAP", "hunt_crossley_scales",
-           "jacobian_varies", "root_values", "varying_jacobian"]
+           "jacobian_varies", "load_at", "root_values", "varying_jacobian"]
 _EPS = 2.0**-52
 UNREACHED_APEX = 1e3
 
@@ -72,12 +73,16 @@ def phase_scales(parameters, mode, x, v, load):
 def frame(parameters, mode, x, v, load, rtol, atol, horizon):
     """The phase's scales (length [m], speed [m/s]) from phase_scales, capped so that rtol length <= atol (atol > 0).
 
-    horizon [s]: how long the phase can last at most (inf: not known). A flight whose apex is more than
-    UNREACHED_APEX times higher than it can rise within that (a force near m g, changed long before the apex
-    would come) is scaled by what it can reach: the apex is then any height, and CVODE's error is relative
-    to the scale.
+    load: on a vibrating ground the load in its frame at the phase's start (equations.load_at), whose flight's
+    apex it scales by; where that is 0 (a ride's end), by the ground's amplitude. horizon [s]: how long the phase
+    can last at most (inf: not known). A flight whose apex is more than UNREACHED_APEX times higher than it can
+    rise within that (a force near m g, changed long before the apex would come) is scaled by what it can reach:
+    the apex is then any height, and CVODE's error is relative to the scale.
     """
     length, speed = phase_scales(parameters, mode, x, v, load)
+    if parameters.ground_amplitude != 0.0 and not (length > 0.0 and speed > 0.0):
+        # leaving a vibrating ground with it (a ride's end): the gap its motion opens, of its size
+        length, speed = parameters.ground_amplitude, parameters.ground_amplitude * parameters.ground_omega
     if mode == FLIGHT and load > 0.0 and v > 0.0 and horizon < math.inf:
         reach = max(x, parameters.R) + v * horizon
         if length > UNREACHED_APEX * reach:
@@ -88,8 +93,8 @@ def frame(parameters, mode, x, v, load, rtol, atol, horizon):
     return length, speed
 
 
-def decide_phase(parameters, mode, x, v, load, hop, rtol):
-    """How the phase from (x, v) in mode is taken: (answer, tau, x_event, v_event, kind).
+def decide_phase(parameters, mode, x, v, load, hop, rtol, t):
+    """How the phase from (x, v) in mode at t [s] is taken: (answer, tau, x_event, v_event, kind).
 
     BY_CVODE: CVODE integrates it. REST: a contact that can never again lift the ball more than hop
     above R, taken on its exact flow. IN_CLOSED_FORM: the phase ends tau [s] later in an event of kind
@@ -97,7 +102,14 @@ def decide_phase(parameters, mode, x, v, load, hop, rtol):
     is taken so where its apex stays within hop of R (a hop merged into the contacts around it would be as
     right) or below MIN_PHASE_SCALE; a phase on or below R as its contact law decides
     (contact_laws.decide_contact, with what CVODE resolves relative to a phase's length, HOP_RESOLUTION rtol).
+    On a vibrating ground (in its frame) CVODE takes every flight, and a rigid ball's contact is its ride on the
+    ground, which ends in closed form where s'' falls below -g_eff (equations.ride_end_value); never, a rest.
     """
+    if parameters.ground_amplitude != 0.0:
+        if mode == CONTACT and impact_is_instantaneous(parameters):
+            tau = ride_end_value(parameters, t, load / parameters.m) - t
+            return (REST, 0.0, 0.0, 0.0, DEPARTURE) if math.isinf(tau) else (IN_CLOSED_FORM, tau, 0.0, 0.0, DEPARTURE)
+        return BY_CVODE, 0.0, 0.0, 0.0, IMPACT
     if mode == FLIGHT:
         if x < 0.0 or not load / parameters.m > 0.0:
             return BY_CVODE, 0.0, 0.0, 0.0, IMPACT
@@ -197,3 +209,29 @@ def scaled_jacobian(parameters, mode, length, speed):
     return 0.0, 1.0 * speed / length, (-k / m if contact else 0.0) * length / speed, -b / m if contact else 0.0
 
 
+
+
+def vibrating_flight_touch(parameters, load, t0, x0, v0, t1, error_x):
+    """(tau [s], v [m/s], decided): where a flight step from (x0, v0) at t0 to t1 [s] first meets a vibrating ground.
+
+    In the ground's frame (x = h - R - s, v - s'), on the exact flow from the step's start (equations.flight_touch,
+    certified: no graze between the step's ends is passed over, which CVODE's root function, seeing no change of
+    sign, would miss). tau inf where it does not; v: the relative speed there (<= 0). decided: whether a gap off by
+    error_x [m] meets the ground or misses it as this one does. With |gap''| <= M, a touch at v^2 > 2 M error_x
+    goes deeper than error_x below the surface, so a gap that much higher touches too; a miss is decided unless the
+    gap error_x lower touches within the step at a graze (speed^2 <= 4 M error_x): where it touches transversally
+    the true one does too, after the step (its next step's impact). A state on the ground within error_x at the
+    step's start (a lift-off) is not moved into it.
+    """
+    bound = abs(load / parameters.m) + parameters.ground_amplitude * parameters.ground_omega * parameters.ground_omega
+    tau = flight_touch(parameters, t0, x0, v0, load, t1 - t0, x0 == 0.0)
+    if not math.isinf(tau):
+        v = min(ground_flight_flow(parameters, x0, v0, t0, tau, load)[1], 0.0)
+        return tau, v, v * v > 2.0 * bound * error_x
+    if x0 <= error_x:
+        return tau, 0.0, True
+    lower = flight_touch(parameters, t0, x0 - error_x, v0, load, t1 - t0, False)
+    if math.isinf(lower):
+        return tau, 0.0, True
+    v_lower = ground_flight_flow(parameters, x0 - error_x, v0, t0, lower, load)[1]
+    return tau, 0.0, v_lower * v_lower > 4.0 * bound * error_x
