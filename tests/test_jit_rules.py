@@ -31,7 +31,8 @@ COMPILED_MODULES = {function.__module__ for function in GIVEN}
 ALLOWED_MODULES = (math, np)
 # The builtins numba compiles (numba's "Supported Python features", built-in functions), as far as this code needs.
 NUMBA_BUILTINS = {"abs", "bool", "divmod", "enumerate", "float", "int", "isinstance", "len", "max", "min", "pow",
-                  "range", "round", "tuple", "zip"}
+                  "range", "round", "tuple", "zip",
+                  "RuntimeError"}  # raised with a constant message (numba compiles raise, not an f-string)
 ARRAY_ATTRIBUTES = {"shape", "size", "ndim", "dtype", "ctypes", "T", "copy", "fill", "sum"}
 PARAMETER_FIELDS = set(BallParameters._fields)  # the ball's parameters travel as a namedtuple, read by name
 STATE_FIELDS = set(layout.NAMES)  # the machine's state: a record (interpreted: a dataclass), read by name

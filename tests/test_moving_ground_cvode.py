@@ -190,8 +190,10 @@ def test_no_grazing_impact_is_missed_unsaid():
     """The exact solver's 100 grazing scenes (tests/table_scenes.py; impact k + 1 grazes 1e-10 to 1e-5 m deep or
     misses by up to 1e-6 m): every impact up to the graze the truth's, or the run warned; no height past the promise
     unwarned. CVODE's state is off by ~1e-12 to 1e-9 m there: a graze that error could turn the other way is not
-    decided and warns (measured: 8 of 100 warned, the 2 that lost the graze among them)."""
-    lost, unsaid, warned_count = [], [], 0
+    decided and warns (measured: 4 of 100 warned, the 2 that lost the graze among them). The error estimate is
+    above the true error in every scene (measured: 100 of 100; within 1000x in 99, every unwarned one within 303x;
+    median 2.1x)."""
+    lost, unsaid, warned_count, ratios = [], [], 0, []
     for number, scene in enumerate(grazing_family()):
         bounces_before = scene.pop("bounces_before")
         scene.pop("graze_time"), scene.pop("graze_depth")
@@ -212,7 +214,9 @@ def test_no_grazing_impact_is_missed_unsaid():
             lost.append((number, resolved[found > 1e-7][:3]))
         h_true = np.array([float(truth.state(t)[0]) for t in result.t])
         error = np.max(np.abs(result.h - h_true))
-        if error > 1e-6 * max(np.max(np.abs(result.h)), scene["R"]) and not warned:
+        if error > result.error_estimate or (error > 1e-6 * max(np.max(np.abs(result.h)), scene["R"]) and not warned):
             unsaid.append((number, error, result.error_estimate))
+        ratios.append(result.error_estimate / max(error, 1e-300))
     assert not lost and not unsaid, (lost, unsaid)
-    assert warned_count <= 15  # the undecided grazes, not every run
+    assert warned_count <= 10  # the undecided grazes, not every run
+    assert sum(ratio <= 1e3 for ratio in ratios) >= 95

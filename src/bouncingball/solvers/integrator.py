@@ -40,7 +40,7 @@ from .phase_machine.dense_output import fill_grid, interpolate
 from .phase_machine.settings import CvodeSettings, choose_method, too_many_steps_cause
 from .result import EVENT_KINDS, Event, accuracy_warning, warn_at_caller
 from .state import IntegratorState, IntegratorView
-from .vibrating_ground import machine_ground, relative_start
+from .vibrating_ground import ground_motion, machine_ground, refuse_restore, relative_start, world_events, world_grid
 
 # The modes CVODE integrates, one solver each: the no-pull law's free sub-mode (Mode.FREE) is a parabola,
 # always taken in closed form (phases.decide_phase).
@@ -74,16 +74,12 @@ class BallIntegrator(IntegratorView):
         The CVODE steps the caller expects to ask for (see expected_steps), for engine "auto"
         (see choose_engine); None: unknown.
     ground : Ground, optional
-        The ground under the ball: still at 0 by default, or a vibrating table (Ground.sine; the rigid law).
-        h0 and v0, h, v and the events' velocities are the world's; the machine integrates the gap to the
-        ground and the velocity relative to it, the ground's acceleration a load of its own
-        (vibrating_ground.machine_ground).
+        Still at 0 by default, or a vibrating table (Ground.sine; the rigid law; see solvers/vibrating_ground.py).
 
     Raises
     ------
     ValueError
-        A value outside its range (naming it), or contacts too short to resolve in double
-        precision at t0 (see check_resolvable).
+        A value outside its range (naming it), or contacts too short to resolve in double precision at t0.
 
     Examples
     --------
@@ -116,10 +112,7 @@ class BallIntegrator(IntegratorView):
             self.methods = {Mode.FLIGHT: "Adams", Mode.CONTACT: choose_method(ball)}
         else:
             self.methods = dict.fromkeys(Mode, s.method)
-        if ground.moves:  # checked and started relative to the ground, under its acceleration's load
-            h0, v0, t0, F_ext = relative_start(ball, ground, h0, v0, t0, F_ext, s, checked_start)
-        else:
-            h0, v0, t0, F_ext = checked_start(ball, h0, v0, t0, F_ext, s)
+        h0, v0, t0, F_ext = relative_start(ball, ground, h0, v0, t0, F_ext, s, checked_start)
         self.resolvable_until = resolvable_until(ball)
         self._unreported, self._accuracy_warned = (), False  # _unreported: the SUNDIALS logs to read next
         loaded, started = engine_selection.loaded(), time.perf_counter()
@@ -142,7 +135,7 @@ class BallIntegrator(IntegratorView):
         self._scratch = np.empty((_SCRATCH_ROWS, 3))
         self._event_rows = np.empty((4, 3))  # advance's events (t, kind, v); the machine grows a copy if need be
         # What set_state would check of this state, check_scene did; its mode is the start's by construction.
-        mode = ball.initial_mode(h0, v0, F_ext - ball.m * self._ground_motion(t0, 2))
+        mode = ball.initial_mode(h0, v0, F_ext - ball.m * ground_motion(ground, t0, 2))
         self._restart_at((t0, h0 - ball.R, v0, mode), F_ext, (0, 0, None, 0, 0), t0)
 
     def _warn_if_untrusted(self, whole: bool) -> None:
@@ -163,12 +156,9 @@ class BallIntegrator(IntegratorView):
         """Resume from state (one of get_state()); ValueError names a bad field, and then nothing changed.
 
         With a restart point, CVODE restarts there and integrates to state.t again (at most the
-        current phase), then the state is exactly the one taken. Not on a vibrating ground (ValueError): a saved
-        state there does not yet carry the ground's frame.
+        current phase), then the state is exactly the one taken. Not on a vibrating ground (ValueError).
         """
-        if self.ground.moves:
-            raise ValueError(f"set_state is not allowed on ground = {self.ground.describe()}: a state is restored "
-                             "on a still ground only; start a new BallIntegrator there instead")
+        refuse_restore(self.ground)
         checked = state_checks.checked(self.ball, state, self.settings)
         t, x, v, mode, F_ext = checked.point
         counts, t_start = checked.counts, checked.t_start
@@ -263,9 +253,6 @@ class BallIntegrator(IntegratorView):
         status, events, n_events = self._machine.advance(
             self._engine, self._machine_parameters, self.settings.rtol, self._atol, self._machine_state, t_target,
             stop_at_event, self._event_rows, 0, self._scratch)
-        if self.ground.moves:
-            events = self._world_events(_events(events, n_events))
-            n_events = 0 if not events else n_events
         # Without an event the mode never changed: its solver alone ran (one file to read, not two).
         mode = int(self._state.mode)
         self._unreported = (self._logs if n_events or status != machine.DONE or mode >= len(self._logs)
@@ -273,7 +260,7 @@ class BallIntegrator(IntegratorView):
         if status != machine.DONE:
             raise _machine_failure(self, status)
         self._warn_if_untrusted(whole=False)
-        return events if self.ground.moves else _events(events, n_events)
+        return world_events(self.ground, _events(events, n_events))
 
     def integrate_grid(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Event]]:
         """Integrate through the increasing output times grid (grid[0] = current time).
@@ -309,22 +296,28 @@ class BallIntegrator(IntegratorView):
         self._machine.phase_ends(self._machine_parameters, self.settings.rtol, self._atol, machine_state, 0.0, 1.0)
         state.rest_t, state.rest_x, state.rest_v, state.hc_rest_t = rest  # a rest goes on
         self._warn_if_untrusted(whole=True)
-        points = points[:n_points]
-        if self._machine.fill_grid is None and not self.ground.moves:
-            x_out, v_out = interpolate(self._parameters, self._load, points, grid)
-        else:  # (on a vibrating ground the interpreted engine's too: its flows take floats)
-            x_out, v_out = np.empty_like(grid), np.empty_like(grid)
-            (self._machine.fill_grid or fill_grid)(self._parameters, self._load, points, n_points, grid, x_out, v_out)
-        if self.ground.moves:
-            return (self.ball.R + x_out + self.ground.position(grid), v_out + self.ground.velocity(grid),
-                    self._world_events(_events(events, n_events)))
-        return self.ball.R + x_out, v_out, _events(events, n_events)
+        x_out, v_out = _grid_values(self._machine.fill_grid, self._parameters, self._load, points, n_points, grid)
+        return *world_grid(self.ground, self.ball.R, grid, x_out, v_out), world_events(self.ground,
+                                                                                       _events(events, n_events))
 
     def _report_sundials_warnings(self) -> None:
         logs, self._unreported = self._unreported, ()
         for log in logs:
             for warning in log.new_warnings():
                 _issue(self.held_warnings, warning)
+
+
+def _grid_values(compiled_fill, parameters, load: float, points: np.ndarray, n_points: int, grid: np.ndarray):
+    """The machine's (x, v) at the times grid from its step ends points[:n_points].
+
+    The compiled engine's fill, or dense_output.interpolate in numpy (on a vibrating ground, its float fill run
+    interpreted: the ground's flows take floats).
+    """
+    if compiled_fill is None and parameters.ground_amplitude == 0.0:
+        return interpolate(parameters, load, points[:n_points], grid)
+    x_out, v_out = np.empty_like(grid), np.empty_like(grid)
+    (compiled_fill or fill_grid)(parameters, load, points, n_points, grid, x_out, v_out)
+    return x_out, v_out
 
 
 def checked_start(ball: Ball, h0, v0, t0, F_ext, settings: CvodeSettings) -> tuple[float, float, float, float]:

@@ -5,7 +5,6 @@ BallIntegrator.get_state takes one; set_state checks every field (state_checks.p
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -17,6 +16,7 @@ from ..physics import Ball, Mode
 from .phase_machine import machine
 from .phase_machine.phases import REST, decide_phase
 from .phase_machine.settings import hop_tolerance
+from .vibrating_ground import ground_motion
 
 
 @dataclass(frozen=True)
@@ -102,25 +102,12 @@ class IntegratorView:
     @property
     def h(self) -> float:
         """Height of the centre [m] at t."""
-        if self.ground.moves:  # the machine's gap is to the vibrating ground
-            return self.ball.R + float(self._state.x) + self._ground_motion(self.t, 0)
-        return self.ball.R + float(self._state.x)
+        return self.ball.R + float(self._state.x) + ground_motion(self.ground, self.t, 0)  # the gap is to the ground
 
     @property
     def v(self) -> float:
         """Velocity [m/s] at t, positive upwards."""
-        if self.ground.moves:  # the machine's is relative to the vibrating ground
-            return float(self._state.v) + self._ground_motion(self.t, 1)
-        return float(self._state.v)
-
-    def _ground_motion(self, t: float, order: int) -> float:
-        """The ground's s, s' or s'' (order 0, 1, 2) at t [s]; 0 on a still ground (the run shifted by its height)."""
-        return float(self.ground.derivative(t, order)) if self.ground.moves else 0.0
-
-    def _world_events(self, events: list) -> list:
-        """The machine's events, their velocities relative to a vibrating ground, with the world's velocities."""
-        return [dataclasses.replace(event, velocity=event.velocity + self._ground_motion(event.time, 1))
-                for event in events]
+        return float(self._state.v) + ground_motion(self.ground, self.t, 1)  # the machine's is relative to it
 
     @property
     def error_estimate(self) -> float:
@@ -228,7 +215,7 @@ class IntegratorView:
         state, t = self._state, self.t
         relative = reported_acceleration(self._parameters, float(state.x), float(state.v), self.mode,
                                          load_at(self._parameters, self._load, t))
-        return relative + self._ground_motion(t, 2)
+        return relative + ground_motion(self.ground, t, 2)
 
     @property
     def contact_force(self) -> float:

@@ -8,6 +8,8 @@ events' velocities in the world's frame.
 
 from __future__ import annotations
 
+import dataclasses
+
 from .. import validation
 from ..ground import Ground
 from ..physics import Ball
@@ -34,12 +36,21 @@ def machine_ground(ball: Ball, ground: Ground):
                                ground_phase=ground.phase)
 
 
+def refuse_restore(ground: Ground) -> None:
+    """ValueError on a vibrating ground: BallIntegrator.set_state restores a state on a still ground only."""
+    if ground.moves:
+        raise ValueError(f"set_state is not allowed on ground = {ground.describe()}: a state is restored on a still "
+                         "ground only (a saved state does not carry the ground's frame); start a new BallIntegrator")
+
+
 def relative_start(ball: Ball, ground: Ground, h0, v0, t0, F_ext, settings, checked_start):
-    """checked_start's (h0, v0, t0, F_ext) relative to a vibrating ground at t0: (R + gap, v0 - s'(t0), t0, F_ext).
+    """checked_start's (h0, v0, t0, F_ext), relative to a vibrating ground at t0: (R + gap, v0 - s'(t0), t0, F_ext).
 
     Each value checked and named; a start within 16 ulps of the ground's surface is on it (its rounding); a rigid
-    ball below it is refused.
+    ball below it is refused. On a still ground checked_start's own.
     """
+    if not ground.moves:
+        return checked_start(ball, h0, v0, t0, F_ext, settings)
     t0 = validation.finite("t0", t0, "s")
     h0, v0 = validation.finite("h0", h0, "m"), validation.finite("v0", v0, "m/s")
     surface = float(ground.position(t0))
@@ -51,3 +62,23 @@ def relative_start(ball: Ball, ground: Ground, h0, v0, t0, F_ext, settings, chec
                          f"{ball.R + surface!r} m (the ball cannot start inside the ground)")
     relative, t0, F_ext = checked_start(ball, ball.R + gap, v0 - float(ground.velocity(t0)), t0, F_ext, settings)[1:]
     return ball.R + gap, relative, t0, F_ext
+
+
+def ground_motion(ground: Ground, t: float, order: int) -> float:
+    """The ground's s, s' or s'' (order 0, 1, 2) at t [s]; 0 on a still one (a height is the run shifted)."""
+    return float(ground.derivative(t, order)) if ground.moves else 0.0
+
+
+def world_events(ground: Ground, events: list) -> list:
+    """The machine's events, their velocities relative to a vibrating ground, with the world's velocities."""
+    if not ground.moves:
+        return events
+    return [dataclasses.replace(event, velocity=event.velocity + ground_motion(ground, event.time, 1))
+            for event in events]
+
+
+def world_grid(ground: Ground, R: float, grid, x, v) -> tuple:
+    """(h [m], v [m/s]) at the times grid [s] from the machine's gap x [m] and velocity v [m/s] (relative to it)."""
+    if not ground.moves:
+        return R + x, v
+    return R + x + ground.position(grid), v + ground.velocity(grid)

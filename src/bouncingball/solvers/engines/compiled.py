@@ -15,8 +15,7 @@ code is checked, and every SUNDIALS object is freed with its solver. C function 
 to the compiled code as arguments, never baked into it, so the compiled code is cached on disk
 (numba ``cache=True``) and loads in a fraction of a second after the first run.
 
-Import this module only to use the engine: it imports numba. ``unavailable_reason()`` says why the
-engine cannot run here (numba missing, a library not found or of another version), or None.
+Import this module only to use the engine (it imports numba); ``unavailable_reason()`` says why it cannot run here.
 """
 
 from __future__ import annotations
@@ -63,12 +62,10 @@ _NUM_ROOTS = 3
 
 # The block user_data points to (int64): what the callbacks need besides the state.
 _U_PARAMETERS, _U_GET_ARRAY, _U_COLUMNS, _U_EVALUATIONS, _U_MAX_EVALUATIONS, _U_SIZE = range(6)
-# The parameters (float64) the callbacks read.
-# CVODE integrates x / length and v / speed (x = h - R), the phase's frame set by _engine_start.
-# The ball's parameters follow from _P_BALL, in BallParameters' order (contact_laws.common.parameters_at reads them).
-# _P_ORIGIN: the phase's start [s], CVODE's time 0 (for a vibrating ground's load, equations.load_at).
-_P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11, _P_LENGTH, _P_SPEED, _P_LOAD, _P_ORIGIN, _P_BALL = \
-    range(12)
+# The callbacks' float64 parameters: CVODE integrates x / length, v / speed (x = h - R) from _P_ORIGIN [s] (time 0;
+# a vibrating ground's load is equations.load_at's there + CVODE's time); the ball from _P_BALL (BallParameters).
+(_P_MODE, _P_OWN_SIDE, _P_HOP, _P_J00, _P_J01, _P_J10, _P_J11, _P_LENGTH, _P_SPEED, _P_LOAD, _P_ORIGIN,
+ _P_BALL) = range(12)
 _P_SIZE = _P_BALL + len(BallParameters._fields)
 
 _CACHE = cache_allowed(engine_sources())

@@ -39,7 +39,7 @@ from ...equations import load_at, ride_end_value
 from ...rounding import later
 from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, CV_ROOT_RETURN, engine_exceeded, engine_start, engine_steps
-from .error_estimate import carry_error, contact_steps_ellipse, event_saltation, start_contact_ellipses
+from .error_estimate import carry_error, contact_steps_ellipse, event_saltation, phase_error, start_contact_ellipses
 from .phases import frame, on_wrong_side, polish_event, polish_release, side_margin, vibrating_flight_touch
 from .settings import ERROR_WITHIN_PHASE, ESTIMATE_SAFETY
 
@@ -200,11 +200,12 @@ def _vibrating_flight_steps(parameters, rtol, atol, state, rows, count):
     t0, x0, v0 = state.step_t, state.step_x, state.step_v
     for i in range(count):
         t1 = origin + rows[i, 0]
-        # the error of the gap on this step: the phase's start's, carried (a flight's transition: x + v tau), and
-        # CVODE's own, with the estimate's safety
-        error_x = ESTIMATE_SAFETY * (abs(state.err_x) + abs(state.err_v) * (t1 - state.rs_t)
-                                     + ERROR_WITHIN_PHASE * rtol * length)
-        tau, v, decided = vibrating_flight_touch(parameters, state.load, t0, x0, v0, t1, error_x)
+        # the error at the step's start: the phase's start's, carried (a flight's transition: x + v tau, signed), and
+        # CVODE's own (unsigned), with the estimate's safety
+        elapsed = t0 - state.rs_t
+        tau, v, decided = vibrating_flight_touch(
+            parameters, state.load, t0, x0, v0, t1, ESTIMATE_SAFETY * (state.err_x + state.err_v * elapsed),
+            ESTIMATE_SAFETY * state.err_v, ESTIMATE_SAFETY * ERROR_WITHIN_PHASE * rtol * (length + speed * elapsed))
         if not decided:
             state.err_max = max(state.err_max, length)
             state.err_from = t0 if math.isnan(state.err_from) else state.err_from
@@ -324,7 +325,12 @@ def _bounce(parameters, rtol, atol, state):
     """
     v_impact, load = state.v, load_at(parameters, state.load, state.t)
     v_after, zeno = rigid_rebound(parameters, v_impact, load)
+    if parameters.v_min > 0.0 and _undecided_rebound(parameters, rtol, atol, state, v_impact, load):
+        state.err_max = max(state.err_max, state.length)
+        state.err_from = state.t if math.isnan(state.err_from) else state.err_from
     jump, reflection = event_saltation(parameters, IMPACT, FLIGHT, v_impact, v_after, load)
+    if not v_after > 0.0 and load < 0.0:  # no rebound, but a vibrating ground pulls away at once: the ball leaves
+        jump, reflection = -(load / parameters.m) / v_impact, 0.0  # with it, as after an impact with e = 0
     carry_error(parameters, rtol, atol, state, jump, reflection)  # the error of the state before the impact
     state.impacts, state.last_impact, state.v = state.impacts + 1.0, state.t, v_after
     state.mode = FLIGHT if v_after > 0.0 else CONTACT
@@ -334,6 +340,20 @@ def _bounce(parameters, rtol, atol, state):
     restart_needed(state)
     if zeno > 0.0:
         state.rest_t, state.rest_x, state.rest_v = later(state.t, state.t_low, zeno)[0], 0.0, 0.0
+
+
+def _undecided_rebound(parameters, rtol, atol, state, v_impact, load):
+    """Whether a rigid bounce at v_impact [m/s] is as near v_min as its speed's error: on, or stays, is not decided.
+
+    The speed's error: the run's error of v at the impact (error_estimate.phase_error), that of x turned into one
+    of the speed through the impact's time (g_eff |x error| / |v|, large at a graze), CVODE's own, with the
+    estimate's safety. Either way the motion after it may differ by the flight's size (a bounce of v_min or a
+    ride), which the caller charges to the estimate.
+    """
+    ax, av = phase_error(parameters, rtol, atol, state)[:2]
+    error = ESTIMATE_SAFETY * (abs(av) + abs(load / parameters.m) * abs(ax) / abs(v_impact)
+                               + ERROR_WITHIN_PHASE * rtol * state.speed)
+    return abs(parameters.e * abs(v_impact) - parameters.v_min) <= parameters.e * error
 
 
 def _ride(parameters, state, t_ride):

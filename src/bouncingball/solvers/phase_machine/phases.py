@@ -211,27 +211,32 @@ def scaled_jacobian(parameters, mode, length, speed):
 
 
 
-def vibrating_flight_touch(parameters, load, t0, x0, v0, t1, error_x):
+def vibrating_flight_touch(parameters, load, t0, x0, v0, t1, error_x, error_v, own):
     """(tau [s], v [m/s], decided): where a flight step from (x0, v0) at t0 to t1 [s] first meets a vibrating ground.
 
     In the ground's frame (x = h - R - s, v - s'), on the exact flow from the step's start (equations.flight_touch,
     certified: no graze between the step's ends is passed over, which CVODE's root function, seeing no change of
-    sign, would miss). tau inf where it does not; v: the relative speed there (<= 0). decided: whether a gap off by
-    error_x [m] meets the ground or misses it as this one does. With |gap''| <= M, a touch at v^2 > 2 M error_x
-    goes deeper than error_x below the surface, so a gap that much higher touches too; a miss is decided unless the
-    gap error_x lower touches within the step at a graze (speed^2 <= 4 M error_x): where it touches transversally
-    the true one does too, after the step (its next step's impact). A state on the ground within error_x at the
-    step's start (a lift-off) is not moved into it.
+    sign, would miss). tau inf where it does not; v: the relative speed there (<= 0). decided: whether the state
+    off by its error does the same. error_x [m], error_v [m/s]: the signed error carried from the phase's start to
+    t0 (a shift along the flow moves no touch), own [m]: the unsigned rest (CVODE's). At a touch where the gap curves
+    up (gap'' = c > 0) the flow would dip v^2 / (2 c) below the surface, which an error moves by
+    |error_x - (v / c) error_v| + own (0 along the flow): a touch is decided where it dips deeper. A miss is decided
+    unless the gap lower by |error_x| + own touches within the step at a graze (speed^2 <= 4 |c| times that).
+    A state on the ground within that at the step's start (a lift-off) is not moved into it.
     """
-    bound = abs(load / parameters.m) + parameters.ground_amplitude * parameters.ground_omega * parameters.ground_omega
     tau = flight_touch(parameters, t0, x0, v0, load, t1 - t0, x0 == 0.0)
     if not math.isinf(tau):
         v = min(ground_flight_flow(parameters, x0, v0, t0, tau, load)[1], 0.0)
-        return tau, v, v * v > 2.0 * bound * error_x
-    if x0 <= error_x:
+        curve = -load_at(parameters, load, t0 + tau) / parameters.m
+        if not curve > 0.0:  # it accelerates into the ground: no error of a size to miss it undoes it
+            return tau, v, True
+        return tau, v, 0.5 * v * (v / curve) > abs(error_x - (v / curve) * error_v) + own
+    shift = abs(error_x) + own
+    if x0 <= shift:
         return tau, 0.0, True
-    lower = flight_touch(parameters, t0, x0 - error_x, v0, load, t1 - t0, False)
+    lower = flight_touch(parameters, t0, x0 - shift, v0, load, t1 - t0, False)
     if math.isinf(lower):
         return tau, 0.0, True
-    v_lower = ground_flight_flow(parameters, x0 - error_x, v0, t0, lower, load)[1]
-    return tau, 0.0, v_lower * v_lower > 4.0 * bound * error_x
+    v_lower = ground_flight_flow(parameters, x0 - shift, v0, t0, lower, load)[1]
+    curve = abs(load_at(parameters, load, t0 + lower)) / parameters.m
+    return tau, 0.0, v_lower * v_lower > 4.0 * curve * shift
