@@ -18,11 +18,11 @@ from bouncingball import Ground
 from closed_forms import (
     period_doubling_threshold,
     period_n_phase,
-    period_n_takeoff_speed,
     period_n_threshold,
     ride_end_phase,
     table_amplitude,
 )
+from table_runs import grazing_run, impact_times, orbit_start
 from table_scenes import grazing_family
 from table_truth import SineTableTruth
 
@@ -31,14 +31,20 @@ W = 2.0 * math.pi * F
 PHASE_TOLERANCE, TIME_TOLERANCE = 1e-9, 1e-9  # rad, s: the issue's
 
 
-def _exact(ball, h0, v0, t_end, ground, output_interval=1e-3):
+# The solvers that take the rigid law on a sine ground: the exact one, and CVODE (its compiled engine here; both
+# engines and the stepping API alike in tests/test_moving_ground_cvode.py, with its grazing family).
+SOLVERS = ["exact", "cvode"]
+
+
+def _run(solver, ball, h0, v0, t_end, ground, output_interval=1e-3):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # an AccuracyWarning would be a broken promise here
-        return bb.simulate(ball, h0, v0, t_end, output_interval, solver="exact", ground=ground)
+        options = {"engine": "compiled"} if solver == "cvode" else {}
+        return bb.simulate(ball, h0, v0, t_end, output_interval, solver=solver, ground=ground, **options)
 
 
-def _impacts(result):
-    return np.array([event.time for event in result.events if event.kind == bb.EventKind.IMPACT])
+def _exact(ball, h0, v0, t_end, ground, output_interval=1e-3):
+    return _run("exact", ball, h0, v0, t_end, ground, output_interval)
 
 
 def _phase(t, phase):
@@ -47,23 +53,19 @@ def _phase(t, phase):
 
 def _orbit_start(e, gamma, speed_factor):
     """(ball, ground, h0, v0): on the period-1 orbit's take-off point at t = 0, speed_factor times its speed."""
-    phi = period_n_phase(1, e, gamma)
-    ground = Ground.sine(table_amplitude(gamma, F, G), F, phi)
-    ball = bb.Ball(R=R, g=G, contact="rigid", e=e, v_min=0.0)
-    h0 = R + ground.position(0.0)
-    h0 = math.nextafter(h0, math.inf) if h0 - R < ground.position(0.0) else h0  # on the table, not a rounding into it
-    return ball, ground, h0, speed_factor * period_n_takeoff_speed(1, F, G)
+    return orbit_start(e, gamma, speed_factor, F, G, R)
 
 
 @pytest.mark.parametrize("e", [0.5, 0.8])
 @pytest.mark.parametrize("fraction", [0.3, 0.8])
-def test_the_period_one_orbit_is_reached_at_its_closed_form_phase(e, fraction):
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_the_period_one_orbit_is_reached_at_its_closed_form_phase(solver, e, fraction):
     """Started 1% off the take-off speed: after 200 impacts, each at phi and 1/f after the last (1e-9)."""
     low, high = period_n_threshold(1, e), period_doubling_threshold(1, e)
     gamma = low + fraction * (high - low)
     ball, ground, h0, v0 = _orbit_start(e, gamma, 1.01)
-    result = _exact(ball, h0, v0, 215.0 / F, ground)
-    impacts = _impacts(result)
+    result = _run(solver, ball, h0, v0, 215.0 / F, ground)
+    impacts = impact_times(result)
     assert len(impacts) >= 210
     after = impacts[200:]
     phi = period_n_phase(1, e, gamma)
@@ -72,12 +74,13 @@ def test_the_period_one_orbit_is_reached_at_its_closed_form_phase(e, fraction):
     assert result.error_estimate < 1e-6 * R
 
 
-def test_past_the_period_doubling_threshold_the_orbit_has_period_two():
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_past_the_period_doubling_threshold_the_orbit_has_period_two(solver):
     e = 0.5
     gamma = 1.02 * period_doubling_threshold(1, e)
     ball = bb.Ball(R=R, g=G, contact="rigid", e=e, v_min=0.0)
     ground = Ground.sine(table_amplitude(gamma, F, G), F)
-    intervals = np.diff(_impacts(_exact(ball, R + 0.05, 0.0, 40.0, ground)))[-40:]
+    intervals = np.diff(impact_times(_run(solver, ball, R + 0.05, 0.0, 40.0, ground)))[-40:]
     assert np.max(np.abs(intervals[:-1] + intervals[1:] - 2.0 / F)) < TIME_TOLERANCE  # two impacts per 2 periods
     assert np.min(np.abs(intervals - 1.0 / F)) > 1e-3  # and not one per period
     assert np.max(np.abs(intervals[2:] - intervals[:-2])) < TIME_TOLERANCE
@@ -88,29 +91,31 @@ def test_below_period_doubling_the_orbit_keeps_period_one():
     e = 0.5
     gamma = 0.97 * period_doubling_threshold(1, e)
     ball, ground, h0, v0 = _orbit_start(e, gamma, 1.01)
-    intervals = np.diff(_impacts(_exact(ball, h0, v0, 60.0, ground)))[-20:]
+    intervals = np.diff(impact_times(_exact(ball, h0, v0, 60.0, ground)))[-20:]
     assert np.max(np.abs(intervals - 1.0 / F)) < 1e-6
 
 
 @pytest.mark.parametrize("e, fraction", [(0.5, 0.3), (0.8, 0.8)])
-def test_the_first_fifty_impacts_off_the_orbit_are_the_truths(e, fraction):
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_the_first_fifty_impacts_off_the_orbit_are_the_truths(solver, e, fraction):
     low, high = period_n_threshold(1, e), period_doubling_threshold(1, e)
     gamma = low + fraction * (high - low)
     ball, ground, h0, v0 = _orbit_start(e, gamma, 1.05)
     truth = SineTableTruth(R, G, e, 0.0, ground.amplitude, F, ground.phase, h0, v0, 6.0, max_impacts=50)
     expected = np.array([float(t) for t, _, _ in truth.impacts])
     assert len(expected) == 50
-    impacts = _impacts(_exact(ball, h0, v0, float(truth.t_known) + 1e-3, ground))[:50]
+    impacts = impact_times(_run(solver, ball, h0, v0, float(truth.t_known) + 1e-3, ground))[:50]
     assert len(impacts) == 50
     assert np.max(np.abs(impacts - expected)) < TIME_TOLERANCE
 
 
-def test_below_one_and_gamma_one_the_ball_chatters_and_rides_for_good():
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_below_one_and_gamma_one_the_ball_chatters_and_rides_for_good(solver):
     """e = 0.5, Gamma = 0.9 < min(1, Gamma_1): complete chattering, then the ride, from the truth's accumulation."""
     e, gamma = 0.5, 0.9
     ball = bb.Ball(R=R, g=G, contact="rigid", e=e, v_min=0.0)
     ground = Ground.sine(table_amplitude(gamma, F, G), F)
-    result = _exact(ball, R + 0.05, 0.0, 2.0, ground)
+    result = _run(solver, ball, R + 0.05, 0.0, 2.0, ground)
     truth = SineTableTruth(R, G, e, 0.0, ground.amplitude, F, 0.0, R + 0.05, 0.0, 2.0)
     assert truth.accumulations and truth.rides[-1][1] is None  # the truth rides for good
     assert result.rest_time is not None
@@ -122,12 +127,13 @@ def test_below_one_and_gamma_one_the_ball_chatters_and_rides_for_good():
     assert np.max(np.abs(result.v[riding] - ground.velocity(result.t[riding]))) < 1e-15
 
 
-def test_between_one_and_gamma_one_every_ride_ends_where_the_table_outpulls_gravity():
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_between_one_and_gamma_one_every_ride_ends_where_the_table_outpulls_gravity(solver):
     """e = 0.5, Gamma = 1.02 (1 < Gamma < Gamma_1): rides, each left at the phase asin(1 / Gamma)."""
     e, gamma = 0.5, 1.02
     ball = bb.Ball(R=R, g=G, contact="rigid", e=e, v_min=0.0)
     ground = Ground.sine(table_amplitude(gamma, F, G), F)
-    result = _exact(ball, R + 0.05, 0.0, 3.0, ground)
+    result = _run(solver, ball, R + 0.05, 0.0, 3.0, ground)
     departures = [event.time for event in result.events if event.kind == bb.EventKind.DEPARTURE]
     assert len(departures) >= 20
     expected = ride_end_phase(ground.amplitude, F, G)
@@ -141,11 +147,12 @@ def test_between_one_and_gamma_one_every_ride_ends_where_the_table_outpulls_grav
 
 
 @pytest.mark.parametrize("e, gamma, t_end", [(0.5, 1.25, 1.0), (0.8, 0.9, 6.0), (0.8, 1.02, 0.8)])
-def test_heights_follow_the_truth_within_the_estimate(e, gamma, t_end):
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_heights_follow_the_truth_within_the_estimate(solver, e, gamma, t_end):
     """Period-1 with complex multipliers, chattering to a ride for good, rides and chattering by turns."""
     ball = bb.Ball(R=R, g=G, contact="rigid", e=e, v_min=0.0)
     ground = Ground.sine(table_amplitude(gamma, F, G), F, 0.4)
-    result = _exact(ball, R + 0.03, 0.1, t_end, ground, output_interval=0.01)
+    result = _run(solver, ball, R + 0.03, 0.1, t_end, ground, output_interval=0.01)
     truth = SineTableTruth(R, G, e, 0.0, ground.amplitude, F, 0.4, R + 0.03, 0.1, t_end)
     h_true = np.array([float(truth.state(t)[0]) for t in result.t])
     assert len(truth.impacts) > 10
@@ -175,16 +182,9 @@ def _grazing_runs():
     """The 100 grazing scenes (tests/table_scenes.py), each with its truth and the exact solver's run (cached)."""
     if not _GRAZING:
         for scene in grazing_family():
-            bounces_before = scene.pop("bounces_before")
-            scene.pop("graze_time"), scene.pop("graze_depth")
-            truth = SineTableTruth(**scene)
-            ball = bb.Ball(R=scene["R"], g=scene["g"], contact="rigid", e=scene["e"], v_min=scene["v_min"])
-            ground = Ground.sine(scene["amplitude"], scene["frequency"], scene["phase"])
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                result = bb.simulate(ball, scene["h0"], scene["v0"], scene["t_end"], scene["t_end"] / 400,
-                                     solver="exact", ground=ground)
-            warned = any(issubclass(w.category, bb.AccuracyWarning) for w in caught)
+            bounces_before, truth, result, warned = grazing_run(scene, "exact")
+            for name in ("bounces_before", "graze_time", "graze_depth"):
+                scene.pop(name)
             _GRAZING.append((scene, bounces_before, truth, result, warned))
     return _GRAZING
 
@@ -192,7 +192,7 @@ def _grazing_runs():
 _GRAZING: list = []
 
 
-def _resolved_impacts(truth, scene):
+def _resolvedimpact_times(truth, scene):
     """The truth's impacts but those inside chattering that the solver sums.
 
     It sums the bounces after a rebound rising less than ZENO_APEX R = 2^-40 R above the table: an impact is
@@ -215,12 +215,12 @@ def test_no_grazing_impact_is_missed():
     lost, extra, silent = [], [], []
     for number, (scene, _, truth, result, warned) in enumerate(_grazing_runs()):
         every = np.array([float(t) for t, _, _ in truth.impacts])
-        impacts = _impacts(result)
+        impacts = impact_times(result)
         nearest = np.min(np.abs(impacts[:, None] - every[None, :]), axis=1) if len(every) else np.full(len(impacts),
                                                                                                      np.inf)
         if np.any(nearest > 1e-7):
             extra.append((number, impacts[nearest > 1e-7][:3]))
-        resolved = _resolved_impacts(truth, scene)
+        resolved = _resolvedimpact_times(truth, scene)
         found = np.min(np.abs(resolved[:, None] - impacts[None, :]), axis=1) if len(impacts) else \
             np.full(len(resolved), np.inf)
         if np.any(found > 1e-7):
@@ -235,7 +235,7 @@ def test_no_grazing_impact_is_missed():
 
 
 @pytest.mark.slow
-def test_a_table_through_the_sine_finds_the_same_grazing_impacts():
+def test_a_table_through_the_sine_finds_the_same_grazingimpact_times():
     """The family's deeper grazes on a spline through the table's positions every 2e-5 s (its own root search:
     pieces certified in numpy, a cubic solved exactly where not): the truth's impacts up to the graze, none lost."""
     checked = 0
@@ -250,7 +250,7 @@ def test_a_table_through_the_sine_finds_the_same_grazing_impacts():
         table = Ground.table(times, sine.position(times))
         ball = bb.Ball(R=scene["R"], g=scene["g"], contact="rigid", e=scene["e"], v_min=scene["v_min"])
         result = _exact(ball, scene["h0"], scene["v0"], scene["t_end"], table, output_interval=scene["t_end"] / 100)
-        expected, impacts = np.array([float(t) for t, _, _ in truth.impacts[:graze]]), _impacts(result)[:graze]
+        expected, impacts = np.array([float(t) for t, _, _ in truth.impacts[:graze]]), impact_times(result)[:graze]
         assert len(expected) == graze and len(impacts) == graze
         assert np.max(np.abs(impacts - expected)) < 1e-6
         checked += 1
