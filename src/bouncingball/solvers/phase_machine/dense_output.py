@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...codes import CONTACT, FLIGHT, FREE
-from ...contact_laws import law_flow_at, law_interpolant, own_interpolant
+from ...contact_laws import law_flow_at, law_flow_value, law_interpolant, own_interpolant
 
 
 def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
@@ -36,14 +36,27 @@ def step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
     """
     if own_interpolant(parameters, mode):
         return law_interpolant(parameters, load, mode, t0, x0, v0, t1, x1, v1, t)
+    if parameters.ground_amplitude != 0.0:
+        return ground_step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t)
     dt, dx, dv = step_mismatch(parameters, load, mode, t0, x0, v0, t1, x1, v1)
     return blended_state(parameters, load, mode, t0, x0, v0, dt, dx, dv, t)
+
+
+def ground_step_state(parameters, load, mode, t0, x0, v0, t1, x1, v1, t):
+    """step_state on a vibrating ground (floats): its forced flow (contact_laws.law_flow_at) blended the same way.
+
+    Apart from the still ground's functions, which a grid's every point calls: their code stays as small.
+    """
+    x_end, v_end = law_flow_at(parameters, mode, x0, v0, t0, t1 - t0, load)
+    x, v = law_flow_at(parameters, mode, x0, v0, t0, t - t0, load)
+    s = (t - t0) / (t1 - t0) if t1 > t0 else 0.0
+    return x + s * (x1 - x_end), v + s * (v1 - v_end)
 
 
 def step_mismatch(parameters, load, mode, t0, x0, v0, t1, x1, v1):
     """(dt, dx, dv): the step's length [s], and how far its end lies from the mode's flow from its start [m, m/s]."""
     dt = t1 - t0
-    x_end, v_end = law_flow_at(parameters, mode, x0, v0, t0, dt, load)
+    x_end, v_end = law_flow_value(parameters, mode, x0, v0, dt, load)
     return dt, x1 - x_end, v1 - v_end
 
 
@@ -54,7 +67,7 @@ def blended_state(parameters, load, mode, t0, x0, v0, dt, dx, dv, t):
         s = tau / dt if dt > 0.0 else 0.0
     else:
         s = tau / np.where(dt > 0.0, dt, np.inf)
-    x, v = law_flow_at(parameters, mode, x0, v0, t0, tau, load)
+    x, v = law_flow_value(parameters, mode, x0, v0, tau, load)
     return x + s * dx, v + s * dv
 
 
@@ -87,7 +100,7 @@ def fill_grid(parameters, load, points, n_points, t, x, v):
 
     Each step's mismatch is computed once, for all the grid times inside it.
     """
-    i, step = 0, -1
+    i, step, moving = 0, -1, parameters.ground_amplitude != 0.0
     mode, t0, x0, v0, dt, dx, dv = 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     for n in range(t.shape[0]):
         while i < n_points - 2 and points[i + 1, 0] <= t[n]:
@@ -99,5 +112,8 @@ def fill_grid(parameters, load, points, n_points, t, x, v):
         if own_interpolant(parameters, mode):
             x[n], v[n] = law_interpolant(parameters, load, mode, t0, x0, v0, points[i + 1, 0], points[i + 1, 1],
                                          points[i + 1, 2], t[n])
+        elif moving:
+            x[n], v[n] = ground_step_state(parameters, load, mode, t0, x0, v0, points[i + 1, 0], points[i + 1, 1],
+                                           points[i + 1, 2], t[n])
         else:
             x[n], v[n] = blended_state(parameters, load, mode, t0, x0, v0, dt, dx, dv, t[n])
