@@ -7,6 +7,7 @@ moving ground, and the grazing family, where CVODE's own error decides what a gr
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
@@ -98,3 +99,20 @@ def test_no_grazing_impact_is_missed_unsaid():
     assert not lost and not unsaid, (lost, unsaid)
     assert warned_count <= 10  # the undecided grazes, not every run
     assert sum(ratio <= 1e3 for ratio in ratios) >= 95
+
+
+def test_a_force_changed_during_a_ride_acts_in_the_tables_frame():
+    """The stepping API on a table below its mean (s < 0, h < R): F_ext changes are taken there, not refused as a
+    ball inside the ground; a ride whose table never outpulls g - F_ext/m goes on, one under twice the weight lifts."""
+    ball = bb.Ball(R=R, g=G, contact="rigid", e=0.5, v_min=0.0)
+    ground = Ground.sine(0.8 * G / (2.0 * math.pi * F) ** 2, F)  # Gamma 0.8: it chatters down and rides for good
+    integrator = BallIntegrator(ball, R + 0.02, 0.0, settings=CvodeSettings(engine="compiled"), ground=ground)
+    integrator.advance(1.275)  # riding, the table at its lowest (s = -A) at t = 1.275 s
+    assert integrator.rest_time is not None and integrator.h < R
+    integrator.F_ext = 0.1 * G  # a tenth of the weight: A w^2 / (g - F_ext / m) = 0.89, still pressed on it
+    integrator.advance(1.5)
+    assert integrator.h == pytest.approx(R + ground.position(1.5), abs=1e-12)
+    integrator.F_ext = 2.0 * G  # twice the weight: lifted off
+    integrator.advance(1.6)
+    assert integrator.h > R + ground.position(1.6) + 1e-3 and integrator.rest_time is None
+    integrator.close()

@@ -181,8 +181,10 @@ class IntegratorView:
     def F_ext(self, value: float) -> None:
         value = validation.finite("F_ext", value, "N")
         if value != self._F_ext:
-            # the range double precision resolves from the current state (simulate checks it from the start)
-            limits.check_scene(self.ball, self.h, self.v, value, self.t, rtol=self.settings.rtol)
+            # the range double precision resolves from the current state (simulate checks it from the start), relative
+            # to the ground (a vibrating one's: the machine's own; on a still one h and v themselves)
+            limits.check_scene(self.ball, self.ball.R + float(self._state.x), float(self._state.v), value, self.t,
+                               rtol=self.settings.rtol)
             bouncing = self._summed_bounce()
             # the phase at the old load ends here: its error carried into the next one
             self._machine.phase_ends(self._machine_parameters, self.settings.rtol, self._atol, self._machine_state,
