@@ -119,8 +119,7 @@ class BallIntegrator(IntegratorView):
         self.engine, self.engine_reason = choose_engine(s.engine, expected_steps)
         self._solvers = {mode: stepper.acquire(self.engine, ball, mode, self.methods[mode], s.rtol, s.max_step,
                                                _MAX_STEPS_PER_CALL, _own_side(mode),
-                                               _root_directions(mode), MAX_STEPS_PER_PHASE,
-                                               None if parameters is ball.parameters else parameters)
+                                               _root_directions(mode), MAX_STEPS_PER_PHASE, parameters)
                          for mode in _CVODE_MODES}
         self._machine = stepper.phase_machine(self.engine)
         self._engine = self._machine.engine([self._solvers[mode] for mode in _CVODE_MODES])
