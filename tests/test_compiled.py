@@ -399,7 +399,7 @@ def test_solvers_free_their_sundials_memory():
         def cycle(i):
             solver = PhaseSolver(bb.Ball(), Mode.FLIGHT, "Adams", 1e-11, 0.0, 1000, 1e-300, [-1, 0, 1], 10**6)
             engine, scratch = np.stack([solver.handle()] * 2), np.zeros((1, 3))
-            assert compiled._engine_start(engine, 0, np.inf, 2.0 - 0.06, 0.0, 1.0, 1.0, 0.0, 9.81) == 0  # the gap
+            assert compiled._engine_start(engine, 0, np.inf, 2.0 - 0.06, 0.0, 1.0, 1.0, 0.0, 9.81, 0.0) == 0  # the gap
             while (flag := compiled._engine_steps(engine, 0, scratch, 1.0, True)[0]) == 0:
                 pass
             assert flag == 2 and abs(scratch[0, 0] - (2.0 - 0.06) ** 0.5 * (2 / 9.81) ** 0.5) < 1e-9
