@@ -119,17 +119,25 @@ def ground_flight_flow(parameters, x0, v0, t0, tau, load):
 
 
 def ride_end_value(parameters, t, g_eff):
-    """The first time >= t [s] at which s'' < -g_eff [m/s2]: where a ball riding the ground leaves it; inf if never.
+    """The first time >= t [s] at which s'' < -g_eff [m/s2] on the ball's ground (sine_ride_end); inf if never.
 
-    s'' = -A w^2 sin(angle) < -g_eff  <=>  sin(angle) > g_eff / (A w^2). A still ground: t if g_eff < 0, else inf.
+    A still ground: t if g_eff < 0, else inf.
     """
-    amplitude, w = parameters.ground_amplitude, parameters.ground_omega
-    if amplitude == 0.0:
+    if parameters.ground_amplitude == 0.0:
         return t if g_eff < 0.0 else math.inf
-    c = g_eff / (amplitude * w * w)
+    return sine_ride_end(parameters.ground_amplitude, parameters.ground_omega, parameters.ground_phase, t, g_eff)
+
+
+def sine_ride_end(amplitude, w, phase, t, g_eff):
+    """The first time >= t [s] at which s'' < -g_eff [m/s2] on s = amplitude sin(w t + phase) (amplitude > 0).
+
+    Where a ball riding the ground leaves it; inf if never. s'' = -A w^2 sin(angle) < -g_eff  <=>  sin(angle) >
+    g_eff / (A w^2). Ground.ride_end's and the phase machine's (ride_end_value).
+    """
+    c = g_eff / (amplitude * (w * w))  # Ground.ride_end's rounding: A w^2 as it was computed there
     if c >= 1.0:
         return math.inf
-    angle = w * t + parameters.ground_phase
+    angle = w * t + phase
     if c < -1.0 or math.sin(angle) > c:
         return t
     start = math.asin(c)  # where sin rises through c (cos > 0)

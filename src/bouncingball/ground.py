@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import validation
+from .equations import sine_ride_end
 
 _EPS = 2.0**-52
 MAX_TABLE_ENTRIES = validation.MAX_TABLE_ENTRIES
@@ -216,16 +217,7 @@ class Ground:
         if self.kind == "still":
             return t if a < 0.0 else math.inf
         if self.kind == "sine":
-            # s'' = -A w^2 sin(angle) < -a  <=>  sin(angle) > c
-            c = a / (self.amplitude * self.omega**2)
-            if c >= 1.0:
-                return math.inf
-            w, angle = self.omega, self.omega * t + self.phase
-            if c < -1.0 or math.sin(angle) > c:
-                return t
-            start = math.asin(c)  # where sin rises through c (cos > 0)
-            turns = math.ceil((angle - start) / (2.0 * math.pi))
-            return max(t + (start + 2.0 * math.pi * turns - angle) / w, t)
+            return sine_ride_end(self.amplitude, self.omega, self.phase, t, a)
         return _table_ride_end(self, t, a)
 
     def touch_rounding(self, t0: float, x0: float, v0: float, a: float, tau: float) -> float:
