@@ -1,9 +1,10 @@
-"""The linear and no-pull laws on a vibrating table: the exact solver against an independent mpmath truth.
+"""The linear and no-pull laws on a vibrating table: the exact solver and CVODE against an independent mpmath truth.
 
 The truth (tests/linear_table_truth.py) solves the contact as a forced damped oscillator from complex exponentials
 and finds its departure (no-pull: release, departure from the free spell, engagement) by a fine scan and findroot;
-the solver takes the still ground's closed form plus the periodic response and certified searches. Issue 46's
-first Done-when, for these laws.
+the solvers take the still ground's closed form plus the periodic response and certified searches (CVODE: the
+flights integrated, each step searched for its touch; the linear law's contact in closed form). Issue 46's first
+Done-when, for these laws: the exact solver within 1e-12 of scale, CVODE within its estimate and the promise.
 """
 
 from __future__ import annotations
@@ -22,12 +23,17 @@ G, F, R = 9.81, 10.0, 0.05  # gravity [m/s2], the table's frequency [Hz], the ba
 W = 2.0 * math.pi * F
 
 
-def _both(gamma, k, b, phase, drop, t_end, m=1.0, output_interval=1e-3, law="linear"):
+SOLVERS = ["exact", "cvode"]
+EVENT_TIME = {"exact": 1e-10, "cvode": 1e-7}  # s: the exact solver's rounding; CVODE's (measured <= 4.1e-8 s)
+
+
+def _both(gamma, k, b, phase, drop, t_end, m=1.0, output_interval=1e-3, law="linear", solver="exact"):
     ground = Ground.sine(gamma * G / W**2, F, phase)
     ball = bb.Ball(m=m, k=k, b=b, R=R, g=G, contact=law)
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", bb.AccuracyWarning)  # judged below against the truth
-        result = bb.simulate(ball, R + drop, 0.0, t_end, output_interval, solver="exact", ground=ground)
+        # judged below against the truth; CVODE's run must also keep its promise (no warning)
+        warnings.simplefilter("error" if solver == "cvode" else "ignore", bb.AccuracyWarning)
+        result = bb.simulate(ball, R + drop, 0.0, t_end, output_interval, solver=solver, ground=ground)
     truth = LinearTableTruth(R, G, m, k, b, ground.amplitude, F, phase, R + drop, 0.0, t_end,
                              no_pull=law == "linear-no-pull")
     return result, truth
@@ -38,31 +44,36 @@ def _height_errors(result, truth, every=1):
                                                                        strict=True)])
 
 
-def test_bouncing_on_a_gently_vibrating_table_is_the_truth_within_1e_12_of_its_scale():
-    result, truth = _both(0.5, 1e5, 20.0, 0.3, 0.05, 2.0)
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_bouncing_on_a_gently_vibrating_table_is_the_truth_within_1e_12_of_its_scale(solver):
+    """The exact solver within 1e-12 of scale (measured 4.9e-16 m); CVODE within its estimate (7e-12 m, 2.1x)."""
+    result, truth = _both(0.5, 1e5, 20.0, 0.3, 0.05, 2.0, solver=solver)
     events = [(event.time, str(event.kind)) for event in result.events]
     assert [kind for _, kind in events] == [kind for _, kind in truth.events] and len(events) == 20
-    assert max(abs(t - float(t_true)) for (t, _), (t_true, _) in zip(events, truth.events, strict=True)) < 1e-12
+    tolerance = 1e-12 if solver == "exact" else 1e-10
+    assert max(abs(t - float(t_true)) for (t, _), (t_true, _) in zip(events, truth.events, strict=True)) < tolerance
     scale = max(float(np.max(np.abs(result.h))), R)
     errors = _height_errors(result, truth, every=5)
-    assert np.max(errors) < 1e-12 * scale
+    assert np.max(errors) < (1e-12 if solver == "exact" else 1e-9) * scale
     assert np.max(errors) <= result.error_estimate
 
 
+@pytest.mark.parametrize("solver", SOLVERS)
 @pytest.mark.parametrize(("gamma", "k", "b"), [(1.2, 1e5, 20.0), (1.2, 1e4, 10.0), (2.0, 1e5, 30.0)])
-def test_thrown_by_the_table_every_event_and_height_is_the_truths_within_the_estimate(gamma, k, b):
-    result, truth = _both(gamma, k, b, 0.3, 0.05, 2.0)
+def test_thrown_by_the_table_every_event_and_height_is_the_truths_within_the_estimate(gamma, k, b, solver):
+    result, truth = _both(gamma, k, b, 0.3, 0.05, 2.0, solver=solver)
     times = np.array([event.time for event in result.events])
     true_times = np.array([float(t) for t, _ in truth.events])
     assert [str(event.kind) for event in result.events] == [kind for _, kind in truth.events]
-    assert np.max(np.abs(times - true_times)) < 1e-10
+    assert np.max(np.abs(times - true_times)) < EVENT_TIME[solver]
     errors = _height_errors(result, truth, every=5)
-    assert np.max(errors) <= result.error_estimate < 1e-7 * R
+    assert np.max(errors) <= result.error_estimate < (1e-7 if solver == "exact" else 1e-5) * R
 
 
-def test_a_ball_that_settles_rests_on_the_table_and_moves_with_it():
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_a_ball_that_settles_rests_on_the_table_and_moves_with_it(solver):
     """Heavily damped on a gently vibrating table: a last contact that energy proves permanent is the rest."""
-    result, truth = _both(0.3, 1e4, 100.0, 1.0, 0.01, 3.0)
+    result, truth = _both(0.3, 1e4, 100.0, 1.0, 0.01, 3.0, solver=solver)
     assert result.rest_time is not None
     assert result.events[-1].kind == bb.EventKind.IMPACT and result.rest_time == result.events[-1].time
     assert abs(result.rest_time - float(truth.events[-1][0])) < 1e-12

@@ -13,3 +13,6 @@ MODE_NAMES = ("flight", "contact", "free")  # by code
 # (pressed to free) and an engagement (free to pressed) switch the sub-modes below R.
 IMPACT, DEPARTURE, RELEASE, ENGAGE = 0, 1, 2, 3
 EVENT_KIND_NAMES = ("impact", "departure", "release", "engage")  # by code: EventKind's values
+# Not an event: the phase machine's pending restart of CVODE at a step's end in the same mode (a root of CVODE's
+# that the exact flow does not confirm), taken as events are (after the step's targets), no row recorded.
+RESTART = -1

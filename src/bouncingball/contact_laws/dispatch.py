@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from ..codes import CONTACT, DEPARTURE, ENGAGE, FLIGHT, FREE, RELEASE
-from ..equations import gap_acceleration, gap_flow_value, ground_flight_flow, rest_margin_value
+from ..equations import gap_acceleration, gap_flow_value, ground_flight_flow, rest_margin_value, ride_end_value
 from . import common, hunt_crossley, linear, no_pull, rigid
 from .common import BY_CVODE, HUNT_CROSSLEY, IN_CLOSED_FORM, LINEAR, NO_PULL, RIGID
 from .hunt_crossley import contact_roots as hunt_crossley_contact_roots
@@ -33,10 +33,17 @@ from .linear import contact_scales as linear_contact_scales
 from .linear import decide_contact as linear_decide_contact
 from .linear import departure_speed as linear_departure_speed
 from .linear import departure_time as linear_departure_time
-from .linear import sine_ground_flow
+from .linear import sine_ground_departure, sine_ground_flow
 from .no_pull import contact_roots as no_pull_contact_roots
 from .no_pull import decide_contact as no_pull_decide_contact
-from .no_pull import free_event, no_pull_rest_margin_value, pressed_gap, release_state, release_time
+from .no_pull import (
+    free_event,
+    no_pull_rest_margin_value,
+    pressed_gap,
+    release_state,
+    release_time,
+    sine_ground_release,
+)
 from .rigid import contact_scales as rigid_contact_scales
 from .rigid import decide_contact as rigid_decide_contact
 from .rigid import departure_speed as rigid_departure_speed
@@ -184,6 +191,28 @@ def decide_contact(parameters, mode, x, v, load, hop, resolution):
         return answer, tau, x_event, v_event, RELEASE
     answer, tau, x_event, v_event = linear_decide_contact(parameters, x, v, load, hop, resolution)
     return answer, tau, x_event, v_event, DEPARTURE
+
+
+def ground_contact_event(parameters, x, v, load, t):
+    """(tau [s], x_event [m], v_event [m/s], kind) ending a contact from (x, v) at t [s] on a vibrating ground.
+
+    In its frame (x = h - R - s, v - s'), on the exact flow, certified (no crossing stepped over): the rigid law's
+    ride ends where s'' falls below -g_eff (equations.ride_end_value; x_event = v_event = 0, on the ground), the
+    linear law's contact at its departure (linear.sine_ground_departure), the no-pull law's at its release below
+    the surface (no_pull.sine_ground_release). tau inf: never (the energy proves it; a rest). load: m g - F_ext
+    [N], the ground's acceleration apart. The Hunt-Crossley law has no closed form: tau nan.
+    """
+    if parameters.law == RIGID:
+        return ride_end_value(parameters, t, load / parameters.m) - t, 0.0, 0.0, DEPARTURE
+    if parameters.law == HUNT_CROSSLEY:
+        return math.nan, 0.0, 0.0, DEPARTURE
+    w = parameters.ground_omega
+    forcing, theta = parameters.ground_amplitude * (w * w), w * t + parameters.ground_phase
+    if parameters.law == NO_PULL:
+        tau, x_event, v_event = sine_ground_release(parameters, x, v, load, forcing, w, theta, math.inf)
+        return tau, x_event, v_event, RELEASE
+    tau, v_event = sine_ground_departure(parameters, x, v, load, forcing, w, theta, math.inf)
+    return tau, 0.0, v_event, DEPARTURE
 
 
 def contact_event(parameters, x, v, load):

@@ -274,8 +274,9 @@ def sine_ground_departure(parameters, x0, u0, load, forcing, w, theta0, horizon)
         if not tau <= horizon:  # none within it: a certified point past it
             return tau, 0.0
         x, u = sine_ground_flow(parameters, x0, u0, tau, load, forcing, w, theta0)
-    raise RuntimeError(f"the departure search on the vibrating ground made {MAX_SINE_STEPS} steps from the angle "
-                       f"{theta0!r} rad: neither a departure nor a way past a touch")
+    # a plain message: the compiled engine raises it too (numba formats no f-string)
+    raise RuntimeError("the departure search on the vibrating ground made MAX_SINE_STEPS (1e6) steps: neither a "
+                       "departure nor a way past a touch")
 
 
 def _sine_polish(parameters, x0, u0, load, forcing, w, theta0, tau_before, tau, x, u):

@@ -19,8 +19,9 @@ def machine_ground(ball: Ball, ground: Ground):
     """The phase machine's BallParameters of ball on ground; ValueError, before any work, where CVODE cannot take it.
 
     A sine's amplitude, angular frequency and phase in their ground_* fields; a still ground's unchanged (its
-    height is the run shifted). Refused by name: a table ground, a compliant law on a vibrating one (the exact
-    solver takes both).
+    height is the run shifted). Refused by name: a table ground (the exact solver takes it), the no-pull and
+    Hunt-Crossley laws on a vibrating one (the exact solver takes the no-pull law), a contact so near resonance
+    with the ground that its steady response is out of scale (exact_ground.check_moving_ground's rule).
     """
     parameters = ball.parameters
     if ground.kind == "table":
@@ -28,10 +29,13 @@ def machine_ground(ball: Ball, ground: Ground):
                          "a sine ground (Ground.sine); the exact solver takes the table (solver='exact')")
     if not ground.moves:
         return parameters
-    if not ball.rigid:
+    if ball.contact not in ("rigid", "linear"):
         raise ValueError(f"ground = {ground.describe()} is not allowed with the CVODE solver and contact_law = "
-                         f"{ball.contact!r}: on a vibrating ground it takes the rigid law; the exact solver "
-                         "(solver='exact') takes the linear and no-pull laws there too")
+                         f"{ball.contact!r}: on a vibrating ground it takes the rigid and linear laws; the exact "
+                         "solver (solver='exact') takes the linear-no-pull law there too")
+    from .exact_ground import check_moving_ground  # the law's own limits on a moving ground, one rule for both
+
+    check_moving_ground(ball, ground)
     return parameters._replace(ground_amplitude=ground.amplitude, ground_omega=ground.omega,
                                ground_phase=ground.phase)
 

@@ -15,8 +15,8 @@ import math
 
 import numpy as np
 
-from ...codes import CONTACT
-from ...contact_laws import law_flow_at, law_flow_value
+from ...codes import CONTACT, RESTART
+from ...contact_laws import law_flow_at
 from ...equations import load_at
 from .dense_output import step_state
 from .error_estimate import run_estimate
@@ -48,8 +48,8 @@ def _finish_by_taylor(parameters, state, t_target):
 
 def _rest_state(parameters, state, t):
     """The state at t on the rest that began at rest_*, on the contact's exact flow."""
-    state.x, state.v = law_flow_value(parameters, CONTACT, state.rest_x, state.rest_v, t - state.rest_t,
-                                        state.load)
+    state.x, state.v = law_flow_at(parameters, CONTACT, state.rest_x, state.rest_v, state.rest_t, t - state.rest_t,
+                                     state.load)
     state.t, state.t_low = t, 0.0
 
 
@@ -141,8 +141,9 @@ def advance(engine, parameters, rtol, atol, state, t_target, stop_at_event, even
         if advance_in_step(parameters, state, state.t, t_target):
             break
         if state.pending != 0.0:  # the kept step ends at an event before t_target
+            restart = state.pend_kind == RESTART
             events, n_events = _take_event(parameters, rtol, atol, state, events, n_events)
-            if stop_at_event:
+            if stop_at_event and not restart:
                 break
             continue
         if state.needs_init != 0.0 and math.isnan(state.rest_t) and not _decided_by_cvode(parameters, rtol, state):

@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from ...codes import CONTACT, DEPARTURE, FLIGHT, FREE, IMPACT, RELEASE
+from ...codes import CONTACT, DEPARTURE, FLIGHT, FREE, IMPACT, RELEASE, RESTART
 from ...contact_laws import (
     contact_ends_in,
     contact_integrated,
@@ -136,9 +136,9 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     _keep_last_step(state, mode, rows, count)
     if rest_root != 0:
         state.rest_t, state.rest_x, state.rest_v = rows[count - 1, 0], rows[count - 1, 1], rows[count - 1, 2]
-    if unconfirmed:  # CVODE's root, off the exact flow by its error (a near graze): the flight goes on, from there
-        state.t, state.x, state.v, state.t_low = state.step_t, state.step_x, state.step_v, 0.0
-        phase_ends(parameters, rtol, atol, state, 0.0, 1.0)
+    if unconfirmed:  # CVODE's root, off the exact flow by its error: the flight goes on, CVODE restarted there
+        state.pending, state.pend_t, state.pend_x, state.pend_v = 1.0, state.step_t, state.step_x, state.step_v
+        state.pend_t_low, state.pend_kind = 0.0, RESTART  # after the targets inside the step (advance)
     return DONE, rows, count
 
 
@@ -295,8 +295,14 @@ def _reported_rest(parameters, state, rows, count):
 
 
 def _take_event(parameters, rtol, atol, state, events, n_events):
-    """The pending event: the state moves there, the mode switches, the phase ends; (events, n_events) with its row."""
+    """The pending event: the state moves there, the mode switches, the phase ends; (events, n_events) with its row.
+
+    A pending RESTART (no event) moves the state and restarts CVODE there, in the same mode, with no row.
+    """
     state.t, state.x, state.v, state.t_low = state.pend_t, state.pend_x, state.pend_v, state.pend_t_low
+    if state.pend_kind == RESTART:
+        phase_ends(parameters, rtol, atol, state, 0.0, 1.0)
+        return events, n_events
     if n_events == events.shape[0]:
         events = grown(events)
     kind, mode = int(state.pend_kind), int(state.mode)

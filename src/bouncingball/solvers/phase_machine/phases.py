@@ -18,13 +18,13 @@ from __future__ import annotations
 
 import math
 
-from ...codes import CONTACT, DEPARTURE, FLIGHT, FREE, IMPACT
+from ...codes import CONTACT, FLIGHT, FREE, IMPACT
 from ...contact_laws import (
     conserved_speed,
     contact_scales,
     decide_contact,
+    ground_contact_event,
     hunt_crossley_scales,
-    impact_is_instantaneous,
     jacobian_varies,
     law_acceleration,
     polish_flow_mode,
@@ -33,7 +33,7 @@ from ...contact_laws import (
     varying_jacobian,
 )
 from ...contact_laws.common import BY_CVODE, IN_CLOSED_FORM, MIN_PHASE_SCALE, REST, SOFT_CONTACT_CAP, time_to_impact
-from ...equations import flight_touch, gap_flow_value, ground_flight_flow, load_at, ride_end_value
+from ...equations import flight_touch, gap_flow_value, ground_flight_flow, load_at
 from .settings import HOP_RESOLUTION
 
 # Re-exported for the engines' callbacks and the tests: the machine's answers and limits, the laws' hooks it calls.
@@ -102,14 +102,17 @@ def decide_phase(parameters, mode, x, v, load, hop, rtol, t):
     is taken so where its apex stays within hop of R (a hop merged into the contacts around it would be as
     right) or below MIN_PHASE_SCALE; a phase on or below R as its contact law decides
     (contact_laws.decide_contact, with what CVODE resolves relative to a phase's length, HOP_RESOLUTION rtol).
-    On a vibrating ground (in its frame) CVODE takes every flight, and a rigid ball's contact is its ride on the
-    ground, which ends in closed form where s'' falls below -g_eff (equations.ride_end_value); never, a rest.
+    On a vibrating ground (in its frame) CVODE takes every flight, and a contact ends in closed form, certified
+    (contact_laws.ground_contact_event: the rigid law's ride, the linear law's departure, the no-pull law's
+    release); never, a rest. Its hop tolerance does not apply there: no hop is merged.
     """
     if parameters.ground_amplitude != 0.0:
-        if mode == CONTACT and impact_is_instantaneous(parameters):
-            tau = ride_end_value(parameters, t, load / parameters.m) - t
-            return (REST, 0.0, 0.0, 0.0, DEPARTURE) if math.isinf(tau) else (IN_CLOSED_FORM, tau, 0.0, 0.0, DEPARTURE)
-        return BY_CVODE, 0.0, 0.0, 0.0, IMPACT
+        if mode != CONTACT:
+            return BY_CVODE, 0.0, 0.0, 0.0, IMPACT
+        tau, x_event, v_event, kind = ground_contact_event(parameters, x, v, load, t)
+        if math.isnan(tau):  # no closed form: CVODE integrates the contact
+            return BY_CVODE, 0.0, 0.0, 0.0, kind
+        return (REST, 0.0, 0.0, 0.0, kind) if math.isinf(tau) else (IN_CLOSED_FORM, tau, x_event, v_event, kind)
     if mode == FLIGHT:
         if x < 0.0 or not load / parameters.m > 0.0:
             return BY_CVODE, 0.0, 0.0, 0.0, IMPACT
