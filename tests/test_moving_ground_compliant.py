@@ -83,22 +83,66 @@ def test_a_ball_that_settles_rests_on_the_table_and_moves_with_it(solver):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("law", ["linear", "linear-no-pull"])
-def test_random_scenes_lose_no_event_the_truth_has(law):  # ~20 s each, loaded
+@pytest.mark.parametrize(("law", "solver"), [("linear", "exact"), ("linear-no-pull", "exact"), ("linear", "cvode")])
+def test_random_scenes_lose_no_event_the_truth_has(law, solver):  # ~20 s each, loaded
     """Random scenes (Gamma 0.3 to 3, k 1e4 to 1e6 N/m, damping ratio 0.02 to 0.5, any phase, dropped 0 to 5 cm):
-    events one for one with the truth, every height within the run's estimate."""
+    events one for one with the truth, every height within the run's estimate (CVODE's: 1.9x to 3.1x the error)."""
     rng = np.random.default_rng(46)
     for _ in range(14):
         gamma, k, zeta = rng.uniform(0.3, 3.0), 10.0 ** rng.uniform(4.0, 6.0), rng.uniform(0.02, 0.5)
         b = 2.0 * zeta * math.sqrt(k)
         result, truth = _both(gamma, k, b, rng.uniform(0.0, 2.0 * math.pi), rng.uniform(0.0, 0.05), 1.0,
-                              output_interval=1e-2, law=law)
+                              output_interval=1e-2, law=law, solver=solver)
         scene = f"Gamma {gamma}, k {k}, b {b}"
-        assert [str(event.kind) for event in result.events] == [kind for _, kind in truth.events], scene
-        times = np.array([event.time for event in result.events] or [0.0])
-        true_times = np.array([float(t) for t, _ in truth.events] or [0.0])
-        assert np.max(np.abs(times - true_times)) < 1e-9, scene
-        assert np.max(_height_errors(result, truth)) <= result.error_estimate, scene
+        _judged(result, truth, EVENT_TIME[solver], scene)
+
+
+def _judged(result, truth, event_time, scene):
+    """The estimate over the true error (inf where it is 0): after the events and the bound are checked."""
+    assert [str(event.kind) for event in result.events] == [kind for _, kind in truth.events], scene
+    times = np.array([event.time for event in result.events] or [0.0])
+    true_times = np.array([float(t) for t, _ in truth.events] or [0.0])
+    assert np.max(np.abs(times - true_times)) < event_time, scene
+    error = np.max(_height_errors(result, truth))
+    assert error <= result.error_estimate, scene
+    return result.error_estimate / error if error > 0.0 else math.inf, error
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_a_grazing_family_of_the_linear_law_loses_no_event_and_is_within_its_estimate(solver):
+    """The rigid law's grazing scenes whose first impact grazes (tests/table_scenes.py: 1e-10 to 1e-5 m into the
+    table, or missing it by up to 1e-6 m), the ball a linear spring-damper (k 1e4 to 1e6 N/m, damping ratio 0.02 to
+    0.5): events one for one with the truth, every height within the estimate, the estimate within 1000x of an error
+    above rounding. The truth cannot follow the shallowest crossings (1e-10 to 3e-9 m: its certified flight scan
+    finds no end after a departure at a relative speed of ~1e-5 m/s): those (3 of 19) are left out, counted."""
+    import random
+
+    from table_scenes import grazing_family
+
+    draw, judged, untruthful = random.Random(46), [], 0
+    for scene in (scene for scene in grazing_family(count=60) if scene["bounces_before"] == 0):
+        k, zeta = 10.0 ** draw.uniform(4.0, 6.0), draw.uniform(0.02, 0.5)
+        b = 2.0 * zeta * math.sqrt(k)
+        ground = Ground.sine(scene["amplitude"], scene["frequency"], scene["phase"])
+        try:
+            truth = LinearTableTruth(scene["R"], scene["g"], 1.0, k, b, scene["amplitude"], scene["frequency"],
+                                     scene["phase"], scene["h0"], scene["v0"], scene["t_end"])
+        except RuntimeError:
+            untruthful += 1
+            continue
+        ball = bb.Ball(m=1.0, k=k, b=b, R=scene["R"], g=scene["g"])
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", bb.AccuracyWarning)  # no graze here is within CVODE's error
+            result = bb.simulate(ball, scene["h0"], scene["v0"], scene["t_end"], scene["t_end"] / 500, solver=solver,
+                                 ground=ground)
+        ratio, error = _judged(result, truth, EVENT_TIME[solver], f"{scene}, k {k}, b {b}")
+        scale = max(float(np.max(np.abs(result.h))), scene["R"])
+        judged.append((ratio, error > 64 * 2.0**-52 * scale))
+    assert len(judged) >= 16 and untruthful <= 3
+    above_rounding = [ratio for ratio, above in judged if above]
+    assert all(ratio <= 1000.0 for ratio in above_rounding)
+    assert solver == "exact" or len(above_rounding) == len(judged)  # CVODE's errors are its own, not rounding
 
 
 def _restitution_calibrated(k, speed, e, m=1.0, radius=0.01):
