@@ -83,10 +83,11 @@ def test_a_ball_that_settles_rests_on_the_table_and_moves_with_it(solver):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("law", "solver"), [("linear", "exact"), ("linear-no-pull", "exact"), ("linear", "cvode")])
+@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("law", ["linear", "linear-no-pull"])
 def test_random_scenes_lose_no_event_the_truth_has(law, solver):  # ~20 s each, loaded
     """Random scenes (Gamma 0.3 to 3, k 1e4 to 1e6 N/m, damping ratio 0.02 to 0.5, any phase, dropped 0 to 5 cm):
-    events one for one with the truth, every height within the run's estimate (CVODE's: 1.9x to 3.1x the error)."""
+    events one for one with the truth, every height within the run's estimate."""
     rng = np.random.default_rng(46)
     for _ in range(14):
         gamma, k, zeta = rng.uniform(0.3, 3.0), 10.0 ** rng.uniform(4.0, 6.0), rng.uniform(0.02, 0.5)
@@ -110,28 +111,29 @@ def _judged(result, truth, event_time, scene):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("solver", SOLVERS)
-def test_a_grazing_family_of_the_linear_law_loses_no_event_and_is_within_its_estimate(solver):
+@pytest.mark.parametrize("law", ["linear", "linear-no-pull"])
+def test_a_grazing_family_loses_no_event_and_is_within_its_estimate(law, solver):
     """The rigid law's grazing scenes whose first impact grazes (tests/table_scenes.py: 1e-10 to 1e-5 m into the
-    table, or missing it by up to 1e-6 m), the ball a linear spring-damper (k 1e4 to 1e6 N/m, damping ratio 0.02 to
-    0.5): events one for one with the truth, every height within the estimate, the estimate within 1000x of an error
-    above rounding. The truth cannot follow the shallowest crossings (1e-10 to 3e-9 m: its certified flight scan
-    finds no end after a departure at a relative speed of ~1e-5 m/s): those (3 of 19) are left out, counted."""
+    table, or missing it by up to 1e-6 m), the ball a spring-damper (k 1e4 to 1e6 N/m, damping ratio 0.02 to 0.5):
+    events one for one with the truth, every height within the estimate, the estimate within 1000x of an error
+    above rounding. The truth cannot follow the shallowest crossings under the linear law (3 of 19, 2e-10 to 2.3e-9
+    m: its certified flight scan finds no end after a departure at a relative speed of ~1e-5 m/s, in 40 s each):
+    crossings shallower than 3e-9 m are left out, 16 scenes judged."""
     import random
 
     from table_scenes import grazing_family
 
-    draw, judged, untruthful = random.Random(46), [], 0
+    draw, judged = random.Random(46), []
     for scene in (scene for scene in grazing_family(count=60) if scene["bounces_before"] == 0):
         k, zeta = 10.0 ** draw.uniform(4.0, 6.0), draw.uniform(0.02, 0.5)
         b = 2.0 * zeta * math.sqrt(k)
-        ground = Ground.sine(scene["amplitude"], scene["frequency"], scene["phase"])
-        try:
-            truth = LinearTableTruth(scene["R"], scene["g"], 1.0, k, b, scene["amplitude"], scene["frequency"],
-                                     scene["phase"], scene["h0"], scene["v0"], scene["t_end"])
-        except RuntimeError:
-            untruthful += 1
+        if 0.0 < scene["graze_depth"] < 3e-9:
             continue
-        ball = bb.Ball(m=1.0, k=k, b=b, R=scene["R"], g=scene["g"])
+        ground = Ground.sine(scene["amplitude"], scene["frequency"], scene["phase"])
+        truth = LinearTableTruth(scene["R"], scene["g"], 1.0, k, b, scene["amplitude"], scene["frequency"],
+                                 scene["phase"], scene["h0"], scene["v0"], scene["t_end"],
+                                 no_pull=law == "linear-no-pull")
+        ball = bb.Ball(m=1.0, k=k, b=b, R=scene["R"], g=scene["g"], contact=law)
         with warnings.catch_warnings():
             warnings.simplefilter("error", bb.AccuracyWarning)  # no graze here is within CVODE's error
             result = bb.simulate(ball, scene["h0"], scene["v0"], scene["t_end"], scene["t_end"] / 500, solver=solver,
@@ -139,7 +141,7 @@ def test_a_grazing_family_of_the_linear_law_loses_no_event_and_is_within_its_est
         ratio, error = _judged(result, truth, EVENT_TIME[solver], f"{scene}, k {k}, b {b}")
         scale = max(float(np.max(np.abs(result.h))), scene["R"])
         judged.append((ratio, error > 64 * 2.0**-52 * scale))
-    assert len(judged) >= 16 and untruthful <= 3
+    assert len(judged) == 16
     above_rounding = [ratio for ratio, above in judged if above]
     assert all(ratio <= 1000.0 for ratio in above_rounding)
     assert solver == "exact" or len(above_rounding) == len(judged)  # CVODE's errors are its own, not rounding
@@ -180,17 +182,20 @@ def test_a_stiff_contact_orbits_at_the_rigid_laws_phase(k, tolerance):
     assert abs(offset) < tolerance
 
 
+@pytest.mark.parametrize("solver", SOLVERS)
 @pytest.mark.parametrize(("gamma", "k", "b"), [(0.5, 1e5, 200.0), (1.2, 1e5, 200.0), (2.0, 1e4, 60.0)])
-def test_the_no_pull_law_releases_flies_free_and_departs_or_engages_as_the_truth(gamma, k, b):
-    """Pressed, released where the force would pull, free below the surface, out of it or pressed again."""
-    result, truth = _both(gamma, k, b, 0.3, 0.05, 1.0, law="linear-no-pull")
+def test_the_no_pull_law_releases_flies_free_and_departs_or_engages_as_the_truth(gamma, k, b, solver):
+    """Pressed, released where the force would pull, free below the surface, out of it or pressed again (the exact
+    solver within 4e-15 s and 2e-15 m; CVODE within 5.5e-12 s and 1.8e-12 m, 2.3x to 8.6x below its estimate)."""
+    result, truth = _both(gamma, k, b, 0.3, 0.05, 1.0, law="linear-no-pull", solver=solver)
     kinds = [str(event.kind) for event in result.events]
     assert kinds == [kind for _, kind in truth.events] and "release" in kinds
     times = np.array([event.time for event in result.events])
-    assert np.max(np.abs(times - np.array([float(t) for t, _ in truth.events]))) < 1e-13
+    tolerance = 1e-13 if solver == "exact" else 1e-10
+    assert np.max(np.abs(times - np.array([float(t) for t, _ in truth.events]))) < tolerance
     scale = max(float(np.max(np.abs(result.h))), R)
     errors = _height_errors(result, truth, every=5)
-    assert np.max(errors) <= result.error_estimate and np.max(errors) < 1e-12 * scale
+    assert np.max(errors) <= result.error_estimate and np.max(errors) < (1e-12 if solver == "exact" else 1e-9) * scale
 
 
 def test_a_ball_started_pressed_into_the_table_is_the_truth():

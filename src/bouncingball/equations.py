@@ -84,13 +84,17 @@ MAX_TOUCH_STEPS = 100_000
 
 def ground_value(parameters, t, order):
     """s, s', s'' or s''' (order 0 .. 3) of the ground at t [s]: A w^order sin(w t + p + order pi / 2); 0 if still."""
-    amplitude, w = parameters.ground_amplitude, parameters.ground_omega
-    if amplitude == 0.0:
+    if parameters.ground_amplitude == 0.0:
         return 0.0
+    return sine_value(parameters.ground_amplitude, parameters.ground_omega, parameters.ground_phase, t, order)
+
+
+def sine_value(amplitude, w, phase, t, order):
+    """The order-th derivative (0 .. 3) at t [s] of A sin(w t + p): A w^order sin(w t + p + order pi / 2)."""
     scale = amplitude
     for _ in range(order):  # not w ** order, which numba and Python may round differently
         scale *= w
-    return scale * math.sin(w * t + parameters.ground_phase + 0.5 * math.pi * order)
+    return scale * math.sin(w * t + phase + 0.5 * math.pi * order)
 
 
 def load_at(parameters, load, t):
@@ -102,9 +106,12 @@ def load_at(parameters, load, t):
 
 def ground_rise_value(parameters, t0, tau):
     """s(t0 + tau) - s(t0) [m] without the cancellation of two heights: 2 A cos(w (t0 + tau / 2) + p) sin(w tau / 2)."""
-    w = parameters.ground_omega
-    return (2.0 * parameters.ground_amplitude * math.cos(w * (t0 + 0.5 * tau) + parameters.ground_phase)
-            * math.sin(0.5 * w * tau))
+    return sine_rise(parameters.ground_amplitude, parameters.ground_omega, parameters.ground_phase, t0, tau)
+
+
+def sine_rise(amplitude, w, phase, t0, tau):
+    """ground_rise_value of amplitude sin(w t + phase)."""
+    return 2.0 * amplitude * math.cos(w * (t0 + 0.5 * tau) + phase) * math.sin(0.5 * w * tau)
 
 
 def ground_flight_flow(parameters, x0, v0, t0, tau, load):
@@ -112,10 +119,16 @@ def ground_flight_flow(parameters, x0, v0, t0, tau, load):
 
     The world's parabola less the ground's motion: x0 + v0 tau - g_eff tau^2 / 2 - (s(t0 + tau) - s(t0) - s'(t0) tau).
     """
-    g_eff = load / parameters.m
-    slope = ground_value(parameters, t0, 1)
-    x = x0 + tau * (v0 - 0.5 * g_eff * tau) - (ground_rise_value(parameters, t0, tau) - slope * tau)
-    return x, v0 - g_eff * tau - (ground_value(parameters, t0 + tau, 1) - slope)
+    return sine_flight_flow(parameters.m, parameters.ground_amplitude, parameters.ground_omega,
+                            parameters.ground_phase, x0, v0, t0, tau, load)
+
+
+def sine_flight_flow(m, amplitude, w, phase, x0, v0, t0, tau, load):
+    """ground_flight_flow above the ground amplitude sin(w t + phase), for a mass m [kg] under load [N]."""
+    g_eff = load / m
+    slope = sine_value(amplitude, w, phase, t0, 1)
+    x = x0 + tau * (v0 - 0.5 * g_eff * tau) - (sine_rise(amplitude, w, phase, t0, tau) - slope * tau)
+    return x, v0 - g_eff * tau - (sine_value(amplitude, w, phase, t0 + tau, 1) - slope)
 
 
 def ride_end_value(parameters, t, g_eff):
@@ -148,27 +161,38 @@ def sine_ride_end(amplitude, w, phase, t, g_eff):
 def flight_touch(parameters, t0, x0, v0, load, horizon, on_ground):
     """tau [s]: the first time a flight from the gap x0 [m] at t0 [s], relative speed v0 [m/s], meets the ground.
 
-    inf if not within horizon [s]. Certified: each step goes to the first root of a lower bound of the gap (the
-    quadratic gap + gap' d - M d^2 / 2, M = |g_eff| + A w^2 >= |gap''|, or where that step is short, a graze or the
-    cubic start after a ride, the quartic Taylor bound with |gap''''| <= A w^4), so the steps converge on the first
-    root from before it and no graze is stepped over; a gap within its rounding of 0 is a touch. on_ground: the
-    flight leaves the ground at t0 (its gap 0 there is no touch).
+    inf if not within horizon [s]: sine_flight_touch on the ball's vibrating ground. on_ground: the flight leaves
+    the ground at t0 (its gap 0 there is no touch).
     """
-    g_eff = load / parameters.m
-    amplitude, w = parameters.ground_amplitude, parameters.ground_omega
-    bound = abs(g_eff) + amplitude * w * w
-    rate_bound = amplitude * w * w * w * w
+    return sine_flight_touch(parameters.m, parameters.ground_amplitude, parameters.ground_omega,
+                             parameters.ground_phase, t0, x0, v0, load, horizon, on_ground)
+
+
+def sine_flight_touch(m, amplitude, w, phase, t0, x0, v0, load, horizon, on_ground):
+    """tau [s]: the first time a flight from the gap x0 [m] at t0 [s], relative speed v0 [m/s], meets a sine ground.
+
+    The ground amplitude sin(w t + phase) [m] (amplitude != 0, of either sign), the flight a mass m [kg] under
+    load [N]; inf if not within horizon [s]. Certified: each step goes to the first root of a lower bound of the
+    gap (the quadratic gap + gap' d - M d^2 / 2, M = |g_eff| + |A| w^2 >= |gap''|, or where that step is short, a
+    graze or the cubic start after a ride, the quartic Taylor bound with |gap''''| <= |A| w^4), so the steps
+    converge on the first root from before it and no graze is stepped over; a gap within its rounding of 0 is a
+    touch. on_ground: the flight leaves the ground at t0 (its gap 0 there is no touch). Any sine will do: the
+    no-pull law's free spell searches two of its own (no_pull.sine_free_event).
+    """
+    g_eff = load / m
+    size = abs(amplitude)
+    bound = abs(g_eff) + size * w * w
+    rate_bound = size * w * w * w * w
     tau = 0.0
     for _ in range(MAX_TOUCH_STEPS):
         if not tau <= horizon:
             return math.inf
         t = t0 + tau
-        gap, slope = ground_flight_flow(parameters, x0, v0, t0, tau, load)
-        curve = -g_eff - ground_value(parameters, t, 2)
-        jerk = -ground_value(parameters, t, 3)
+        gap, slope = sine_flight_flow(m, amplitude, w, phase, x0, v0, t0, tau, load)
+        curve = -g_eff - sine_value(amplitude, w, phase, t, 2)
+        jerk = -sine_value(amplitude, w, phase, t, 3)
         spread = abs(x0) + abs(v0) * tau + 0.5 * abs(g_eff) * tau * tau
-        rounding = 16.0 * _EPS * (spread + amplitude * (1.0 + abs(w * t + parameters.ground_phase)
-                                                        * min(w * tau, 2.0)))
+        rounding = 16.0 * _EPS * (spread + size * (1.0 + abs(w * t + phase) * min(w * tau, 2.0)))
         if gap <= rounding and (tau > 0.0 or (slope < 0.0 and not on_ground)):
             return tau
         if tau == 0.0 and on_ground:

@@ -42,6 +42,7 @@ from .no_pull import (
     pressed_gap,
     release_state,
     release_time,
+    sine_free_event,
     sine_ground_release,
 )
 from .rigid import contact_scales as rigid_contact_scales
@@ -193,15 +194,19 @@ def decide_contact(parameters, mode, x, v, load, hop, resolution):
     return answer, tau, x_event, v_event, DEPARTURE
 
 
-def ground_contact_event(parameters, x, v, load, t):
-    """(tau [s], x_event [m], v_event [m/s], kind) ending a contact from (x, v) at t [s] on a vibrating ground.
+def ground_contact_event(parameters, mode, x, v, load, t):
+    """(tau [s], x_event [m], v_event [m/s], kind) ending a contact (CONTACT, FREE) from (x, v) at t [s], ground moving.
 
     In its frame (x = h - R - s, v - s'), on the exact flow, certified (no crossing stepped over): the rigid law's
     ride ends where s'' falls below -g_eff (equations.ride_end_value; x_event = v_event = 0, on the ground), the
     linear law's contact at its departure (linear.sine_ground_departure), the no-pull law's at its release below
-    the surface (no_pull.sine_ground_release). tau inf: never (the energy proves it; a rest). load: m g - F_ext
-    [N], the ground's acceleration apart. The Hunt-Crossley law has no closed form: tau nan.
+    the surface (no_pull.sine_ground_release), its free spell at a departure or an engagement
+    (no_pull.sine_free_event). tau inf: never (the energy proves it; a rest). load: m g - F_ext [N], the ground's
+    acceleration apart. The Hunt-Crossley law has no closed form: tau nan.
     """
+    if mode == FREE and parameters.law == NO_PULL:
+        tau, x_event, v_event, departs = sine_free_event(parameters, x, v, load, t)
+        return tau, x_event, v_event, DEPARTURE if departs else ENGAGE
     if parameters.law == RIGID:
         return ride_end_value(parameters, t, load / parameters.m) - t, 0.0, 0.0, DEPARTURE
     if parameters.law == HUNT_CROSSLEY:

@@ -12,10 +12,12 @@ from __future__ import annotations
 import math
 
 from ..codes import CONTACT
-from ..equations import gap_acceleration
+from ..equations import gap_acceleration, sine_flight_flow, sine_flight_touch, sine_value
 from ..oscillator import contact_gap_flow
 from .common import BY_CVODE, IN_CLOSED_FORM, NO_PULL, REST, ContactLaw, time_to_impact
 from .linear import departure_time, searches, sine_ground_departure, sine_ground_flow
+
+_EPS = 2.0**-52
 
 
 def no_pull_rest_margin_value(x, v, d, hop_tolerance, w2, sigma):
@@ -141,10 +143,54 @@ def sine_ground_release(parameters, x0, u0, load, forcing, w, theta0, horizon):
     acceleration = gap_acceleration(x0, u0, CONTACT, load, m, k, b) + forcing * math.sin(theta0)
     tau, _ = sine_ground_departure(parameters, x0 + c * u0, u0 + c * acceleration, load,
                                    forcing * math.hypot(1.0, c * w), w, theta0 + math.atan2(c * w, 1.0), horizon)
-    if not tau <= horizon:
+    if not tau <= horizon or math.isinf(tau):  # none within it; inf: never (horizon inf)
         return tau, math.nan, math.nan
     x, u = sine_ground_flow(parameters, x0, u0, tau, load, forcing, w, theta0)
     return tau, x, max(u, 0.0)  # where the force is 0 below the surface, k x = -b u: the ball rises
+
+
+def sine_free_event(parameters, x0, u0, load, t0):
+    """(tau [s], x [m], u [m/s], departs): the event ending a free spell from (x0 <= 0, u0) at t0 on a vibrating ground.
+
+    In the ground's frame (x = h - R - s, u = v - s'; BallParameters' ground_* fields), the ball flies its parabola
+    below the surface. It departs where x reaches 0 going up: a flight's first touch (equations.sine_flight_touch,
+    certified) of -x above the ground -s; it is pressed again (engages) where z = x + c u, c = b / k, falls to 0: a
+    flight's first touch of z above s + c s' = A sqrt(1 + (c w)^2) sin(theta + atan(c w)). The first of the two, a
+    departure on a tie (x = 0 there exactly); the searches end where the parabola, less twice the ground's
+    amplitude, is below it for certain (one of the two must have come); (inf, x0, u0, True) where neither comes (a
+    weightless ball: g_eff = 0). A spell starting at its release (z within its rounding of 0) leaves that surface.
+    """
+    m, c = parameters.m, parameters.b / parameters.k
+    amplitude, w, phase = parameters.ground_amplitude, parameters.ground_omega, parameters.ground_phase
+    g_eff = load / m
+    engage_amplitude, engage_phase = amplitude * math.hypot(1.0, c * w), phase + math.atan2(c * w, 1.0)
+    z0, z_rate = x0 + c * u0, u0 - c * (g_eff + sine_value(amplitude, w, phase, t0, 2))
+    released = abs(z0) <= 16.0 * _EPS * (abs(x0) + c * abs(u0))
+    horizon = min(_surely_below(z0, z_rate, g_eff, engage_amplitude, w), _surely_below(-x0, -u0, -g_eff, amplitude, w))
+    tau_engage = sine_flight_touch(m, engage_amplitude, w, engage_phase, t0, z0, z_rate, load, horizon, released)
+    tau_depart = sine_flight_touch(m, -amplitude, w, phase, t0, -x0, -u0, -load, min(horizon, tau_engage), False)
+    if math.isinf(tau_depart) and math.isinf(tau_engage):
+        return math.inf, x0, u0, True
+    if tau_depart <= tau_engage:
+        u = sine_flight_flow(m, amplitude, w, phase, x0, u0, t0, tau_depart, load)[1]
+        return tau_depart, 0.0, max(u, 0.0), True
+    x, u = sine_flight_flow(m, amplitude, w, phase, x0, u0, t0, tau_engage, load)
+    return tau_engage, x, u, False
+
+
+def _surely_below(gap, rate, g_eff, amplitude, w):
+    """A time [s] by which a flight's gap from (gap, rate) under g_eff > 0 is below a sine ground of amplitude for sure.
+
+    The gap is at most gap + (rate + |A| w) t - g_eff t^2 / 2 + 2 |A| (the ground's motion less its tangent at the
+    start); its root, with a margin. inf where g_eff <= 0 (the flight need never come down).
+    """
+    if not g_eff > 0.0:
+        return math.inf
+    reach, lift = rate + abs(amplitude) * w, max(gap, 0.0) + 2.0 * abs(amplitude)
+    if reach > 0.0:
+        return 2.0 * (reach + math.sqrt(reach * reach + 2.0 * g_eff * lift)) / g_eff
+    return 2.0 * math.sqrt(2.0 * lift / g_eff)
+
 
 def contact_roots(y0, y1, length, speed, load, own_side, hop, k, m, b):
     """CVODE's three root functions in a pressed contact, in the phase's frame (phases.root_values).

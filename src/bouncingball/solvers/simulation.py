@@ -47,8 +47,8 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
         The ground under the ball: still at height 0 by default (Ground.still(height) is the same run
         shifted, for every solver); a moving one is taken by solver="exact", under the rigid law
         (Ground.sine, Ground.table) and the linear and linear-no-pull laws (Ground.sine), and by
-        solver="cvode" under the rigid and linear laws (Ground.sine). h stays the centre's height in the
-        world frame.
+        solver="cvode" under the same three laws (Ground.sine). h stays the centre's height in the world
+        frame.
     **options
         For cvode: rtol, atol, method ("auto", "Adams", "BDF"), max_step [s] (0: unbounded),
         engine ("auto", "compiled", "sksundae"), progress (called with the time reached [s] as the

@@ -104,12 +104,12 @@ def decide_phase(parameters, mode, x, v, load, hop, rtol, t):
     (contact_laws.decide_contact, with what CVODE resolves relative to a phase's length, HOP_RESOLUTION rtol).
     On a vibrating ground (in its frame) CVODE takes every flight, and a contact ends in closed form, certified
     (contact_laws.ground_contact_event: the rigid law's ride, the linear law's departure, the no-pull law's
-    release); never, a rest. Its hop tolerance does not apply there: no hop is merged.
+    release and its free spell's end); never, a rest. Its hop tolerance does not apply there: no hop is merged.
     """
     if parameters.ground_amplitude != 0.0:
-        if mode != CONTACT:
+        if mode == FLIGHT:
             return BY_CVODE, 0.0, 0.0, 0.0, IMPACT
-        tau, x_event, v_event, kind = ground_contact_event(parameters, x, v, load, t)
+        tau, x_event, v_event, kind = ground_contact_event(parameters, mode, x, v, load, t)
         if math.isnan(tau):  # no closed form: CVODE integrates the contact
             return BY_CVODE, 0.0, 0.0, 0.0, kind
         return (REST, 0.0, 0.0, 0.0, kind) if math.isinf(tau) else (IN_CLOSED_FORM, tau, x_event, v_event, kind)
