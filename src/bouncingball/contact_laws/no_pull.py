@@ -157,8 +157,9 @@ def sine_free_event(parameters, x0, u0, load, t0):
     certified) of -x above the ground -s; it is pressed again (engages) where z = x + c u, c = b / k, falls to 0: a
     flight's first touch of z above s + c s' = A sqrt(1 + (c w)^2) sin(theta + atan(c w)). The first of the two, a
     departure on a tie (x = 0 there exactly); the searches end where the parabola, less twice the ground's
-    amplitude, is below it for certain (one of the two must have come); (inf, x0, u0, True) where neither comes (a
-    weightless ball: g_eff = 0). A spell starting at its release (z within its rounding of 0) leaves that surface.
+    amplitude, is below it for certain (one of the two must have come by then). A weightless ball (g_eff = 0) has
+    no such end: its searches run to their step limit (a RuntimeError) if neither comes. A spell starting at its
+    release (z within its rounding of 0) leaves that surface.
     """
     m, c = parameters.m, parameters.b / parameters.k
     amplitude, w, phase = parameters.ground_amplitude, parameters.ground_omega, parameters.ground_phase
@@ -169,8 +170,6 @@ def sine_free_event(parameters, x0, u0, load, t0):
     horizon = min(_surely_below(z0, z_rate, g_eff, engage_amplitude, w), _surely_below(-x0, -u0, -g_eff, amplitude, w))
     tau_engage = sine_flight_touch(m, engage_amplitude, w, engage_phase, t0, z0, z_rate, load, horizon, released)
     tau_depart = sine_flight_touch(m, -amplitude, w, phase, t0, -x0, -u0, -load, min(horizon, tau_engage), False)
-    if math.isinf(tau_depart) and math.isinf(tau_engage):
-        return math.inf, x0, u0, True
     if tau_depart <= tau_engage:
         u = sine_flight_flow(m, amplitude, w, phase, x0, u0, t0, tau_depart, load)[1]
         return tau_depart, 0.0, max(u, 0.0), True
