@@ -81,7 +81,7 @@ KEPT_STEP_AND_PENDING_EVENT = (
     Field("pend_t_low", 0.0, "pend_t's rounding error [s]"),
     Field("pend_x", 0.0, "the pending event's gap [m]: 0 on R, below it for a law's release or engagement"),
     Field("pend_v", 0.0, "the pending event's velocity [m/s]"),
-    Field("pend_kind", 0.0, "the pending event's kind: codes.IMPACT, DEPARTURE, RELEASE or ENGAGE"),
+    Field("pend_kind", 0.0, "the pending event's kind: codes.IMPACT, DEPARTURE, RELEASE, ENGAGE or RESTART"),
 )
 RESTART_POINT = (  # state.RestartPoint: where CVODE last restarted, the state and counters there
     Field("rs_t", 0.0, "the restart's time [s]"),
