@@ -130,3 +130,31 @@ def test_a_force_changed_during_a_ride_acts_in_the_tables_frame():
     integrator.advance(1.6)
     assert integrator.h > R + ground.position(1.6) + 1e-3 and integrator.rest_time is None
     integrator.close()
+
+
+def test_searches_that_cannot_end_on_their_own_run_to_the_end_of_the_run():
+    """An undamped contact pressed into the table that never reaches the surface (its energy never proves it: the
+    search looks as far as the run, then is decided again), and a weightless no-pull ball's free spell (whose
+    searches have no gravity to end them): both once stopped after 1e6 steps with a RuntimeError (review)."""
+    w = 2.0 * math.pi * 10.0
+    k, g, radius = (3.0 * w) ** 2, 9.81, 0.06
+    ground = Ground.sine(4.8 * g / k, 10.0)
+    ball = bb.Ball(m=1.0, k=k, b=0.0, R=radius, g=g)
+    h0, v0 = radius + ground.position(0.0) - 2.761e-4, ground.velocity(0.0) + 0.04163
+    exact = bb.simulate(ball, h0, v0, 0.5, 0.01, solver="exact", ground=ground)
+    cvode = _cvode(ball, h0, v0, 0.5, ground, 0.01, "compiled")
+    assert exact.events == cvode.events == [] and np.max(np.abs(cvode.h - exact.h)) < 1e-12
+    integrator = BallIntegrator(ball, h0, v0, ground=ground)
+    heights = []
+    for t in np.arange(1, 51) * 0.01:
+        integrator.advance(float(t))
+        heights.append(integrator.h)
+    integrator.close()
+    assert np.max(np.abs(np.array(heights) - exact.h[1:])) < 1e-12
+    weightless, ground = bb.Ball(g=0.0, contact="linear-no-pull", b=10.0), Ground.sine(1e-3, 20.0)
+    exact = bb.simulate(weightless, 0.07, -1.0, 0.1, 0.01, solver="exact", ground=ground)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", bb.AccuracyWarning)  # its estimate (0.06 m) far above its error: not fixed yet
+        cvode = bb.simulate(weightless, 0.07, -1.0, 0.1, 0.01, solver="cvode", ground=ground)
+    assert [event.kind for event in cvode.events] == [event.kind for event in exact.events]
+    assert len(cvode.events) == 3 and np.max(np.abs(cvode.h - exact.h)) < 1e-9 <= cvode.error_estimate

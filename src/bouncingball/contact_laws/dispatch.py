@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from ..codes import CONTACT, DEPARTURE, ENGAGE, FLIGHT, FREE, RELEASE
+from ..codes import CONTACT, DEPARTURE, ENGAGE, FLIGHT, FREE, RELEASE, RESTART
 from ..equations import gap_acceleration, gap_flow_value, ground_flight_flow, rest_margin_value, ride_end_value
 from . import common, hunt_crossley, linear, no_pull, rigid
 from .common import BY_CVODE, HUNT_CROSSLEY, IN_CLOSED_FORM, LINEAR, NO_PULL, RIGID
@@ -194,15 +194,16 @@ def decide_contact(parameters, mode, x, v, load, hop, resolution):
     return answer, tau, x_event, v_event, DEPARTURE
 
 
-def ground_contact_event(parameters, mode, x, v, load, t):
+def ground_contact_event(parameters, mode, x, v, load, t, horizon):
     """(tau [s], x_event [m], v_event [m/s], kind) ending a contact (CONTACT, FREE) from (x, v) at t [s], ground moving.
 
     In its frame (x = h - R - s, v - s'), on the exact flow, certified (no crossing stepped over): the rigid law's
     ride ends where s'' falls below -g_eff (equations.ride_end_value; x_event = v_event = 0, on the ground), the
     linear law's contact at its departure (linear.sine_ground_departure), the no-pull law's at its release below
     the surface (no_pull.sine_ground_release), its free spell at a departure or an engagement
-    (no_pull.sine_free_event). tau inf: never (the energy proves it; a rest). load: m g - F_ext [N], the ground's
-    acceleration apart. The Hunt-Crossley law has no closed form: tau nan.
+    (no_pull.sine_free_event). tau inf: never (the energy proves it; a rest). None within horizon [s] (a search
+    the energy cannot end, an undamped contact's): kind codes.RESTART at a certified point past it, with the state
+    there. load: m g - F_ext [N], the ground's acceleration apart. The Hunt-Crossley law has no closed form: tau nan.
     """
     if mode == FREE and parameters.law == NO_PULL:
         tau, x_event, v_event, departs = sine_free_event(parameters, x, v, load, t)
@@ -214,10 +215,15 @@ def ground_contact_event(parameters, mode, x, v, load, t):
     w = parameters.ground_omega
     forcing, theta = parameters.ground_amplitude * (w * w), w * t + parameters.ground_phase
     if parameters.law == NO_PULL:
-        tau, x_event, v_event = sine_ground_release(parameters, x, v, load, forcing, w, theta, math.inf)
-        return tau, x_event, v_event, RELEASE
-    tau, v_event = sine_ground_departure(parameters, x, v, load, forcing, w, theta, math.inf)
-    return tau, 0.0, v_event, DEPARTURE
+        tau, x_event, v_event = sine_ground_release(parameters, x, v, load, forcing, w, theta, horizon)
+        kind = RELEASE
+    else:
+        (tau, v_event), x_event, kind = sine_ground_departure(parameters, x, v, load, forcing, w, theta, horizon), \
+            0.0, DEPARTURE
+    if math.isinf(tau) or tau <= horizon:
+        return tau, x_event, v_event, kind
+    x_event, v_event = sine_ground_flow(parameters, x, v, tau, load, forcing, w, theta)
+    return tau, x_event, v_event, RESTART
 
 
 def contact_event(parameters, x, v, load):

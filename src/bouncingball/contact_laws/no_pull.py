@@ -14,6 +14,7 @@ import math
 from ..codes import CONTACT
 from ..equations import gap_acceleration, sine_flight_flow, sine_flight_touch, sine_value
 from ..oscillator import contact_gap_flow
+from ..rounding import hypot
 from .common import BY_CVODE, IN_CLOSED_FORM, NO_PULL, REST, ContactLaw, time_to_impact
 from .linear import departure_time, searches, sine_ground_departure, sine_ground_flow
 
@@ -142,7 +143,7 @@ def sine_ground_release(parameters, x0, u0, load, forcing, w, theta0, horizon):
     c = b / k
     acceleration = gap_acceleration(x0, u0, CONTACT, load, m, k, b) + forcing * math.sin(theta0)
     tau, _ = sine_ground_departure(parameters, x0 + c * u0, u0 + c * acceleration, load,
-                                   forcing * math.hypot(1.0, c * w), w, theta0 + math.atan2(c * w, 1.0), horizon)
+                                   forcing * hypot(1.0, c * w), w, theta0 + math.atan2(c * w, 1.0), horizon)
     if not tau <= horizon or math.isinf(tau):  # none within it; inf: never (horizon inf)
         return tau, math.nan, math.nan
     x, u = sine_ground_flow(parameters, x0, u0, tau, load, forcing, w, theta0)
@@ -156,18 +157,22 @@ def sine_free_event(parameters, x0, u0, load, t0):
     below the surface. It departs where x reaches 0 going up: a flight's first touch (equations.sine_flight_touch,
     certified) of -x above the ground -s; it is pressed again (engages) where z = x + c u, c = b / k, falls to 0: a
     flight's first touch of z above s + c s' = A sqrt(1 + (c w)^2) sin(theta + atan(c w)). The first of the two, a
-    departure on a tie (x = 0 there exactly); the searches end where the parabola, less twice the ground's
-    amplitude, is below it for certain (one of the two must have come by then). A weightless ball (g_eff = 0) has
-    no such end: its searches run to their step limit (a RuntimeError) if neither comes. A spell starting at its
-    release (z within its rounding of 0) leaves that surface.
+    departure on a tie (x = 0 there exactly); the searches end where one of the two parabolas, less twice its
+    ground's amplitude, is below it for certain (_surely_below: one of the two must have come by then). Only a
+    weightless ball at rest in the world (g_eff = 0, v = 0) has no such end: its searches run to their step limit
+    (a RuntimeError) if neither comes. A spell starting at its release (z within its rounding of 0) leaves that
+    surface.
     """
     m, c = parameters.m, parameters.b / parameters.k
     amplitude, w, phase = parameters.ground_amplitude, parameters.ground_omega, parameters.ground_phase
     g_eff = load / m
-    engage_amplitude, engage_phase = amplitude * math.hypot(1.0, c * w), phase + math.atan2(c * w, 1.0)
+    engage_amplitude, engage_phase = amplitude * hypot(1.0, c * w), phase + math.atan2(c * w, 1.0)
     z0, z_rate = x0 + c * u0, u0 - c * (g_eff + sine_value(amplitude, w, phase, t0, 2))
     released = abs(z0) <= 16.0 * _EPS * (abs(x0) + c * abs(u0))
-    horizon = min(_surely_below(z0, z_rate, g_eff, engage_amplitude, w), _surely_below(-x0, -u0, -g_eff, amplitude, w))
+    slope = sine_value(amplitude, w, phase, t0, 1)  # the world's speeds: of z's parabola, and of -x's
+    z_world = z_rate + sine_value(engage_amplitude, w, engage_phase, t0, 1)
+    horizon = min(_surely_below(z0, z_world, g_eff, engage_amplitude), _surely_below(-x0, -(u0 + slope), -g_eff,
+                                                                                   amplitude))
     tau_engage = sine_flight_touch(m, engage_amplitude, w, engage_phase, t0, z0, z_rate, load, horizon, released)
     tau_depart = sine_flight_touch(m, -amplitude, w, phase, t0, -x0, -u0, -load, min(horizon, tau_engage), False)
     if tau_depart <= tau_engage:
@@ -177,18 +182,20 @@ def sine_free_event(parameters, x0, u0, load, t0):
     return tau_engage, x, u, False
 
 
-def _surely_below(gap, rate, g_eff, amplitude, w):
-    """A time [s] by which a flight's gap from (gap, rate) under g_eff > 0 is below a sine ground of amplitude for sure.
+def _surely_below(gap, rate, g_eff, amplitude):
+    """A time [s] by which a flight's gap from gap [m] is below a sine ground of amplitude [m] for sure; inf: none.
 
-    The gap is at most gap + (rate + |A| w) t - g_eff t^2 / 2 + 2 |A| (the ground's motion less its tangent at the
-    start); its root, with a margin. inf where g_eff <= 0 (the flight need never come down).
+    rate [m/s]: the flight's own speed in the world (the gap's rate plus the ground's speed at the start). The gap
+    is at most gap + 2 |A| + rate t - g_eff t^2 / 2 (the ground moves by 2 |A| at most); its root, with a margin
+    of 2: under g_eff > 0, or a weightless flight (g_eff = 0) going down. inf otherwise (it need never come down).
     """
-    if not g_eff > 0.0:
-        return math.inf
-    reach, lift = rate + abs(amplitude) * w, max(gap, 0.0) + 2.0 * abs(amplitude)
-    if reach > 0.0:
-        return 2.0 * (reach + math.sqrt(reach * reach + 2.0 * g_eff * lift)) / g_eff
-    return 2.0 * math.sqrt(2.0 * lift / g_eff)
+    lift = max(gap, 0.0) + 2.0 * abs(amplitude)
+    if g_eff > 0.0:
+        return 2.0 * (rate + math.sqrt(rate * rate + 2.0 * g_eff * lift)) / g_eff if rate > 0.0 else \
+            2.0 * lift / (math.sqrt(rate * rate + 2.0 * g_eff * lift) - rate)
+    if g_eff == 0.0 and rate < 0.0:
+        return 2.0 * lift / -rate
+    return math.inf
 
 
 def contact_roots(y0, y1, length, speed, load, own_side, hop, k, m, b):

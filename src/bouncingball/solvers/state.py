@@ -9,7 +9,13 @@ import math
 from dataclasses import dataclass
 
 from .. import limits, validation
-from ..contact_laws import contact_integrated, impact_is_instantaneous, law_contact_force, reported_acceleration
+from ..contact_laws import (
+    contact_integrated,
+    ground_moves,
+    impact_is_instantaneous,
+    law_contact_force,
+    reported_acceleration,
+)
 from ..contact_laws.rigid import summed_bounce_state
 from ..equations import load_at, load_value
 from ..physics import Ball, Mode
@@ -240,8 +246,11 @@ class IntegratorView:
             rest = float(self._state.hc_rest_t)
             return rest if self.mode == Mode.CONTACT and not math.isnan(rest) else None
         x, v = float(self._state.x), float(self._state.v)
-        if decide_phase(self._parameters, self.mode, x, v, self._load, self._hop, self.settings.rtol,
-                        float(self._state.t))[0] != REST:
+        if ground_moves(self._parameters):  # decided where the contact began, its search run from there
+            if self.mode != Mode.CONTACT or math.isnan(float(self._state.rest_t)):
+                return None
+        elif decide_phase(self._parameters, self.mode, x, v, self._load, self._hop, self.settings.rtol,
+                          float(self._state.t), math.inf)[0] != REST:
             return None
         start = self._last_impact_time if self._last_impact_time is not None else self._t_start
         rest = float(self._state.rest_t)

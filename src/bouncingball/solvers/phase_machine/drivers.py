@@ -20,14 +20,17 @@ from ...contact_laws import law_flow_at
 from ...equations import load_at
 from .dense_output import step_state
 from .error_estimate import run_estimate
-from .machine import DONE, RETURNED, _take_event, closed_form_phase, grown, phase_steps
+from .machine import DONE, RETURNED, STEP_HORIZON, _take_event, closed_form_phase, grown, phase_steps
 from .phases import BY_CVODE, IN_CLOSED_FORM, REST, decide_phase, taylor_step
 
 
-def _decided_by_cvode(parameters, rtol, state):
-    """Whether CVODE takes the phase starting at the state (phases.decide_phase); else its rest or event is set."""
+def _decided_by_cvode(parameters, rtol, state, horizon):
+    """Whether CVODE takes the phase starting at the state (phases.decide_phase); else its rest or event is set.
+
+    horizon [s]: how far a closed-form phase's search looks ahead before it is decided again (a RESTART).
+    """
     answer, tau, x_event, v_event, kind = decide_phase(parameters, int(state.mode), state.x, state.v, state.load,
-                                                       state.hop, rtol, state.t)
+                                                       state.hop, rtol, state.t, horizon)
     if answer == REST:
         state.rest_t, state.rest_x, state.rest_v = state.t, state.x, state.v
     elif answer == IN_CLOSED_FORM:
@@ -85,7 +88,7 @@ def run_phases(engine, parameters, rtol, atol, state, t_end, points, n_points, e
         if state.steps - steps_at_entry >= step_budget:
             return RETURNED, points, n_points, events, n_events
         if state.needs_init != 0.0:
-            if not _decided_by_cvode(parameters, rtol, state):
+            if not _decided_by_cvode(parameters, rtol, state, t_end - t):
                 continue
             # Only once the phase is decided: one in closed form may end within these ulps before t_end.
             if _finish_by_taylor(parameters, state, t_end):
@@ -146,7 +149,8 @@ def advance(engine, parameters, rtol, atol, state, t_target, stop_at_event, even
             if stop_at_event and not restart:
                 break
             continue
-        if state.needs_init != 0.0 and math.isnan(state.rest_t) and not _decided_by_cvode(parameters, rtol, state):
+        if state.needs_init != 0.0 and math.isnan(state.rest_t) and \
+                not _decided_by_cvode(parameters, rtol, state, max(t_target - state.t, STEP_HORIZON)):
             continue  # a rest, or a phase in closed form: taken above
         if not math.isnan(state.rest_t):
             _rest_state(parameters, state, t_target)

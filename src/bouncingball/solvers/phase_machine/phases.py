@@ -93,7 +93,7 @@ def frame(parameters, mode, x, v, load, rtol, atol, horizon):
     return length, speed
 
 
-def decide_phase(parameters, mode, x, v, load, hop, rtol, t):
+def decide_phase(parameters, mode, x, v, load, hop, rtol, t, horizon):
     """How the phase from (x, v) in mode at t [s] is taken: (answer, tau, x_event, v_event, kind).
 
     BY_CVODE: CVODE integrates it. REST: a contact that can never again lift the ball more than hop
@@ -104,12 +104,13 @@ def decide_phase(parameters, mode, x, v, load, hop, rtol, t):
     (contact_laws.decide_contact, with what CVODE resolves relative to a phase's length, HOP_RESOLUTION rtol).
     On a vibrating ground (in its frame) CVODE takes every flight, and a contact ends in closed form, certified
     (contact_laws.ground_contact_event: the rigid law's ride, the linear law's departure, the no-pull law's
-    release and its free spell's end); never, a rest. Its hop tolerance does not apply there: no hop is merged.
+    release and its free spell's end); never, a rest; not within horizon [s], a RESTART (codes) past it, where it
+    is decided again. Its hop tolerance does not apply there: no hop is merged.
     """
     if parameters.ground_amplitude != 0.0:
         if mode == FLIGHT:
             return BY_CVODE, 0.0, 0.0, 0.0, IMPACT
-        tau, x_event, v_event, kind = ground_contact_event(parameters, mode, x, v, load, t)
+        tau, x_event, v_event, kind = ground_contact_event(parameters, mode, x, v, load, t, horizon)
         if math.isnan(tau):  # no closed form: CVODE integrates the contact
             return BY_CVODE, 0.0, 0.0, 0.0, kind
         return (REST, 0.0, 0.0, 0.0, kind) if math.isinf(tau) else (IN_CLOSED_FORM, tau, x_event, v_event, kind)
