@@ -11,8 +11,6 @@ import math
 
 import numpy as np
 
-from .rounding import hypot
-
 
 def contact_gap_flow(sigma: float, w2: float, g_eff: float, x0, v0, tau):
     """(x, v) a time tau after (x0, v0) in contact: x'' + 2 sigma x' + w2 x = -g_eff, x = h - R, g_eff = (m g - F)/m.
@@ -155,5 +153,6 @@ def sine_response(sigma: float, w2: float, forcing: float, w: float, theta):
 
 def sine_response_gain(sigma: float, w2: float, w: float) -> float:
     """|H| = 1 / |w2 - w^2 + 2 i sigma w| [s2]: the periodic response's amplitude per unit forcing (inf: resonance)."""
-    size = hypot(w2 - w * w, 2.0 * sigma * w)  # as Python rounds it, compiled too
+    detuning, friction = w2 - w * w, 2.0 * sigma * w
+    size = math.sqrt(detuning * detuning + friction * friction)  # not math.hypot: compiled, libm's differs in ulps
     return 1.0 / size if size > 0.0 else math.inf

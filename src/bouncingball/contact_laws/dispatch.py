@@ -197,29 +197,23 @@ def decide_contact(parameters, mode, x, v, load, hop, resolution):
 def ground_contact_event(parameters, mode, x, v, load, t, horizon):
     """(tau [s], x_event [m], v_event [m/s], kind) ending a contact (CONTACT, FREE) from (x, v) at t [s], ground moving.
 
-    In its frame (x = h - R - s, v - s'), on the exact flow, certified (no crossing stepped over): the rigid law's
-    ride ends where s'' falls below -g_eff (equations.ride_end_value; x_event = v_event = 0, on the ground), the
-    linear law's contact at its departure (linear.sine_ground_departure), the no-pull law's at its release below
-    the surface (no_pull.sine_ground_release), its free spell at a departure or an engagement
-    (no_pull.sine_free_event). tau inf: never (the energy proves it; a rest). None within horizon [s] (a search
-    the energy cannot end, an undamped contact's): kind codes.RESTART at a certified point past it, with the state
-    there. load: m g - F_ext [N], the ground's acceleration apart. The Hunt-Crossley law has no closed form: tau nan.
+    In its frame (x = h - R - s, v - s'), certified: the rigid ride's end, the linear departure, the no-pull release
+    and free spell's end (sine_ground_departure, sine_ground_release, sine_free_event). tau inf: never (a rest); none
+    within horizon [s]: codes.RESTART at a certified point past it. load: m g - F_ext [N]. Hunt-Crossley: tau nan.
     """
     if mode == FREE and parameters.law == NO_PULL:
         tau, x_event, v_event, departs = sine_free_event(parameters, x, v, load, t)
         return tau, x_event, v_event, DEPARTURE if departs else ENGAGE
-    if parameters.law == RIGID:
-        return ride_end_value(parameters, t, load / parameters.m) - t, 0.0, 0.0, DEPARTURE
-    if parameters.law == HUNT_CROSSLEY:
-        return math.nan, 0.0, 0.0, DEPARTURE
+    if parameters.law == RIGID or parameters.law == HUNT_CROSSLEY:
+        tau = ride_end_value(parameters, t, load / parameters.m) - t if parameters.law == RIGID else math.nan
+        return tau, 0.0, 0.0, DEPARTURE
     w = parameters.ground_omega
     forcing, theta = parameters.ground_amplitude * (w * w), w * t + parameters.ground_phase
-    if parameters.law == NO_PULL:
+    kind = RELEASE if parameters.law == NO_PULL else DEPARTURE
+    if kind == RELEASE:
         tau, x_event, v_event = sine_ground_release(parameters, x, v, load, forcing, w, theta, horizon)
-        kind = RELEASE
     else:
-        (tau, v_event), x_event, kind = sine_ground_departure(parameters, x, v, load, forcing, w, theta, horizon), \
-            0.0, DEPARTURE
+        (tau, v_event), x_event = sine_ground_departure(parameters, x, v, load, forcing, w, theta, horizon), 0.0
     if math.isinf(tau) or tau <= horizon:
         return tau, x_event, v_event, kind
     x_event, v_event = sine_ground_flow(parameters, x, v, tau, load, forcing, w, theta)
