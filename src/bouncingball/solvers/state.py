@@ -245,12 +245,11 @@ class IntegratorView:
         if contact_integrated(self._parameters):
             rest = float(self._state.hc_rest_t)
             return rest if self.mode == Mode.CONTACT and not math.isnan(rest) else None
-        x, v = float(self._state.x), float(self._state.v)
         if ground_moves(self._parameters):  # decided where the contact began, its search run from there
             if self.mode != Mode.CONTACT or math.isnan(float(self._state.rest_t)):
                 return None
-        elif decide_phase(self._parameters, self.mode, x, v, self._load, self._hop, self.settings.rtol,
-                          float(self._state.t), math.inf)[0] != REST:
+        elif decide_phase(self._parameters, self.mode, float(self._state.x), float(self._state.v), self._load,
+                          self._hop, self.settings.rtol, float(self._state.t), math.inf)[0] != REST:
             return None
         start = self._last_impact_time if self._last_impact_time is not None else self._t_start
         rest = float(self._state.rest_t)
