@@ -41,8 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--alpha", type=float, help="the Hunt-Crossley law's damping [s/m], >= 0 (default: the "
                      "scene's, 0; the other laws do not read it)")
     run.add_argument("--ground-amplitude", type=float, metavar="A", help="a vibrating ground, s(t) = A sin(2 pi F t + "
-                     "P): its amplitude [m] (with --ground-frequency; contact rigid, linear or linear-no-pull, solver "
-                     "cvode or exact)")
+                     "P): its amplitude [m] (with --ground-frequency; solver cvode, any contact law, or exact: rigid, "
+                     "linear or linear-no-pull)")
     run.add_argument("--ground-frequency", type=float, metavar="F", help="the vibrating ground's frequency [Hz]")
     run.add_argument("--ground-phase", type=float, metavar="P", help="the vibrating ground's phase [rad] "
                      "(default: 0)")

@@ -282,3 +282,70 @@ def _bisected(c4, c3, c2, c1, c0, low, high):
         else:
             high = mid
     return low
+
+
+def quintic_exit(p0, p1, p2, p3, p4, p5, level, margin, to_end):
+    """(s, undecided): where the quintic p0 + p1 s + .. + p5 s^5 first rises to level on (0, 1]; nan where it does not.
+
+    Certified to rounding: its turning points (the roots of its derivative, found from those of its higher
+    derivatives, each on a piece where it is monotonic) split [0, 1] into monotonic pieces, the first piece rising
+    across level holds the crossing, bisected. to_end False: a crossing on the last piece (ending at 1, a root the
+    caller has) is not looked for. undecided: a local maximum inside (0, 1) before the crossing lies within margin
+    below level (a graze that the interpolated motion's error could turn into a crossing).
+    """
+    turn0, turn1 = _quadratic_roots(60.0 * p5, 24.0 * p4, 6.0 * p3)  # of the third derivative
+    bend0, bend1, bend2, _ = _piece_roots(2.0 * p2, 6.0 * p3, 12.0 * p4, 20.0 * p5, 0.0, 0.0,
+                                          turn0, turn1, math.nan, math.nan)
+    cuts = _piece_roots(p1, 2.0 * p2, 3.0 * p3, 4.0 * p4, 5.0 * p5, 0.0, bend0, bend1, bend2, math.nan)
+    undecided, start, value = False, 0.0, _quintic(p0, p1, p2, p3, p4, p5, 0.0)
+    for end in (cuts[0], cuts[1], cuts[2], cuts[3], 1.0):
+        if not (start < end <= 1.0):
+            continue
+        end_value = _quintic(p0, p1, p2, p3, p4, p5, end)
+        if value < level <= end_value and (to_end or end < 1.0):
+            low, high = start, end
+            for _ in range(1100):
+                mid = 0.5 * (low + high)
+                if not low < mid < high:
+                    break
+                if _quintic(p0, p1, p2, p3, p4, p5, mid) >= level:
+                    high = mid
+                else:
+                    low = mid
+            return high, undecided
+        if end < 1.0 and value < end_value and level - margin <= end_value < level:
+            undecided = True
+        start, value = end, end_value
+    return math.nan, undecided
+
+
+def _quintic(p0, p1, p2, p3, p4, p5, s):
+    return ((((p5 * s + p4) * s + p3) * s + p2) * s + p1) * s + p0
+
+
+def _piece_roots(c0, c1, c2, c3, c4, c5, cut0, cut1, cut2, cut3):
+    """The roots in (0, 1) of c0 + c1 s + .. + c5 s^5, monotonic between the cuts (ascending; nan: none), nan-padded.
+
+    One bisection per piece whose ends differ in sign (> 0 against <= 0): at most one root each, ascending.
+    """
+    roots = [math.nan, math.nan, math.nan, math.nan]
+    count, start, value = 0, 0.0, c0
+    for end in (cut0, cut1, cut2, cut3, 1.0):
+        if not (start < end <= 1.0) or count == 4:
+            continue
+        end_value = _quintic(c0, c1, c2, c3, c4, c5, end)
+        if (value > 0.0) != (end_value > 0.0):
+            low, high, low_side = start, end, value > 0.0
+            for _ in range(1100):
+                mid = 0.5 * (low + high)
+                if not low < mid < high:
+                    break
+                if (_quintic(c0, c1, c2, c3, c4, c5, mid) > 0.0) == low_side:
+                    low = mid
+                else:
+                    high = mid
+            if high < 1.0:
+                roots[count] = high
+                count += 1
+        start, value = end, end_value
+    return roots[0], roots[1], roots[2], roots[3]

@@ -28,7 +28,9 @@ BallParameters, read by name), the gap x = h - R [m], v [m/s] and the load m g -
 4. Where CVODE integrates every contact (contact_integrated: no closed form): its right-hand side and Jacobian
    (varying_jacobian), its interpolant (law_interpolant), its step's transition matrix for the error estimate
    (contact_step_transition: its force must be 0 on R, so that its events carry no saltation), its reported rest
-   (reported_rest_margin), a release at the third root (third_root_releases, root_release_speed).
+   (reported_rest_margin), a release at the third root (third_root_releases, root_release_speed), and on a
+   vibrating ground each step's exit certified on its interpolant (contact_step_exit: a graze between two of
+   CVODE's steps that its root functions, seeing no change of sign, would miss).
 5. Its registry entry, ``LAW = ContactLaw(...)`` in its module: its name, code (common.py), the Ball fields it
    reads, whether every phase has a closed form (the exact solver and the check take it), whether the article's
    algorithm runs it, k's unit and the sweep's damping axis, a description and a summary line; its module in
@@ -49,6 +51,7 @@ from .dispatch import (
     contact_event,
     contact_integrated,
     contact_scales,
+    contact_step_exit,
     contact_step_transition,
     decide_contact,
     departure_speed,
@@ -95,7 +98,8 @@ from .rigid import rigid_rebound
 __all__ = [
     "BY_CVODE", "BallParameters", "CONTACT_LAWS", "CONTACT_PARAMETERS", "ContactLaw", "HUNT_CROSSLEY", "IN_CLOSED_FORM",
     "LAWS", "LAW_MODULES", "LAW_PARAMETERS", "LINEAR", "NO_PULL", "RIGID", "ball_parameters", "conserved_speed",
-    "contact_ends_in", "contact_event", "contact_integrated", "contact_scales", "contact_step_transition",
+    "contact_ends_in", "contact_event", "contact_integrated", "contact_scales", "contact_step_exit",
+    "contact_step_transition",
     "decide_contact", "departure_speed", "departure_time", "free_event", "ground_contact_event", "ground_moves",
     "has_free_sub_mode", "has_pressed_gap",
     "hunt_crossley_acceleration", "hunt_crossley_force", "hunt_crossley_free_event", "hunt_crossley_jacobian",

@@ -104,3 +104,19 @@ class ContactLaw:
     damping_axis: str | None
     summary: str
     undamped_as: str | None = None
+
+
+def surely_below(gap, rate, g_eff, amplitude):
+    """A time [s] by which a flight's gap from gap [m] is below a sine ground of amplitude [m] for sure; inf: none.
+
+    rate [m/s]: the flight's own speed in the world (the gap's rate plus the ground's speed at the start). The gap
+    is at most gap + 2 |A| + rate t - g_eff t^2 / 2 (the ground moves by 2 |A| at most); its root, with a margin
+    of 2: under g_eff > 0, or a weightless flight (g_eff = 0) going down. inf otherwise (it need never come down).
+    """
+    lift = max(gap, 0.0) + 2.0 * abs(amplitude)
+    if g_eff > 0.0:
+        return 2.0 * (rate + math.sqrt(rate * rate + 2.0 * g_eff * lift)) / g_eff if rate > 0.0 else \
+            2.0 * lift / (math.sqrt(rate * rate + 2.0 * g_eff * lift) - rate)
+    if g_eff == 0.0 and rate < 0.0:
+        return 2.0 * lift / -rate
+    return math.inf

@@ -28,6 +28,8 @@ from .hunt_crossley import (
     hunt_crossley_state,
     release_speed,
 )
+from .hunt_crossley import sine_free_event as hunt_crossley_sine_free_event
+from .hunt_crossley import step_exit as hunt_crossley_step_exit
 from .hunt_crossley import step_transition as hunt_crossley_step_transition
 from .linear import contact_scales as linear_contact_scales
 from .linear import decide_contact as linear_decide_contact
@@ -95,10 +97,9 @@ def ground_moves(parameters):
 def conserved_speed(parameters, mode, x_start, v_start):
     """Whether a phase from the gap x_start [m] at v_start [m/s] in mode ends on R at -v_start exactly.
 
-    It does where it starts on R leaving its own side (up in flight, down in contact) and its exact
-    flow conserves energy (a flight; a contact with b = 0): the phase machine's polish and the exact
-    solver then give the event that speed, not their flows' rounded one, which added up over many
-    bounces to an energy drift. parameters: Ball.parameters. Never on a vibrating ground, which gives and takes energy.
+    Where it starts on R leaving its own side (up in flight, down in contact) and its exact flow conserves energy (a
+    flight; a contact with b = 0): the polish and the exact solver give the event that speed, not their flows'
+    rounded one (an energy drift over many bounces). Never on a vibrating ground, which gives and takes energy.
     """
     if x_start != 0.0 or parameters.ground_amplitude != 0.0:
         return False
@@ -110,10 +111,9 @@ def conserved_speed(parameters, mode, x_start, v_start):
 def law_hop_tolerance(parameters, load, resolution):
     """The highest hop [m] above R that CVODE may merge into the contact around it (settings.hop_tolerance's rule).
 
-    resolution (HOP_RESOLUTION rtol) times the contact's amplitude near rest, the static deflection d = load / k,
-    which CVODE resolves to rtol: 0 where the contact never comes to rest (b = 0, or d <= 0: lifted) and for an
-    instantaneous impact (no contact to merge a hop into). The Hunt-Crossley law's is its own
-    (hunt_crossley_hop_tolerance).
+    resolution (HOP_RESOLUTION rtol) times the contact's amplitude near rest, the static deflection d = load / k:
+    0 where the contact never rests (b = 0, or d <= 0: lifted) and for an instantaneous impact. The Hunt-Crossley
+    law's is its own (hunt_crossley_hop_tolerance).
     """
     if parameters.law == HUNT_CROSSLEY:
         return hunt_crossley_hop_tolerance(load, parameters.m, parameters.k, parameters.n, parameters.alpha,
@@ -172,10 +172,7 @@ def contact_scales(parameters, x, v, load):
 
 
 def decide_contact(parameters, mode, x, v, load, hop, resolution):
-    """(answer, tau, x_event, v_event, kind) of a phase below or on R (mode CONTACT or FREE): the contract's rule 2.
-
-    The free sub-mode is always taken in closed form (a parabola): its event a departure on R or an engagement.
-    """
+    """(answer, tau, x_event, v_event, kind) of a phase below or on R (CONTACT, or FREE: in closed form): rule 2."""
     if mode == FREE:
         if parameters.law == HUNT_CROSSLEY:
             tau, x_event, v_event, departs = hunt_crossley_free_event(parameters, x, v, load)
@@ -198,11 +195,13 @@ def ground_contact_event(parameters, mode, x, v, load, t, horizon):
     """(tau [s], x_event [m], v_event [m/s], kind) ending a contact (CONTACT, FREE) from (x, v) at t [s], ground moving.
 
     In its frame (x = h - R - s, v - s'), certified: the rigid ride's end, the linear departure, the no-pull release
-    and free spell's end (sine_ground_departure, sine_ground_release, sine_free_event). tau inf: never (a rest); none
-    within horizon [s]: codes.RESTART at a certified point past it. load: m g - F_ext [N]. Hunt-Crossley: tau nan.
+    and the free spells' ends (sine_ground_departure, sine_ground_release, the laws' sine_free_event). tau inf: never
+    (a rest); none within horizon [s]: codes.RESTART at a certified point past it. load: m g - F_ext [N]. A pressed
+    Hunt-Crossley contact: tau nan (CVODE integrates it, contact_step_exit certifying each step).
     """
-    if mode == FREE and parameters.law == NO_PULL:
-        tau, x_event, v_event, departs = sine_free_event(parameters, x, v, load, t)
+    if mode == FREE:
+        tau, x_event, v_event, departs = sine_free_event(parameters, x, v, load, t) if parameters.law == NO_PULL \
+            else hunt_crossley_sine_free_event(parameters, x, v, load, t)
         return tau, x_event, v_event, DEPARTURE if departs else ENGAGE
     if parameters.law == RIGID or parameters.law == HUNT_CROSSLEY:
         tau = ride_end_value(parameters, t, load / parameters.m) - t if parameters.law == RIGID else math.nan
@@ -264,10 +263,7 @@ def law_acceleration(parameters, x, v, mode, load):
 
 
 def own_interpolant(parameters, mode):
-    """Whether the law reads a step in mode off an interpolant of its own (law_interpolant), having no closed form.
-
-    Elsewhere the dense output blends the mode's exact flow (solvers/phase_machine/dense_output.py).
-    """
+    """Whether a step in mode is read off the law's own interpolant (law_interpolant), not off its exact flow."""
     return mode == CONTACT and parameters.law == HUNT_CROSSLEY
 
 
@@ -290,10 +286,9 @@ def varying_jacobian(parameters, y0, y1, length, speed, load):
 def root_values(parameters, y0, y1, mode, length, speed, load, own_side, hop):
     """CVODE's three root functions: the gap (own_side where it is 0), v, and the rest margin in contact.
 
-    Under zero net load v never changes in flight: a root function identically 0 would only make
-    CVODE warn, so it is 1 there. The rest margin (equations.rest_margin_value, with the static
-    deflection from the phase's load) is -1 where the contact cannot rest.
-    A pressed no-pull or Hunt-Crossley contact has its own (no_pull.contact_roots, hunt_crossley.contact_roots).
+    Under zero net load v never changes in flight: a root function identically 0 would only make CVODE warn, so it is
+    1 there. The rest margin (equations.rest_margin_value) is -1 where the contact cannot rest. A pressed no-pull or
+    Hunt-Crossley contact has its own (no_pull.contact_roots, hunt_crossley.contact_roots).
     """
     m, k, law = parameters.m, parameters.k, parameters.law
     if law == HUNT_CROSSLEY and mode == CONTACT:
@@ -319,16 +314,20 @@ def contact_step_transition(parameters, load, t0, x0, v0, t1, x1, v1, t):
     return hunt_crossley_step_transition(parameters, load, t0, x0, v0, t1, x1, v1, t)
 
 
+def contact_step_exit(parameters, load, t0, x0, v0, t1, x1, v1, margin, to_end):
+    """hunt_crossley.step_exit: where an integrated contact's step leaves it, certified (on a vibrating ground)."""
+    return hunt_crossley_step_exit(parameters, load, t0, x0, v0, t1, x1, v1, margin, to_end)
+
+
 def reported_rest_margin(parameters, x, v, load, hop):
-    """An integrated contact's rest margin at (x [m], v [m/s]): positive where the ball is at rest (within hop [m])."""
+    """An integrated contact's rest margin at (x [m], v [m/s]): > 0 at rest (within hop [m]); -1 on a moving ground."""
+    if parameters.ground_amplitude != 0.0:  # its energy criterion holds for a constant load only
+        return -1.0
     return hunt_crossley_rest_margin(x, v, load, parameters.m, parameters.k, parameters.n, hop)
 
 
 def contact_ends_in(parameters):
-    """The event kind of a pressed contact's terminal root (root_values' first): DEPARTURE on R, or RELEASE.
-
-    The no-pull law's pressed contact ends where its force would pull (its pressed gap z = 0), below R.
-    """
+    """The kind of a pressed contact's terminal root: DEPARTURE on R, or the no-pull law's RELEASE (z = 0, below R)."""
     return RELEASE if parameters.law == NO_PULL else DEPARTURE
 
 

@@ -8,14 +8,21 @@ release than CVODE resolves), so alpha <= min(1e150, 1 / rtol) 2 / (3 v).
 No closed form: CVODE integrates every pressed contact, with the law's own right-hand side and state-dependent
 Jacobian; its rest is only reported (hunt_crossley_rest_margin), and its error carried step by step
 (solvers/phase_machine/error_estimate.py).
+
+On a vibrating ground (in its frame: the deflection R - (h - s), its rate -(v - s')) the load has the ground's
+acceleration in it (equations.load_at), so does the interpolant (its rate, the ground's jerk); each pressed step's
+interpolant is searched for where it leaves the contact (step_exit: a departure or a release that CVODE's root
+functions would miss inside one step), the free spell's ends are certified searches (sine_free_event), and no rest is
+reported (its energy criterion holds for a constant load only).
 """
 
 from __future__ import annotations
 
 import math
 
+from ..equations import ground_value, load_at, quintic_exit, sine_flight_flow, sine_flight_touch, sine_value
 from ..oscillator import oscillator_basis
-from .common import HUNT_CROSSLEY, SOFT_CONTACT_CAP, ContactLaw
+from .common import HUNT_CROSSLEY, SOFT_CONTACT_CAP, ContactLaw, surely_below
 
 # The Hunt-Crossley law's exponent n: 1 (a linear spring) .. 2.5 (beyond Hertz's 1.5 for spheres, as fitted
 # to soft and granular materials); its release speed is 2 / (3 alpha).
@@ -136,6 +143,35 @@ def hunt_crossley_free_event(parameters, x, v, load):
     return tau_engage, min(x + (v * v - v_release * v_release) / (2.0 * g_eff), 0.0), v_release, False
 
 
+def sine_free_event(parameters, x0, u0, load, t0):
+    """(tau [s], x [m], u [m/s], departs): the event ending a free spell from (x0 <= 0, u0) at t0 on a vibrating ground.
+
+    In the ground's frame (x = h - R - s, u = v - s'; BallParameters' ground_* fields) the ball flies its parabola
+    below the surface, rising faster than the release speed v_r. It departs where x reaches 0 going up: a flight's
+    first touch (equations.sine_flight_touch, certified) of -x above the ground -s. It is pressed again (engages)
+    where u falls back to v_r: u - v_r = (u0 - v_r) - g_eff tau - (s'(t0 + tau) - s'(t0)) is a weightless flight's
+    gap above the ground s' = A w sin(w t + p + pi / 2) from the rate -g_eff - s''(t0), whose first touch is found
+    the same way. The first of the two, a departure on a tie; the searches end where one must have come
+    (common.surely_below). A spell starting at its release (u = v_r) leaves that level.
+    """
+    m, amplitude, w, phase = parameters.m, parameters.ground_amplitude, parameters.ground_omega, parameters.ground_phase
+    g_eff, v_release = load / m, release_speed(parameters.alpha)
+    horizon = surely_below(-x0, -(u0 + sine_value(amplitude, w, phase, t0, 1)), -g_eff, amplitude)
+    tau_engage = math.inf
+    if v_release < math.inf:
+        speed_amplitude, speed_phase, excess = amplitude * w, phase + 0.5 * math.pi, u0 - v_release
+        horizon = min(horizon, surely_below(excess, -g_eff, 0.0, speed_amplitude))
+        tau_engage = sine_flight_touch(m, speed_amplitude, w, speed_phase, t0, excess,
+                                       -g_eff - sine_value(speed_amplitude, w, speed_phase, t0, 1), 0.0, horizon,
+                                       excess == 0.0)
+    tau_depart = sine_flight_touch(m, -amplitude, w, phase, t0, -x0, -u0, -load, min(horizon, tau_engage), False)
+    if tau_depart <= tau_engage:
+        u = sine_flight_flow(m, amplitude, w, phase, x0, u0, t0, tau_depart, load)[1]
+        return tau_depart, 0.0, max(u, 0.0), True
+    x = sine_flight_flow(m, amplitude, w, phase, x0, u0, t0, tau_engage, load)[0]
+    return tau_engage, min(x, 0.0), v_release, False
+
+
 def hunt_crossley_jacobian(y0, y1, length, speed, load, m, k, n, alpha):
     """(j00, j01, j10, j11): the Jacobian of scaled_rates in a Hunt-Crossley contact at (y0, y1), where it changes."""
     a_x, a_v = hunt_crossley_partials(length * y0, speed * y1, load, m, k, n, alpha)
@@ -156,13 +192,14 @@ def hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t):
     """(x [m], v [m/s]) at t in a Hunt-Crossley contact's step: the quintic Hermite interpolant of its ends.
 
     x from (x, v, a) at both ends, v from (v, a, da/dt), with the contact's own equation for a and its
-    partials for da/dt = a_x v + a_v a: sixth order, so its error inside a step (~h^6 y^(6) / 46080)
-    stays below what CVODE controlled over it. Floats.
+    partials for da/dt = a_x v + a_v a - (the ground's jerk, on a vibrating ground: load [N], m g - F_ext, has the
+    ground's acceleration added at each end, equations.load_at): sixth order, so its error inside a step
+    (~h^6 y^(6) / 46080) stays below what CVODE controlled over it. Floats.
     """
-    m, k, n, alpha = parameters.m, parameters.k, parameters.n, parameters.alpha
     h = t1 - t0
     if not h > 0.0:
         return x0, v0
+    a0, j0, a1, j1 = _step_ends(parameters, load, t0, x0, v0, t1, x1, v1)
     s = (t - t0) / h
     s2 = s * s
     s3 = s2 * s
@@ -174,14 +211,73 @@ def hunt_crossley_state(parameters, load, t0, x0, v0, t1, x1, v1, t):
     b3 = 10.0 * s3 - 15.0 * s4 + 6.0 * s5
     b4 = h * (-4.0 * s3 + 7.0 * s4 - 3.0 * s5)
     b5 = 0.5 * h * h * (s3 - 2.0 * s4 + s5)
-    a0 = hunt_crossley_acceleration(x0, v0, load, m, k, n, alpha)
-    a1 = hunt_crossley_acceleration(x1, v1, load, m, k, n, alpha)
-    ax0, av0 = hunt_crossley_partials(x0, v0, load, m, k, n, alpha)
-    ax1, av1 = hunt_crossley_partials(x1, v1, load, m, k, n, alpha)
-    j0, j1 = ax0 * v0 + av0 * a0, ax1 * v1 + av1 * a1
     x = b0 * x0 + b1 * v0 + b2 * a0 + b3 * x1 + b4 * v1 + b5 * a1
     v = b0 * v0 + b1 * a0 + b2 * j0 + b3 * v1 + b4 * a1 + b5 * j1
     return x, v
+
+
+def _step_ends(parameters, load, t0, x0, v0, t1, x1, v1):
+    """(a0, j0, a1, j1): the acceleration [m/s2] and its rate [m/s3] at a pressed step's ends, as interpolated."""
+    m, k, n, alpha = parameters.m, parameters.k, parameters.n, parameters.alpha
+    load0, load1 = load_at(parameters, load, t0), load_at(parameters, load, t1)
+    a0 = hunt_crossley_acceleration(x0, v0, load0, m, k, n, alpha)
+    a1 = hunt_crossley_acceleration(x1, v1, load1, m, k, n, alpha)
+    ax0, av0 = hunt_crossley_partials(x0, v0, load0, m, k, n, alpha)
+    ax1, av1 = hunt_crossley_partials(x1, v1, load1, m, k, n, alpha)
+    return a0, ax0 * v0 + av0 * a0 - ground_value(parameters, t0, 3), a1, \
+        ax1 * v1 + av1 * a1 - ground_value(parameters, t1, 3)
+
+
+def _step_polynomials(parameters, load, t0, x0, v0, t1, x1, v1):
+    """The interpolant's x and v on a step as quintics in s = (t - t0) / h, h = t1 - t0 > 0: coefficients c0 .. c5.
+
+    The quintic Hermite basis in powers of s (x's from the ends' x, h v, h^2 a / 2; v's from v, h a, h^2 (da/dt) / 2).
+    """
+    h = t1 - t0
+    a0, j0, a1, j1 = _step_ends(parameters, load, t0, x0, v0, t1, x1, v1)
+    return _hermite(x0, h * v0, 0.5 * h * h * a0, x1, h * v1, 0.5 * h * h * a1), \
+        _hermite(v0, h * a0, 0.5 * h * h * j0, v1, h * a1, 0.5 * h * h * j1)
+
+
+def _horner(p, s):
+    return ((((p[5] * s + p[4]) * s + p[3]) * s + p[2]) * s + p[1]) * s + p[0]
+
+
+def _hermite(y0, d0, c0, y1, d1, c1):
+    """The quintic in s matching (y, dy/ds, d2y/ds2 / 2) = (y0, d0, c0) at s = 0 and (y1, d1, c1) at 1: c0 .. c5."""
+    return (y0, d0, c0, -10.0 * y0 - 6.0 * d0 - 3.0 * c0 + 10.0 * y1 - 4.0 * d1 + c1,
+            15.0 * y0 + 8.0 * d0 + 3.0 * c0 - 15.0 * y1 + 7.0 * d1 - 2.0 * c1,
+            -6.0 * y0 - 3.0 * d0 - c0 + 6.0 * y1 - 3.0 * d1 + c1)
+
+
+def step_exit(parameters, load, t0, x0, v0, t1, x1, v1, margin, to_end):
+    """(tau [s], x [m], v [m/s], departs, decided): where a pressed step's interpolant first leaves the contact.
+
+    On a vibrating ground, where the gap is certified on each of CVODE's steps: the interpolant's x rising to 0 (a
+    departure, departs True) or its v to the release speed (a release below R), whichever first
+    (equations.quintic_exit, exact to rounding on the interpolant), tau after t0; nan where neither within the step
+    (to_end False: neither on its last monotonic piece, which ends on CVODE's own root). decided: no turn of x or
+    v short of its level by less than margin [m] (of v: margin times the step's speed over its depth) before the
+    exit: a graze the motion's error could turn either way.
+    """
+    h = t1 - t0
+    if not h > 0.0:
+        return math.nan, x0, v0, True, True
+    x_poly, v_poly = _step_polynomials(parameters, load, t0, x0, v0, t1, x1, v1)
+    s_depart, x_graze = quintic_exit(x_poly[0], x_poly[1], x_poly[2], x_poly[3], x_poly[4], x_poly[5], 0.0, margin,
+                                     to_end)
+    s_release, v_graze = math.nan, False
+    v_release = release_speed(parameters.alpha)
+    if v_release < math.inf:
+        rate = (abs(v0) + abs(v1)) / max(abs(x0), abs(x1), margin)
+        s_release, v_graze = quintic_exit(v_poly[0], v_poly[1], v_poly[2], v_poly[3], v_poly[4], v_poly[5],
+                                          v_release, margin * rate, to_end)
+    decided = not (x_graze or v_graze)
+    if math.isnan(s_depart) and math.isnan(s_release):
+        return math.nan, x1, v1, True, decided
+    if not s_release < s_depart:
+        return s_depart * h, 0.0, max(_horner(v_poly, s_depart), 0.0), True, decided
+    return s_release * h, min(_horner(x_poly, s_release), 0.0), v_release, False, decided
 
 
 def step_transition(parameters, load, t0, x0, v0, t1, x1, v1, t):

@@ -15,7 +15,7 @@ from ..codes import CONTACT
 from ..equations import gap_acceleration, sine_flight_flow, sine_flight_touch, sine_value
 from ..oscillator import contact_gap_flow
 from ..rounding import hypot
-from .common import BY_CVODE, IN_CLOSED_FORM, NO_PULL, REST, ContactLaw, time_to_impact
+from .common import BY_CVODE, IN_CLOSED_FORM, NO_PULL, REST, ContactLaw, surely_below, time_to_impact
 from .linear import departure_time, searches, sine_ground_departure, sine_ground_flow
 
 _EPS = 2.0**-52
@@ -158,7 +158,7 @@ def sine_free_event(parameters, x0, u0, load, t0):
     certified) of -x above the ground -s; it is pressed again (engages) where z = x + c u, c = b / k, falls to 0: a
     flight's first touch of z above s + c s' = A sqrt(1 + (c w)^2) sin(theta + atan(c w)). The first of the two, a
     departure on a tie (x = 0 there exactly); the searches end where one of the two parabolas, less twice its
-    ground's amplitude, is below it for certain (_surely_below: one of the two must have come by then). Only a
+    ground's amplitude, is below it for certain (common.surely_below: one of the two must have come by then). Only a
     weightless ball at rest in the world (g_eff = 0, v = 0) has no such end: its searches run to their step limit
     (a RuntimeError) if neither comes. A spell starting at its release (z within its rounding of 0) leaves that
     surface.
@@ -171,7 +171,7 @@ def sine_free_event(parameters, x0, u0, load, t0):
     released = abs(z0) <= 16.0 * _EPS * (abs(x0) + c * abs(u0))
     slope = sine_value(amplitude, w, phase, t0, 1)  # the world's speeds: of z's parabola, and of -x's
     z_world = z_rate + sine_value(engage_amplitude, w, engage_phase, t0, 1)
-    horizon = min(_surely_below(z0, z_world, g_eff, engage_amplitude), _surely_below(-x0, -(u0 + slope), -g_eff,
+    horizon = min(surely_below(z0, z_world, g_eff, engage_amplitude), surely_below(-x0, -(u0 + slope), -g_eff,
                                                                                    amplitude))
     tau_engage = sine_flight_touch(m, engage_amplitude, w, engage_phase, t0, z0, z_rate, load, horizon, released)
     tau_depart = sine_flight_touch(m, -amplitude, w, phase, t0, -x0, -u0, -load, min(horizon, tau_engage), False)
@@ -180,22 +180,6 @@ def sine_free_event(parameters, x0, u0, load, t0):
         return tau_depart, 0.0, max(u, 0.0), True
     x, u = sine_flight_flow(m, amplitude, w, phase, x0, u0, t0, tau_engage, load)
     return tau_engage, x, u, False
-
-
-def _surely_below(gap, rate, g_eff, amplitude):
-    """A time [s] by which a flight's gap from gap [m] is below a sine ground of amplitude [m] for sure; inf: none.
-
-    rate [m/s]: the flight's own speed in the world (the gap's rate plus the ground's speed at the start). The gap
-    is at most gap + 2 |A| + rate t - g_eff t^2 / 2 (the ground moves by 2 |A| at most); its root, with a margin
-    of 2: under g_eff > 0, or a weightless flight (g_eff = 0) going down. inf otherwise (it need never come down).
-    """
-    lift = max(gap, 0.0) + 2.0 * abs(amplitude)
-    if g_eff > 0.0:
-        return 2.0 * (rate + math.sqrt(rate * rate + 2.0 * g_eff * lift)) / g_eff if rate > 0.0 else \
-            2.0 * lift / (math.sqrt(rate * rate + 2.0 * g_eff * lift) - rate)
-    if g_eff == 0.0 and rate < 0.0:
-        return 2.0 * lift / -rate
-    return math.inf
 
 
 def contact_roots(y0, y1, length, speed, load, own_side, hop, k, m, b):

@@ -102,7 +102,7 @@ def simulate_cvode(ball: Ball, h0: float, v0: float, t_end: float, output_interv
     first use in the process took (stats.first_use_time), which stats.wall_time leaves out. F_ext:
     a constant [N] or a forcing.ForceTable, integrated piece by piece of constant force. progress:
     called with the time reached [s] at the start and then at a phase start every PROGRESS_STEPS (20,000)
-    CVODE steps or so, for a progress display. ground: see BallIntegrator (a vibrating table: not Hunt-Crossley).
+    CVODE steps or so, for a progress display. ground: see BallIntegrator (a still ground or a sine, every law).
     """
     settings = CvodeSettings(rtol=rtol, atol=atol, method=method, max_step=max_step, engine=engine)
     check_cvode_settings(ball, h0, settings.atol, settings.max_step, t_start, t_end)

@@ -257,9 +257,9 @@ def check_moving_ground(ball, ground) -> None:
     if not ground.moves:
         return
     if ball.contact not in ("rigid", "linear", "linear-no-pull"):
-        raise ValueError(f"contact = {ball.contact!r} is not allowed on a moving ground ({ground.describe()}): "
-                         "a moving ground is taken by the rigid, linear and linear-no-pull laws so far; run the "
-                         "Hunt-Crossley law on a still ground")
+        raise ValueError(f"contact = {ball.contact!r} is not allowed on a moving ground ({ground.describe()}) "
+                         "with the exact solver: it takes the rigid, linear and linear-no-pull laws there; the "
+                         "Hunt-Crossley law on a sine ground runs with the CVODE solver (solver='cvode')")
     if not ball.rigid and ground.kind != "sine":
         raise ValueError(f"contact = {ball.contact!r} is not allowed on a ground table ({ground.describe()}): a "
                          "compliant law's contact on a moving ground is in closed form for a sine (Ground.sine); use "

@@ -74,7 +74,7 @@ class BallIntegrator(IntegratorView):
         The CVODE steps the caller expects to ask for (see expected_steps), for engine "auto"
         (see choose_engine); None: unknown.
     ground : Ground, optional
-        Still at 0 by default, or a vibrating table (Ground.sine; not the Hunt-Crossley law; vibrating_ground.py).
+        Still at 0 by default, or a vibrating table (Ground.sine, every law; vibrating_ground.py).
 
     Raises
     ------

@@ -33,6 +33,7 @@ from ...contact_laws import BallParameters, dispatch
 from ...contact_laws import common as laws_common
 from ...contact_laws.dispatch import LAW_MODULES
 from ..phase_machine import dense_output, drivers, engine_protocol, error_estimate, layout, machine, phases
+from ..phase_machine import integrated_contact as contact_steps
 from ..phase_machine.engine_protocol import CV_ROOT_RETURN, CV_SUCCESS
 from .jit import (
     addresses,
@@ -156,11 +157,10 @@ def _engine_exceeded(engine, mode):
     return user_data[_U_EVALUATIONS] > user_data[_U_MAX_EVALUATIONS]
 
 
-# Lazily: numba compiles a function at its first call from compiled code, so only what the machine and
-# the callbacks reach is ever compiled (and cached).
+# Lazily: numba compiles a function at its first call from compiled code: only what the machine reaches, and cached.
 _compiled = compiled_together(
-    functions_of(rounding, oscillator, equations, *LAW_MODULES, dispatch, physics, phases, error_estimate, machine,
-                 drivers, dense_output),
+    functions_of(rounding, oscillator, equations, *LAW_MODULES, dispatch, physics, phases, error_estimate,
+                 contact_steps, machine, drivers, dense_output),
     {oscillator.oscillator_basis: oscillator.oscillator_basis_value,
      oscillator.unit_response: oscillator.unit_response_value,
      rounding.hypot: rounding.hypot_value, engine_protocol.engine_start: _engine_start,

@@ -76,8 +76,8 @@ from .ahead_of_time import PORTABLE_CPU, package_shipped, say_on_stderr, user_ca
 ENGINE_SOURCES = ("codes.py", "rounding.py", "oscillator.py", "equations.py", "contact_laws/dispatch.py",
                   *(f"contact_laws/{module.__name__.rpartition('.')[2]}.py" for module in LAW_MODULES), "physics.py",
                   *(f"solvers/phase_machine/{name}.py" for name in (
-                      "settings", "phases", "layout", "error_estimate", "engine_protocol", "machine", "drivers",
-                      "dense_output")),
+                      "settings", "phases", "layout", "error_estimate", "engine_protocol", "integrated_contact",
+                      "machine", "drivers", "dense_output")),
                   "solvers/engines/jit.py", "solvers/engines/compiled.py")
 
 _PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this module's package

@@ -274,8 +274,12 @@ def _along_the_flow(parameters, load, length, speed, t0, x0, v0, t1, x1, v1, t, 
     carries from f(t0) to f(t) (the contact's equation is autonomous); the linearised one only to its own order.
     In a stiff contact f's v-part is w times its x-part (a = w^2 delta, v = w delta): the linearisation's small
     relative error there becomes an error of v w times that of the impact's time, carried to the departure and
-    the flight after. A rank-one correction along f(t0) puts it back; other directions keep their matrix.
+    the flight after. A rank-one correction along f(t0) puts it back; other directions keep their matrix. Not on a
+    vibrating ground: the forced equation is not autonomous, a shift in time no solution (f(t) is not f(t0) carried,
+    and where the ball rides it, f(t0) ~ 0, the correction would blow the ellipses up).
     """
+    if parameters.ground_amplitude != 0.0:
+        return p00, p01, p10, p11
     if t < t1:
         xt, vt = law_interpolant(parameters, load, CONTACT, t0, x0, v0, t1, x1, v1, t)
     else:

@@ -29,7 +29,6 @@ from ...contact_laws import (
     contact_integrated,
     ground_moves,
     impact_is_instantaneous,
-    reported_rest_margin,
     rigid_rebound,
     root_release_speed,
     side_extreme,
@@ -37,9 +36,9 @@ from ...contact_laws import (
 )
 from ...equations import load_at, ride_end_value
 from ...rounding import later
-from .dense_output import step_state
 from .engine_protocol import BUFFER_FULL, CV_ROOT_RETURN, engine_exceeded, engine_start, engine_steps
-from .error_estimate import carry_error, contact_steps_ellipse, event_saltation, phase_error, start_contact_ellipses
+from .error_estimate import carry_error, event_saltation, phase_error, start_contact_ellipses
+from .integrated_contact import integrated_contact_steps, vibrating_contact_steps
 from .phases import frame, on_wrong_side, polish_event, polish_release, side_margin, vibrating_flight_touch
 from .settings import ERROR_WITHIN_PHASE, ESTIMATE_SAFETY
 
@@ -97,7 +96,7 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     Its jobs, in order: restart CVODE where the phase starts (_start_phase); take its steps (engine_steps); the
     event a root ends them on (_root_event); the steps into the world's frame, the event's row its polished
     state (_world_rows); the side check (_stepped_over); the law's bookkeeping over an integrated contact's
-    steps (_integrated_contact_steps); the steps counted and the last one kept (_keep_last_step).
+    steps (integrated_contact.py); the steps counted and the last one kept (_keep_last_step).
     """
     mode, one_step = int(state.mode), math.isinf(t_stop)
     if state.needs_init != 0.0:
@@ -117,20 +116,22 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
     released = rest_root != 0 and gap_root == 0 and third_root_releases(parameters, mode)
     if released:
         rest_root = 0
-    unconfirmed = False
+    unconfirmed, ends_in_event = False, gap_root != 0 or released
     if mode == FLIGHT and ground_moves(parameters):  # each step searched on the exact flow: the touch, certified
         count, touched = _vibrating_flight_steps(parameters, rtol, atol, state, rows, count)
         unconfirmed = gap_root != 0 and not touched
         ends_in_event, gap_root = touched, 0
-    else:
-        ends_in_event = gap_root != 0 or released
+    elif mode == CONTACT and contact_integrated(parameters) and ground_moves(parameters):  # each step's exit
+        count, exited = vibrating_contact_steps(parameters, rtol, state, rows, count, ends_in_event)
+        if exited:  # before CVODE's root, if it had one: on the interpolant, certified
+            ends_in_event, gap_root, released = True, 0, False
     _root_event(parameters, state, mode, rows, count, tau_before, gap_root != 0, released)
     _world_rows(state, rows, count, t_stop, flag, ends_in_event)
     checked = count - 1 if ends_in_event else count  # the event's row is on R (or, a release, below it)
     if checked > 0 and _stepped_over(parameters, rtol, state, mode, rows, checked):
         return STEPPED_OVER, rows, 0
     if mode == CONTACT and contact_integrated(parameters):
-        _integrated_contact_steps(parameters, rtol, state, rows, count)
+        integrated_contact_steps(parameters, rtol, state, rows, count)
     # A root of the extremum function alone ends no CVODE step (one_step returns at it): not counted.
     state.steps += count - 1 if flag == CV_ROOT_RETURN and not ends_in_event and rest_root == 0 else count
     _keep_last_step(state, mode, rows, count)
@@ -179,8 +180,8 @@ def _root_event(parameters, state, mode, rows, count, tau_before, gap_root, rele
         tau, x, v = polish_release(parameters, load, length, tau_step, rows[last, 0], length * rows[last, 1],
                                    speed * rows[last, 2])
     else:
-        tau, v = polish_event(parameters, mode, load, length, tau_step, rows[last, 0], length * rows[last, 1],
-                              speed * rows[last, 2], state.rs_x, state.rs_v)
+        tau, v = polish_event(parameters, mode, load_at(parameters, load, origin + rows[last, 0]), length, tau_step,
+                              rows[last, 0], length * rows[last, 1], speed * rows[last, 2], state.rs_x, state.rs_v)
         x = 0.0
     state.pending, state.pend_v, state.pend_x, state.pend_kind = 1.0, v, x, kind
     state.pend_t, state.pend_t_low = later(origin, state.origin_low, tau)
@@ -253,45 +254,6 @@ def _keep_last_step(state, mode, rows, count):
         state.seg_t0, state.seg_x0, state.seg_v0 = state.step_t, state.step_x, state.step_v
     state.seg_t1, state.seg_x1, state.seg_v1 = rows[last, 0], rows[last, 1], rows[last, 2]
     state.step_t, state.step_x, state.step_v = rows[last, 0], rows[last, 1], rows[last, 2]
-
-
-def _integrated_contact_steps(parameters, rtol, state, rows, count):
-    """An integrated contact's steps: its error ellipses carried over them, and its rest dated if it starts there."""
-    contact_steps_ellipse(parameters, rtol, state, rows, count)
-    if math.isnan(state.hc_rest_t):
-        _reported_rest(parameters, state, rows, count)
-
-
-def _reported_rest(parameters, state, rows, count):
-    """state.hc_rest_t: where contact_laws.reported_rest_margin first turns positive on these steps, if it does.
-
-    The steps run from the last step's end (step_*, the phase start after a restart) through rows[:count];
-    within the step where the margin turns positive its crossing is bisected on the step's dense output
-    (dense_output.step_state, the interpolant the grid is read from). An integrated contact has no closed form
-    of its rest flow, so the rest is only reported: CVODE integrates on through it (the ball never
-    leaves, or by a hop below HOP). A margin already positive at a restart dates the rest there.
-    """
-    load, hop = state.load, state.hop
-    t0, x0, v0 = state.step_t, state.step_x, state.step_v
-    if reported_rest_margin(parameters, x0, v0, load, hop) > 0.0:
-        state.hc_rest_t = t0
-        return
-    for i in range(count):
-        t1, x1, v1 = rows[i, 0], rows[i, 1], rows[i, 2]
-        if reported_rest_margin(parameters, x1, v1, load, hop) > 0.0:
-            low, high = t0, t1
-            for _ in range(80):
-                mid = 0.5 * (low + high)
-                if not low < mid < high:
-                    break
-                x, v = step_state(parameters, load, CONTACT, t0, x0, v0, t1, x1, v1, mid)
-                if reported_rest_margin(parameters, x, v, load, hop) > 0.0:
-                    high = mid
-                else:
-                    low = mid
-            state.hc_rest_t = high
-            return
-        t0, x0, v0 = t1, x1, v1
 
 
 def _take_event(parameters, rtol, atol, state, events, n_events):
