@@ -47,10 +47,11 @@ def test_results_are_bit_for_bit_as_pinned(key):
     for field in pinned:
         if field == "error_estimate" and "/exact/" in key:
             continue
-        if field in ("h", "v") and "/exact/" in key and got[field] != pinned[field]:
-            # the exact solver evaluates its closed forms with numpy's vector exp and sin, whose last bits depend on
-            # the CPU (AVX-512 or not): decayed values far below the field's scale differ (measured on an AVX-512
-            # EPYC: 2 of 41 v's, by 3e-2 of an ulp of the scale at most); a change of behaviour moves more than that
+        if field in ("h", "v") and ("/exact/" in key or key.endswith("/sksundae")) and got[field] != pinned[field]:
+            # the exact solver and the scikit-sundae engine's grid evaluate closed forms with numpy's vector exp and
+            # sin, whose last bits depend on the CPU (AVX-512 or not): values at rest, far below the field's scale,
+            # differ (measured on an AVX-512 EPYC: 1 to 3 of 41 v's, by 0.5 ulp of the scale at most); a change of
+            # behaviour moves more than that
             values, pins = (np.array([float.fromhex(x) for x in column]) for column in (got[field], pinned[field]))
             assert np.max(np.abs(values - pins)) <= np.spacing(np.max(np.abs(pins))), f"{key}: {field} differs"
             continue
