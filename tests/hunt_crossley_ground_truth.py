@@ -1,7 +1,8 @@
 """An independent solution of the Hunt-Crossley law on a sinusoidally vibrating table in mpmath: its referee there.
 
-Written from the law's equations alone; it imports nothing from bouncingball. Float inputs are taken as exact
-binary numbers, everything after that is done with `dps` decimal digits (DPS by default).
+Written from the law's equations alone; it imports nothing from bouncingball (from tests/table_truth.py, the rigid
+truth, its sine increments). Float inputs are taken as exact binary numbers, everything after that is done with
+`dps` decimal digits (DPS by default).
 
 The model (SI units): the table s(t) = A sin(w t + p), w = 2 pi f; h the height of the ball's centre, v = h',
 a = g - F_ext/m the net downward acceleration (constant). The penetration delta = R + s(t) - h (> 0: pressed into
@@ -47,6 +48,8 @@ from __future__ import annotations
 import bisect
 
 import mpmath
+
+from table_truth import sine_increments
 
 DPS = 20  # as tests/hunt_crossley_truth.py: odefun's cost grows fast with the digits
 mp = mpmath.MPContext()
@@ -121,18 +124,7 @@ class HuntCrossleyGroundTruth:
 
     def _unforced(self, t0, d0, w0, tau):
         """(delta, delta', delta'', delta''') at t0 + tau with no force, from (d0, w0) at t0."""
-        x = self.w * tau
-        if x == 0 or self.A == 0:
-            sin_x = cos_x_1 = sin_x_x = mp.zero
-        elif x > 1:
-            sin_x, cos_x = mp.sin(x), mp.cos(x)
-            cos_x_1, sin_x_x = cos_x - 1, sin_x - x
-        else:  # cos x - 1 and sin x - x keep their relative precision
-            cos_x_1 = -2 * mp.sin(x / 2) ** 2
-            with mp.extraprec(-2 * mp.mag(x) + 10):
-                sin_x = mp.sin(x)
-                sin_x_x = sin_x - x
-            sin_x, sin_x_x = +sin_x, +sin_x_x
+        sin_x, cos_x_1, sin_x_x = sine_increments(mp, self.w * tau if self.A != 0 else mp.zero)
         A, w, a = self.A, self.w, self.a
         theta0 = w * t0 + self.p
         s0, c0 = mp.sin(theta0), mp.cos(theta0)

@@ -45,6 +45,20 @@ import mpmath
 DPS = 40
 mp = mpmath.MPContext()
 mp.dps = DPS
+
+
+def sine_increments(ctx, x):
+    """(sin x, cos x - 1, sin x - x) in the mpmath context ctx, the last two to their relative precision at small x."""
+    if x == 0:
+        return ctx.zero, ctx.zero, ctx.zero
+    if x > 1:
+        sin_x, cos_x = ctx.cos_sin(x)[::-1]
+        return sin_x, cos_x - 1, sin_x - x
+    cos_x_1 = -2 * ctx.sin(x / 2) ** 2
+    with ctx.extraprec(-2 * ctx.mag(x) + 10):
+        sin_x = ctx.sin(x)
+        sin_x_x = sin_x - x
+    return +sin_x, cos_x_1, +sin_x_x
 EPS = mp.mpf(2) ** (-mp.prec)
 TAIL_SPEED = mp.mpf("1e-25")  # [m/s] chattering: below this relative take-off speed the rest is summed
 MAX_SCAN_STEPS = 100_000  # in one flight
@@ -66,18 +80,7 @@ class Flight:
 
     def derivatives(self, tau):
         """(gap [m], gap' [m/s], gap'' [m/s^2]) at t0 + tau."""
-        x = self.w * tau
-        if x == 0 or self.A == 0:
-            sin_x = cos_x_1 = sin_x_x = mp.zero
-        elif x > 1:
-            sin_x, cos_x = mp.cos_sin(x)[::-1]
-            cos_x_1, sin_x_x = cos_x - 1, sin_x - x
-        else:  # cos x - 1 and sin x - x keep their relative precision
-            cos_x_1 = -2 * mp.sin(x / 2) ** 2
-            with mp.extraprec(-2 * mp.mag(x) + 10):
-                sin_x = mp.sin(x)
-                sin_x_x = sin_x - x
-            sin_x, sin_x_x = +sin_x, +sin_x_x
+        sin_x, cos_x_1, sin_x_x = sine_increments(mp, self.w * tau if self.A != 0 else mp.zero)
         A, w, s0, c0 = self.A, self.w, self.sin0, self.cos0
         gap = self.gap0 + self.u0 * tau - self.a * tau * tau / 2 - A * (s0 * cos_x_1 + c0 * sin_x_x)
         rate = self.u0 - self.a * tau - A * w * (c0 * cos_x_1 - s0 * sin_x)

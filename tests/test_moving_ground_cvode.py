@@ -154,8 +154,8 @@ def test_searches_that_cannot_end_on_their_own_run_to_the_end_of_the_run():
     assert np.max(np.abs(np.array(heights) - exact.h[1:])) < 1e-12
     weightless, ground = bb.Ball(g=0.0, contact="linear-no-pull", b=10.0), Ground.sine(1e-3, 20.0)
     exact = bb.simulate(weightless, 0.07, -1.0, 0.1, 0.01, solver="exact", ground=ground)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", bb.AccuracyWarning)  # its estimate (0.06 m) far above its error: not fixed yet
-        cvode = bb.simulate(weightless, 0.07, -1.0, 0.1, 0.01, solver="cvode", ground=ground)
+    cvode = _cvode(weightless, 0.07, -1.0, 0.1, ground, 0.01, "compiled")
     assert [event.kind for event in cvode.events] == [event.kind for event in exact.events]
-    assert len(cvode.events) == 3 and np.max(np.abs(cvode.h - exact.h)) < 1e-9 <= cvode.error_estimate
+    # its estimate once 0.06 m and a warning: the run ends where s'' = 0, and a flight's frame there scaled by the
+    # relative load's apex (~1e14 m) rather than by what the world's parabola can reach (phases.frame)
+    assert len(cvode.events) == 3 and np.max(np.abs(cvode.h - exact.h)) <= cvode.error_estimate < 1e-11

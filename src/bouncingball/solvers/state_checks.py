@@ -97,8 +97,8 @@ def _check_side(ball: Ball, settings: CvodeSettings, name: str, point, start, h)
     t, x, v, mode, F_ext = point
     load, rtol = load_value(F_ext, ball.m, ball.g), settings.rtol
     atol = 0.0 if settings.atol is None else settings.atol
-    length = max(frame(ball.parameters, mode, x, v, load, rtol, atol, math.inf)[0],
-                 frame(ball.parameters, start[3], start[1], start[2], load, rtol, atol, math.inf)[0])
+    length = max(frame(ball.parameters, mode, x, v, load, rtol, atol, math.inf, 0.0)[0],
+                 frame(ball.parameters, start[3], start[1], start[2], load, rtol, atol, math.inf, 0.0)[0])
     margin = side_margin(hop_tolerance(ball, rtol, settings.atol, F_ext), rtol, length)
     if on_wrong_side(mode, x, margin):
         where = "at or above" if mode == Mode.FLIGHT else "at or below"

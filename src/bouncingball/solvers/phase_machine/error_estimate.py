@@ -59,7 +59,7 @@ def phase_error(parameters, rtol, atol, state):
         length = state.length  # the frame CVODE integrates the phase in (phases.frame, with its horizon)
     else:
         length, _ = frame(parameters, mode, x0, state.rs_v, load_at(parameters, load, state.rs_t), rtol, atol,
-                          math.inf)
+                          math.inf, state.rs_t)
     elapsed = (state.t - state.rs_t) + (state.t_low - state.rs_t_low)
     # CVODE's error inside the phase, measured only at its end: none in a phase of no length
     own = (ERROR_WITHIN_PHASE * rtol * length if elapsed != 0.0 else 0.0) + 8.0 * _EPS * (abs(x0) + length + R)

@@ -146,7 +146,7 @@ def phase_steps(engine, parameters, rtol, atol, state, t_stop, scratch):
 def _start_phase(engine, parameters, rtol, atol, state, mode, t_stop):
     """CVODE restarts in the phase's frame (phases.frame) from the state; the engine's flag (< 0: it failed)."""
     length, speed = frame(parameters, mode, state.x, state.v, load_at(parameters, state.load, state.t), rtol, atol,
-                          t_stop - state.t)
+                          t_stop - state.t, state.t)
     state.origin, state.length, state.speed, state.origin_low = state.t, length, speed, state.t_low
     flag = engine_start(engine, mode, t_stop - state.t, state.x / length, state.v / speed, length, speed, state.hop,
                         state.load, state.t)

@@ -33,7 +33,7 @@ from ...contact_laws import (
     varying_jacobian,
 )
 from ...contact_laws.common import BY_CVODE, IN_CLOSED_FORM, MIN_PHASE_SCALE, REST, SOFT_CONTACT_CAP, time_to_impact
-from ...equations import flight_touch, gap_flow_value, ground_flight_flow, load_at
+from ...equations import flight_touch, gap_flow_value, ground_flight_flow, ground_value, load_at
 from .settings import HOP_RESOLUTION
 
 # Re-exported for the engines' callbacks and the tests: the machine's answers and limits, the laws' hooks it calls.
@@ -70,19 +70,23 @@ def phase_scales(parameters, mode, x, v, load):
     return contact_scales(parameters, x, v, load)
 
 
-def frame(parameters, mode, x, v, load, rtol, atol, horizon):
+def frame(parameters, mode, x, v, load, rtol, atol, horizon, t):
     """The phase's scales (length [m], speed [m/s]) from phase_scales, capped so that rtol length <= atol (atol > 0).
 
-    load: on a vibrating ground the load in its frame at the phase's start (equations.load_at), whose flight's
-    apex it scales by; where that is 0 (a ride's end), by the ground's amplitude. horizon [s]: how long the phase
-    can last at most (inf: not known). A flight whose apex is more than UNREACHED_APEX times higher than it can
-    rise within that (a force near m g, changed long before the apex would come) is scaled by what it can reach:
-    the apex is then any height, and CVODE's error is relative to the scale.
+    load: on a vibrating ground the load in its frame at the phase's start t [s] (equations.load_at), whose
+    flight's apex it scales by, unless far beyond what the world's parabola and the ground's motion can open
+    (_world_reach: a relative load near 0, as where the ground's acceleration nearly cancels g, puts it anywhere); where
+    that is 0 (a ride's end), by the ground's amplitude. horizon [s]: how long the phase can last at most (inf: not
+    known). A flight whose apex is more than UNREACHED_APEX times higher than it can rise within that (a force near
+    m g, changed long before the apex would come) is scaled by what it can reach: the apex is then any height, and
+    CVODE's error is relative to the scale.
     """
     length, speed = phase_scales(parameters, mode, x, v, load)
     if parameters.ground_amplitude != 0.0 and not (length > 0.0 and speed > 0.0):
         # leaving a vibrating ground with it (a ride's end): the gap its motion opens, of its size
         length, speed = parameters.ground_amplitude, parameters.ground_amplitude * parameters.ground_omega
+    elif parameters.ground_amplitude != 0.0 and mode == FLIGHT:
+        length, speed = _world_reach(parameters, x, v, load, t, length, speed)
     if mode == FLIGHT and load > 0.0 and v > 0.0 and horizon < math.inf:
         reach = max(x, parameters.R) + v * horizon
         if length > UNREACHED_APEX * reach:
@@ -91,6 +95,25 @@ def frame(parameters, mode, x, v, load, rtol, atol, horizon):
         speed *= atol / (rtol * length)
         length = atol / rtol
     return length, speed
+
+
+def _world_reach(parameters, x, v, load, t, length, speed):
+    """A flight's length scale on a vibrating ground, what it can reach where its relative apex is out of reach.
+
+    The gap can never exceed its start plus the world's apex above it (g_eff the ball's own, load / m - s''(t)) and
+    the ground's whole travel 2 A (a weightless ball's, g_eff <= 0, scaled as on a still ground by max(|x|, R)):
+    a relative apex UNREACHED_APEX times higher (a relative load near 0) is replaced by that reach. Not a closer
+    cap: the scale changes CVODE's steps, and a chaotic run's error with them (measured: 5x on a thrown scene). The
+    speed (phase_scales', near the start's) stays.
+    """
+    amplitude = parameters.ground_amplitude
+    g_world, v_world = load / parameters.m - ground_value(parameters, t, 2), v + ground_value(parameters, t, 1)
+    if g_world > 0.0:
+        rise = max(v_world, 0.0)
+        reach = max(x, 0.0) + 0.5 * (rise * rise) / g_world + 2.0 * amplitude
+    else:
+        reach = max(abs(x), parameters.R)
+    return (reach if length > UNREACHED_APEX * reach else length), speed
 
 
 def decide_phase(parameters, mode, x, v, load, hop, rtol, t, horizon):
