@@ -71,10 +71,12 @@ def _judged(result, truth, event_time, every=1):
 
 
 @pytest.mark.parametrize(("gamma", "k", "n", "alpha"), [
-    pytest.param(0.5, 1e6, 1.5, 0.2, marks=pytest.mark.slow), pytest.param(1.2, 1e6, 1.5, 0.2, marks=pytest.mark.slow),
+    pytest.param(0.5, 1e6, 1.5, 0.2, marks=pytest.mark.study),
+    pytest.param(1.2, 1e6, 1.5, 0.2, marks=pytest.mark.study),
     pytest.param(2.0, 1e5, 1.5, 0.5, marks=pytest.mark.slow), (1.2, 1e5, 1.0, 0.0)])
 def test_a_hunt_crossley_ball_on_a_vibrating_table_is_its_truth_within_the_estimate(gamma, k, n, alpha):
-    """Gently vibrating (Gamma 0.5), thrown (1.2, 2.0), and the linear spring (n = 1, alpha = 0). Measured: events one
+    """Gently vibrating (Gamma 0.5), thrown (1.2, 2.0), and the linear spring (n = 1, alpha = 0); the two at k = 1e6
+    (its truth ~13 s each) are left to `pytest -m study`, the random drops below covering theirs. Measured: events one
     for one within 2.6e-10 s, heights within 7.4e-11 .. 2.8e-10 m, the estimate 26x .. 83x that."""
     result, truth = _run(gamma, k, n, alpha, 0.3, 0.02, 1.0)
     assert len(result.events) >= 6
@@ -123,9 +125,9 @@ def _share(count, every):
             for number in range(count)]
 
 
-@pytest.mark.parametrize("number", _share(12, 3))
+@pytest.mark.parametrize("number", _share(12, 4))
 def test_random_scenes_lose_no_event_and_are_within_the_estimate(number):
-    """12 random drops (its truth 4 to 13 s each: every third in the default run). Measured: events one for one
+    """12 random drops (its truth 4 to 13 s each: every fourth in the default run). Measured: events one for one
     within 9.1e-10 s, the estimate 4.6x to 545x the error (median 30x), no warning."""
     gamma, k, n, alpha, phase, drop = _random_scenes()[number]
     ground = Ground.sine(gamma * G / W**2, F, phase)
@@ -136,10 +138,10 @@ def test_random_scenes_lose_no_event_and_are_within_the_estimate(number):
     assert _judged(result, truth, 1e-8)[0] <= 1000.0
 
 
-@pytest.mark.parametrize("number", _share(19, 2))
+@pytest.mark.parametrize("number", _share(19, 3))
 def test_a_grazing_first_impact_is_neither_lost_nor_invented(number):
     """19 scenes whose first impact grazes the table, 2.2e-10 to 3.8e-7 m deep, or misses it by 2.5e-9 to 1.4e-7 m
-    (its truth 0 to 7 s each: every second in the default run). Measured: events one for one within 2.6e-9 s, the
+    (its truth 0 to 7 s each: every third in the default run). Measured: events one for one within 2.6e-9 s, the
     estimate 2.0x to 402x the error (median 32x), no warning."""
     scene, k, n, alpha = _grazing_scenes()[number]
     ground = Ground.sine(scene["amplitude"], scene["frequency"], scene["phase"])
