@@ -290,8 +290,8 @@ def quintic_exit(p0, p1, p2, p3, p4, p5, level, margin, to_end):
     Certified to rounding: its turning points (the roots of its derivative, found from those of its higher
     derivatives, each on a piece where it is monotonic) split [0, 1] into monotonic pieces, the first piece rising
     across level holds the crossing, bisected. to_end False: a crossing on the last piece (ending at 1, a root the
-    caller has) is not looked for. undecided: a local maximum inside (0, 1) before the crossing lies within margin
-    below level (a graze that the interpolated motion's error could turn into a crossing).
+    caller has) is not looked for. undecided: a local maximum inside (0, 1) up to the crossing lies within margin
+    of level, below or above it (a graze that the interpolated motion's error could turn either way).
     """
     turn0, turn1 = _quadratic_roots(60.0 * p5, 24.0 * p4, 6.0 * p3)  # of the third derivative
     bend0, bend1, bend2, _ = _piece_roots(2.0 * p2, 6.0 * p3, 12.0 * p4, 20.0 * p5, 0.0, 0.0,
@@ -303,6 +303,8 @@ def quintic_exit(p0, p1, p2, p3, p4, p5, level, margin, to_end):
             continue
         end_value = _quintic(p0, p1, p2, p3, p4, p5, end)
         if value < level <= end_value and (to_end or end < 1.0):
+            # a turn above level by less than margin: a crossing the motion's error could undo, as a turn below
+            undecided = undecided or (end < 1.0 and end_value < level + margin)
             low, high = start, end
             for _ in range(1100):
                 mid = 0.5 * (low + high)

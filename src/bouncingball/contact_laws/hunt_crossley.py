@@ -160,9 +160,11 @@ def sine_free_event(parameters, x0, u0, load, t0):
     tau_engage = math.inf
     if v_release < math.inf:
         speed_amplitude, speed_phase, excess = amplitude * w, phase + 0.5 * math.pi, u0 - v_release
+        rate = -g_eff - sine_value(speed_amplitude, w, speed_phase, t0, 1)  # of u
+        if excess <= 0.0 and rate <= 0.0:  # at (or below) the release speed and not rising: pressed at once
+            return 0.0, min(x0, 0.0), v_release, False
         horizon = min(horizon, surely_below(excess, -g_eff, 0.0, speed_amplitude))
-        tau_engage = sine_flight_touch(m, speed_amplitude, w, speed_phase, t0, excess,
-                                       -g_eff - sine_value(speed_amplitude, w, speed_phase, t0, 1), 0.0, horizon,
+        tau_engage = sine_flight_touch(m, speed_amplitude, w, speed_phase, t0, excess, rate, 0.0, horizon,
                                        excess == 0.0)
     tau_depart = sine_flight_touch(m, -amplitude, w, phase, t0, -x0, -u0, -load, min(horizon, tau_engage), False)
     if tau_depart <= tau_engage:
@@ -275,7 +277,7 @@ def step_exit(parameters, load, t0, x0, v0, t1, x1, v1, margin, to_end):
     decided = not (x_graze or v_graze)
     if math.isnan(s_depart) and math.isnan(s_release):
         return math.nan, x1, v1, True, decided
-    if not s_release < s_depart:
+    if not math.isnan(s_depart) and not s_release < s_depart:  # a departure first (or on a tie)
         return s_depart * h, 0.0, max(_horner(v_poly, s_depart), 0.0), True, decided
     return s_release * h, min(_horner(x_poly, s_release), 0.0), v_release, False, decided
 

@@ -47,8 +47,7 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
         The ground under the ball: still at height 0 by default (Ground.still(height) is the same run
         shifted, for every solver); a moving one is taken by solver="exact", under the rigid law
         (Ground.sine, Ground.table) and the linear and linear-no-pull laws (Ground.sine), and by
-        solver="cvode" under the same three laws (Ground.sine). h stays the centre's height in the world
-        frame.
+        solver="cvode" under every law (Ground.sine). h stays the centre's height in the world frame.
     **options
         For cvode: rtol, atol, method ("auto", "Adams", "BDF"), max_step [s] (0: unbounded),
         engine ("auto", "compiled", "sksundae"), progress (called with the time reached [s] as the
@@ -96,13 +95,13 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
         raise ValueError(f"t_end = {t_end!r} s is not allowed: it must be > t_start = {t_start!r} s")
     output_interval = validation.in_range("output_interval", output_interval, 0.0, t_end - t_start, "s")
     ground = as_ground(ground)
-    if ground.moves and solver != "cvode":  # CVODE's own rules: machine_ground's
-        from .exact_ground import check_moving_ground  # a still ground's run does not pay for its import
-
-        check_moving_ground(ball, ground)  # the laws that cannot take it, named before the solver
     if ground.moves and solver == "scipy":
         raise ValueError(f"ground = {ground.describe()} is not allowed with solver = 'scipy': the article's "
                          "algorithm has a still ground; solver = 'exact' or 'cvode' take a moving one")
+    if ground.moves and solver == "exact":  # CVODE's own rules: machine_ground's
+        from .exact_ground import check_moving_ground  # a still ground's run does not pay for its import
+
+        check_moving_ground(ball, ground)  # the laws that cannot take it, named before the solver
     if ground.moves and solver == "cvode":
         from .vibrating_ground import machine_ground
 

@@ -100,9 +100,10 @@ def frame(parameters, mode, x, v, load, rtol, atol, horizon, t):
 def _world_reach(parameters, x, v, load, t, length, speed):
     """A flight's length scale on a vibrating ground, what it can reach where its relative apex is out of reach.
 
-    The gap can never exceed its start plus the world's apex above it (g_eff the ball's own, load / m - s''(t)) and
-    the ground's whole travel 2 A (a weightless ball's, g_eff <= 0, scaled as on a still ground by max(|x|, R)):
-    a relative apex UNREACHED_APEX times higher (a relative load near 0) is replaced by that reach. Not a closer
+    Under g_eff > 0 (the ball's own, load / m - s''(t)) the gap never exceeds its start plus the world's apex above
+    it and the ground's whole travel 2 A; a weightless or lifted ball's (g_eff <= 0) has no such bound and is scaled
+    as on a still ground, by max(|x|, R). A relative apex UNREACHED_APEX times higher than that reach (a relative
+    load near 0) is replaced by it. Not a closer
     cap: the scale changes CVODE's steps, and a chaotic run's error with them (measured: 5x on a thrown scene). The
     speed (phase_scales', near the start's) stays.
     """
