@@ -61,13 +61,17 @@ def phase_error(parameters, rtol, atol, state):
         length, _ = frame(parameters, mode, x0, state.rs_v, load_at(parameters, load, state.rs_t), rtol, atol,
                           math.inf, state.rs_t)
     elapsed = (state.t - state.rs_t) + (state.t_low - state.rs_t_low)
+    height = max(R, abs(R + state.x))
+    if mode == FLIGHT:
+        top = _flight_top(parameters, state, load)
+        height = max(height, R + top)
+        # CVODE's error is relative to |x| where that outgrows the frame: a flight that never comes down (g_eff <= 0,
+        # scaled by its start) rising far past it
+        length = max(length, top)
     # CVODE's error inside the phase, measured only at its end: none in a phase of no length
     own = (ERROR_WITHIN_PHASE * rtol * length if elapsed != 0.0 else 0.0) + 8.0 * _EPS * (abs(x0) + length + R)
-    height = max(R, abs(R + state.x))
     if mode == CONTACT:
         own += state.hop
-    elif mode == FLIGHT:
-        height = max(height, R + _flight_top(parameters, state, load))
     if contact_integrated(parameters):
         ax, av, a_rho, bx, bv, b_rho, carried = _carried_ellipses(parameters, rtol, state, mode, load)
     else:
