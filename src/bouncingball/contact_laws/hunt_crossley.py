@@ -259,8 +259,8 @@ def step_exit(parameters, load, t0, x0, v0, t1, x1, v1, margin, to_end):
     departure, departs True) or its v to the release speed (a release below R), whichever first
     (equations.quintic_exit, exact to rounding on the interpolant), tau after t0; nan where neither within the step
     (to_end False: neither on its last monotonic piece, which ends on CVODE's own root). decided: no turn of x or
-    v short of its level by less than margin [m] (of v: margin times the step's speed over its depth) before the
-    exit: a graze the motion's error could turn either way.
+    v within margin [m] of its level, below or above it (of v: margin times the step's speed over its depth), up to
+    the exit: a graze the motion's error could turn either way.
     """
     h = t1 - t0
     if not h > 0.0:

@@ -98,7 +98,7 @@ def simulate(ball: Ball, h0: float, v0: float, t_end: float, output_interval: fl
     if ground.moves and solver == "scipy":
         raise ValueError(f"ground = {ground.describe()} is not allowed with solver = 'scipy': the article's "
                          "algorithm has a still ground; solver = 'exact' or 'cvode' take a moving one")
-    if ground.moves and solver == "exact":  # CVODE's own rules: machine_ground's
+    if ground.moves and solver == "exact":  # the exact solver's rules (CVODE's are machine_ground's, below)
         from .exact_ground import check_moving_ground  # a still ground's run does not pay for its import
 
         check_moving_ground(ball, ground)  # the laws that cannot take it, named before the solver

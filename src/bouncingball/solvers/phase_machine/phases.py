@@ -103,9 +103,8 @@ def _world_reach(parameters, x, v, load, t, length, speed):
     Under g_eff > 0 (the ball's own, load / m - s''(t)) the gap never exceeds its start plus the world's apex above
     it and the ground's whole travel 2 A; a weightless or lifted ball's (g_eff <= 0) has no such bound and is scaled
     as on a still ground, by max(|x|, R). A relative apex UNREACHED_APEX times higher than that reach (a relative
-    load near 0) is replaced by it. Not a closer
-    cap: the scale changes CVODE's steps, and a chaotic run's error with them (measured: 5x on a thrown scene). The
-    speed (phase_scales', near the start's) stays.
+    load near 0) is replaced by it. Not a closer cap: the scale changes CVODE's steps, and a chaotic run's error with
+    them (measured: 5x on a thrown scene). The speed (phase_scales', near the start's) stays.
     """
     amplitude = parameters.ground_amplitude
     g_world, v_world = load / parameters.m - ground_value(parameters, t, 2), v + ground_value(parameters, t, 1)
