@@ -84,11 +84,11 @@ def build_parser() -> argparse.ArgumentParser:
                                                           "checked too, parameter columns are taken)")
     judge.add_argument("scene", nargs="?", default="article", help="the scene the master ran: a built-in scene "
                                                                    "name or a .toml file (default: article)")
-    from .fmu.variables import SCENE_FIELD_OF_START_VALUE
+    from .fmu.variables import GROUND_FIELD_OF_START_VALUE, SCENE_FIELD_OF_START_VALUE
 
     judge.add_argument("--start-value", action="append", default=[], metavar="NAME=VALUE",
                        help=f"a start value the master set on the FMU ({', '.join(SCENE_FIELD_OF_START_VALUE)}, "
-                            "rtol, atol; repeatable)")
+                            f"{', '.join(GROUND_FIELD_OF_START_VALUE)}, rtol, atol; repeatable)")
     judge.add_argument("--tolerance", type=float, default=1e-6, help="allowed max |h - h_exact| [m] (default: 1e-6)")
     judge.add_argument("--input-file", metavar="F.csv", help="the FMPy input file (time,F_ext) the master drove F_ext "
                        "with: F_ext is held over each communication step at the value FMPy applies at its start")

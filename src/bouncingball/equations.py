@@ -155,7 +155,9 @@ def sine_ride_end(amplitude, w, phase, t, g_eff):
         return t
     start = math.asin(c)  # where sin rises through c (cos > 0)
     turns = math.ceil((angle - start) / (2.0 * math.pi))
-    return max(t + (start + 2.0 * math.pi * turns - angle) / w, t)
+    # The root's angle to the ground's phase, not to t's: the same root, searched from any t before it, is the same
+    # double (a restored state decides its ride again from the restart point, not from where it began).
+    return max((start + 2.0 * math.pi * turns - phase) / w, t)
 
 
 def flight_touch(parameters, t0, x0, v0, load, horizon, on_ground):

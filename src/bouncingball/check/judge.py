@@ -32,12 +32,14 @@ import numpy as np
 from .. import validation
 from ..accuracy import event_hops, impact_counts
 from ..fmu.variables import (
+    GROUND_FIELD_OF_START_VALUE,
     SCENE_FIELD_OF_START_VALUE,
     SCENE_OWN_FIELDS,
     TEXT_START_VALUES,
     VARIABLES,
     ball_fields_of,
     fmu_scene,
+    ground_of,
     judged_scene,
     start_values_of,
 )
@@ -60,17 +62,18 @@ IMPACT_TIE = 1e-6  # s: a point this close to an impact may count it or not
 START_SLACK = 1e-9  # relative: how far the first row's v and a may be from the start state's before it is said
 # The FMU's start values that set up the run, by the scene field each one sets; the others (rtol,
 # atol, method, engine) are solver settings, which the exact solution has no use for.
-SOLVER_SETTINGS = tuple(v.name for v in VARIABLES
-                        if v.causality == "parameter" and v.name not in SCENE_FIELD_OF_START_VALUE)
+SOLVER_SETTINGS = tuple(v.name for v in VARIABLES if v.causality == "parameter"
+                        and v.name not in SCENE_FIELD_OF_START_VALUE and v.name not in GROUND_FIELD_OF_START_VALUE)
 
 
 def scene_with_start_values(scene: Scene | str | Path = "article",
                             start_values: Mapping[str, float | str] | None = None) -> Scene:
     """The scene a master ran, given the start values it set on the FMU.
 
-    The FMU's parameters m, k, b, R, g, contact_law, e and v_min set the ball, the start values of h and v the initial
-    state, and F_ext (held constant) the external force; rtol, atol, method and engine are accepted and
-    ignored (they do not change the exact solution).
+    The FMU's parameters m, k, b, R, g, contact_law and the law's (e, v_min, n, alpha) set the ball, the start values
+    of h and v the initial state, F_ext (held constant) the external force, and ground_amplitude, ground_frequency
+    and ground_phase, where one of them is given, the ground (a sine, or still at 0 where ground_amplitude is 0);
+    rtol, atol, method and engine are accepted and ignored (they do not change the exact solution).
 
     Parameters
     ----------
@@ -98,12 +101,16 @@ def scene_with_start_values(scene: Scene | str | Path = "article",
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     fmu_scene(scene)
-    values = {SCENE_FIELD_OF_START_VALUE[name]: value for name, value in start_values_of(scene).items()}
+    values = {SCENE_FIELD_OF_START_VALUE.get(name, name): value for name, value in start_values_of(scene).items()}
+    ground_given = False
     for name, value in (start_values or {}).items():
         if name in SOLVER_SETTINGS:
             continue
+        if name in GROUND_FIELD_OF_START_VALUE:
+            values[name], ground_given = _number(name, value), True
+            continue
         if name not in SCENE_FIELD_OF_START_VALUE:
-            allowed = ", ".join((*SCENE_FIELD_OF_START_VALUE, *SOLVER_SETTINGS))
+            allowed = ", ".join((*SCENE_FIELD_OF_START_VALUE, *GROUND_FIELD_OF_START_VALUE, *SOLVER_SETTINGS))
             raise ValueError(f"start value {name!r} is not allowed: the FMU's settable variables are {allowed}")
         field = SCENE_FIELD_OF_START_VALUE[name]
         if name in TEXT_START_VALUES:
@@ -116,9 +123,10 @@ def scene_with_start_values(scene: Scene | str | Path = "article",
     # As the FMU runs them: a parameter the contact law does not read at its default.
     fields = ball_fields_of({name: values[field] for name, field in SCENE_FIELD_OF_START_VALUE.items()})
     ball = Ball(**without_unread(fields)[0])
+    ground = ground_of(values) if ground_given else scene.ground  # else the scene's, whatever it is
     return fmu_scene(replace(scene, ball=ball, h0=validation.finite("h", values["h0"], "m"),
                              v0=validation.finite("v", values["v0"], "m/s"),
-                             F_ext=validation.finite("F_ext", values["F_ext"], "N")))
+                             F_ext=validation.finite("F_ext", values["F_ext"], "N"), ground=ground))
 
 
 def check_result(result, scene: Scene | str | Path = "article", start_values: Mapping[str, float | str] | None = None,
@@ -294,6 +302,8 @@ def _setting(scene: Scene, name: str) -> float:
     field = SCENE_FIELD_OF_START_VALUE.get(name)
     if field is not None and field not in SCENE_OWN_FIELDS:
         return getattr(scene.ball, field)
+    if name in GROUND_FIELD_OF_START_VALUE:
+        return getattr(scene.ground, GROUND_FIELD_OF_START_VALUE[name])
     return {"F_ext": scene.F_ext, "rtol": DEFAULT_RTOL, "atol": 0.0}[name]
 
 

@@ -7,7 +7,9 @@ end of the communication step.
 
 Model exchange: the continuous states are h and v, their derivatives those of the current mode
 (physics.Ball.acceleration), the one event indicator h - R, and the mode switches in
-update_discrete_states. The master integrates; the FMU's CVODE is not used.
+update_discrete_states. The master integrates; the FMU's CVODE is not used. On a vibrating ground each is taken
+in the table's frame (_in_frame: h - s, v - s', the table's acceleration a load of its own), as the phase
+machine takes it.
 """
 
 from __future__ import annotations
@@ -26,9 +28,10 @@ from ..contact_laws.rigid import rigid_rebound_above
 from ..equations import load_value
 from ..physics import Ball, Mode, clipped_contact_mode
 from ..solvers.phase_machine.phases import phase_scales
+from ..solvers.vibrating_ground import relative_to
 from .master_error import UNKNOWN, MasterError, MeasuredMaster
 from .slave_base import BallSlave
-from .variables import EVENT_INDICATOR, FMI3_VARIABLES, SMALLEST_POSITIVE, VARIABLES
+from .variables import EVENT_INDICATOR, FMI3_VARIABLES, SMALLEST_POSITIVE, VARIABLES, ground_of
 
 # The namespace of the FMU's slave script (pythonfmu3 imports it once per process; kept as for pythonfmu).
 SCRIPT_NAMESPACES: list[dict] = []
@@ -54,6 +57,10 @@ def phase_nominals(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> 
             speed if 0.0 < speed < math.inf else 1.0]
 
 
+UNMEASURED_ON_A_MOVING_GROUND = (
+    "model exchange on a vibrating ground: the master's error is not measured (error_estimate is -1, unknown), and a "
+    "ball on a table can amplify it a thousandfold in a few bounces; for a result that keeps the promise, run the "
+    "FMU in co-simulation (its own CVODE, its error estimated), or compare runs at two tolerances of the master")
 # Model exchange, rigid law: a bounce rising less than this many rtol R is summed (the ball rests on R from
 # its impact), as is one lower than the depth below R at which the master noticed the impact. The master's
 # integrator cannot follow it: FMPy's CVODE at rtol = 1e-8 located the landing of a 5e-9 m (8e-8 R) hop at
@@ -208,12 +215,33 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
         integrator's at the first call that needs it."""
         if self._exchange is None:
             integrator = self._integrator
+            h, v, F_ext = self._in_frame(integrator.h, integrator.v)
             self._exchange = [integrator.h, integrator.v, clipped_contact_mode(integrator.ball, integrator.mode),
-                              integrator.impacts,
-                              *phase_nominals(integrator.ball, integrator.h, integrator.v, integrator.mode,
-                                              self._values["F_ext"])]
-            self._master_error = MasterError(integrator.ball, self.time, *self._exchange[:3], self._values["F_ext"])
+                              integrator.impacts, *phase_nominals(integrator.ball, h, v, integrator.mode, F_ext)]
+            # The master's error is measured against each phase's exact flow on a still ground; on a vibrating one
+            # it is not measured (error_estimate -1, unknown), which the log says once.
+            self._master_error = None if integrator.ground.moves else \
+                MasterError(integrator.ball, self.time, *self._exchange[:3], F_ext)
+            if integrator.ground.moves:
+                self.log(UNMEASURED_ON_A_MOVING_GROUND, self.STATUS.ok)
         return self._exchange
+
+    def _in_frame(self, h: float, v: float, time: float | None = None) -> tuple[float, float, float]:
+        """(h [m], v [m/s], F_ext [N]) in the ground's frame at time [s] (default: the model-exchange time): h - s,
+        v - s' and F_ext - m s'' (the table's acceleration as a load); on a still ground h, v and F_ext."""
+        ground, F_ext = self._integrator.ground, self._values["F_ext"]
+        if not ground.moves:
+            return h, v, F_ext
+        t = self.time if time is None else time
+        return (h - float(ground.position(t)), v - float(ground.velocity(t)),
+                F_ext - self._integrator.ball.m * float(ground.derivative(t, 2)))
+
+    def _in_world(self, h: float, v: float) -> list[float]:
+        """[h [m], v [m/s]] in the world's frame from the ground's at the model-exchange time (_in_frame's inverse)."""
+        ground = self._integrator.ground
+        if not ground.moves:
+            return [h, v]
+        return [h + float(ground.position(self.time)), v + float(ground.velocity(self.time))]
 
 
     def get_continuous_states(self):
@@ -233,7 +261,8 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
     def get_event_indicators(self):
         state = self._model_exchange()
         ball = self._integrator.ball
-        if state[2] == Mode.FLIGHT and state[0] < 0.0 and not self._fell_through:
+        h, v, F_ext = self._in_frame(*state[:2])
+        if state[2] == Mode.FLIGHT and h < 0.0 and not self._fell_through:
             # Its centre below the ground in flight: a master stepped over an impact unseen and never called
             # fmi3CompletedIntegratorStep, where the FMU would have asked for event mode. Said once.
             self._fell_through = True
@@ -243,7 +272,7 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
                      "master stepped over an impact without an event; this FMU needs fmi3CompletedIntegratorStep "
                      "(needsCompletedIntegratorStep) to ask for event mode there, and the results from here on are "
                      "wrong", self.STATUS.warning)
-        return [event_indicator(ball, *state[:3], self._values["F_ext"])]
+        return [event_indicator(ball, h, v, state[2], F_ext)]
 
     def get_nominals_of_continuous_states(self, size):
         """The nominals of h [m] and v [m/s] of the current phase (phase_nominals); fixed between events."""
@@ -251,14 +280,15 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
             return self._exchange[4:6][:size]
         if self._integrator is not None:
             integrator = self._integrator
-            return phase_nominals(integrator.ball, integrator.h, integrator.v, integrator.mode,
+            return phase_nominals(integrator.ball, *self._in_frame(integrator.h, integrator.v)[:2], integrator.mode,
                                   self._values["F_ext"])[:size]
         # Before initialisation: from the start values, as a flight (the mode is decided at initialisation).
         values = self._values
         try:
             ball = self._ball_and_settings()[0]
-            return phase_nominals(ball, values["h"], values["v"], Mode.FLIGHT, values["F_ext"])[:size]
-        except ValueError:  # a start value not yet valid: set and refused at initialisation
+            h, v = relative_to(ground_of(values), self._start_time, values["h"], values["v"])
+            return phase_nominals(ball, h, v, Mode.FLIGHT, values["F_ext"])[:size]
+        except (TypeError, ValueError):  # a start value not yet valid: set and refused at initialisation
             return [1.0, 1.0][:size]
 
     def update_discrete_states(self):
@@ -273,24 +303,29 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
         if self._integrator is None:
             return DiscreteStatesUpdate()
         state = self._model_exchange()
-        h, v, mode, impacts = state[:4]
-        ball, F_ext = self._integrator.ball, self._values["F_ext"]
+        world, mode, impacts = state[:2], state[2], state[3]
+        h, v, F_ext = self._in_frame(*world)
+        ball, measured = self._integrator.ball, self._master_error
         x = h - ball.R
         if impact_is_instantaneous(ball.parameters):
             if mode == Mode.FLIGHT and (x < 0.0 or (x == 0.0 and v < 0.0)):
                 # A master that noticed the impact -x below R resolves no bounce lower than that.
                 apex_floor = max(UNRESOLVED_APEX_PER_RTOL * self._values["rtol"] * ball.R, -x)
-                state[:4] = rigid_impact(ball, v, F_ext, impacts, apex_floor)
-                self._master_error.rigid_impact(self.time, h, v, state[:3], F_ext)
+                after = rigid_impact(ball, v, F_ext, impacts, apex_floor)
+                state[:4] = [*self._in_world(*after[:2]), *after[2:]]
+                if measured is not None:
+                    measured.rigid_impact(self.time, h, v, after[:3], F_ext)
             elif mode == Mode.CONTACT and load_value(F_ext, ball.m, ball.g) < 0.0:
+                after = [h, v, Mode.FLIGHT]
                 state[2] = Mode.FLIGHT
-                self._master_error.switched(self.time, h, v, [mode, Mode.FLIGHT], F_ext)
+                if measured is not None:
+                    measured.switched(self.time, h, v, [mode, Mode.FLIGHT], F_ext)
             else:
                 return DiscreteStatesUpdate()
             self._tell_master_error()
-            state[4:6] = phase_nominals(ball, *state[:3], F_ext)
+            state[4:6] = phase_nominals(ball, *after[:3], F_ext)
             return DiscreteStatesUpdate(nominalContinuousStatesChanged=True,
-                                        valuesOfContinuousStatesChanged=state[:2] != [h, v])
+                                        valuesOfContinuousStatesChanged=state[:2] != world)
         switched = switched_mode(ball, h, v, mode, F_ext)
         if switched is None:
             return DiscreteStatesUpdate()
@@ -299,7 +334,8 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
             state[2], state[3] = switched, state[3] + (mode == Mode.FLIGHT)
             mode, switched = switched, switched_mode(ball, h, v, switched, F_ext)
             modes.append(mode)
-        self._master_error.switched(self.time, h, v, modes, F_ext)
+        if measured is not None:
+            measured.switched(self.time, h, v, modes, F_ext)
         self._tell_master_error()
         state[4:6] = phase_nominals(ball, h, v, state[2], F_ext)
         # Said at every switch, even where the new phase's nominals equal the old ones to the bit (a weightless
@@ -316,8 +352,10 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
     def _a(self):
         if not self._exchange:
             return super()._a()
-        h, v, mode = self._exchange[:3]
-        return self._integrator.ball.acceleration(h, v, mode, self._values["F_ext"])
+        h, v, F_ext = self._in_frame(*self._exchange[:2])
+        ground = self._integrator.ground
+        table = float(ground.derivative(self.time, 2)) if ground.moves else 0.0
+        return self._integrator.ball.acceleration(h, v, self._exchange[2], F_ext) + table
 
     def _contact(self):
         return self._exchange[2] == Mode.CONTACT if self._exchange else super()._contact()
@@ -325,8 +363,8 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
     def _contact_force(self):
         if not self._exchange:
             return super()._contact_force()
-        h, v, mode = self._exchange[:3]
-        return self._integrator.ball.contact_force(h, v, mode)
+        h, v, F_ext = self._in_frame(*self._exchange[:2])
+        return self._integrator.ball.contact_force(h, v, self._exchange[2], F_ext)
 
     def _impacts(self):
         return self._exchange[3] if self._exchange else super()._impacts()
@@ -342,8 +380,12 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
     def _gap(self):
         """The event indicator of the current mode (event_indicator); h - R before initialisation."""
         if self._exchange:
-            return event_indicator(self._integrator.ball, *self._exchange[:3], self._values["F_ext"])
-        return self._h() - (self._integrator.ball.R if self._integrator else self._values["R"])
+            h, v, F_ext = self._in_frame(*self._exchange[:2])
+            return event_indicator(self._integrator.ball, h, v, self._exchange[2], F_ext)
+        integrator = self._integrator
+        if integrator:
+            return self._in_frame(integrator.h, integrator.v, integrator.t)[0] - integrator.ball.R
+        return self._h() - self._values["R"]
 
     # --- FMU state: the model exchange state too -----------------------------------------------------
     def _get_fmu_state(self):

@@ -27,13 +27,23 @@ from typing import NamedTuple
 
 from .. import limits, validation
 from ..contact_laws import CONTACT_PARAMETERS
+from ..ground import Ground
 from ..physics import BALL_DEFAULTS, Ball, Mode, unread_message, without_unread
 from ..scenes import SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
 from ..solvers.integrator import checked_start
 from ..solvers.phase_machine.settings import MIN_RTOL, RTOL_RANGE_WHY
+from ..solvers.vibrating_ground import ground_motion, relative_start, relative_to
 from .engine_cache import first_use
-from .variables import FMU_CONTACT_LAWS, SCENE_FIELD_OF_START_VALUE, SCENE_OWN_FIELDS, VARIABLES, ball_fields_of
+from .variables import (
+    FMU_CONTACT_LAWS,
+    GROUND_FIELD_OF_START_VALUE,
+    SCENE_FIELD_OF_START_VALUE,
+    SCENE_OWN_FIELDS,
+    VARIABLES,
+    ball_fields_of,
+    ground_of,
+)
 
 # 7: the contact law's parameters; 6: the restart time's rounding error, model exchange's nominals; 5: the restart point
 STATE_FORMAT = "bouncingball-fmu-state-8"
@@ -81,6 +91,7 @@ class BallSlave:
         ball, settings = Ball(), CvodeSettings()
         self._values = {**{name: SCENE_DEFAULTS[field] if field in SCENE_OWN_FIELDS else getattr(ball, field)
                            for name, field in SCENE_FIELD_OF_START_VALUE.items()},
+                        **dict.fromkeys(GROUND_FIELD_OF_START_VALUE, 0.0),
                         "rtol": settings.rtol, "atol": settings.atol or 0.0, "method": settings.method,
                         "engine": DEFAULT_ENGINE}
         self._start_time = 0.0
@@ -119,7 +130,8 @@ class BallSlave:
             if self._stop_time is not None:  # refuse now what could not be integrated up to the stop time
                 stop_time = validation.finite("stopTime", self._stop_time, "s")
                 check_resolvable(integrator.ball, stop_time)
-                limits.check_scene(integrator.ball, integrator.h, integrator.v, integrator.F_ext, integrator.t,
+                limits.check_scene(integrator.ball, *relative_to(integrator.ground, integrator.t, integrator.h,
+                                                                 integrator.v), integrator.F_ext, integrator.t,
                                    max(stop_time, integrator.t))
             integrator.held_warnings = self._warnings
             self._integrator = integrator
@@ -182,19 +194,21 @@ class BallSlave:
             start_time = validation.finite("start_time", state["start_time"], "s")
             stop_time, tolerance = state["stop_time"], state["tolerance"]
             ball, settings = self._ball_and_settings(values, tolerance)
+            ground = self._ground(values)
             for name in ("h", "v", "F_ext"):
                 validation.finite(name, values[name])
             saved, integrator = state["integrator"], None
             if saved is not None:
                 integrator = self._integrator
-                if integrator is None or (integrator.ball, integrator.settings) != (ball, settings):
+                if integrator is None or (integrator.ball, integrator.settings, integrator.ground) != (ball, settings,
+                                                                                                      ground):
                     with self._engine_first_use(settings.engine):
                         integrator = BallIntegrator(ball, values["h"], values["v"], start_time, values["F_ext"],
-                                                    settings)
+                                                    settings, ground=ground)
                     integrator.held_warnings = self._warnings
                 t, h, v, F_ext = (validation.finite(f"state {name}", saved[name], unit)
                                   for name, unit in (("t", "s"), ("h", "m"), ("v", "m/s"), ("F_ext", "N")))
-                limits.check_scene(ball, h, v, F_ext, t)
+                limits.check_scene(ball, *relative_to(ground, t, h, v), F_ext, t)
                 integrator.set_state(IntegratorState(**saved))  # checks every field before it changes any
         except (KeyError, TypeError, ValueError, ImportError) as error:
             self._log_warnings()
@@ -262,6 +276,23 @@ class BallSlave:
                 f"tolerance ({self.CALLS['setup']})", tolerance, MIN_RTOL, 1.0, why=RTOL_RANGE_WHY))
         return ball, CvodeSettings(rtol=rtol, atol=values["atol"], method=values["method"], engine=values["engine"])
 
+    def _ground(self, values=None):
+        """The ground of values (default: the current ones; variables.ground_of); ValueError names a bad value.
+
+        Where ground_amplitude is 0, a ground_frequency or ground_phase set is logged once as not read (as a contact
+        law's parameters are, _read_fields), not refused.
+        """
+        values = self._values if values is None else values
+        ground = ground_of(values)
+        unread = [name for name in ("ground_frequency", "ground_phase") if not ground.moves and values[name] != 0.0]
+        if unread:
+            message = (f"{' and '.join(f'{name} = {values[name]!r}' for name in unread)} "
+                       f"{'are' if len(unread) > 1 else 'is'} ignored: ground_amplitude = 0 is a still ground")
+            if message not in self._unread_told:
+                self._unread_told.add(message)
+                self.log(message, self.STATUS.warning)
+        return ground
+
     def _tell_tolerance(self, used: float) -> None:
         """Once per instance: a warning if the master asked for a looser tolerance than rtol, a note if tighter."""
         asked, rtol = self._tolerance, self._values["rtol"]
@@ -278,8 +309,9 @@ class BallSlave:
         ball, settings = self._ball_and_settings()
         values = self._values
         h, v = validation.finite("h", values["h"], "m"), validation.finite("v", values["v"], "m/s")
+        ground = self._ground()
         with self._engine_first_use(settings.engine):
-            return BallIntegrator(ball, h, v, self._start_time, values["F_ext"], settings)
+            return BallIntegrator(ball, h, v, self._start_time, values["F_ext"], settings, ground=ground)
 
     def _engine_first_use(self, engine: str):
         """Around an integrator's making on engine: the compiled engine's code from the FMU's cache, or numba's
@@ -292,9 +324,10 @@ class BallSlave:
         """Before initialisation: the outputs of the start values (start_outputs), no integrator made for them."""
         try:
             ball, settings = self._ball_and_settings()
+            ground = ground_of(self._values)
         except ValueError:
             return NO_START_OUTPUTS
-        return start_outputs(ball, settings, self._values, self._start_time)
+        return start_outputs(ball, settings, self._values, self._start_time, ground)
 
     def _log_warnings(self) -> None:
         """The integrators' warnings held since the last call (BallIntegrator.held_warnings), to the master's log."""
@@ -318,20 +351,23 @@ def _read_fields(contact: str, ball_fields: dict, told: set, log, warning) -> di
     return ball_fields
 
 
-def start_outputs(ball: Ball, settings: CvodeSettings, values: dict, start_time: float) -> StartOutputs:
-    """The outputs of the start values (values: the slave's), in the mode the ball starts in: the Ball's closed forms.
+def start_outputs(ball: Ball, settings: CvodeSettings, values: dict, start_time: float,
+                  ground: Ground) -> StartOutputs:
+    """The outputs of the start values (values: the slave's) on ground, in the mode the ball starts in: the Ball's
+    closed forms (on a vibrating ground, relative to it, its acceleration added to a).
 
     NO_START_OUTPUTS where initialisation would refuse a value: the checks are BallIntegrator's of its start
-    (checked_start), without making one (its CVODE objects, and numba's engine, are not needed for them).
+    (relative_start's, checked_start's), without making one (its CVODE objects, and numba's engine, are not needed).
     """
     try:
         h, v = validation.finite("h", values["h"], "m"), validation.finite("v", values["v"], "m/s")
-        h, v, _, F_ext = checked_start(ball, h, v, start_time, values["F_ext"], settings)
-        mode = ball.initial_mode(h, v, F_ext)
+        h, v, _, F_ext = relative_start(ball, ground, h, v, start_time, values["F_ext"], settings, checked_start)
+        F_relative = F_ext - ball.m * ground_motion(ground, start_time, 2)  # the table's acceleration as a load
+        mode = ball.initial_mode(h, v, F_relative)
     except ValueError:
         return NO_START_OUTPUTS
-    return StartOutputs(ball.acceleration(h, v, mode, F_ext), mode == Mode.CONTACT,
-                        ball.contact_force(h, v, mode, F_ext))
+    return StartOutputs(ball.acceleration(h, v, mode, F_relative) + ground_motion(ground, start_time, 2),
+                        mode == Mode.CONTACT, ball.contact_force(h, v, mode, F_relative))
 
 
 def tolerance_note(asked: float, rtol: float, used: float, setup_call: str) -> str:
@@ -352,8 +388,9 @@ _RESTART_FIELDS = tuple(field.name for field in fields(RestartPoint))
 
 def _saved_values(saved: dict, own: dict) -> dict:
     """A saved state's values; a contact law's parameter this FMU gained since it was saved, which none of the laws
-    then read, at its default."""
-    return {**{name: BALL_DEFAULTS[name] for name in CONTACT_PARAMETERS if name in own}, **saved}
+    then read, at its default; the ground's parameters likewise (an FMU without them ran on a still ground: 0)."""
+    return {**{name: BALL_DEFAULTS[name] for name in CONTACT_PARAMETERS if name in own},
+            **dict.fromkeys(GROUND_FIELD_OF_START_VALUE, 0.0), **saved}
 
 
 def _state_fields(state: IntegratorState) -> dict:

@@ -1,14 +1,13 @@
-"""The FMU's interface in one table: read by the build (units, min/max in the XML) and by the slave.
-
-The slave script imports this module at run time, so it imports nothing beyond the standard library.
-"""
+"""The FMU's interface in one table: read by the build (units, min/max in the XML) and by the slave."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
+from .. import validation
 from ..contact_laws import CONTACT_LAWS, CONTACT_PARAMETERS, LAWS
+from ..ground import Ground
 from ..solvers.phase_machine.settings import MIN_RTOL
 
 MODEL_NAME = "BouncingBall"
@@ -25,6 +24,8 @@ UNITS = {
     "N/m": {"kg": 1, "s": -2},
     "N.s/m": {"kg": 1, "s": -1},
     "s/m": {"m": -1, "s": 1},
+    "Hz": {"s": -1},
+    "rad": {"rad": 1},
 }
 
 
@@ -98,6 +99,12 @@ VARIABLES = (
                 "= R - h in the force, in [1, 2.5] (1.5: Hertz's sphere on a flat)", min=1.0, max=2.5),
     FmuVariable("alpha", "Real", "parameter", "fixed", "contact_law hunt-crossley: damping of the force, its "
                 "restitution about 1 - alpha v at impact speed v (>= 0)", "s/m", 0.0),
+    FmuVariable("ground_amplitude", "Real", "parameter", "fixed", "amplitude A of the ground's vibration s(t) = A "
+                "sin(2 pi f t + p), every contact law: contact where h = R + s(t) (>= 0; 0, the default: a still "
+                "ground at 0, ground_frequency and ground_phase not read)", "m", 0.0),
+    FmuVariable("ground_frequency", "Real", "parameter", "fixed", "frequency f of the ground's vibration (> 0 where "
+                "ground_amplitude > 0)", "Hz", 0.0),
+    FmuVariable("ground_phase", "Real", "parameter", "fixed", "phase p of the ground's vibration at t = 0", "rad"),
 )
 
 
@@ -116,13 +123,32 @@ SCENE_FIELD_OF_START_VALUE = {"m": "m", "k": "k", "b": "b", "R": "R", "g": "g", 
                               **{name: name for name in CONTACT_PARAMETERS if name not in ("k", "b")},
                               "h": "h0", "v": "v0", "F_ext": "F_ext"}
 SCENE_OWN_FIELDS = ("h0", "v0", "F_ext")  # the others are the ball's (physics.Ball's fields)
+# The scene's ground (a still one at 0, or a sine) by the FMU's parameters: each a field of ground.Ground.
+GROUND_FIELD_OF_START_VALUE = {"ground_amplitude": "amplitude", "ground_frequency": "frequency",
+                               "ground_phase": "phase"}
 TEXT_START_VALUES = ("contact_law",)  # the others are numbers
 
 
 def start_values_of(scene) -> dict[str, float | str]:
-    """The FMU's start values that run scene (a scenes.Scene), by SCENE_FIELD_OF_START_VALUE."""
-    return {name: getattr(scene if field in SCENE_OWN_FIELDS else scene.ball, field)
-            for name, field in SCENE_FIELD_OF_START_VALUE.items()}
+    """The FMU's start values that run scene (a scenes.Scene, fmu_ground_scene's), by SCENE_FIELD_OF_START_VALUE and
+    GROUND_FIELD_OF_START_VALUE (a ground the FMU does not run gives a still one's: 0)."""
+    return {**{name: getattr(scene if field in SCENE_OWN_FIELDS else scene.ball, field)
+               for name, field in SCENE_FIELD_OF_START_VALUE.items()},
+            **{name: getattr(scene.ground, field) for name, field in GROUND_FIELD_OF_START_VALUE.items()}}
+
+
+def ground_of(start_values) -> Ground:
+    """The ground of the FMU's start values (a mapping that has GROUND_FIELD_OF_START_VALUE's): still at 0 where
+    ground_amplitude is 0, else the sine; ValueError names a value out of its range."""
+    amplitude = validation.non_negative("ground_amplitude", start_values["ground_amplitude"], "m")
+    if amplitude == 0.0:
+        return Ground()
+    frequency = start_values["ground_frequency"]
+    if not validation.finite("ground_frequency", frequency, "Hz") > 0.0:
+        raise ValueError(f"ground_frequency = {frequency!r} Hz is not allowed with ground_amplitude = {amplitude!r} m: "
+                         "it must be > 0 (ground_amplitude = 0 for a still ground)")
+    return Ground.sine(amplitude, float(frequency), validation.finite("ground_phase", start_values["ground_phase"],
+                                                                      "rad"))
 
 
 def fmu_scene(scene):
@@ -130,6 +156,17 @@ def fmu_scene(scene):
     if scene.ball.contact not in FMU_CONTACT_LAWS:
         raise ValueError(f"scene {scene.name!r} has contact = {scene.ball.contact!r}: the FMU models the contact laws "
                          f"{', '.join(FMU_CONTACT_LAWS)}; run the scene with `bouncingball run`")
+    return scene
+
+
+def fmu_ground_scene(scene):
+    """The scene (fmu_scene's), if the FMU also runs its ground: still at 0 or a sine; else ValueError saying so."""
+    ground = fmu_scene(scene).ground
+    if ground.kind == "table" or ground.height != 0.0:
+        raise ValueError(f"scene {scene.name!r} on its ground ({ground.describe()}) is not allowed for the FMU: it "
+                         "runs on a still ground at 0 or a sine (ground_amplitude, ground_frequency, ground_phase); "
+                         "run the scene with `bouncingball run --solver exact`, or judge a master's result of it "
+                         "with `bouncingball check`")
     return scene
 
 

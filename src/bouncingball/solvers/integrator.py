@@ -40,7 +40,7 @@ from .phase_machine.dense_output import fill_grid, interpolate
 from .phase_machine.settings import CvodeSettings, choose_method, too_many_steps_cause
 from .result import EVENT_KINDS, Event, accuracy_warning, warn_at_caller
 from .state import IntegratorState, IntegratorView
-from .vibrating_ground import ground_motion, machine_ground, refuse_restore, relative_start, world_events, world_grid
+from .vibrating_ground import ground_motion, machine_ground, relative_start, relative_state, world_events, world_grid
 
 # The modes CVODE integrates, one solver each: the no-pull law's free sub-mode (Mode.FREE) is a parabola,
 # always taken in closed form (phases.decide_phase).
@@ -155,10 +155,11 @@ class BallIntegrator(IntegratorView):
         """Resume from state (one of get_state()); ValueError names a bad field, and then nothing changed.
 
         With a restart point, CVODE restarts there and integrates to state.t again (at most the
-        current phase), then the state is exactly the one taken. Not on a vibrating ground (ValueError).
+        current phase), then the state is exactly the one taken. On a vibrating ground the state's h and v are
+        taken relative to it at state.t (the ground is the integrator's: a state carries none).
         """
-        refuse_restore(self.ground)
-        checked = state_checks.checked(self.ball, state, self.settings)
+        world_v = state.v if isinstance(state, IntegratorState) else None
+        checked = state_checks.checked(self.ball, relative_state(self.ball, self.ground, state), self.settings)
         t, x, v, mode, F_ext = checked.point
         counts, t_start = checked.counts, checked.t_start
         check_resolvable(self.ball, t)
@@ -178,7 +179,8 @@ class BallIntegrator(IntegratorView):
         finally:
             self._report_sundials_warnings()
         reached = self._state
-        if (float(reached.x), float(reached.v)) != (x, v):
+        # The world's velocity compared: a relative one taken from it (v - s') may be an ulp off the machine's own.
+        if (float(reached.x), float(reached.v) + ground_motion(self.ground, t, 1)) != (x, float(world_v)):
             # Not where this restart point leads (a state made by hand, or one a Taylor step within ulps
             # of an earlier target reached): CVODE would continue another trajectory, so it restarts at
             # the state itself, which continues within the tolerance, with the error carried to t (the

@@ -9,6 +9,7 @@ events' velocities in the world's frame.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 from .. import validation
 from ..ground import Ground
@@ -36,11 +37,26 @@ def machine_ground(ball: Ball, ground: Ground):
                                ground_phase=ground.phase)
 
 
-def refuse_restore(ground: Ground) -> None:
-    """ValueError on a vibrating ground: BallIntegrator.set_state restores a state on a still ground only."""
-    if ground.moves:
-        raise ValueError(f"set_state is not allowed on ground = {ground.describe()}: a state is restored on a still "
-                         "ground only (a saved state does not carry the ground's frame); start a new BallIntegrator")
+def relative_state(ball: Ball, ground: Ground, state):
+    """A saved state (an IntegratorState, in the world's frame) in the machine's: h, v relative to the ground at its t.
+
+    Its gap (h - R - s, the machine's own) is kept to every digit, checked against h: R + gap + s(t) must be h to
+    2 ulps. On a still ground, or for what is not an IntegratorState (state_checks names it), state itself.
+    """
+    from .state import IntegratorState
+
+    if not ground.moves or not isinstance(state, IntegratorState):
+        return state
+    t = validation.finite("state t", state.t, "s")
+    h, v = validation.finite("state h", state.h, "m"), validation.finite("state v", state.v, "m/s")
+    surface = float(ground.position(t))
+    if state.gap is None:
+        return dataclasses.replace(state, h=h - surface, v=v - float(ground.velocity(t)))
+    gap = validation.finite("state gap", state.gap, "m")
+    if not abs((ball.R + gap + surface) - h) <= 2.0 * math.ulp(max(abs(h), ball.R, abs(surface))):
+        raise ValueError(f"state gap = {gap!r} m is not allowed with h = {h!r} m: R + gap + s(t) must be h (R = "
+                         f"{ball.R!r} m, the ground's s(t) = {surface!r} m at t = {t!r} s)")
+    return dataclasses.replace(state, h=ball.R + gap, v=v - float(ground.velocity(t)))
 
 
 def relative_start(ball: Ball, ground: Ground, h0, v0, t0, F_ext, settings, checked_start):
@@ -62,6 +78,13 @@ def relative_start(ball: Ball, ground: Ground, h0, v0, t0, F_ext, settings, chec
                          f"{ball.R + surface!r} m (the ball cannot start inside the ground)")
     relative, t0, F_ext = checked_start(ball, ball.R + gap, v0 - float(ground.velocity(t0)), t0, F_ext, settings)[1:]
     return ball.R + gap, relative, t0, F_ext
+
+
+def relative_to(ground: Ground, t: float, h: float, v: float) -> tuple[float, float]:
+    """(h - s(t) [m], v - s'(t) [m/s]): the height and velocity at t [s] relative to the ground (a still one: h, v)."""
+    if not ground.moves:
+        return h, v
+    return h - float(ground.position(t)), v - float(ground.velocity(t))
 
 
 def ground_motion(ground: Ground, t: float, order: int) -> float:
