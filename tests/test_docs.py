@@ -348,8 +348,8 @@ def test_the_fmu_pages_constants_are_the_codes():
     """The DefaultExperiment, FMI's smallest min, the state's format, the check's tolerance, the nominals and the
     weightless scene's impact, as the code and its scenes have them."""
     from bouncingball.check.judge import DEFAULT_TOLERANCE
-    from bouncingball.fmu.slave3 import phase_nominals
-    from bouncingball.fmu.slave_base import STATE_FORMAT
+    from bouncingball.fmu.model_exchange import phase_nominals
+    from bouncingball.fmu.saved_state import STATE_FORMAT
     from bouncingball.fmu.variables import SMALLEST_POSITIVE
     from bouncingball.physics import Mode
     from bouncingball.scenes import load_scene

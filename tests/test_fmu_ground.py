@@ -20,7 +20,7 @@ import pytest
 
 import bouncingball as bb
 from bouncingball import Ground
-from bouncingball.fmu.slave3 import UNMEASURED_ON_A_MOVING_GROUND
+from bouncingball.fmu.model_exchange import UNMEASURED_ON_A_MOVING_GROUND
 from bouncingball.fmu.validate import format_report, validate
 from bouncingball.solvers.integrator import BallIntegrator
 from bouncingball.solvers.phase_machine.settings import CvodeSettings
@@ -225,3 +225,18 @@ def test_validate_takes_a_scene_on_a_vibrating_table(fmu):
     assert fmu_row.max_height_error == pytest.approx(in_process.max_height_error, rel=1e-2)
     assert report.impacts_match_at_every_point
     assert "FMU impact count equals the exact count at every communication point: yes" in format_report(report)
+
+
+def test_check_judges_a_masters_run_on_the_table_by_its_ground_start_values(fmu):
+    """`check` (check_result) with the start values the master set, ground_* among them: the FMU's rigid run passes
+    against the exact solution on that table; without the ground's start values (the still ground), it fails."""
+    from bouncingball.check.judge import check_result, scene_with_start_values
+
+    result, _ = _simulate(fmu, "rigid")
+    columns = {"time": result["time"], "h": result["h"], "impacts": result["impacts"]}
+    start = _start_values("rigid")
+    assert scene_with_start_values("article", start).ground == Ground.sine(AMPLITUDE, F, PHASE)
+    judged = check_result(columns, "article", start_values=start)
+    assert judged.passed and judged.max_height_error < 1e-9, judged.report()
+    still = {name: value for name, value in start.items() if not name.startswith("ground_")}
+    assert not check_result(columns, "article", start_values=still).passed

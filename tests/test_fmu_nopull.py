@@ -3,7 +3,7 @@
 Co-simulation (FMI 2.0, FMI 3.0 with early return) runs the FMU's own CVODE through the phase machine: heights
 within 1e-9 m, every event (impact, release, engagement, departure) where the truth has it, the contact force
 never below 0. In FMI 3.0 model exchange the master integrates, the event indicator is the current sub-mode's
-(slave3.event_indicator): the master sees every event and restarts at each, its heights within its tolerance.
+(model_exchange.event_indicator): the master sees every event and restarts at each, its heights within its tolerance.
 """
 
 from __future__ import annotations

@@ -184,7 +184,15 @@ k delta^n (1 + 3/2 alpha delta') for the penetration delta = R - h (<code>n</cod
 <code>k</code> then in N/m^n; b plays no part), clipped at 0 where it would pull: no jump of the force at
 an impact or a departure, and a restitution that falls with impact speed (1 - alpha v to first order). In
 co-simulation the FMU's CVODE integrates each contact; in model exchange the master does, the event
-indicator h - R as under the linear law (the clip is in the derivative).</p>"""
+indicator h - R as under the linear law (the clip is in the derivative).</p>
+<p>The ground may vibrate, under every law: <code>ground_amplitude</code> A, <code>ground_frequency</code> f and
+<code>ground_phase</code> p make it a table at s(t) = A sin(2 pi f t + p) (A = 0, the default: the still
+ground). Contact is then where h = R + s(t), the laws act on the deflection R + s - h and its rate s' - v, and a
+rigid impact on the velocity relative to the table, v+ - s' = -e (v- - s'); a rigid ball that stops bouncing
+rides the table until its acceleration falls below -(g - F_ext/m). h, v and a stay in the world's frame. In
+co-simulation the FMU's CVODE runs on the table (no event missed: each step is searched for a graze); in model
+exchange the derivatives, the event indicator (h - R - s(t) in flight) and the mode switches are taken in the
+table's frame, and <code>error_estimate</code> is -1: the master's error is not measured on a moving ground.</p>"""
 
 
 def _variables_section(root: ET.Element, fmi3: bool) -> str:

@@ -157,7 +157,7 @@ class MasterError:
         self._start(t, h, v, modes[-1], F_ext)
 
     def rigid_impact(self, t: float, h: float, v: float, after: list, F_ext: float) -> None:
-        """The rigid ball's impact at the state (h, v at t), after it [h, v, mode, impacts] (slave3.rigid_impact).
+        """The rigid ball's impact at the state (h, v at t), after it [h, v, mode, impacts] (rigid_impact's).
 
         A rebound reflects the error (saltation [[-e, 0], [-(1 + e) g_eff / v, -e]]) of the state less its
         offset x_e = h - R from R, where the truth's impact is. A ball put to rest on R (its bounces summed)

@@ -8,13 +8,12 @@ end of the communication step.
 Model exchange: the continuous states are h and v, their derivatives those of the current mode
 (physics.Ball.acceleration), the one event indicator h - R, and the mode switches in
 update_discrete_states. The master integrates; the FMU's CVODE is not used. On a vibrating ground each is taken
-in the table's frame (_in_frame: h - s, v - s', the table's acceleration a load of its own), as the phase
+in the table's frame (model_exchange.in_frame: h - s, v - s', the table's acceleration a load of its own), as the phase
 machine takes it.
 """
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 from pythonfmu3 import Boolean, Float64, Fmi3Slave, Fmi3StepResult, Int32, String
@@ -22,16 +21,24 @@ from pythonfmu3.enums import Fmi3Causality, Fmi3Initial, Fmi3Status, Fmi3Variabi
 from pythonfmu3.modelexchange import ModelExchange
 
 from .. import validation
-from ..contact_laws import has_pressed_gap, impact_is_instantaneous, pressed_gap
-from ..contact_laws.no_pull import free_gap_rate
-from ..contact_laws.rigid import rigid_rebound_above
+from ..contact_laws import impact_is_instantaneous
 from ..equations import load_value
-from ..physics import Ball, Mode, clipped_contact_mode
-from ..solvers.phase_machine.phases import phase_scales
-from ..solvers.vibrating_ground import relative_to
+from ..physics import Mode, clipped_contact_mode
+from ..solvers.vibrating_ground import ground_motion, relative_to
 from .master_error import UNKNOWN, MasterError, MeasuredMaster
+from .model_exchange import (
+    UNMEASURED_ON_A_MOVING_GROUND,
+    UNRESOLVED_APEX_PER_RTOL,
+    event_indicator,
+    in_frame,
+    in_world,
+    phase_nominals,
+    rigid_impact,
+    switched_mode,
+)
+from .saved_state import exchange_fields, saved_exchange
 from .slave_base import BallSlave
-from .variables import EVENT_INDICATOR, FMI3_VARIABLES, SMALLEST_POSITIVE, VARIABLES, ground_of
+from .variables import EVENT_INDICATOR, FMI3_VARIABLES, VARIABLES
 
 # The namespace of the FMU's slave script (pythonfmu3 imports it once per process; kept as for pythonfmu).
 SCRIPT_NAMESPACES: list[dict] = []
@@ -40,100 +47,6 @@ REFERENCES = {variable.name: i for i, variable in enumerate(VARIABLES + FMI3_VAR
 _TIME_ONLY = [REFERENCES["time"]]
 # The binary's call after each fmi3CompletedIntegratorStep (bouncingball_fmu3_loader.c's completed_step): time twice.
 _COMPLETED_STEP = [REFERENCES["time"], REFERENCES["time"]]
-
-
-def phase_nominals(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> list[float]:
-    """The nominals [m, m/s] of h and v for a phase starting at (h, v) in mode: the phase's own scales.
-
-    In flight the apex height of the centre and the speed at impact; in contact the amplitude of the
-    oscillation about the rest height and its largest speed (phases.phase_scales, the scales our own
-    CVODE integrates a phase in). Always > 0: a scale of 0 (a ball at rest at its rest height) is
-    replaced by max(R, |h|) and 1 m/s.
-    """
-    length, speed = phase_scales(ball.parameters, mode, h - ball.R, v, load_value(F_ext, ball.m, ball.g))
-    if mode == Mode.FLIGHT:
-        length += ball.R
-    return [length if 0.0 < length < math.inf else max(ball.R, abs(h)),
-            speed if 0.0 < speed < math.inf else 1.0]
-
-
-UNMEASURED_ON_A_MOVING_GROUND = (
-    "model exchange on a vibrating ground: the master's error is not measured (error_estimate is -1, unknown), and a "
-    "ball on a table can amplify it a thousandfold in a few bounces; for a result that keeps the promise, run the "
-    "FMU in co-simulation (its own CVODE, its error estimated), or compare runs at two tolerances of the master")
-# Model exchange, rigid law: a bounce rising less than this many rtol R is summed (the ball rests on R from
-# its impact), as is one lower than the depth below R at which the master noticed the impact. The master's
-# integrator cannot follow it: FMPy's CVODE at rtol = 1e-8 located the landing of a 5e-9 m (8e-8 R) hop at
-# a twentieth of its speed, then stepped over the next, lower one, and the ball fell through the ground.
-UNRESOLVED_APEX_PER_RTOL = 100.0
-
-
-def rigid_impact(ball: Ball, v: float, F_ext: float, impacts: int, apex_floor: float) -> list:
-    """[h, v, mode, impacts] after the rigid law's impact of the ball at v [m/s] (model exchange's state jump).
-
-    The ball is put on R and leaves at -e v (contact_laws.rigid_rebound_above). Where it would leave slower
-    than v_min, or its bounce would rise less than apex_floor [m], it rests on R from now: the true ball
-    then stays within apex_floor of R (its bounces summed, as the Zeno series they are). A ball found
-    below R already moving up (an event located late) is put on R, v kept.
-    """
-    # A flight starts an ulp above R, where its event indicator h - R is > 0: at exactly 0 a master's CVODE
-    # found a root every 1.5e-7 s on the way up (FMPy: 57628 events in 4 s) and FMPy's Euler, which looks
-    # for a change from > 0 to <= 0, would not see the next impact.
-    above = math.nextafter(ball.R, math.inf)
-    if v >= 0.0:
-        return [above, v, Mode.FLIGHT, impacts]
-    v_after, _ = rigid_rebound_above(ball.parameters, v, load_value(F_ext, ball.m, ball.g), apex_floor)
-    if v_after > 0.0:
-        return [above, v_after, Mode.FLIGHT, impacts + 1]
-    return [ball.R, 0.0, Mode.CONTACT, impacts + 1]
-
-
-def event_indicator(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> float:
-    """Model exchange's event indicator in mode: >= 0 out of contact, <= 0 in it, crossing 0 where the mode ends.
-
-    In flight and in the linear law's contact h - R [m] (a rigid ball rising: at least the smallest double,
-    SMALLEST_POSITIVE). In the no-pull law's pressed contact
-    z = h - R + (b / k) v = -force / k [m] (it is released where z turns positive); in its free sub-mode
-    min(z, R - h) [m] (pressed again where z, departing where R - h, reaches 0). For a rigid ball resting
-    on R, F_ext / m - g [m/s2] (it lifts where that turns positive). The FMU's binary tells a master's
-    step over an event by that sign against the output contact.
-    """
-    x = h - ball.R
-    if mode == Mode.FLIGHT:
-        # A rigid ball rising from R (put there by its impact) is out of contact even where a master's integrator
-        # error puts it a few ulps below R: at 0 or below, its CVODE found a root every 2e-10 s (31,582 events
-        # in FMPy at rtol 1e-4), each putting the ball back on R, while the bounce was below its tolerance.
-        return max(x, SMALLEST_POSITIVE) if impact_is_instantaneous(ball.parameters) and v > 0.0 else x
-    if impact_is_instantaneous(ball.parameters):
-        return -load_value(F_ext, ball.m, ball.g) / ball.m
-    if not has_pressed_gap(ball.parameters):
-        return x
-    z = x + (ball.b / ball.k) * v
-    return z if mode == Mode.CONTACT else min(z, -x)
-
-
-def switched_mode(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> Mode | None:
-    """The mode a model-exchange event at (h [m], v [m/s]) switches the linear or no-pull ball to; None: none.
-
-    An impact where h - R has turned negative (or is 0 going down); a departure where it turned positive.
-    Under the no-pull law a release where the pressed contact's force has turned negative, an
-    engagement where the free ball's would turn positive (contact_laws.pressed_gap's z).
-    """
-    x = h - ball.R
-    up, down = x > 0.0 or (x == 0.0 and v > 0.0), x < 0.0 or (x == 0.0 and v < 0.0)
-    if mode == Mode.FLIGHT:
-        return Mode.CONTACT if down else None
-    parameters = ball.parameters
-    if not has_pressed_gap(parameters):
-        return Mode.FLIGHT if up else None
-    load = load_value(F_ext, ball.m, ball.g)
-    if mode == Mode.CONTACT:
-        z, rate = pressed_gap(parameters, x, v, load)
-        return Mode.FREE if z > 0.0 or (z == 0.0 and rate > 0.0) else None
-    if up:
-        return Mode.FLIGHT
-    z, rate = x + (ball.b / ball.k) * v, free_gap_rate(parameters, v, load)
-    return Mode.CONTACT if z < 0.0 or (z == 0.0 and rate < 0.0) else None
 
 
 class DiscreteStatesUpdate(NamedTuple):
@@ -218,30 +131,17 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
             h, v, F_ext = self._in_frame(integrator.h, integrator.v)
             self._exchange = [integrator.h, integrator.v, clipped_contact_mode(integrator.ball, integrator.mode),
                               integrator.impacts, *phase_nominals(integrator.ball, h, v, integrator.mode, F_ext)]
-            # The master's error is measured against each phase's exact flow on a still ground; on a vibrating one
-            # it is not measured (error_estimate -1, unknown), which the log says once.
-            self._master_error = None if integrator.ground.moves else \
-                MasterError(integrator.ball, self.time, *self._exchange[:3], F_ext)
-            if integrator.ground.moves:
+            if integrator.ground.moves:  # the master's error is measured against a still ground's flows only
                 self.log(UNMEASURED_ON_A_MOVING_GROUND, self.STATUS.ok)
+            else:
+                self._master_error = MasterError(integrator.ball, self.time, *self._exchange[:3], F_ext)
         return self._exchange
 
     def _in_frame(self, h: float, v: float, time: float | None = None) -> tuple[float, float, float]:
-        """(h [m], v [m/s], F_ext [N]) in the ground's frame at time [s] (default: the model-exchange time): h - s,
-        v - s' and F_ext - m s'' (the table's acceleration as a load); on a still ground h, v and F_ext."""
-        ground, F_ext = self._integrator.ground, self._values["F_ext"]
-        if not ground.moves:
-            return h, v, F_ext
-        t = self.time if time is None else time
-        return (h - float(ground.position(t)), v - float(ground.velocity(t)),
-                F_ext - self._integrator.ball.m * float(ground.derivative(t, 2)))
-
-    def _in_world(self, h: float, v: float) -> list[float]:
-        """[h [m], v [m/s]] in the world's frame from the ground's at the model-exchange time (_in_frame's inverse)."""
-        ground = self._integrator.ground
-        if not ground.moves:
-            return [h, v]
-        return [h + float(ground.position(self.time)), v + float(ground.velocity(self.time))]
+        """model_exchange.in_frame's (h, v, F_ext) at time [s], by default the model-exchange time."""
+        integrator = self._integrator
+        return in_frame(integrator.ground, integrator.ball.m, self.time if time is None else time, h, v,
+                        self._values["F_ext"])
 
 
     def get_continuous_states(self):
@@ -280,13 +180,13 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
             return self._exchange[4:6][:size]
         if self._integrator is not None:
             integrator = self._integrator
-            return phase_nominals(integrator.ball, *self._in_frame(integrator.h, integrator.v)[:2], integrator.mode,
-                                  self._values["F_ext"])[:size]
+            h, v, F_ext = self._in_frame(integrator.h, integrator.v)
+            return phase_nominals(integrator.ball, h, v, integrator.mode, F_ext)[:size]
         # Before initialisation: from the start values, as a flight (the mode is decided at initialisation).
         values = self._values
         try:
-            ball = self._ball_and_settings()[0]
-            h, v = relative_to(ground_of(values), self._start_time, values["h"], values["v"])
+            ball, _, ground = self._ball_and_settings()
+            h, v = relative_to(ground, self._start_time, values["h"], values["v"])
             return phase_nominals(ball, h, v, Mode.FLIGHT, values["F_ext"])[:size]
         except (TypeError, ValueError):  # a start value not yet valid: set and refused at initialisation
             return [1.0, 1.0][:size]
@@ -312,7 +212,7 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
                 # A master that noticed the impact -x below R resolves no bounce lower than that.
                 apex_floor = max(UNRESOLVED_APEX_PER_RTOL * self._values["rtol"] * ball.R, -x)
                 after = rigid_impact(ball, v, F_ext, impacts, apex_floor)
-                state[:4] = [*self._in_world(*after[:2]), *after[2:]]
+                state[:4] = [*in_world(self._integrator.ground, self.time, *after[:2]), *after[2:]]
                 if measured is not None:
                     measured.rigid_impact(self.time, h, v, after[:3], F_ext)
             elif mode == Mode.CONTACT and load_value(F_ext, ball.m, ball.g) < 0.0:
@@ -353,9 +253,8 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
         if not self._exchange:
             return super()._a()
         h, v, F_ext = self._in_frame(*self._exchange[:2])
-        ground = self._integrator.ground
-        table = float(ground.derivative(self.time, 2)) if ground.moves else 0.0
-        return self._integrator.ball.acceleration(h, v, self._exchange[2], F_ext) + table
+        return self._integrator.ball.acceleration(h, v, self._exchange[2], F_ext) + \
+            ground_motion(self._integrator.ground, self.time, 2)
 
     def _contact(self):
         return self._exchange[2] == Mode.CONTACT if self._exchange else super()._contact()
@@ -390,21 +289,13 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
     # --- FMU state: the model exchange state too -----------------------------------------------------
     def _get_fmu_state(self):
         state = super()._get_fmu_state()
-        exchange = self._exchange
-        state["model_exchange"] = None if exchange is None else [*exchange[:2], int(exchange[2]), exchange[3],
-                                                                  self.time, *exchange[4:6]]
+        state["model_exchange"] = exchange_fields(self._exchange, self.time)
         state["master_error"] = None if self._master_error is None else self._master_error.saved()
         return state
 
     def _set_fmu_state(self, state):
         try:
-            saved = state.get("model_exchange") if isinstance(state, dict) else None
-            exchange = None if saved is None else [validation.finite("state h", saved[0], "m"),
-                                                   validation.finite("state v", saved[1], "m/s"),
-                                                   Mode(saved[2]), int(saved[3]), validation.finite("state time",
-                                                                                                    saved[4], "s"),
-                                                   validation.positive("state nominal of h", saved[5], "m"),
-                                                   validation.positive("state nominal of v", saved[6], "m/s")]
+            exchange = saved_exchange(state.get("model_exchange") if isinstance(state, dict) else None)
             measured = state.get("master_error") if isinstance(state, dict) and exchange is not None else None
             measured = None if measured is None else MasterError.checked(measured)
         except (TypeError, ValueError, IndexError) as error:

@@ -18,23 +18,21 @@ the registration of one variable (_register).
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 import os
 import sys
-from dataclasses import fields
 from typing import NamedTuple
 
 from .. import limits, validation
-from ..contact_laws import CONTACT_PARAMETERS
 from ..ground import Ground
-from ..physics import BALL_DEFAULTS, Ball, Mode, unread_message, without_unread
+from ..physics import Ball, Mode, unread_message, without_unread
 from ..scenes import SCENE_DEFAULTS
-from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, RestartPoint, SolverError, check_resolvable
+from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, SolverError, check_resolvable
 from ..solvers.integrator import checked_start
 from ..solvers.phase_machine.settings import MIN_RTOL, RTOL_RANGE_WHY
 from ..solvers.vibrating_ground import ground_motion, relative_start, relative_to
 from .engine_cache import first_use
+from .saved_state import STATE_FORMAT, saved_values, state_fields, state_from_bytes
 from .variables import (
     FMU_CONTACT_LAWS,
     GROUND_FIELD_OF_START_VALUE,
@@ -45,8 +43,6 @@ from .variables import (
     ground_of,
 )
 
-# 7: the contact law's parameters; 6: the restart time's rounding error, model exchange's nominals; 5: the restart point
-STATE_FORMAT = "bouncingball-fmu-state-8"
 DEFAULT_ENGINE = "auto"  # the compiled engine where numba is installed, loaded from the cache the FMU ships
 SETTABLE_AFTER_INITIALISATION = ("F_ext",)
 # Outputs the slave computes: a master may set the start values of h and v (initial="exact"), not these.
@@ -178,7 +174,7 @@ class BallSlave:
     def _get_fmu_state(self):
         integrator = None
         if self._integrator is not None:
-            integrator = _state_fields(self._integrator.get_state())
+            integrator = state_fields(self._integrator.get_state())
         return {"format": STATE_FORMAT, "values": dict(self._values), "start_time": self._start_time,
                 "stop_time": self._stop_time, "tolerance": self._tolerance, "integrator": integrator}
 
@@ -188,13 +184,12 @@ class BallSlave:
             if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
                 reason = state.get("invalid", "") if isinstance(state, dict) else ""
                 raise ValueError(f"it is not a {self.modelName} state ({STATE_FORMAT}) {reason}")
-            values = _saved_values(state["values"], self._values)
+            values = saved_values(state["values"], self._values)
             if set(values) != set(self._values):
                 raise ValueError(f"its variables {sorted(values)} are not this FMU's")
             start_time = validation.finite("start_time", state["start_time"], "s")
             stop_time, tolerance = state["stop_time"], state["tolerance"]
-            ball, settings = self._ball_and_settings(values, tolerance)
-            ground = self._ground(values)
+            ball, settings, ground = self._ball_and_settings(values, tolerance)
             for name in ("h", "v", "F_ext"):
                 validation.finite(name, values[name])
             saved, integrator = state["integrator"], None
@@ -218,12 +213,7 @@ class BallSlave:
         self._values, self._start_time, self._stop_time, self._tolerance = values, start_time, stop_time, tolerance
         self._integrator = integrator
 
-    @staticmethod
-    def _fmu_state_from_bytes(state: bytes):
-        try:
-            return json.loads(state.decode("utf-8"))
-        except ValueError as error:  # includes UnicodeDecodeError and JSONDecodeError
-            return {"invalid": f"the serialized state cannot be read: {error}"}
+    _fmu_state_from_bytes = staticmethod(state_from_bytes)
 
     # --- variables ------------------------------------------------------------------------------
     def _set(self, name, value):
@@ -264,8 +254,8 @@ class BallSlave:
         return 0.0 if self._integrator is None else self._integrator.error_estimate_at_t
 
     # --- helpers ----------------------------------------------------------------------------------
-    def _ball_and_settings(self, values=None, tolerance=None) -> tuple[Ball, CvodeSettings]:
-        """The ball and CVODE settings from values (default: the current ones); ValueError names a bad value."""
+    def _ball_and_settings(self, values=None, tolerance=None) -> tuple[Ball, CvodeSettings, Ground]:
+        """The ball, CVODE settings and ground from values (default: the current ones); ValueError names a bad value."""
         if values is None:
             values, tolerance = self._values, self._tolerance
         contact = validation.choice("contact_law", values["contact_law"], FMU_CONTACT_LAWS)
@@ -274,24 +264,8 @@ class BallSlave:
         if tolerance is not None:  # the master's tolerance may tighten rtol, never loosen it
             rtol = min(CvodeSettings(rtol=rtol).rtol, validation.in_closed_range(
                 f"tolerance ({self.CALLS['setup']})", tolerance, MIN_RTOL, 1.0, why=RTOL_RANGE_WHY))
-        return ball, CvodeSettings(rtol=rtol, atol=values["atol"], method=values["method"], engine=values["engine"])
-
-    def _ground(self, values=None):
-        """The ground of values (default: the current ones; variables.ground_of); ValueError names a bad value.
-
-        Where ground_amplitude is 0, a ground_frequency or ground_phase set is logged once as not read (as a contact
-        law's parameters are, _read_fields), not refused.
-        """
-        values = self._values if values is None else values
-        ground = ground_of(values)
-        unread = [name for name in ("ground_frequency", "ground_phase") if not ground.moves and values[name] != 0.0]
-        if unread:
-            message = (f"{' and '.join(f'{name} = {values[name]!r}' for name in unread)} "
-                       f"{'are' if len(unread) > 1 else 'is'} ignored: ground_amplitude = 0 is a still ground")
-            if message not in self._unread_told:
-                self._unread_told.add(message)
-                self.log(message, self.STATUS.warning)
-        return ground
+        settings = CvodeSettings(rtol=rtol, atol=values["atol"], method=values["method"], engine=values["engine"])
+        return ball, settings, _read_ground(values, self._unread_told, self.log, self.STATUS.warning)
 
     def _tell_tolerance(self, used: float) -> None:
         """Once per instance: a warning if the master asked for a looser tolerance than rtol, a note if tighter."""
@@ -306,10 +280,9 @@ class BallSlave:
 
         ImportError: the engine asked for is "compiled" and cannot run here (the message says why).
         """
-        ball, settings = self._ball_and_settings()
+        ball, settings, ground = self._ball_and_settings()
         values = self._values
         h, v = validation.finite("h", values["h"], "m"), validation.finite("v", values["v"], "m/s")
-        ground = self._ground()
         with self._engine_first_use(settings.engine):
             return BallIntegrator(ball, h, v, self._start_time, values["F_ext"], settings, ground=ground)
 
@@ -323,8 +296,7 @@ class BallSlave:
     def _start_outputs(self) -> StartOutputs:
         """Before initialisation: the outputs of the start values (start_outputs), no integrator made for them."""
         try:
-            ball, settings = self._ball_and_settings()
-            ground = ground_of(self._values)
+            ball, settings, ground = self._ball_and_settings()
         except ValueError:
             return NO_START_OUTPUTS
         return start_outputs(ball, settings, self._values, self._start_time, ground)
@@ -337,6 +309,20 @@ class BallSlave:
 
     def _error(self, error) -> None:
         self.log(str(error), self.STATUS.error)
+
+
+def _read_ground(values: dict, told: set, log, warning) -> Ground:
+    """The ground of the FMU's values (variables.ground_of); where ground_amplitude is 0, a ground_frequency or
+    ground_phase set is logged once as not read (log's status warning; told: the messages said), as _read_fields
+    does a contact law's parameters."""
+    ground = ground_of(values)
+    unread = [name for name in ("ground_frequency", "ground_phase") if not ground.moves and values[name] != 0.0]
+    message = (f"{' and '.join(f'{name} = {values[name]!r}' for name in unread)} "
+               f"{'are' if len(unread) > 1 else 'is'} ignored: ground_amplitude = 0 is a still ground")
+    if unread and message not in told:
+        told.add(message)
+        log(message, warning)
+    return ground
 
 
 def _read_fields(contact: str, ball_fields: dict, told: set, log, warning) -> dict:
@@ -378,28 +364,6 @@ def tolerance_note(asked: float, rtol: float, used: float, setup_call: str) -> s
                 "carries into every later bounce (at 1e-3 the article's ball misses an impact); to loosen it, set "
                 "the parameter rtol")
     return f"rtol = {used!r} is used: the tolerance of {setup_call}, tighter than the parameter rtol = {rtol!r}"
-
-
-# dataclasses.asdict's deep copy costs ~22 us per fmi2GetFMUstate, three quarters of it; every field is a number, a
-# mode or None, so the fields themselves make the same dict.
-_STATE_FIELDS = tuple(field.name for field in fields(IntegratorState))
-_RESTART_FIELDS = tuple(field.name for field in fields(RestartPoint))
-
-
-def _saved_values(saved: dict, own: dict) -> dict:
-    """A saved state's values; a contact law's parameter this FMU gained since it was saved, which none of the laws
-    then read, at its default; the ground's parameters likewise (an FMU without them ran on a still ground: 0)."""
-    return {**{name: BALL_DEFAULTS[name] for name in CONTACT_PARAMETERS if name in own},
-            **dict.fromkeys(GROUND_FIELD_OF_START_VALUE, 0.0), **saved}
-
-
-def _state_fields(state: IntegratorState) -> dict:
-    """dataclasses.asdict(state), mode as an int: the FMU state's integrator part."""
-    saved = {name: getattr(state, name) for name in _STATE_FIELDS}
-    saved["mode"] = int(state.mode)
-    if state.restart is not None:
-        saved["restart"] = {name: getattr(state.restart, name) for name in _RESTART_FIELDS}
-    return saved
 
 
 def _search_package_in(resources: str) -> None:

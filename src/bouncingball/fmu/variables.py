@@ -115,8 +115,8 @@ SOLUTION_OUTPUTS = tuple(name for name in OUTPUTS if name != "error_estimate")
 # A scene and the FMU's start values, name by name: the ball's parameters under their own names, the
 # scene's start state and force as h, v and F_ext. The one mapping of the slave's defaults, validate,
 # the bench and `check` (testing.scene_with_start_values).
-# The contact laws the FMU runs, in co-simulation and in model exchange (slave3's events): every law of the registry,
-# the slave running the phase machine, which takes each. A law the FMU could not run would be left out here.
+# The contact laws the FMU runs, in co-simulation and in model exchange (model_exchange.py's events): every law of
+# the registry, the slave running the phase machine, which takes each. A law it could not run would be left out.
 FMU_CONTACT_LAWS = CONTACT_LAWS
 
 SCENE_FIELD_OF_START_VALUE = {"m": "m", "k": "k", "b": "b", "R": "R", "g": "g", "contact_law": "contact",

@@ -155,11 +155,10 @@ class BallIntegrator(IntegratorView):
         """Resume from state (one of get_state()); ValueError names a bad field, and then nothing changed.
 
         With a restart point, CVODE restarts there and integrates to state.t again (at most the
-        current phase), then the state is exactly the one taken. On a vibrating ground the state's h and v are
-        taken relative to it at state.t (the ground is the integrator's: a state carries none).
+        current phase), then the state is exactly the one taken (on a vibrating ground: h, v in the world's frame).
         """
-        world_v = state.v if isinstance(state, IntegratorState) else None
-        checked = state_checks.checked(self.ball, relative_state(self.ball, self.ground, state), self.settings)
+        framed = relative_state(self.ball, self.ground, state) if isinstance(state, IntegratorState) else state
+        checked = state_checks.checked(self.ball, framed, self.settings)
         t, x, v, mode, F_ext = checked.point
         counts, t_start = checked.counts, checked.t_start
         check_resolvable(self.ball, t)
@@ -180,7 +179,7 @@ class BallIntegrator(IntegratorView):
             self._report_sundials_warnings()
         reached = self._state
         # The world's velocity compared: a relative one taken from it (v - s') may be an ulp off the machine's own.
-        if (float(reached.x), float(reached.v) + ground_motion(self.ground, t, 1)) != (x, float(world_v)):
+        if (float(reached.x), float(reached.v) + ground_motion(self.ground, t, 1)) != (x, float(state.v)):
             # Not where this restart point leads (a state made by hand, or one a Taylor step within ulps
             # of an earlier target reached): CVODE would continue another trajectory, so it restarts at
             # the state itself, which continues within the tolerance, with the error carried to t (the

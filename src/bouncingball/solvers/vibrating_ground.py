@@ -41,11 +41,9 @@ def relative_state(ball: Ball, ground: Ground, state):
     """A saved state (an IntegratorState, in the world's frame) in the machine's: h, v relative to the ground at its t.
 
     Its gap (h - R - s, the machine's own) is kept to every digit, checked against h: R + gap + s(t) must be h to
-    2 ulps. On a still ground, or for what is not an IntegratorState (state_checks names it), state itself.
+    2 ulps. On a still ground, state itself.
     """
-    from .state import IntegratorState
-
-    if not ground.moves or not isinstance(state, IntegratorState):
+    if not ground.moves:
         return state
     t = validation.finite("state t", state.t, "s")
     h, v = validation.finite("state h", state.h, "m"), validation.finite("state v", state.v, "m/s")
