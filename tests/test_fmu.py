@@ -57,7 +57,7 @@ def test_model_description_has_units_ranges_and_start_values(fmu):
     assert float(variables["m"].min) == SMALLEST_POSITIVE and float(variables["rtol"].max) == 1.0
     assert float(variables["b"].min) == 0.0 and float(variables["g"].min) == 0.0
 
-    assert {u.name: {k: getattr(u.baseUnit, k) for k in ("kg", "m", "s") if getattr(u.baseUnit, k)}
+    assert {u.name: {k: getattr(u.baseUnit, k) for k in ("kg", "m", "s", "rad") if getattr(u.baseUnit, k)}
             for u in md.unitDefinitions} == UNITS
     assert (md.defaultExperiment.startTime, md.defaultExperiment.stopTime) == ("0", "8.0")
     assert float(md.defaultExperiment.tolerance) == settings.rtol  # masters that take it pass the FMU's own back

@@ -152,7 +152,11 @@ def test_check_judges_a_result_on_a_vibrating_table(tmp_path, capsys):
     assert "PASS" in capsys.readouterr().out
     assert main(["check", str(tmp_path / "still.csv"), str(scene)]) == 1
     assert "FAIL" in capsys.readouterr().out
-    with pytest.raises(ValueError, match="the FMU has no ground yet"):
+    table = tmp_path / "points.toml"  # a ground through points: the FMU takes a still one at 0 or a sine only
+    table.write_text('contact = "rigid"\nR = 0.01\nh0 = 0.06\nt_end = 1.0\n[ground]\ntimes = [0.0, 0.5, 1.0, 1.5]\n'
+                     "positions = [0.0, 0.001, 0.0, -0.001]\n", encoding="utf-8")
+    with pytest.raises(ValueError, match="scene 'points' on its ground .* is not allowed for the FMU: it runs on a "
+                                         "still ground at 0 or a sine"):
         from bouncingball.fmu.validate import validate
 
-        validate(str(scene))
+        validate(str(table))
