@@ -149,6 +149,11 @@ StateView = type("StateView", (ctypes.Structure,), {
     "__module__": __name__})
 
 
+# Each field at its initial value: copied into every new compiled state (filling a StateView field by field costs
+# ~10 us of each simulate's ~1.4 ms).
+_INITIAL_VIEW = StateView(*(field.initial for field in FIELDS))
+
+
 def interpreted_state() -> tuple[MachineState, MachineState]:
     """A new state for the scikit-sundae engine: (what Python reads, what the machine takes), one object."""
     state = MachineState()
@@ -161,7 +166,7 @@ def compiled_state() -> tuple[StateView, np.ndarray]:
     The compiled engine's entry points (compiled.py) take the array, which numba types fast, and hand
     the machine the STATE_DTYPE record over that memory.
     """
-    view = StateView(*(field.initial for field in FIELDS))
+    view = StateView.from_buffer_copy(_INITIAL_VIEW)
     return view, np.frombuffer(view, np.float64)
 
 
