@@ -192,7 +192,8 @@ rigid impact on the velocity relative to the table, v+ - s' = -e (v- - s'); a ri
 rides the table until its acceleration falls below -(g - F_ext/m). h, v and a stay in the world's frame. In
 co-simulation the FMU's CVODE runs on the table (no event missed: each step is searched for a graze); in model
 exchange the derivatives, the event indicator (h - R - s(t) in flight) and the mode switches are taken in the
-table's frame, and <code>error_estimate</code> is -1: the master's error is not measured on a moving ground.</p>"""
+table's frame, and <code>error_estimate</code> measures the master's error there against the table's exact
+flows.</p>"""
 
 
 def _variables_section(root: ET.Element, fmi3: bool) -> str:

@@ -20,6 +20,12 @@ start and from each change of F_ext): each accepted state's error is the smaller
 |h - h_exact|, which agree where both hold (the carry where the exact solution's own rounding grows, in an
 ill-conditioned run; the exact solution where the carry's linearisation fails).
 
+On a vibrating ground each phase is measured in the ground's frame (x = h - R - s, v - s'), against the phase
+machine's own flows there (contact_laws.law_flow_at: a flight's parabola less the ground's motion, the linear
+contact's forced oscillation, the rigid ride); the ground's forcing is additive, so the transition matrices are the
+still ground's, and the saltation takes the load in that frame at the event (equations.load_at). The states the
+slave gives are the world's.
+
 What is measured is the master's error itself, not a bound: error_estimate is ESTIMATE_SAFETY times the largest
 error so far. Hunt and Crossley's contact has no closed form: there the error is unknown (UNKNOWN).
 """
@@ -29,12 +35,14 @@ from __future__ import annotations
 import math
 
 from ..codes import DEPARTURE, IMPACT
-from ..contact_laws import LAWS, law_flow_value
-from ..equations import load_value
+from ..contact_laws import LAWS, law_flow_at, law_flow_value
+from ..equations import load_at, load_value
+from ..ground import Ground
 from ..physics import Ball, Mode
 from ..solvers.exact import ExactSolution
 from ..solvers.phase_machine.error_estimate import event_saltation
 from ..solvers.phase_machine.settings import ESTIMATE_SAFETY, PROMISE
+from ..solvers.vibrating_ground import machine_ground, relative_to
 
 UNKNOWN = -1.0  # error_estimate where the law has no closed form to measure against
 EXACT_HORIZON = 1.0  # s: the exact solution is built this far ahead at first, twice as far each time it is passed
@@ -53,10 +61,14 @@ class MasterError:
         The mode at the start.
     F_ext : float
         The external force [N] at the start.
+    ground : Ground, optional
+        The ground (still at 0 by default, or a sine): the states given are the world's, measured in its frame.
     """
 
-    def __init__(self, ball: Ball, t: float, h: float, v: float, mode: Mode, F_ext: float) -> None:
-        self.ball, self.parameters = ball, ball.parameters
+    def __init__(self, ball: Ball, t: float, h: float, v: float, mode: Mode, F_ext: float,
+                 ground: Ground | None = None) -> None:
+        self.ground = Ground() if ground is None else ground
+        self.ball, self.parameters = ball, machine_ground(ball, self.ground)
         self.known = LAWS[ball.contact].closed_form
         self.err_x = self.err_v = 0.0  # the error of (x, v) [m, m/s] at the phase's start
         self.largest = 0.0  # the largest |x error| [m] measured so far
@@ -78,7 +90,8 @@ class MasterError:
             start, h, v, F_ext = self.piece
             horizon = EXACT_HORIZON if exact is None else 2.0 * (exact.t_end - start)
             try:
-                exact = self._exact = ExactSolution(self.ball, h, v, start, max(start + horizon, t), F_ext)
+                exact = self._exact = ExactSolution(self.ball, h, v, start, max(start + horizon, t), F_ext,
+                                                    ground=self.ground)
             except ValueError:
                 return math.nan, math.nan
         h, v = exact.state(t)
@@ -90,20 +103,25 @@ class MasterError:
         return abs(ex) if math.isnan(direct) else min(abs(ex), direct)
 
     def _start(self, t: float, h: float, v: float, mode: Mode, F_ext: float) -> None:
-        """A phase starts at the state: the reference is the exact flow from there."""
-        self.t0, self.x0, self.v0, self.mode = t, h - self.ball.R, v, Mode(mode)
-        self.load = load_value(F_ext, self.ball.m, self.ball.g)
+        """A phase starts at the state (the world's h, v at t): the reference is the exact flow from there."""
+        self.t0, (self.x0, self.v0), self.mode = t, self._in_frame(t, h, v), Mode(mode)
+        self.load = load_value(F_ext, self.ball.m, self.ball.g)  # the ground's acceleration: load_at's, at each t
+
+    def _in_frame(self, t: float, h: float, v: float) -> tuple[float, float]:
+        """(x = h - R - s [m], v - s' [m/s]) at t [s]: the gap and velocity in the ground's frame."""
+        h, v = relative_to(self.ground, t, h, v)
+        return h - self.ball.R, v
 
     # --- what the slave calls ---------------------------------------------------------------------
     def error_at(self, t: float, h: float, v: float) -> tuple[float, float]:
         """The error (of x [m], of v [m/s]) of the master's state (h, v) at t: carried plus the phase's own."""
         parameters, mode, tau = self.parameters, int(self.mode), t - self.t0
-        x_flow, v_flow = law_flow_value(parameters, mode, self.x0, self.v0, tau, self.load)
-        p00, p10 = law_flow_value(parameters, mode, 1.0, 0.0, tau, 0.0)
+        x_flow, v_flow = law_flow_at(parameters, mode, self.x0, self.v0, self.t0, tau, self.load)
+        p00, p10 = law_flow_value(parameters, mode, 1.0, 0.0, tau, 0.0)  # the ground's forcing is additive
         p01, p11 = law_flow_value(parameters, mode, 0.0, 1.0, tau, 0.0)
         ex0, ev0 = self.err_x, self.err_v
-        return (p00 * ex0 + p01 * ev0 + (h - self.ball.R - x_flow),
-                p10 * ex0 + p11 * ev0 + (v - v_flow))
+        x, v = self._in_frame(t, h, v)
+        return p00 * ex0 + p01 * ev0 + (x - x_flow), p10 * ex0 + p11 * ev0 + (v - v_flow)
 
     def accept(self, t: float, h: float, v: float) -> tuple[float, float]:
         """A state the master accepted (h, v at t): its error measured and taken into the largest; the error."""
@@ -147,17 +165,18 @@ class MasterError:
         """
         if self.known:
             ex, ev = self.accept(t, h, v)
-            parameters, x = self.parameters, h - self.ball.R
+            parameters, (x, u) = self.parameters, self._in_frame(t, h, v)
+            load = load_at(parameters, self.load, t)
             for old, new in zip(modes, modes[1:], strict=False):
                 kind = IMPACT if new == Mode.CONTACT and old == Mode.FLIGHT else DEPARTURE
                 if {old, new} == {Mode.FLIGHT, Mode.CONTACT}:
-                    jump, _ = event_saltation(parameters, kind, int(old), v, v, self.load)
+                    jump, _ = event_saltation(parameters, kind, int(old), u, u, load)
                     ev = ev + jump * (ex - x)
             self.err_x, self.err_v = ex, ev
         self._start(t, h, v, modes[-1], F_ext)
 
     def rigid_impact(self, t: float, h: float, v: float, after: list, F_ext: float) -> None:
-        """The rigid ball's impact at the state (h, v at t), after it [h, v, mode, impacts] (rigid_impact's).
+        """The rigid ball's impact at the state (h, v at t), after it [h, v, mode, ...] (rigid_impact's, the world's).
 
         A rebound reflects the error (saltation [[-e, 0], [-(1 + e) g_eff / v, -e]]) of the state less its
         offset x_e = h - R from R, where the truth's impact is. A ball put to rest on R (its bounces summed)
@@ -166,13 +185,14 @@ class MasterError:
         """
         if self.known:
             ex, ev = self.accept(t, h, v)
-            parameters, x = self.parameters, h - self.ball.R
-            g_eff = self.load / parameters.m
-            h_after, mode_after = after[0], after[2]
+            parameters, (x, v), (x_after, v_after) = self.parameters, self._in_frame(t, h, v), self._in_frame(t,
+                                                                                                            *after[:2])
+            load = load_at(parameters, self.load, t)
+            g_eff, mode_after = load / parameters.m, after[2]
             if v >= 0.0:  # found below R moving up: put on R, v kept
-                ex, ev = ex + (h_after - h), ev
+                ex, ev = ex + (x_after - x), ev
             elif mode_after == Mode.FLIGHT:
-                jump, reflection = event_saltation(parameters, IMPACT, int(Mode.FLIGHT), v, after[1], self.load)
+                jump, reflection = event_saltation(parameters, IMPACT, int(Mode.FLIGHT), v, v_after, load)
                 dx = ex - x
                 ex, ev = reflection * dx, jump * dx + reflection * ev
             else:

@@ -35,10 +35,6 @@ def phase_nominals(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> 
             speed if 0.0 < speed < math.inf else 1.0]
 
 
-UNMEASURED_ON_A_MOVING_GROUND = (
-    "model exchange on a vibrating ground: the master's error is not measured (error_estimate is -1, unknown), and a "
-    "ball on a table can amplify it a thousandfold in a few bounces; for a result that keeps the promise, run the "
-    "FMU in co-simulation (its own CVODE, its error estimated), or compare runs at two tolerances of the master")
 # Model exchange, rigid law: a bounce rising less than this many rtol R is summed (the ball rests on R from
 # its impact), as is one lower than the depth below R at which the master noticed the impact. The master's
 # integrator cannot follow it: FMPy's CVODE at rtol = 1e-8 located the landing of a 5e-9 m (8e-8 R) hop at

@@ -27,7 +27,6 @@ from ..physics import Mode, clipped_contact_mode
 from ..solvers.vibrating_ground import ground_motion, relative_to
 from .master_error import UNKNOWN, MasterError, MeasuredMaster
 from .model_exchange import (
-    UNMEASURED_ON_A_MOVING_GROUND,
     UNRESOLVED_APEX_PER_RTOL,
     event_indicator,
     in_frame,
@@ -131,10 +130,8 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
             h, v, F_ext = self._in_frame(integrator.h, integrator.v)
             self._exchange = [integrator.h, integrator.v, clipped_contact_mode(integrator.ball, integrator.mode),
                               integrator.impacts, *phase_nominals(integrator.ball, h, v, integrator.mode, F_ext)]
-            if integrator.ground.moves:  # the master's error is measured against a still ground's flows only
-                self.log(UNMEASURED_ON_A_MOVING_GROUND, self.STATUS.ok)
-            else:
-                self._master_error = MasterError(integrator.ball, self.time, *self._exchange[:3], F_ext)
+            self._master_error = MasterError(integrator.ball, self.time, *self._exchange[:3], self._values["F_ext"],
+                                             integrator.ground)
         return self._exchange
 
     def _in_frame(self, h: float, v: float, time: float | None = None) -> tuple[float, float, float]:
@@ -213,13 +210,13 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
                 apex_floor = max(UNRESOLVED_APEX_PER_RTOL * self._values["rtol"] * ball.R, -x)
                 after = rigid_impact(ball, v, F_ext, impacts, apex_floor)
                 state[:4] = [*in_world(self._integrator.ground, self.time, *after[:2]), *after[2:]]
-                if measured is not None:
-                    measured.rigid_impact(self.time, h, v, after[:3], F_ext)
+                if measured is not None:  # the master's error is measured in the world's values
+                    measured.rigid_impact(self.time, *world, [*state[:2], after[2]], self._values["F_ext"])
             elif mode == Mode.CONTACT and load_value(F_ext, ball.m, ball.g) < 0.0:
                 after = [h, v, Mode.FLIGHT]
                 state[2] = Mode.FLIGHT
                 if measured is not None:
-                    measured.switched(self.time, h, v, [mode, Mode.FLIGHT], F_ext)
+                    measured.switched(self.time, *world, [mode, Mode.FLIGHT], self._values["F_ext"])
             else:
                 return DiscreteStatesUpdate()
             self._tell_master_error()
@@ -235,7 +232,7 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
             mode, switched = switched, switched_mode(ball, h, v, switched, F_ext)
             modes.append(mode)
         if measured is not None:
-            measured.switched(self.time, h, v, modes, F_ext)
+            measured.switched(self.time, *world, modes, self._values["F_ext"])
         self._tell_master_error()
         state[4:6] = phase_nominals(ball, h, v, state[2], F_ext)
         # Said at every switch, even where the new phase's nominals equal the old ones to the bit (a weightless
@@ -313,5 +310,6 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
         self.time = time
         self._master_error = None  # a state saved before the master's error was measured: unknown from there
         if measured is not None:
-            self._master_error = MasterError(self._integrator.ball, time, h, v, mode, self._values["F_ext"])
+            self._master_error = MasterError(self._integrator.ball, time, h, v, mode, self._values["F_ext"],
+                                             self._integrator.ground)
             self._master_error.restore(measured)
