@@ -15,8 +15,14 @@ from bouncingball.scenes import load_scene, scene_from_mapping
 
 @pytest.mark.parametrize("make, words", [
     (lambda: Ground.sine(-1e-3, 10.0), "ground amplitude = -0.001 m is not allowed: it must be finite and >= 0"),
-    (lambda: Ground.sine(1e-3, 0.0), "ground frequency = 0.0 Hz is not allowed: it must be finite and > 0"),
+    (lambda: Ground.sine(1e-3, 0.0), "ground frequency = 0.0 Hz is not allowed: it must be in [1e-06, 1000000] (the "
+                                     "range double precision resolves)"),
     (lambda: Ground.sine(1e-3, 10.0, math.nan), "ground phase = nan rad is not allowed"),
+    # review: a phase of 1e13 rad put a free fall 4e-6 m off in co-simulation; 1e-100 Hz divided by an underflow
+    (lambda: Ground.sine(1e-3, 10.0, 1e13), "ground phase = 10000000000000.0 rad is not allowed: it must be in "
+                                            "[-10000, 10000]"),
+    (lambda: Ground.sine(1e-3, 1e-100), "ground frequency = 1e-100 Hz is not allowed: it must be in [1e-06, "),
+    (lambda: Ground.sine(1e-101, 10.0), "ground amplitude = 1e-101 m is not allowed: it must be in [1e-100, "),
     (lambda: Ground.still(math.inf), "ground height = inf m is not allowed"),
     (lambda: Ground.table([0, 1, 2], [0, 0, 0]), "ground table of 3 points is not allowed: it must have from 4"),
     (lambda: Ground.table([0, 1, 1, 2], [0, 0, 0, 0]), "ground table times[2] = 1.0 s is not allowed: the times "

@@ -27,6 +27,23 @@ MAX_TABLE_ENTRIES = validation.MAX_TABLE_ENTRIES
 MAX_TOUCH_STEPS = 100_000
 # A bound whose root is computed in floats is stepped to just short of it: what numpy's root may overshoot.
 _SHORT_OF_ROOT = 1.0 - 1e-9
+# A sine's ranges in double precision: its touch searches' bound A w^4 neither underflows nor overflows, and
+# sin(w t + phase) keeps the digits a short step's change of angle needs (a phase of 1e13 rad put a free fall 4e-6 m
+# off). The FMU's ground_* parameters have the same ranges.
+SINE_AMPLITUDE_RANGE = (1e-100, 1e100)  # m (0: a still ground)
+SINE_FREQUENCY_RANGE = (1e-6, 1e6)  # Hz
+SINE_PHASE_RANGE = (-1e4, 1e4)  # rad: a larger phase, reduced modulo 2 pi, is the same table
+SINE_RANGE_WHY = "the range double precision resolves"
+
+
+def checked_sine(amplitude, frequency, phase, names=("ground amplitude", "ground frequency", "ground phase")):
+    """(amplitude [m], frequency [Hz], phase [rad]) as floats, each within its SINE_*_RANGE (amplitude > 0).
+
+    ValueError names (by names) the first out of its range.
+    """
+    ranges = (SINE_AMPLITUDE_RANGE, SINE_FREQUENCY_RANGE, SINE_PHASE_RANGE)
+    return tuple(validation.in_closed_range(name, value, *bounds, unit, why=SINE_RANGE_WHY) for name, value, bounds,
+                 unit in zip(names, (amplitude, frequency, phase), ranges, ("m", "Hz", "rad"), strict=True))
 
 
 @dataclass(frozen=True)
@@ -60,9 +77,7 @@ class Ground:
         """A Ground made other than by its three constructors is checked as they check theirs."""
         kind = validation.choice("ground kind", self.kind, ("still", "sine", "table"))
         if kind == "sine":
-            validation.positive("ground amplitude", self.amplitude, "m")
-            validation.positive("ground frequency", self.frequency, "Hz")
-            validation.finite("ground phase", self.phase, "rad")
+            checked_sine(self.amplitude, self.frequency, self.phase)
         if kind == "table" and self._spline is None:
             raise ValueError("ground kind = 'table' is not allowed without its spline: make it with Ground.table(t, s)")
         if kind == "still":
@@ -80,17 +95,17 @@ class Ground:
         Parameters
         ----------
         amplitude : float
-            [m], finite and >= 0 (0: a still ground at 0).
+            [m], 0 (a still ground at 0) or in [1e-100, 1e100].
         frequency : float
-            [Hz], finite and > 0.
+            [Hz], in [1e-6, 1e6].
         phase : float, optional
-            [rad], finite.
+            [rad], in [-1e4, 1e4] (reduce a larger one modulo 2 pi).
         """
-        amplitude = validation.non_negative("ground amplitude", amplitude, "m")
-        frequency = validation.positive("ground frequency", frequency, "Hz")
-        phase = validation.finite("ground phase", phase, "rad")
-        if amplitude == 0.0:
+        if validation.non_negative("ground amplitude", amplitude, "m") == 0.0:
+            validation.positive("ground frequency", frequency, "Hz")
+            validation.finite("ground phase", phase, "rad")
             return cls.still()
+        amplitude, frequency, phase = checked_sine(amplitude, frequency, phase)
         return cls("sine", amplitude=amplitude, frequency=frequency, phase=phase)
 
     @classmethod

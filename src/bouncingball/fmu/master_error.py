@@ -81,6 +81,7 @@ class MasterError:
         self._start(t, h, v, mode, F_ext)
         self.piece = (t, h, v, F_ext)  # where the exact solution starts: the start, or the last change of F_ext
         self._exact: ExactSolution | None = None
+        self._judge_error = math.inf  # the exact solution's own error estimate [m]
 
     def _exact_state(self, t: float) -> tuple[float, float]:
         """(h [m], v [m/s]) of the exact solution at t, from the current piece's start (built EXACT_HORIZON ahead,
@@ -94,13 +95,16 @@ class MasterError:
                                                     ground=self.ground)
             except ValueError:
                 return math.nan, math.nan
+            self._judge_error = exact.error_estimate
         h, v = exact.state(t)
         return float(h[0]), float(v[0])
 
     def _error_of_x(self, t: float, h: float, ex: float) -> float:
-        """|h - h_true| [m] at t: the smaller of the carried error's ex and the exact solution's difference."""
+        """|h - h_true| [m] at t: the smaller of the carried error's ex and the exact solution's difference, but never
+        below that difference less the exact solution's own error (a bound on it): where the master's impacts part
+        from the truth's (a table's bounces amplify its error a thousandfold), the carry's linearisation fails low."""
         direct = abs(h - self._exact_state(t)[0])
-        return abs(ex) if math.isnan(direct) else min(abs(ex), direct)
+        return abs(ex) if math.isnan(direct) else max(min(abs(ex), direct), direct - self._judge_error)
 
     def _start(self, t: float, h: float, v: float, mode: Mode, F_ext: float) -> None:
         """A phase starts at the state (the world's h, v at t): the reference is the exact flow from there."""

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from .. import validation
 from ..contact_laws import CONTACT_LAWS, CONTACT_PARAMETERS, LAWS
-from ..ground import Ground
+from ..ground import SINE_AMPLITUDE_RANGE, SINE_FREQUENCY_RANGE, SINE_PHASE_RANGE, Ground, checked_sine
 from ..solvers.phase_machine.settings import MIN_RTOL
 
 MODEL_NAME = "BouncingBall"
@@ -100,11 +100,13 @@ VARIABLES = (
     FmuVariable("alpha", "Real", "parameter", "fixed", "contact_law hunt-crossley: damping of the force, its "
                 "restitution about 1 - alpha v at impact speed v (>= 0)", "s/m", 0.0),
     FmuVariable("ground_amplitude", "Real", "parameter", "fixed", "amplitude A of the ground's vibration s(t) = A "
-                "sin(2 pi f t + p), every contact law: contact where h = R + s(t) (>= 0; 0, the default: a still "
-                "ground at 0, ground_frequency and ground_phase not read)", "m", 0.0),
-    FmuVariable("ground_frequency", "Real", "parameter", "fixed", "frequency f of the ground's vibration (> 0 where "
-                "ground_amplitude > 0)", "Hz", 0.0),
-    FmuVariable("ground_phase", "Real", "parameter", "fixed", "phase p of the ground's vibration at t = 0", "rad"),
+                "sin(2 pi f t + p), every contact law: contact where h = R + s(t) (0, the default: a still ground at "
+                "0, ground_frequency and ground_phase not read; else in [1e-100, 1e100])", "m", 0.0,
+                SINE_AMPLITUDE_RANGE[1]),
+    FmuVariable("ground_frequency", "Real", "parameter", "fixed", "frequency f of the ground's vibration (in [1e-6, "
+                "1e6] where ground_amplitude > 0)", "Hz", 0.0, SINE_FREQUENCY_RANGE[1]),
+    FmuVariable("ground_phase", "Real", "parameter", "fixed", "phase p of the ground's vibration at t = 0 (a larger "
+                "one, reduced modulo 2 pi, is the same ground)", "rad", *SINE_PHASE_RANGE),
 )
 
 
@@ -147,8 +149,8 @@ def ground_of(start_values) -> Ground:
     if not validation.finite("ground_frequency", frequency, "Hz") > 0.0:
         raise ValueError(f"ground_frequency = {frequency!r} Hz is not allowed with ground_amplitude = {amplitude!r} m: "
                          "it must be > 0 (ground_amplitude = 0 for a still ground)")
-    return Ground.sine(amplitude, float(frequency), validation.finite("ground_phase", start_values["ground_phase"],
-                                                                      "rad"))
+    return Ground.sine(*checked_sine(amplitude, frequency, start_values["ground_phase"],
+                                     names=("ground_amplitude", "ground_frequency", "ground_phase")))
 
 
 def fmu_scene(scene):
