@@ -61,10 +61,16 @@ def _range_of(declared: dict) -> str:
     low, high = declared["min"], declared["max"]
     parts = []
     if low is not None:
-        parts.append("> 0" if float(low) == 5e-324 else f">= {float(low):g}")
+        parts.append("> 0" if float(low) == 5e-324 else f">= {_shortest(low)}")
     if high is not None:
-        parts.append(f"<= {float(high):g}")
+        parts.append(f"<= {_shortest(high)}")
     return ", ".join(parts)
+
+
+def _shortest(text: str) -> str:
+    """A bound as a reader reads it back to the same double: repr's digits, no trailing ".0" (1000000, 1e-15)."""
+    shortest = repr(float(text))
+    return shortest[:-2] if shortest.endswith(".0") else shortest
 
 
 @pytest.mark.parametrize("version", [2, 3])

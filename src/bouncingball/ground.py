@@ -27,9 +27,8 @@ MAX_TABLE_ENTRIES = validation.MAX_TABLE_ENTRIES
 MAX_TOUCH_STEPS = 100_000
 # A bound whose root is computed in floats is stepped to just short of it: what numpy's root may overshoot.
 _SHORT_OF_ROOT = 1.0 - 1e-9
-# A sine's ranges in double precision: its touch searches' bound A w^4 neither underflows nor overflows, and
-# sin(w t + phase) keeps the digits a short step's change of angle needs (a phase of 1e13 rad put a free fall 4e-6 m
-# off). The FMU's ground_* parameters have the same ranges.
+# A sine's ranges in double precision (the FMU's ground_* too): its bound A w^4 neither underflows nor overflows, and
+# sin(w t + phase) keeps the digits a short step needs (a phase of 1e13 rad put a free fall 4e-6 m off).
 SINE_AMPLITUDE_RANGE = (1e-100, 1e100)  # m (0: a still ground)
 SINE_FREQUENCY_RANGE = (1e-6, 1e6)  # Hz
 SINE_PHASE_RANGE = (-1e4, 1e4)  # rad: a larger phase, reduced modulo 2 pi, is the same table
@@ -37,10 +36,7 @@ SINE_RANGE_WHY = "the range double precision resolves"
 
 
 def checked_sine(amplitude, frequency, phase, names=("ground amplitude", "ground frequency", "ground phase")):
-    """(amplitude [m], frequency [Hz], phase [rad]) as floats, each within its SINE_*_RANGE (amplitude > 0).
-
-    ValueError names (by names) the first out of its range.
-    """
+    """(amplitude [m], frequency [Hz], phase [rad]) as floats, each in its SINE_*_RANGE; else ValueError by names."""
     ranges = (SINE_AMPLITUDE_RANGE, SINE_FREQUENCY_RANGE, SINE_PHASE_RANGE)
     return tuple(validation.in_closed_range(name, value, *bounds, unit, why=SINE_RANGE_WHY) for name, value, bounds,
                  unit in zip(names, (amplitude, frequency, phase), ranges, ("m", "Hz", "rad"), strict=True))
