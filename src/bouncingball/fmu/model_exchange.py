@@ -17,6 +17,7 @@ from ..equations import load_value
 from ..ground import Ground
 from ..physics import Ball, Mode
 from ..solvers.phase_machine.phases import phase_scales
+from ..solvers.vibrating_ground import relative_to
 from .variables import SMALLEST_POSITIVE
 
 
@@ -115,7 +116,7 @@ def in_frame(ground: Ground, m: float, t: float, h: float, v: float, F_ext: floa
     F_ext - m s'' (the ground's acceleration as a load of its own); on a still ground h, v and F_ext."""
     if not ground.moves:
         return h, v, F_ext
-    return h - float(ground.position(t)), v - float(ground.velocity(t)), F_ext - m * float(ground.derivative(t, 2))
+    return *relative_to(ground, t, h, v), F_ext - m * float(ground.derivative(t, 2))
 
 
 def in_world(ground: Ground, t: float, h: float, v: float) -> list[float]:

@@ -40,7 +40,7 @@ from .phase_machine.dense_output import fill_grid, interpolate
 from .phase_machine.settings import CvodeSettings, choose_method, too_many_steps_cause
 from .result import EVENT_KINDS, Event, accuracy_warning, warn_at_caller
 from .state import IntegratorState, IntegratorView
-from .vibrating_ground import ground_motion, machine_ground, relative_start, relative_state, world_events, world_grid
+from .vibrating_ground import ground_motion, machine_ground, relative_start, world_events, world_grid
 
 # The modes CVODE integrates, one solver each: the no-pull law's free sub-mode (Mode.FREE) is a parabola,
 # always taken in closed form (phases.decide_phase).
@@ -157,8 +157,7 @@ class BallIntegrator(IntegratorView):
         With a restart point, CVODE restarts there and integrates to state.t again (at most the
         current phase), then the state is exactly the one taken (on a vibrating ground: h, v in the world's frame).
         """
-        framed = relative_state(self.ball, self.ground, state) if isinstance(state, IntegratorState) else state
-        checked = state_checks.checked(self.ball, framed, self.settings)
+        checked = state_checks.checked(self.ball, state, self.settings, self.ground)
         t, x, v, mode, F_ext = checked.point
         counts, t_start = checked.counts, checked.t_start
         check_resolvable(self.ball, t)

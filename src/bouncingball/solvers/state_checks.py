@@ -12,10 +12,12 @@ from dataclasses import dataclass
 from .. import validation
 from ..contact_laws import has_free_sub_mode, impact_is_instantaneous
 from ..equations import load_value
+from ..ground import Ground
 from ..physics import Ball, Mode
 from .phase_machine.phases import frame, on_wrong_side, side_margin
 from .phase_machine.settings import CvodeSettings, hop_tolerance
 from .state import IntegratorState, RestartPoint
+from .vibrating_ground import ground_motion
 
 Counts = tuple[int, int, float | None, int, int]  # impacts, departures, last impact time [s], RHS calls, steps
 
@@ -33,12 +35,16 @@ class CheckedState:
     restart_errors: tuple = (0.0, 0.0, 0.0, None, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-def checked(ball: Ball, state: IntegratorState, settings: CvodeSettings) -> CheckedState:
-    """Every field of state checked for ball and the integrator's settings; ValueError names the first bad one."""
+def checked(ball: Ball, state: IntegratorState, settings: CvodeSettings, ground: Ground | None = None) -> CheckedState:
+    """Every field of state checked for ball and the integrator's settings; ValueError names the first bad one.
+
+    On a vibrating ground (the integrator's: a state carries none) the state's h and v are the world's, its gap and
+    restart point the machine's: the point is taken relative to the ground at its t.
+    """
     if not isinstance(state, IntegratorState):
         raise ValueError(f"state = {validation.shown(state)} is not allowed: it must be an IntegratorState "
                          "(one of get_state())")
-    point = _point(ball, "state", state.t, state.gap, state.h, state.v, state.mode, state.F_ext)
+    point = _point(ball, "state", state.t, state.gap, state.h, state.v, state.mode, state.F_ext, ground)
     if point[3] == Mode.FREE and not has_free_sub_mode(ball.parameters):
         raise ValueError(f"state mode = {Mode.FREE.value} (FREE) is not allowed for contact = {ball.contact!r} "
                          f"(b = {ball.b!r} N s/m): it is the free sub-mode of the linear-no-pull law (with b > 0) "
@@ -106,8 +112,12 @@ def _check_side(ball: Ball, settings: CvodeSettings, name: str, point, start, h)
                          f"it must be {where} R = {ball.R!r} m (within {margin:.3g} m, CVODE's own margin)")
 
 
-def _point(ball: Ball, name: str, t, gap, h, v, mode, F_ext=0.0) -> tuple[float, float, float, Mode, float]:
-    """(t, x, v, mode, F_ext) of a saved state, each field checked; h None: the gap alone."""
+def _point(ball: Ball, name: str, t, gap, h, v, mode, F_ext=0.0, ground: Ground | None = None
+           ) -> tuple[float, float, float, Mode, float]:
+    """(t, x, v, mode, F_ext) of a saved state, each field checked; h None: the gap alone (the machine's).
+
+    With h, on a ground that moves: x = h - R - s(t), v - s'(t), the gap (kept to every digit) checked against h.
+    """
     t = validation.finite(f"{name} t", t, "s")
     v = validation.finite(f"{name} v", v, "m/s")
     F_ext = validation.finite(f"{name} F_ext", F_ext, "N")
@@ -119,13 +129,16 @@ def _point(ball: Ball, name: str, t, gap, h, v, mode, F_ext=0.0) -> tuple[float,
     if h is None:
         return t, validation.finite(f"{name} gap", gap, "m"), v, mode, F_ext
     h = validation.finite(f"{name} h", h, "m")
-    x = h - ball.R
+    ground = Ground() if ground is None else ground
+    surface = ground_motion(ground, t, 0)
+    x = h - ball.R - surface
     if gap is not None:
         x = validation.finite(f"{name} gap", gap, "m")
-        if not abs((ball.R + x) - h) <= 2.0 * math.ulp(max(abs(h), ball.R)):
-            raise ValueError(f"{name} gap = {x!r} m is not allowed with h = {h!r} m: R + gap must be h "
-                             f"(R = {ball.R!r} m)")
-    return t, x, v, mode, F_ext
+        if not abs((ball.R + x + surface) - h) <= 2.0 * math.ulp(max(abs(h), ball.R, abs(surface))):
+            where = (f", the ground's s(t) = {surface!r} m at t = {t!r} s" if ground.moves else "")
+            raise ValueError(f"{name} gap = {x!r} m is not allowed with h = {h!r} m: R + gap{' + s(t)' * ground.moves} "
+                             f"must be h (R = {ball.R!r} m{where})")
+    return t, x, v - ground_motion(ground, t, 1), mode, F_ext
 
 
 def _counts(name: str, saved) -> Counts:

@@ -9,7 +9,6 @@ events' velocities in the world's frame.
 from __future__ import annotations
 
 import dataclasses
-import math
 
 from .. import validation
 from ..ground import Ground
@@ -35,26 +34,6 @@ def machine_ground(ball: Ball, ground: Ground):
         check_moving_ground(ball, ground)
     return parameters._replace(ground_amplitude=ground.amplitude, ground_omega=ground.omega,
                                ground_phase=ground.phase)
-
-
-def relative_state(ball: Ball, ground: Ground, state):
-    """A saved state (an IntegratorState, in the world's frame) in the machine's: h, v relative to the ground at its t.
-
-    Its gap (h - R - s, the machine's own) is kept to every digit, checked against h: R + gap + s(t) must be h to
-    2 ulps. On a still ground, state itself.
-    """
-    if not ground.moves:
-        return state
-    t = validation.finite("state t", state.t, "s")
-    h, v = validation.finite("state h", state.h, "m"), validation.finite("state v", state.v, "m/s")
-    surface = float(ground.position(t))
-    if state.gap is None:
-        return dataclasses.replace(state, h=h - surface, v=v - float(ground.velocity(t)))
-    gap = validation.finite("state gap", state.gap, "m")
-    if not abs((ball.R + gap + surface) - h) <= 2.0 * math.ulp(max(abs(h), ball.R, abs(surface))):
-        raise ValueError(f"state gap = {gap!r} m is not allowed with h = {h!r} m: R + gap + s(t) must be h (R = "
-                         f"{ball.R!r} m, the ground's s(t) = {surface!r} m at t = {t!r} s)")
-    return dataclasses.replace(state, h=ball.R + gap, v=v - float(ground.velocity(t)))
 
 
 def relative_start(ball: Ball, ground: Ground, h0, v0, t0, F_ext, settings, checked_start):

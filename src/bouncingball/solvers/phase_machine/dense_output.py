@@ -100,7 +100,7 @@ def fill_grid(parameters, load, points, n_points, t, x, v):
 
     Each step's mismatch is computed once, for all the grid times inside it.
     """
-    i, step, moving, blended = 0, -1, parameters.ground_amplitude != 0.0, True
+    i, step, moving, own, blended = 0, -1, parameters.ground_amplitude != 0.0, False, True
     mode, t0, x0, v0, dt, dx, dv = 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     for n in range(t.shape[0]):
         while i < n_points - 2 and points[i + 1, 0] <= t[n]:
@@ -109,10 +109,11 @@ def fill_grid(parameters, load, points, n_points, t, x, v):
             step, mode, t0, x0, v0 = i, int(points[i, 3]), points[i, 0], points[i, 1], points[i, 2]
             dt, dx, dv = step_mismatch(parameters, load, mode, t0, x0, v0, points[i + 1, 0], points[i + 1, 1],
                                        points[i + 1, 2])
-            blended = not (moving or own_interpolant(parameters, mode))
+            own = own_interpolant(parameters, mode)
+            blended = not (moving or own)
         if blended:
             x[n], v[n] = blended_state(parameters, load, mode, t0, x0, v0, dt, dx, dv, t[n])
-        elif own_interpolant(parameters, mode):
+        elif own:
             x[n], v[n] = law_interpolant(parameters, load, mode, t0, x0, v0, points[i + 1, 0], points[i + 1, 1],
                                          points[i + 1, 2], t[n])
         else:
