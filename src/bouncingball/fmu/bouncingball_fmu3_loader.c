@@ -34,6 +34,7 @@
 #include <math.h>
 #include <pthread.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -127,6 +128,8 @@ typedef struct Instance {
     fmi3Boolean early_return_allowed;
     fmi3Status worst; /* worst status logged during the current call */
     int dead;         /* pythonfmu3 returned fmi3Fatal: its instance is gone */
+    double *served_values; /* what is served without entering Python (bouncingball_fmu_python.h) */
+    intptr_t *served_control;
     Interface interface;
     State state;
     struct Instance *next; /* the list of live instances */
@@ -185,26 +188,30 @@ static int known_references(Instance *c, const char *function, const fmi3ValueRe
     return of_type(c, function, vr, nvr, type);
 }
 
-#define FORWARD_VALUES(function, type)                                                                          \
+#define FORWARD_VALUES(function, type, serve, forward)                                                          \
     do {                                                                                                        \
         CHECK(function)                                                                                         \
         if (!known_references(c_, FMI_STRING(function), valueReferences, nValueReferences, nValues, values, type)) { \
             return fmi3Error;                                                                                   \
         }                                                                                                       \
-        CALL_TO(c_->state, function, valueReferences, nValueReferences, values, nValues);                       \
+        serve;                                                                                                  \
+        forward(function, valueReferences, nValueReferences, values, nValues);                                  \
     } while (0)
 
-/* The getter and setter of one type of variable. */
-#define VALUES_OF(type, ctype, letter)                                                                        \
+/* A setter forwarded. */
+#define SET_CALL(function, ...) CALL_TO(c_->state, function, ##__VA_ARGS__)
+
+/* The getter and setter of one type of variable; the getter serves (SERVE_VALUES) what it can. */
+#define VALUES_OF(type, ctype, letter, serve)                                                                 \
     fmi3Status fmi3Get##type(fmi3Instance instance, const fmi3ValueReference valueReferences[],               \
                              size_t nValueReferences, ctype values[], size_t nValues)                         \
     {                                                                                                         \
-        FORWARD_VALUES(Get##type, letter);                                                                    \
+        FORWARD_VALUES(Get##type, letter, serve, READ_CALL);                                                  \
     }                                                                                                         \
     fmi3Status fmi3Set##type(fmi3Instance instance, const fmi3ValueReference valueReferences[],               \
                              size_t nValueReferences, const ctype values[], size_t nValues)                   \
     {                                                                                                         \
-        FORWARD_VALUES(Set##type, letter);                                                                    \
+        FORWARD_VALUES(Set##type, letter, (void)0, SET_CALL);                                                 \
     }
 
 /* An array argument of the model exchange calls: not NULL and of the model's size. */
@@ -259,8 +266,8 @@ fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String in
     if (c == NULL) {
         return NULL;
     }
-    c->inner = inner.InstantiateModelExchange(instanceName, instantiationToken, resourcePath, visible, fmi3True, c,
-                                              log_message);
+    MAKING(c, c->inner = inner.InstantiateModelExchange(instanceName, instantiationToken, resourcePath, visible,
+                                                        fmi3True, c, log_message));
     return keep(c);
 }
 
@@ -290,8 +297,9 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     }
     c->event_mode_used = eventModeUsed;
     c->early_return_allowed = earlyReturnAllowed;
-    c->inner = inner.InstantiateCoSimulation(instanceName, instantiationToken, resourcePath, visible, fmi3True,
-                                             eventModeUsed, earlyReturnAllowed, NULL, 0, c, log_message, NULL);
+    MAKING(c, c->inner = inner.InstantiateCoSimulation(instanceName, instantiationToken, resourcePath, visible,
+                                                       fmi3True, eventModeUsed, earlyReturnAllowed, NULL, 0, c,
+                                                       log_message, NULL));
     return keep(c);
 }
 
@@ -335,6 +343,7 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
     if (toleranceDefined && tolerance < 1e-3) {
         say(c, fmi3OK, "tolerance = %g (fmi3EnterInitializationMode) is not used: set the parameter rtol", tolerance);
     }
+    unserve(c);
     status = finish(c, inner.SetTime(c->inner, startTime)); /* the start time: pythonfmu3 drops it below */
     if (status > fmi3Warning) {
         return status;
@@ -383,7 +392,7 @@ fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) { ENTER(CONTINUOUS
 
 fmi3Status fmi3Terminate(fmi3Instance instance) { FORWARD_TO(TERMINATED, Terminate); }
 
-fmi3Status fmi3Reset(fmi3Instance instance) { FORWARD_TO(INSTANTIATED, Reset); }
+fmi3Status fmi3Reset(fmi3Instance instance) { return reset_instance(instance); }
 
 fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discreteStatesNeedUpdate,
                                     fmi3Boolean *terminateSimulation, fmi3Boolean *nominalsOfContinuousStatesChanged,
@@ -405,16 +414,18 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
     if (c->interface == CO_SIMULATION) {
         return fmi3OK; /* the co-simulation slave switches its mode inside fmi3DoStep */
     }
+    unserve(c);
     return finish(c, inner.UpdateDiscreteStates(c->inner, discreteStatesNeedUpdate, terminateSimulation,
                                                 nominalsOfContinuousStatesChanged, valuesOfContinuousStatesChanged,
                                                 nextEventTimeDefined, nextEventTime));
 }
 
 /* --- variables ------------------------------------------------------------------------------------ */
-VALUES_OF(Float64, fmi3Float64, 'R')
-VALUES_OF(Int32, fmi3Int32, 'I')
-VALUES_OF(Boolean, fmi3Boolean, 'B')
-VALUES_OF(String, fmi3String, 'S')
+#define AS_BOOLEAN(x) ((x) != 0.0)
+VALUES_OF(Float64, fmi3Float64, 'R', SERVE_VALUES((fmi3Float64), valueReferences, nValueReferences, values))
+VALUES_OF(Int32, fmi3Int32, 'I', SERVE_VALUES((fmi3Int32), valueReferences, nValueReferences, values))
+VALUES_OF(Boolean, fmi3Boolean, 'B', SERVE_VALUES(AS_BOOLEAN, valueReferences, nValueReferences, values))
+VALUES_OF(String, fmi3String, 'S', (void)0)
 
 /* Calls for what this FMU does not have: answered here, never forwarded (pythonfmu3 throws from them). They
  * ignore their arguments. */
@@ -586,6 +597,9 @@ static fmi3Float64 slave_time(Instance *c)
 {
     const fmi3ValueReference time_reference = BB_TIME_REFERENCE;
     fmi3Float64 time = NAN;
+    if (served_ready(c)) {
+        return c->served_values[time_reference];
+    }
     if (finish(c, inner.GetFloat64(c->inner, &time_reference, 1, &time, 1)) > fmi3Warning) {
         return NAN;
     }
@@ -612,9 +626,14 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     }
     *eventHandlingNeeded = *terminateSimulation = *earlyReturn = fmi3False;
     *lastSuccessfulTime = currentCommunicationPoint;
+    if (stepped_in_c(c, t, step)) { /* inside CVODE's last step: no event in it, the slave's arithmetic compiled */
+        *lastSuccessfulTime = slave_time(c);
+        return fmi3OK;
+    }
     for (;;) {
         /* The slave returns at the first impact or departure inside the step, or at its end. */
         c->worst = fmi3OK;
+        unserve(c);
         fmi3Status s = finish(c, inner.DoStep(c->inner, t, step, noSetFMUStatePriorToCurrentPoint, &ignored_event,
                                               &terminate, &ignored_early, &ignored_time));
         status = s > status ? s : status;

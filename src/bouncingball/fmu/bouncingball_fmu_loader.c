@@ -37,6 +37,7 @@
 #include <libgen.h>
 #include <pthread.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -135,6 +136,8 @@ typedef struct Instance {
     fmi2Status worst;             /* worst status logged during the current call */
     int dead;                     /* pythonfmu returned fmi2Fatal: its instance is gone */
     State state;
+    double *served_values;        /* what is served without entering Python (bouncingball_fmu_python.h) */
+    intptr_t *served_control;
     struct Instance *next;        /* the list of live instances */
 } Instance;
 
@@ -177,7 +180,7 @@ static void log_message(fmi2ComponentEnvironment environment, fmi2String name, f
 }
 
 /* FORWARD for a getter or setter of one type: its value references are checked first. */
-#define FORWARD_VALUES(function, type, ...)                                                           \
+#define FORWARD_VALUES(function, type, serve, forward, ...)                                           \
     do {                                                                                              \
         CHECK(function)                                                                               \
         if (nvr > 0 && vr == NULL) {                                                                  \
@@ -187,19 +190,23 @@ static void log_message(fmi2ComponentEnvironment environment, fmi2String name, f
         if (!of_type(c_, FMI_STRING(function), vr, nvr, type)) {                                      \
             return fmi2Error;                                                                         \
         }                                                                                             \
-        CALL_TO(c_->state, function, vr, nvr, ##__VA_ARGS__);                                         \
+        serve;                                                                                        \
+        forward(function, vr, nvr, ##__VA_ARGS__);                                                    \
     } while (0)
 
-/* The getter and setter of one type of variable. */
-#define VALUES_OF(type, ctype, letter)                                                                     \
+/* A setter forwarded. */
+#define SET_CALL(function, ...) CALL_TO(c_->state, function, ##__VA_ARGS__)
+
+/* The getter and setter of one type of variable; the getter serves (SERVE_VALUES) what it can. */
+#define VALUES_OF(type, ctype, letter, serve)                                                              \
     fmi2Status fmi2Get##type(fmi2Component instance, const fmi2ValueReference vr[], size_t nvr, ctype value[]) \
     {                                                                                                       \
-        FORWARD_VALUES(Get##type, letter, value);                                                           \
+        FORWARD_VALUES(Get##type, letter, serve, READ_CALL, value);                                         \
     }                                                                                                       \
     fmi2Status fmi2Set##type(fmi2Component instance, const fmi2ValueReference vr[], size_t nvr,            \
                              const ctype value[])                                                           \
     {                                                                                                       \
-        FORWARD_VALUES(Set##type, letter, value);                                                           \
+        FORWARD_VALUES(Set##type, letter, (void)0, SET_CALL, value);                                        \
     }
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -234,7 +241,8 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         c->own.allocateMemory = calloc;
         c->own.freeMemory = free;
     }
-    c->inner = inner.Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, &c->own, visible, fmi2True);
+    MAKING(c, c->inner = inner.Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, &c->own, visible,
+                                           fmi2True));
     return keep(c);
 }
 
@@ -260,12 +268,13 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component instance) { FORWARD_TO(STEP_
 
 fmi2Status fmi2Terminate(fmi2Component instance) { FORWARD_TO(TERMINATED, Terminate); }
 
-fmi2Status fmi2Reset(fmi2Component instance) { FORWARD_TO(INSTANTIATED, Reset); }
+fmi2Status fmi2Reset(fmi2Component instance) { return reset_instance(instance); }
 
-VALUES_OF(Real, fmi2Real, 'R')
-VALUES_OF(Integer, fmi2Integer, 'I')
-VALUES_OF(Boolean, fmi2Boolean, 'B')
-VALUES_OF(String, fmi2String, 'S')
+#define AS_BOOLEAN(x) ((x) != 0.0)
+VALUES_OF(Real, fmi2Real, 'R', SERVE_VALUES((fmi2Real), vr, nvr, value))
+VALUES_OF(Integer, fmi2Integer, 'I', SERVE_VALUES((fmi2Integer), vr, nvr, value))
+VALUES_OF(Boolean, fmi2Boolean, 'B', SERVE_VALUES(AS_BOOLEAN, vr, nvr, value))
+VALUES_OF(String, fmi2String, 'S', (void)0)
 
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component instance, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
@@ -289,7 +298,11 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component instance, const fmi2ValueR
 fmi2Status fmi2DoStep(fmi2Component instance, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
-    FORWARD(DoStep, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint);
+    CHECK(DoStep)
+    if (stepped_in_c(c_, currentCommunicationPoint, communicationStepSize)) {
+        return fmi2OK; /* inside CVODE's last step: the slave's own arithmetic, compiled, without Python */
+    }
+    CALL_TO(c_->state, DoStep, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint);
 }
 
 fmi2Status fmi2CancelStep(fmi2Component instance) { FORWARD(CancelStep); }

@@ -3,7 +3,7 @@
  * the instances' life, the status of a forwarded call, and the FMU state calls. Included by
  * bouncingball_fmu_loader.c (FMI 2.0) and bouncingball_fmu3_loader.c (FMI 3.0), which define the
  * macros they describe (BB_LIBPYTHON, BB_PYTHON, BB_INNER, BB_PYTHON_VERSION, BB_HOST_CHECK,
- * BB_VARIABLE_TYPES), include <dlfcn.h>, <libgen.h>, <pthread.h>, <stdarg.h>, <stdio.h>, <stdlib.h>,
+ * BB_VARIABLE_TYPES), include <dlfcn.h>, <libgen.h>, <pthread.h>, <stdarg.h>, <stdint.h>, <stdio.h>, <stdlib.h>,
  * <string.h>, <unistd.h>, <wchar.h> and their FMI headers, and define first:
  *   FMI_PREFIX            fmi2 or fmi3: FMI(Status) is fmi2Status or fmi3Status (the statuses are numbered alike);
  *   FMI_INSTANCE, FMI_STATE_TYPE  the types of an instance and of an FMU state (fmi2Component, fmi2FMUstate);
@@ -13,7 +13,8 @@
  *   State                 an enum whose first value is INSTANTIATED, STATE_NAMES, IN(state) (a mask bit)
  *                         and ALLOWED_<call> (the mask of the states each forwarded call is allowed in);
  *   TYPE_NAMES            the version's names of the variable types R, I, B and S;
- *   Instance              with inner, name, logging_on, worst, dead, state and `struct Instance *next`;
+ *   Instance              with inner, name, logging_on, worst, dead, state, `double *served_values`,
+ *                         `intptr_t *served_control` and `struct Instance *next`;
  * and, after the #include, the functions declared below as the loader's.
  */
 #ifndef BOUNCINGBALL_FMU_PYTHON_H
@@ -42,6 +43,75 @@ static struct {
 } inner;
 
 static void (*release_python_state)(void); /* pythonfmu's finalizePythonInterpreter */
+
+/* --- what the loader serves without entering Python (fmu/c_layer.py, the slave's side) ----------------------
+ * The slave's values by value reference (Integers and Booleans as doubles), and the control slots: READY (the
+ * values are the slave's current ones and STEP may be called), STEP (0, or the address of a compiled function that
+ * does the slave's doStep(currentCommunicationPoint, communicationStepSize) where it ends inside its integrator's
+ * last CVODE step, writing the values it changes: 1 if it did, 0 if it did nothing) and CONTEXT (STEP's first
+ * argument). The slave owns the memory and sets READY at the end of each step it took; the loader clears it before
+ * it forwards any call but a getter (unserve), so that what a set, a reset or a restored state changes is never
+ * served stale. The slave hands its memory over (bouncingball_serve) while it is being made: in fmi2Instantiate /
+ * fmi3Instantiate* and Reset, where `linking` is the instance. */
+enum { SERVED_READY, SERVED_STEP, SERVED_CONTEXT, SERVED_SLOTS };
+typedef int (*InStep)(intptr_t context, double current_time, double step_size);
+
+static __thread Instance *linking;
+
+/* Called by the slave (ctypes) while it is being made: its memory for the instance being made; 1 if taken. */
+__attribute__((visibility("default"))) int bouncingball_serve(double *values, intptr_t *control, size_t n)
+{
+    if (linking == NULL || values == NULL || control == NULL || n != sizeof BB_VARIABLE_TYPES - 1) {
+        return 0;
+    }
+    control[SERVED_READY] = 0;
+    linking->served_values = values;
+    linking->served_control = control;
+    return 1;
+}
+
+static int served_ready(const Instance *c) { return c->served_control != NULL && c->served_control[SERVED_READY]; }
+
+/* Before any call forwarded to the slave: its values may change, or its memory go (Reset, FreeInstance). */
+static void unserve(Instance *c)
+{
+    if (c->served_control != NULL) {
+        c->served_control[SERVED_READY] = 0;
+    }
+}
+
+/* The slave is made anew (Instantiate, Reset): the old one's memory is not to be read again; the new one hands its
+ * own over while `call` makes it. */
+#define MAKING(c, call)                 \
+    do {                                \
+        unserve(c);                     \
+        (c)->served_values = NULL;      \
+        (c)->served_control = NULL;     \
+        linking = (c);                  \
+        call;                           \
+        linking = NULL;                 \
+    } while (0)
+
+/* The slave's compiled doStep from current_time by step_size, where it is served and the step ends inside the
+ * integrator's last CVODE step; 1 if taken (the values are current), else 0 and nothing changed. */
+static int stepped_in_c(Instance *c, double current_time, double step_size)
+{
+    InStep step;
+    if (!served_ready(c) || c->served_control[SERVED_STEP] == 0) {
+        return 0;
+    }
+    *(void **)&step = (void *)c->served_control[SERVED_STEP];
+    return step(c->served_control[SERVED_CONTEXT], current_time, step_size) == 1;
+}
+
+/* In a getter, once its value references are checked: the served values (convert: a cast to the getter's type). */
+#define SERVE_VALUES(convert, vr, nvr, value)                   \
+    if (served_ready(c_)) {                                     \
+        for (size_t i_ = 0; i_ < (nvr); i_++) {                 \
+            (value)[i_] = convert(c_->served_values[(vr)[i_]]); \
+        }                                                       \
+        return FMI(OK);                                         \
+    }
 
 /* An FMU state: pythonfmu's, and the state-machine state it was taken in (serialized: one byte in front of
  * pythonfmu's bytes; restoring it restores both). */
@@ -368,6 +438,9 @@ static void free_instance(FMI_INSTANCE instance)
     if (c == NULL || !unlink_live(c)) {
         return;
     }
+    unserve(c);
+    c->served_values = NULL;
+    c->served_control = NULL;
     if (!c->dead) { /* a dead inner instance has released its objects already */
         inner.FreeInstance(c->inner);
     }
@@ -457,6 +530,7 @@ static int allowed(Instance *c, const char *function, unsigned mask)
  * (GNU ##__VA_ARGS__: gcc and clang drop the comma for calls without arguments). */
 #define CALL_TO(next, function, ...)                                               \
     do {                                                                           \
+        unserve(c_);                                                               \
         FMI(Status) status_ = finish(c_, inner.function(c_->inner, ##__VA_ARGS__)); \
         if (status_ <= FMI(Warning)) {                                             \
             c_->state = (next);                                                    \
@@ -464,11 +538,26 @@ static int allowed(Instance *c, const char *function, unsigned mask)
         return status_;                                                            \
     } while (0)
 
+/* A getter forwarded: nothing it reads changes, what is served stays served. */
+#define READ_CALL(function, ...) return finish(c_, inner.function(c_->inner, ##__VA_ARGS__))
+
 #define FORWARD_TO(next, function, ...)         \
     do {                                        \
         CHECK(function)                         \
         CALL_TO(next, function, ##__VA_ARGS__); \
     } while (0)
+
+/* Reset: the slave is made anew (MAKING), in state INSTANTIATED if it succeeded. */
+static FMI(Status) reset_instance(FMI_INSTANCE instance)
+{
+    FMI(Status) status;
+    CHECK(Reset)
+    MAKING(c_, status = finish(c_, inner.Reset(c_->inner)));
+    if (status <= FMI(Warning)) {
+        c_->state = INSTANTIATED;
+    }
+    return status;
+}
 
 /* A call that leaves the state as it is. */
 #define FORWARD(function, ...) FORWARD_TO(c_->state, function, ##__VA_ARGS__)

@@ -14,7 +14,7 @@ from .. import validation
 from ..contact_laws import CONTACT_PARAMETERS
 from ..physics import BALL_DEFAULTS, Mode
 from ..solvers.cvode import IntegratorState, RestartPoint
-from .variables import GROUND_FIELD_OF_START_VALUE
+from .variables import GROUND_FIELD_OF_START_VALUE, MODEL_NAME
 
 # 7: the contact law's parameters; 6: the restart time's rounding error, model exchange's nominals; 5: the restart point
 # (8 gained the ground's parameters without a new format: a state without them is on the still ground, as before)
@@ -24,6 +24,18 @@ STATE_FORMAT = "bouncingball-fmu-state-8"
 # mode or None, so the fields themselves make the same dict.
 _STATE_FIELDS = tuple(field.name for field in fields(IntegratorState))
 _RESTART_FIELDS = tuple(field.name for field in fields(RestartPoint))
+
+
+def saved_header(state, own: dict) -> tuple:
+    """(values, start_time, stop_time, tolerance) of a saved FMU state, its values checked against own (the FMU's
+    current ones, by name): ValueError (KeyError, TypeError) where it is not a state of this FMU."""
+    if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
+        reason = state.get("invalid", "") if isinstance(state, dict) else ""
+        raise ValueError(f"it is not a {MODEL_NAME} state ({STATE_FORMAT}) {reason}")
+    values = saved_values(state["values"], own)
+    if set(values) != set(own):
+        raise ValueError(f"its variables {sorted(values)} are not this FMU's")
+    return values, validation.finite("start_time", state["start_time"], "s"), state["stop_time"], state["tolerance"]
 
 
 def saved_values(saved: dict, own: dict) -> dict:

@@ -71,6 +71,7 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
     STATUS = Fmi3Status
     CALLS = {"setup": "fmi3EnterInitializationMode", "step": "fmi3DoStep", "set_state": "fmi3SetFMUState"}
     STOP_AT_EVENT = True
+    VERSION_GETTERS = {"time": "_time", "der(h)": "_v", "der(v)": "_a", "gap": "_gap"}
     # Made once: pythonfmu3's binary reads status and terminateSimulation off what do_step returns, and off a bool
     # each is an attribute lookup that fails (an AttributeError raised and cleared) on every doStep.
     STEPPED, REFUSED = Fmi3StepResult(Fmi3Status.ok), Fmi3StepResult(Fmi3Status.discard)
@@ -82,10 +83,6 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
         self._master_error: MasterError | None = None  # model exchange: the master's error (master_error.py)
         super().__init__(**kwargs)
         self.author, self.description = BallSlave.author, BallSlave.description  # pythonfmu3 resets them
-        getters = {"time": self._time, "der(h)": self._v, "der(v)": self._a, "gap": self._gap}
-        for variable in FMI3_VARIABLES:
-            self._register(variable, getters[variable.name],
-                           lambda value, name=variable.name: self._error(f"{name} cannot be set"))
 
     def _register(self, variable, getter, setter) -> None:
         extra = {"derivative": REFERENCES[variable.derivative]} if variable.derivative else {}

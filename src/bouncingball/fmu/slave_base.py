@@ -31,9 +31,11 @@ from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, Solv
 from ..solvers.integrator import checked_start
 from ..solvers.phase_machine.settings import MIN_RTOL, RTOL_RANGE_WHY
 from ..solvers.vibrating_ground import ground_motion, relative_start, relative_to
+from .c_layer import ServedValues
 from .engine_cache import first_use
-from .saved_state import STATE_FORMAT, saved_values, state_fields, state_from_bytes
+from .saved_state import STATE_FORMAT, saved_header, state_fields, state_from_bytes
 from .variables import (
+    FMI3_VARIABLES,
     FMU_CONTACT_LAWS,
     GROUND_FIELD_OF_START_VALUE,
     SCENE_FIELD_OF_START_VALUE,
@@ -67,6 +69,7 @@ class BallSlave:
     CALLS = {"setup": "fmi2SetupExperiment", "step": "fmi2DoStep", "set_state": "fmi2SetFMUstate"}
     STOP_AT_EVENT = False  # True: do_step returns at the first impact or departure inside the step
     STEPPED, REFUSED = True, False  # what do_step returns: the step taken, or refused (an error logged)
+    VERSION_GETTERS: dict = {}  # FMI 3.0's own variables (FMI3_VARIABLES), after VARIABLES: their getters' names
 
     author = "bouncingball"
     description = ("A ball with compliant contact (spring k, damper b) over rigid ground, integrated by "
@@ -104,6 +107,10 @@ class BallSlave:
             else:  # a parameter or input reads the value set
                 getter = lambda name=variable.name: self._values[name]  # noqa: E731
             self._register(variable, getter, lambda value, name=variable.name: self._set(name, value))
+        for variable in FMI3_VARIABLES if self.VERSION_GETTERS else ():
+            self._register(variable, getattr(self, self.VERSION_GETTERS[variable.name]),
+                           lambda value, name=variable.name: self._error(f"{name} cannot be set"))
+        self._served = ServedValues(resources, getattr(self, "vars", {}))  # while the loader makes the instance
 
     def _output_getters(self) -> dict:
         """Each output's getter by the output's name (variables.VARIABLES'), the one table that pairs them."""
@@ -116,9 +123,7 @@ class BallSlave:
 
     # --- FMI calls ------------------------------------------------------------------------------
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self._start_time = start_time
-        self._stop_time = stop_time
-        self._tolerance = tolerance
+        self._start_time, self._stop_time, self._tolerance = start_time, stop_time, tolerance
 
     def exit_initialization_mode(self):
         try:
@@ -138,7 +143,12 @@ class BallSlave:
             self._error(error)
 
     def do_step(self, current_time, step_size):
-        """Advance from current_time by step_size [s], resolving every contact on the way (see STOP_AT_EVENT)."""
+        """Advance by step_size [s], every contact resolved (STOP_AT_EVENT); the values left to the loader (c_layer)."""
+        if (stepped := self._step(current_time, step_size)) is self.STEPPED:
+            self._served.publish(self._integrator, self._values)
+        return stepped
+
+    def _step(self, current_time, step_size):
         integrator = self._integrator
         if integrator is None:
             self._error(f"{self.CALLS['step']} before initialisation (or after a failed one)")
@@ -181,14 +191,7 @@ class BallSlave:
     def _set_fmu_state(self, state):
         """All or nothing: the whole state is checked (parameters, start values, integrator) first."""
         try:
-            if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
-                reason = state.get("invalid", "") if isinstance(state, dict) else ""
-                raise ValueError(f"it is not a {self.modelName} state ({STATE_FORMAT}) {reason}")
-            values = saved_values(state["values"], self._values)
-            if set(values) != set(self._values):
-                raise ValueError(f"its variables {sorted(values)} are not this FMU's")
-            start_time = validation.finite("start_time", state["start_time"], "s")
-            stop_time, tolerance = state["stop_time"], state["tolerance"]
+            values, start_time, stop_time, tolerance = saved_header(state, self._values)
             ball, settings, ground = self._ball_and_settings(values, tolerance)
             for name in ("h", "v", "F_ext"):
                 validation.finite(name, values[name])

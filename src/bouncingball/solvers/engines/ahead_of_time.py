@@ -37,11 +37,13 @@ SHIPPED = "numba-cache"  # the folder of the shipped cache files: inside the pac
 PORTABLE_CPU = "generic"  # numba's name (NUMBA_CPU_NAME) of its architecture's baseline CPU
 
 # Run in a fresh process with the package's copy on its path: every compiled entry point a run reaches (a grid run;
-# advance and advance_in_step, with and without stopping at events, for the stepping API and an FMU's doStep).
+# advance and advance_in_step, with and without stopping at events, for the stepping API and an FMU's doStep; the
+# C entry points an FMU's loader calls, compiled at their import).
 _COMPILE = """
 import importlib, sys
 package = importlib.import_module(sys.argv[1])
 cvode = importlib.import_module(sys.argv[1] + ".solvers.cvode")
+importlib.import_module(sys.argv[1] + ".solvers.engines.c_entry")
 package.simulate(package.Ball(), 2.0, 0.0, 1.0, 1e-3, engine="compiled")
 settings = cvode.CvodeSettings(engine="compiled")
 for stop_at_event in (False, True):

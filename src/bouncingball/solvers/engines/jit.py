@@ -78,7 +78,7 @@ ENGINE_SOURCES = ("codes.py", "rounding.py", "oscillator.py", "equations.py", "c
                   *(f"solvers/phase_machine/{name}.py" for name in (
                       "settings", "phases", "layout", "error_estimate", "engine_protocol", "integrated_contact",
                       "machine", "drivers", "dense_output")),
-                  "solvers/engines/jit.py", "solvers/engines/compiled.py")
+                  "solvers/engines/jit.py", "solvers/engines/compiled.py", "solvers/engines/c_entry.py")
 
 _PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this module's package
 

@@ -1,0 +1,115 @@
+"""What the FMU's C layer serves without entering Python: the variables' values, and a step inside CVODE's last step.
+
+A master reads outputs after every step (fmusim all of them), and each read through pythonfmu enters Python. The
+loader (bouncingball_fmu_python.h) serves them itself from memory the slave owns and hands it while it is being made
+(``bouncingball_serve``): the value of every Real, Integer and Boolean variable by value reference, and control
+slots. At the end of each step it took, the slave writes its values there and marks them ready (``publish``); the
+loader clears that mark before it forwards any call that may change them (a set, a reset, a restored state, a step).
+
+Most of an FMU's short steps end inside CVODE's last step, or on a rest, where the step is a little compiled
+arithmetic. There the loader calls the compiled engine itself
+(solvers/engines/c_entry.py), which also writes the outputs it changes: on the compiled engine and a still ground,
+where the slave's variables that change in a step are each a quantity it reports (``REPORTED_BY_VARIABLE``). Any other
+step runs in Python as before. A slave whose loader is not this one (run by pythonfmu's binary alone, or in tests
+without a binary) serves nothing and runs as before.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import glob
+import os
+
+import numpy as np
+
+from .variables import MODEL_NAME
+
+READY, STEP, CONTEXT = range(3)  # the control slots (bouncingball_fmu_python.h: SERVED_READY, ...)
+# The variables a step changes, by name, and the quantity of the compiled step (c_entry.REPORTED) that is each.
+# (gap: FMI 3.0's event indicator, h - R in co-simulation on a still ground: slave3's _gap.)
+REPORTED_BY_VARIABLE = {"time": "t", "h": "h", "v": "v", "a": "acceleration", "der(h)": "v", "der(v)": "acceleration",
+                        "contact": "contact", "contact_force": "contact_force", "impacts": "impacts",
+                        "error_estimate": "error_estimate_at_t", "gap": "h_minus_R"}
+_SERVED_TYPES = ("Real", "Float64", "Integer", "Int32", "Boolean")  # pythonfmu's and pythonfmu3's class names
+
+
+def _loader(resources: str | None):
+    """The FMU's own binary, loaded by the master already (never loaded here), or None."""
+    if not resources:
+        return None
+    for path in glob.glob(os.path.join(resources, os.pardir, "binaries", "*", f"{MODEL_NAME}.so")):
+        try:
+            library = ctypes.CDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_NOW)
+        except OSError:
+            continue
+        if hasattr(library, "bouncingball_serve"):
+            return library
+    return None
+
+
+class ServedValues:
+    """The slave's side of the served values: made with the slave, while its loader makes the instance.
+
+    variables: the slave's registered variables by value reference (pythonfmu's ``vars``), each with its getter.
+    """
+
+    def __init__(self, resources: str | None, variables: dict):
+        self.values = np.zeros(len(variables))
+        self.control = np.zeros(3, dtype=np.intp)
+        numbers = {reference: variable for reference, variable in variables.items()
+                   if type(variable).__name__ in _SERVED_TYPES}
+        changing = {reference: variable for reference, variable in numbers.items()
+                    if getattr(variable.causality, "name", "") in ("output", "local", "independent")}
+        # Parameters and inputs change only where the master sets them; the rest in a step.
+        self._set_only = [(reference, variable.getter) for reference, variable in numbers.items()
+                          if reference not in changing]
+        self._changing = [(reference, variable.getter) for reference, variable in changing.items()]
+        # The quantity of the compiled step (c_entry.REPORTED) each changing variable is; a None: no compiled step.
+        self._reported = [(REPORTED_BY_VARIABLE.get(variable.name), reference) for reference, variable in
+                          changing.items()]
+        self._published: dict | None = None  # the slave's values (parameters, inputs) as last published
+        self._kept = None  # (integrator, machine state, context and the arrays it points to) of the last publish
+        library = _loader(resources)
+        self.linked = bool(library) and library.bouncingball_serve(
+            ctypes.c_void_p(self.values.ctypes.data), ctypes.c_void_p(self.control.ctypes.data),
+            ctypes.c_size_t(len(variables))) == 1
+
+    def publish(self, integrator, set_values: dict) -> None:
+        """The slave's current values, ready to be served, and the compiled step of integrator (None: none).
+
+        set_values: the values the master set, by name (the slave's; published again only where they changed).
+        """
+        if not self.linked:
+            return
+        values = self.values
+        if set_values != self._published:
+            for reference, getter in self._set_only:
+                values[reference] = getter()
+            self._published = dict(set_values)
+        kept = self._compiled_step(integrator)
+        if kept is None or not kept[6](kept[2].ctypes.data):
+            for reference, getter in self._changing:
+                values[reference] = getter()
+        self.control[STEP], self.control[CONTEXT] = (0, 0) if kept is None else (kept[5], kept[2].ctypes.data)
+        self.control[READY] = 1
+
+    def _compiled_step(self, integrator):
+        """(integrator, its machine state, context, parameters, settings, step address, report) or None where it
+        has no compiled step."""
+        if integrator is None or integrator.engine != "compiled" or integrator.ground.moves or \
+                any(quantity is None for quantity, _ in self._reported):
+            return None
+        kept = self._kept
+        if kept is None or kept[0] is not integrator or kept[1] is not integrator._machine_state:
+            from ..solvers.engines import c_entry
+
+            parameters = np.array(integrator._machine_parameters, dtype=float)
+            settings = np.array([integrator.settings.rtol, integrator._atol, integrator.resolvable_until])
+            pairs = [number for quantity, reference in self._reported
+                     for number in (c_entry.REPORTED.index(quantity), reference)]
+            context = np.array([parameters.ctypes.data, settings.ctypes.data, integrator._machine_state.ctypes.data,
+                                self.values.ctypes.data, len(pairs) // 2, *pairs], dtype=np.intp)
+            report = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_ssize_t)(c_entry.report_address())
+            kept = self._kept = (integrator, integrator._machine_state, context, parameters, settings,
+                                 c_entry.step_address(), report)
+        return kept
