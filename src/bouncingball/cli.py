@@ -341,7 +341,7 @@ def _command(args: argparse.Namespace) -> int:
         from .bench import bench_command
 
         return bench_command(args.output_dir, args.quick, args.stability, args.first_use,
-                             hunt_crossley=args.hunt_crossley)
+                             hunt_crossley=args.hunt_crossley, c_fmu=args.c_fmu)
     if args.command == "sweep":
         from .sweep.command import sweep_command
 

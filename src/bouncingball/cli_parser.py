@@ -106,6 +106,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                                     "matched error, and write hunt_crossley.md")
     study.add_argument("--stability", action="store_true", help="run every scene with every solver under a time "
                                                                 "cap and write stability.md")
+    study.add_argument("--c-fmu", metavar="DIR", help="our FMU beside the Reference-FMUs' C BouncingBall in their "
+                                                      "master fmusim (DIR holds fmusim, Ref_BouncingBall_fmi2.fmu "
+                                                      "and Ref_BouncingBall_fmi3.fmu), and write c_fmu.md")
     study.add_argument("--first-use", action="store_true", help="time the compiled engine's first use from a wheel "
                                                                 "installed in a fresh venv, and write first_use.md")
     bench.add_argument("--output-dir", default="bench-results",

@@ -14,16 +14,23 @@ from pathlib import Path
 
 
 def bench_command(output_dir: str | Path = "bench-results", quick: bool = False, stability: bool = False,
-                  first_use: bool = False, hunt_crossley: bool = False) -> int:
+                  first_use: bool = False, hunt_crossley: bool = False, c_fmu: str | None = None) -> int:
     """`bouncingball bench`: run the work-precision study (or, with stability, the stability matrix; with first_use,
-    the compiled engine's first use from a wheel; with hunt_crossley, that law against DOP853)."""
+    the compiled engine's first use from a wheel; with hunt_crossley, that law against DOP853; with c_fmu, the folder
+    of fmusim and the Reference-FMUs' BouncingBall, our FMU beside theirs)."""
     from ..output import check_output_folder
 
     output_dir = check_output_folder("--output-dir", output_dir)
+    if c_fmu is not None:
+        from . import c_fmu as c_fmu_study
+
+        c_fmu_study.masters(c_fmu)  # refused before any work: MastersMissing names what the folder lacks
     output_dir.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     headline = []
-    if first_use:
+    if c_fmu is not None:
+        written = c_fmu_study.run(output_dir, c_fmu, quick=quick)
+    elif first_use:
         from . import first_use as study
 
         written = study.run(output_dir, repeats=2 if quick else study.REPEATS)

@@ -1,0 +1,134 @@
+"""Our FMU beside a C FMU in the Reference-FMUs' own master: `bouncingball bench --c-fmu DIR` writes c_fmu.md.
+
+DIR holds ``fmusim`` and the Reference-FMUs' BouncingBall as ``Ref_BouncingBall_fmi2.fmu`` and
+``Ref_BouncingBall_fmi3.fmu``, built from github.com/modelica/Reference-FMUs (its fmusim/ and BouncingBall/, with
+its CMake). Our FMUs are built from this checkout (build-fmu, FMI 2.0 and 3.0). Every measure is a fresh fmusim
+process, ours and theirs alternated, ``ROUNDS`` rounds, medians; each FMU at its own default scene (ours the
+article's, theirs a rigid ball dropped from 1 m), every output recorded after every 1 ms step as fmusim does:
+
+- start-up: a 1-step run (load, instantiate, initialise, one doStep, free), the whole process timed;
+- cost per extra step: (a run of 8 s, or 80 s: our ball rests from 8.05 s) minus the 1-step run, over the extra
+  steps.
+
+The issue's goals: start-up at most ``STARTUP_GOAL``, a step at most ``STEP_RATIO_GOAL`` times theirs.
+"""
+
+from __future__ import annotations
+
+import statistics
+import subprocess
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..output import atomic_write
+from .environment import environment, environment_lines
+from .text import table
+
+PAGE = "c_fmu.md"
+ROUNDS = 5
+STEP = 1e-3  # [s]
+RUNS = (STEP, 8.0, 80.0)  # stop times [s]: the 1-step run, the article, a long run
+STARTUP_GOAL = 0.5  # [s]
+STEP_RATIO_GOAL = 3.0
+THEIRS = {2: "Ref_BouncingBall_fmi2.fmu", 3: "Ref_BouncingBall_fmi3.fmu"}
+
+
+class MastersMissing(ValueError):
+    """The folder lacks fmusim or the Reference-FMUs' FMUs."""
+
+
+def masters(folder: str | Path) -> tuple[Path, dict[int, Path]]:
+    """fmusim and the Reference-FMUs' BouncingBall FMUs by FMI version, in folder; MastersMissing says what lacks."""
+    folder = Path(folder)
+    fmusim, theirs = folder / "fmusim", {version: folder / name for version, name in THEIRS.items()}
+    missing = [str(path) for path in (fmusim, *theirs.values()) if not path.is_file()]
+    if missing:
+        raise MastersMissing(f"--c-fmu {folder}: missing {', '.join(missing)}; the folder must hold fmusim and the "
+                             "Reference-FMUs' BouncingBall FMUs, built from github.com/modelica/Reference-FMUs "
+                             "(fmusim/ and BouncingBall/ with its CMake)")
+    return fmusim, theirs
+
+
+def run_seconds(fmusim: Path, fmu: Path, stop_time: float, *options: str) -> float:
+    """One fmusim process co-simulating fmu from 0 to stop_time at STEP, every output recorded: its wall time [s]."""
+    with tempfile.TemporaryDirectory() as folder:
+        command = [str(fmusim), "--output-interval", repr(STEP), "--stop-time", repr(stop_time), "--output-file",
+                   str(Path(folder) / "out.csv"), *options, str(fmu)]
+        started = time.perf_counter()
+        completed = subprocess.run(command, capture_output=True, text=True, check=False)
+        seconds = time.perf_counter() - started
+    if completed.returncode != 0:
+        raise RuntimeError(f"{' '.join(command)} failed (exit code {completed.returncode}):\n"
+                           f"{(completed.stdout + completed.stderr)[-2000:]}")
+    return seconds
+
+
+@dataclass(frozen=True)
+class Costs:
+    """One FMU's medians: start-up [s] and the cost of an extra step [s] over each longer run."""
+
+    label: str
+    startup: float
+    per_step: dict[float, float]  # by stop time [s]
+
+
+def measure(fmusim: Path, fmus: dict[str, Path], rounds: int = ROUNDS) -> list[Costs]:
+    """The costs of each FMU (by label), every run of every FMU alternated within each round."""
+    times = {(label, stop): [] for label in fmus for stop in RUNS}
+    for _ in range(rounds):
+        for stop in RUNS:
+            for label, fmu in fmus.items():
+                times[label, stop].append(run_seconds(fmusim, fmu, stop))
+    costs = []
+    for label in fmus:
+        startup = statistics.median(times[label, STEP])
+        costs.append(Costs(label, startup, {stop: (statistics.median(times[label, stop]) - startup) /
+                                            (round(stop / STEP) - 1) for stop in RUNS[1:]}))
+    return costs
+
+
+def page(costs: list[Costs], rounds: int, environment_at_start: dict[str, str]) -> str:
+    by_label = {cost.label: cost for cost in costs}
+    rows, verdicts = [], []
+    for version in (2, 3):
+        ours, theirs = by_label[f"ours, FMI {version}.0"], by_label[f"theirs, FMI {version}.0"]
+        for cost in (ours, theirs):
+            rows.append([cost.label, f"{cost.startup:.3f}", *(f"{cost.per_step[stop] * 1e6:.2f}" for stop in RUNS[1:]),
+                         *(f"{cost.per_step[stop] / theirs.per_step[stop]:.2f}" for stop in RUNS[1:])])
+        ratio = ours.per_step[8.0] / theirs.per_step[8.0]
+        verdicts += [f"- FMI {version}.0 start-up {ours.startup:.3f} s (goal <= {STARTUP_GOAL:g} s): "
+                     f"{'met' if ours.startup <= STARTUP_GOAL else 'NOT MET'}",
+                     f"- FMI {version}.0 cost per extra step over 8 s {ratio:.2f}x theirs (goal <= "
+                     f"{STEP_RATIO_GOAL:g}x): {'met' if ratio <= STEP_RATIO_GOAL else 'NOT MET'}"]
+    header = ["FMU", "start-up (1-step run) [s]", "per extra step, 8 s [us]", "per extra step, 80 s [us]",
+              "ratio to theirs, 8 s", "ratio to theirs, 80 s"]
+    lines = ["# Our FMU beside a C FMU in fmusim", "",
+             "The Reference-FMUs' master, fmusim, co-simulating our FMU (the article's ball) and the Reference-FMUs' "
+             "BouncingBall (C, a rigid ball, forward Euler at its own fixed step) at 1 ms steps, every output "
+             "recorded after every step. Each figure is the median of fresh processes, ours and theirs alternated "
+             f"({rounds} rounds); start-up is a 1-step run, a step's cost the longer run less the 1-step run, over "
+             "its extra steps. Regenerate: `bouncingball bench --c-fmu DIR --output-dir docs` (DIR: fmusim and "
+             f"{THEIRS[2]}, {THEIRS[3]}).", "", *table(header, rows), "", "Goals:", "", *verdicts, "",
+             "Machine:", "", *environment_lines(environment_at_start), ""]
+    return "\n".join(lines)
+
+
+def run(output_dir: Path, folder: str | Path, quick: bool = False) -> list[Path]:
+    """Build our FMUs, measure them beside theirs in fmusim, write PAGE; the paths written."""
+    from ..fmu.build import build_fmu
+
+    fmusim, theirs = masters(folder)
+    started_in = environment()
+    with tempfile.TemporaryDirectory() as build_folder:
+        fmus = {}
+        for version in (2, 3):
+            fmus[f"ours, FMI {version}.0"] = build_fmu(Path(build_folder) / f"BouncingBall{version}.fmu", version)
+            fmus[f"theirs, FMI {version}.0"] = theirs[version]
+        rounds = 2 if quick else ROUNDS
+        costs = measure(fmusim, fmus, rounds)
+    path = output_dir / PAGE
+    with atomic_write(path) as temporary:
+        temporary.write_text(page(costs, rounds, started_in), encoding="utf-8")
+    return [path]
