@@ -31,7 +31,7 @@ CO_SIMULATION = {
     "providesDirectionalDerivatives": "false",
     "providesAdjointDerivatives": "false",
 }
-MODEL_EXCHANGE = {"needsCompletedIntegratorStep": "true", "providesEvaluateDiscreteStates": "false",
+MODEL_EXCHANGE = {"needsCompletedIntegratorStep": "false", "providesEvaluateDiscreteStates": "false",
                   "providesDirectionalDerivatives": "false", "providesAdjointDerivatives": "false"}
 
 

@@ -160,15 +160,14 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
         ball = self._integrator.ball
         h, v, F_ext = self._in_frame(*state[:2])
         if state[2] == Mode.FLIGHT and h < 0.0 and not self._fell_through:
-            # Its centre below the ground in flight: a master stepped over an impact unseen and never called
-            # fmi3CompletedIntegratorStep, where the FMU would have asked for event mode. Said once.
+            # Its centre below the ground in flight: a master stepped over an impact unseen (a master that calls
+            # fmi3CompletedIntegratorStep is asked for event mode there: bouncingball_fmu3_loader.c). Said once.
             self._fell_through = True
             if self._master_error is not None:
                 self._master_error.lost = True
             self.log(f"h = {state[0]!r} m at t = {self.time!r} s: the ball is below the ground in flight, so the "
-                     "master stepped over an impact without an event; this FMU needs fmi3CompletedIntegratorStep "
-                     "(needsCompletedIntegratorStep) to ask for event mode there, and the results from here on are "
-                     "wrong", self.STATUS.warning)
+                     "master stepped over an impact without an event, and the results from here on are wrong",
+                     self.STATUS.warning)
         return [event_indicator(ball, h, v, state[2], F_ext)]
 
     def get_nominals_of_continuous_states(self, size):
@@ -271,7 +270,10 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
             return super()._error_estimate()
         if self._master_error is None:  # a state saved by an FMU that did not measure it
             return UNKNOWN
-        return self._master_error.estimate(self.time, *self._exchange[:2])
+        # A read of the output is a state the master accepted: measured and kept, as at an fmi3CompletedIntegratorStep
+        # (which the FMU does not need: fmusim and FMPy read the outputs at the same points).
+        self._completed_step()
+        return self._master_error.estimate()
 
     def _gap(self):
         """The event indicator of the current mode (event_indicator); h - R before initialisation."""
