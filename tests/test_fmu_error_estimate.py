@@ -178,7 +178,7 @@ def test_model_exchange_error_is_measured_at_a_completed_step_and_kept_in_the_fm
 
         def completed_at(t, dh):
             f.setTime(t)
-            f.setContinuousStates((fmi3Float64 * 2)(2.0 - 9.81 * t * t / 2 + dh, -9.81 * t), 2)
+            f.setContinuousStates((fmi3Float64 * 2)(2.0 - 9.81 * t * t / 2 + dh - 0.06, -9.81 * t), 2)  # x = h - R
             f.completedIntegratorStep(noSetFMUStatePriorToCurrentPoint=False)
             return ball.get("error_estimate")[0]
 

@@ -5,7 +5,9 @@ FMU's binary (bouncingball_fmu3_loader.c) reads the time reached (the independen
 either returns early to the master, or, where the master did not allow early return, steps on to the
 end of the communication step.
 
-Model exchange: the continuous states are h and v, their derivatives those of the current mode
+Model exchange: the continuous states are x = h - R (the bottom's height: 0 where the ball touches a still ground,
+as the state of the Reference-FMUs' ball, so that a master's CVODE restarts after an impact as from their 0 and not
+from R, model_exchange.py) and v, their derivatives those of the current mode
 (physics.Ball.acceleration), the one event indicator h - R, and the mode switches in
 update_discrete_states. The master integrates; the FMU's CVODE is not used. On a vibrating ground each is taken
 in the table's frame (model_exchange.in_frame: h - s, v - s', the table's acceleration a load of its own), as the phase
@@ -82,7 +84,7 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
         self._master_error: MasterError | None = None  # model exchange: the master's error (master_error.py)
         super().__init__(**kwargs)
         self.author, self.description = BallSlave.author, BallSlave.description  # pythonfmu3 resets them
-        getters = {"time": self._time, "der(h)": self._v, "der(v)": self._a, "gap": self._gap}
+        getters = {"time": self._time, "der(x)": self._v, "der(v)": self._a, "gap": self._gap, "x": self._x}
         for variable in FMI3_VARIABLES:
             self._register(variable, getters[variable.name],
                            lambda value, name=variable.name: self._error(f"{name} cannot be set"))
@@ -123,7 +125,7 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
 
     # --- model exchange ---------------------------------------------------------------------------
     def _model_exchange(self) -> list:
-        """The model exchange state [h, v, mode, impacts, nominal of h, nominal of v], from the initialised
+        """The model exchange state [h, v, mode, impacts, nominal of x = h - R, nominal of v], from the initialised
         integrator's at the first call that needs it."""
         if self._exchange is None:
             integrator = self._integrator
@@ -142,15 +144,19 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
 
 
     def get_continuous_states(self):
-        return self._model_exchange()[:2]
+        """[x, v]: x = h - R (exact, by Sterbenz, where h is within a factor 2 of R, as near the ground)."""
+        h, v = self._model_exchange()[:2]
+        return [h - self._integrator.ball.R, v]
 
     def set_continuous_states(self, values):
         state = self._model_exchange()
         try:
-            state[0], state[1] = (validation.finite(name, value, unit) for name, value, unit in
-                                  zip(("h", "v"), values, ("m", "m/s"), strict=True))
+            x, v = (validation.finite(name, value, unit) for name, value, unit in
+                    zip(("x", "v"), values, ("m", "m/s"), strict=True))
         except ValueError as error:
             self._error(error)
+            return
+        state[0], state[1] = x + self._integrator.ball.R, v
 
     def get_continuous_state_derivatives(self):
         return [self._v(), self._a()]
@@ -171,7 +177,7 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
         return [event_indicator(ball, h, v, state[2], F_ext)]
 
     def get_nominals_of_continuous_states(self, size):
-        """The nominals of h [m] and v [m/s] of the current phase (phase_nominals); fixed between events."""
+        """The nominals of x [m] and v [m/s] of the current phase (phase_nominals); fixed between events."""
         if self._exchange is not None:
             return self._exchange[4:6][:size]
         if self._integrator is not None:
@@ -244,6 +250,10 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
 
     def _v(self):
         return self._exchange[1] if self._exchange else super()._v()
+
+    def _x(self):
+        """h - R: model exchange's continuous state (get_continuous_states)."""
+        return self._h() - (self._integrator.ball.R if self._integrator else self._values["R"])
 
     def _a(self):
         if not self._exchange:
