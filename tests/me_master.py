@@ -6,8 +6,9 @@ its event indicators as root functions, absolute tolerances the states' nominals
 tolerance, read once at the start. At a root it enters event mode, iterates fmi3UpdateDiscreteStates
 and re-initialises CVODE only where the FMU reported valuesOfContinuousStatesChanged or
 nominalsOfContinuousStatesChanged; otherwise CVODE carries on from its own internal step, past the
-root, as such a master does. After each step without a root it calls fmi3CompletedIntegratorStep, and
-enters event mode where the FMU asks for it. `restart="always"` re-initialises after every event instead (as FMPy does).
+root, as such a master does. After each step without a root it calls fmi3CompletedIntegratorStep where the model
+description asks for it (needsCompletedIntegratorStep), and enters event mode where the FMU asks for it.
+`restart="always"` re-initialises after every event instead (as FMPy does).
 
     python tests/me_master.py UNZIPPED_FMU [RTOL] [always]   prints t, h, impacts at the last point
 """
@@ -47,6 +48,7 @@ def run(unzipped: Path, t_end: float = 8.0, output_interval: float = 0.01, rtol:
 
     description = read_model_description(str(unzipped))
     references = {v.name: v.valueReference for v in description.modelVariables}
+    needs_completed_step = description.modelExchange.needsCompletedIntegratorStep
     log: list[tuple[int, str]] = []
     fmu = FMU3Model(guid=description.guid, unzipDirectory=str(unzipped),
                     modelIdentifier=description.modelExchange.modelIdentifier, instanceName="me_master")
@@ -106,7 +108,8 @@ def run(unzipped: Path, t_end: float = 8.0, output_interval: float = 0.01, rtol:
             fmu.setTime(t)
             fmu.setContinuousStates(px, n_x)
             if result.status != 2:  # 2: CVODE returned at a root
-                step_event, _ = fmu.completedIntegratorStep(noSetFMUStatePriorToCurrentPoint=True)
+                step_event = needs_completed_step and \
+                    fmu.completedIntegratorStep(noSetFMUStatePriorToCurrentPoint=True)[0]
                 if not step_event:  # the FMU asks for event mode where the step went past an event unseen
                     fmu.getNominalsOfContinuousStates(pn, n_x)
                     changed_between_events += tuple(nominals) != seen[-1]

@@ -93,8 +93,8 @@ def test_fmi2_served_run_equals_the_python_run_to_the_bit(unzipped, scene):
 def test_fmi3_served_run_equals_the_python_run_to_the_bit(unzipped3):
     out = run_case("""
         from fmu3_helpers import Instance3
-        names = ("time", "h", "v", "a", "contact", "contact_force", "impacts", "error_estimate", "der(h)", "der(v)",
-                 "gap")
+        names = ("time", "h", "v", "a", "contact", "contact_force", "impacts", "error_estimate", "der(x)", "der(v)",
+                 "gap", "x")
         runs = {}
         for early_return in (False, True):
             for served in (True, False):

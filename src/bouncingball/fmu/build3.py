@@ -31,8 +31,24 @@ CO_SIMULATION = {
     "providesDirectionalDerivatives": "false",
     "providesAdjointDerivatives": "false",
 }
-MODEL_EXCHANGE = {"needsCompletedIntegratorStep": "true", "providesEvaluateDiscreteStates": "false",
+MODEL_EXCHANGE = {"needsCompletedIntegratorStep": "false", "providesEvaluateDiscreteStates": "false",
                   "providesDirectionalDerivatives": "false", "providesAdjointDerivatives": "false"}
+
+
+def _list_calculated_states(root: ET.Element, elements: list) -> None:
+    """A continuous state calculated at initialisation (x = h - R) as an InitialUnknown, which pythonfmu3 leaves out."""
+    structure = root.find("ModelStructure")
+    states = {e.get("derivative") for e in elements if e.get("derivative") is not None}
+    listed = {e.get("valueReference") for e in structure.findall("InitialUnknown")}
+    for element in elements:
+        reference = element.get("valueReference")
+        if reference in states and reference not in listed and element.get("initial") in (None, "approx", "calculated"):
+            events = structure.find("EventIndicator")  # InitialUnknowns come before the EventIndicators
+            unknown = ET.Element("InitialUnknown", valueReference=reference)
+            if events is None:
+                structure.append(unknown)
+            else:
+                structure.insert(list(structure).index(events), unknown)
 
 
 def complete_model_description(xml: bytes) -> bytes:
@@ -64,5 +80,6 @@ def complete_model_description(xml: bytes) -> bytes:
         add_unit_and_range(element, variable)
         if variable.type == "Integer" and element.get("min") is not None:
             element.set("min", str(int(variable.min)))
+    _list_calculated_states(root, elements)
     ET.indent(root)
     return ET.tostring(root, encoding="UTF-8", xml_declaration=True)

@@ -26,10 +26,11 @@ from .variables import MODEL_NAME
 
 READY, STEP, CONTEXT = range(3)  # the control slots (bouncingball_fmu_python.h: SERVED_READY, ...)
 # The variables a step changes, by name, and the quantity of the compiled step (c_entry.REPORTED) that is each.
-# (gap: FMI 3.0's event indicator, h - R in co-simulation on a still ground: slave3's _gap.)
-REPORTED_BY_VARIABLE = {"time": "t", "h": "h", "v": "v", "a": "acceleration", "der(h)": "v", "der(v)": "acceleration",
+# (gap, FMI 3.0's event indicator, and x, model exchange's state: h - R in co-simulation on a still ground, as slave3's
+# _gap and _x compute it.)
+REPORTED_BY_VARIABLE = {"time": "t", "h": "h", "v": "v", "a": "acceleration", "der(x)": "v", "der(v)": "acceleration",
                         "contact": "contact", "contact_force": "contact_force", "impacts": "impacts",
-                        "error_estimate": "error_estimate_at_t", "gap": "h_minus_R"}
+                        "error_estimate": "error_estimate_at_t", "gap": "h_minus_R", "x": "h_minus_R"}
 _SERVED_TYPES = ("Real", "Float64", "Integer", "Int32", "Boolean")  # pythonfmu's and pythonfmu3's class names
 
 

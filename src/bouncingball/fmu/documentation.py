@@ -247,8 +247,8 @@ is true: it enters event mode there and can change F_ext exactly at the event. A
 allow early return gets every step to its end. The master's tolerance is not passed on by
 pythonfmu3: the parameter rtol sets CVODE's.</p>
 <h3>Model exchange, with its event indicator</h3>
-<p>The master integrates the continuous states h and v from their derivatives der(h) = v and der(v) of
-the current mode; the FMU's CVODE is not used. The one event indicator <code>{EVENT_INDICATOR}</code>
+<p>The master integrates the continuous states x = h - R and v from their derivatives der(x) = v and der(v)
+of the current mode; the FMU's CVODE is not used. The one event indicator <code>{EVENT_INDICATOR}</code>
 = h - R crosses 0 downwards at an impact and upwards at a departure; at that state event the master
 enters event mode and fmi3UpdateDiscreteStates switches the mode (and counts the impact). The
 accuracy is that of the master's integrator and its event location.</p>"""

@@ -1,8 +1,8 @@
 """Model exchange's equations of the ball's modes, for the FMI 3.0 slave (slave3): what a master's integrator asks of
 the FMU between and at events.
 
-The nominals of the continuous states h and v in each phase, the one event indicator of each mode, the mode an event
-switches to, and the rigid law's impact as a jump of the state. Each takes the state in the ground's frame (h, v
+The nominals of the continuous states x = h - R and v in each phase, the one event indicator of each mode, the mode an
+event switches to, and the rigid law's impact as a jump of the state. Each takes the state in the ground's frame (h, v
 relative to a vibrating ground, its acceleration a load of its own: slave3's _in_frame); slave3 holds the state.
 """
 
@@ -22,17 +22,16 @@ from .variables import SMALLEST_POSITIVE
 
 
 def phase_nominals(ball: Ball, h: float, v: float, mode: Mode, F_ext: float) -> list[float]:
-    """The nominals [m, m/s] of h and v for a phase starting at (h, v) in mode: the phase's own scales.
+    """The nominals [m, m/s] of the states x = h - R and v for a phase starting at (h, v) in mode: its own scales.
 
-    In flight the apex height of the centre and the speed at impact; in contact the amplitude of the
+    In flight the apex height above R and the speed at impact; in contact the amplitude of the
     oscillation about the rest height and its largest speed (phases.phase_scales, the scales our own
-    CVODE integrates a phase in). Always > 0: a scale of 0 (a ball at rest at its rest height) is
-    replaced by max(R, |h|) and 1 m/s.
+    CVODE integrates a phase in, in x as here). Always > 0: a scale of 0 (a ball at rest at its rest
+    height) is replaced by max(R, |x|) and 1 m/s.
     """
-    length, speed = phase_scales(ball.parameters, mode, h - ball.R, v, load_value(F_ext, ball.m, ball.g))
-    if mode == Mode.FLIGHT:
-        length += ball.R
-    return [length if 0.0 < length < math.inf else max(ball.R, abs(h)),
+    x = h - ball.R
+    length, speed = phase_scales(ball.parameters, mode, x, v, load_value(F_ext, ball.m, ball.g))
+    return [length if 0.0 < length < math.inf else max(ball.R, abs(x)),
             speed if 0.0 < speed < math.inf else 1.0]
 
 

@@ -63,8 +63,8 @@ def state_from_bytes(state: bytes):
 
 
 def exchange_fields(exchange: list | None, time: float) -> list | None:
-    """FMI 3.0 model exchange's state [h, v, mode, impacts, nominal of h, nominal of v] at time [s] as the FMU state
-    saves it: [h, v, mode as an int, impacts, time, the two nominals]; None where model exchange has not begun."""
+    """FMI 3.0 model exchange's state [h, v, mode, impacts, nominal of x = h - R, nominal of v] at time [s] as the FMU
+    state saves it: [h, v, mode as an int, impacts, time, the two nominals]; None where model exchange has not begun."""
     return None if exchange is None else [*exchange[:2], int(exchange[2]), exchange[3], time, *exchange[4:6]]
 
 
@@ -75,5 +75,5 @@ def saved_exchange(saved: list | None) -> list | None:
         return None
     return [validation.finite("state h", saved[0], "m"), validation.finite("state v", saved[1], "m/s"),
             Mode(saved[2]), int(saved[3]), validation.finite("state time", saved[4], "s"),
-            validation.positive("state nominal of h", saved[5], "m"),
+            validation.positive("state nominal of x", saved[5], "m"),
             validation.positive("state nominal of v", saved[6], "m/s")]

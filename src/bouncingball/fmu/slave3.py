@@ -5,7 +5,9 @@ FMU's binary (bouncingball_fmu3_loader.c) reads the time reached (the independen
 either returns early to the master, or, where the master did not allow early return, steps on to the
 end of the communication step.
 
-Model exchange: the continuous states are h and v, their derivatives those of the current mode
+Model exchange: the continuous states are x = h - R (the bottom's height: 0 where the ball touches a still ground,
+as the state of the Reference-FMUs' ball, so that a master's CVODE restarts after an impact as from their 0 and not
+from R, model_exchange.py) and v, their derivatives those of the current mode
 (physics.Ball.acceleration), the one event indicator h - R, and the mode switches in
 update_discrete_states. The master integrates; the FMU's CVODE is not used. On a vibrating ground each is taken
 in the table's frame (model_exchange.in_frame: h - s, v - s', the table's acceleration a load of its own), as the phase
@@ -71,7 +73,7 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
     STATUS = Fmi3Status
     CALLS = {"setup": "fmi3EnterInitializationMode", "step": "fmi3DoStep", "set_state": "fmi3SetFMUState"}
     STOP_AT_EVENT = True
-    VERSION_GETTERS = {"time": "_time", "der(h)": "_v", "der(v)": "_a", "gap": "_gap"}
+    VERSION_GETTERS = {"time": "_time", "der(x)": "_v", "der(v)": "_a", "gap": "_gap", "x": "_x"}
     # Made once: pythonfmu3's binary reads status and terminateSimulation off what do_step returns, and off a bool
     # each is an attribute lookup that fails (an AttributeError raised and cleared) on every doStep.
     STEPPED, REFUSED = Fmi3StepResult(Fmi3Status.ok), Fmi3StepResult(Fmi3Status.discard)
@@ -120,7 +122,7 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
 
     # --- model exchange ---------------------------------------------------------------------------
     def _model_exchange(self) -> list:
-        """The model exchange state [h, v, mode, impacts, nominal of h, nominal of v], from the initialised
+        """The model exchange state [h, v, mode, impacts, nominal of x = h - R, nominal of v], from the initialised
         integrator's at the first call that needs it."""
         if self._exchange is None:
             integrator = self._integrator
@@ -139,15 +141,19 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
 
 
     def get_continuous_states(self):
-        return self._model_exchange()[:2]
+        """[x, v]: x = h - R (exact, by Sterbenz, where h is within a factor 2 of R, as near the ground)."""
+        h, v = self._model_exchange()[:2]
+        return [h - self._integrator.ball.R, v]
 
     def set_continuous_states(self, values):
         state = self._model_exchange()
         try:
-            state[0], state[1] = (validation.finite(name, value, unit) for name, value, unit in
-                                  zip(("h", "v"), values, ("m", "m/s"), strict=True))
+            x, v = (validation.finite(name, value, unit) for name, value, unit in
+                    zip(("x", "v"), values, ("m", "m/s"), strict=True))
         except ValueError as error:
             self._error(error)
+            return
+        state[0], state[1] = x + self._integrator.ball.R, v
 
     def get_continuous_state_derivatives(self):
         return [self._v(), self._a()]
@@ -157,19 +163,18 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
         ball = self._integrator.ball
         h, v, F_ext = self._in_frame(*state[:2])
         if state[2] == Mode.FLIGHT and h < 0.0 and not self._fell_through:
-            # Its centre below the ground in flight: a master stepped over an impact unseen and never called
-            # fmi3CompletedIntegratorStep, where the FMU would have asked for event mode. Said once.
+            # Its centre below the ground in flight: a master stepped over an impact unseen (a master that calls
+            # fmi3CompletedIntegratorStep is asked for event mode there: bouncingball_fmu3_loader.c). Said once.
             self._fell_through = True
             if self._master_error is not None:
                 self._master_error.lost = True
             self.log(f"h = {state[0]!r} m at t = {self.time!r} s: the ball is below the ground in flight, so the "
-                     "master stepped over an impact without an event; this FMU needs fmi3CompletedIntegratorStep "
-                     "(needsCompletedIntegratorStep) to ask for event mode there, and the results from here on are "
-                     "wrong", self.STATUS.warning)
+                     "master stepped over an impact without an event, and the results from here on are wrong",
+                     self.STATUS.warning)
         return [event_indicator(ball, h, v, state[2], F_ext)]
 
     def get_nominals_of_continuous_states(self, size):
-        """The nominals of h [m] and v [m/s] of the current phase (phase_nominals); fixed between events."""
+        """The nominals of x [m] and v [m/s] of the current phase (phase_nominals); fixed between events."""
         if self._exchange is not None:
             return self._exchange[4:6][:size]
         if self._integrator is not None:
@@ -243,6 +248,10 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
     def _v(self):
         return self._exchange[1] if self._exchange else super()._v()
 
+    def _x(self):
+        """h - R: model exchange's continuous state (get_continuous_states)."""
+        return self._h() - (self._integrator.ball.R if self._integrator else self._values["R"])
+
     def _a(self):
         if not self._exchange:
             return super()._a()
@@ -268,7 +277,10 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
             return super()._error_estimate()
         if self._master_error is None:  # a state saved by an FMU that did not measure it
             return UNKNOWN
-        return self._master_error.estimate(self.time, *self._exchange[:2])
+        # A read of the output is a state the master accepted: measured and kept, as at an fmi3CompletedIntegratorStep
+        # (which the FMU does not need: fmusim and FMPy read the outputs at the same points).
+        self._completed_step()
+        return self._master_error.estimate()
 
     def _gap(self):
         """The event indicator of the current mode (event_indicator); h - R before initialisation."""

@@ -191,17 +191,19 @@ def ball_fields_of(start_values) -> dict[str, float | str]:
             if field not in SCENE_OWN_FIELDS}
 
 # FMI 3.0 only, after the shared table, so that every variable above keeps its value reference: the
-# independent variable, the derivatives of the continuous states h and v (model exchange), and the
-# event indicator.
+# independent variable, the derivatives of model exchange's continuous states x = h - R and v, the event
+# indicator, and x itself (last: the variables before it kept their references when it came).
 FMI3_VARIABLES = (
     FmuVariable("time", "Real", "independent", "continuous", "simulation time", "s"),
-    FmuVariable("der(h)", "Real", "local", "continuous", "dh/dt, the derivative of the continuous state h "
-                "(model exchange)", "m/s", derivative="h"),
+    FmuVariable("der(x)", "Real", "local", "continuous", "dx/dt = v, the derivative of the continuous state x "
+                "(model exchange)", "m/s", derivative="x"),
     FmuVariable("der(v)", "Real", "local", "continuous", "dv/dt, the derivative of the continuous state v "
                 "(model exchange)", "m/s2", derivative="v"),
     FmuVariable("gap", "Real", "local", "continuous", "the event indicator, >= 0 out of contact and <= 0 in it, "
                 "crossing 0 at each event: h - R [m] in flight and in the linear law's contact (an impact where it "
                 "crosses 0 downwards, a departure upwards); linear-no-pull: h - R + (b/k) v [m] pressed, the least "
                 "of that and R - h free; rigid, resting on the ground: F_ext/m - g [m/s2]"),
+    FmuVariable("x", "Real", "local", "continuous", "h - R, the height of the ball's bottom above the ground's rest "
+                "level: model exchange's continuous state (with v), 0 where the ball touches a still ground", "m"),
 )
 EVENT_INDICATOR = "gap"
