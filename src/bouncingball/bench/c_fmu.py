@@ -8,13 +8,20 @@ article's, theirs a rigid ball dropped from 1 m), every output recorded after ev
 
 - start-up: a 1-step run (load, instantiate, initialise, one doStep, free), the whole process timed;
 - cost per extra step: (a run of 8 s, or 80 s: our ball rests from 8.05 s) minus the 1-step run, over the extra
-  steps.
+  steps;
+- model exchange on their scene (``ME_SCENE``: rigid, e = 0.7, v_min = 0.1, dropped from 1 m bottom height, 3 s,
+  outputs every 10 ms), fmusim's CVODE at each of ``ME_TOLERANCES``: the largest height error against the exact
+  solution (their h is the ball's bottom: ours less R), and the calls of the master's integrator counted in
+  fmusim's call log (derivatives and completed steps).
 
-The issue's goals: start-up at most ``STARTUP_GOAL``, a step at most ``STEP_RATIO_GOAL`` times theirs.
+The goals: start-up at most ``STARTUP_GOAL``, a step at most ``STEP_RATIO_GOAL`` times theirs, and in model
+exchange an error at most theirs at each tolerance with no more calls.
 """
 
 from __future__ import annotations
 
+import collections
+import csv
 import statistics
 import subprocess
 import tempfile
@@ -22,7 +29,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..accuracy import exact_on_grid
 from ..output import atomic_write
+from ..physics import Ball
 from .environment import environment, environment_lines
 from .text import table
 
@@ -65,6 +74,49 @@ def run_seconds(fmusim: Path, fmu: Path, stop_time: float, *options: str) -> flo
     return seconds
 
 
+ME_TOLERANCES = (1e-4, 1e-6, 1e-8, 1e-10)
+ME_STOP, ME_INTERVAL = 3.0, 0.01  # [s]
+ME_SCENE = Ball(contact="rigid", e=0.7, v_min=0.1)  # theirs; dropped from 1 m (bottom height), at rest
+ME_DROP = 1.0  # [m], the bottom's height
+ME_CALLS = ("fmi3GetContinuousStateDerivatives", "fmi3CompletedIntegratorStep")
+
+
+@dataclass(frozen=True)
+class ExchangeRun:
+    """One model-exchange run: the largest height error [m] and the master's integrator calls into the FMU."""
+
+    tolerance: float
+    error: float
+    calls: int
+
+
+def model_exchange_run(fmusim: Path, fmu: Path, tolerance: float, ours: bool) -> ExchangeRun:
+    """fmusim's CVODE on ME_SCENE at tolerance: our FMU (ours) or theirs, its height error and calls counted."""
+    R = ME_SCENE.R
+    with tempfile.TemporaryDirectory() as folder:
+        out, log = Path(folder) / "out.csv", Path(folder) / "calls.log"
+        command = [str(fmusim), "--interface-type", "me", "--solver", "cvode", "--tolerance", repr(tolerance),
+                   "--stop-time", repr(ME_STOP), "--output-interval", repr(ME_INTERVAL), "--log-fmi-calls",
+                   "--fmi-log-file", str(log), "--output-file", str(out)]
+        if ours:
+            for name, value in (("contact_law", "rigid"), ("e", ME_SCENE.e), ("v_min", ME_SCENE.v_min),
+                                ("h", ME_DROP + R), ("R", R)):
+                command += ["--start-value", name, str(value)]
+        completed = subprocess.run([*command, str(fmu)], capture_output=True, text=True, check=False)
+        if completed.returncode != 0:
+            raise RuntimeError(f"{' '.join(command)} failed (exit code {completed.returncode}):\n"
+                               f"{(completed.stdout + completed.stderr)[-2000:]}")
+        with open(out, encoding="utf-8", newline="") as file:
+            rows = list(csv.reader(file))
+        calls = collections.Counter(line.split("(", 1)[0] for line in log.read_text(encoding="utf-8").splitlines())
+    header = [name.strip('"') for name in rows[0]]
+    t = [float(row[0]) for row in rows[1:]]
+    h = [float(row[header.index("h")]) + (0.0 if ours else R) for row in rows[1:]]
+    exact = exact_on_grid(t, ME_SCENE, ME_DROP + R, 0.0)
+    return ExchangeRun(tolerance, max(abs(a - b) for a, b in zip(h, exact.h, strict=True)),
+                       sum(calls[name] for name in ME_CALLS))
+
+
 @dataclass(frozen=True)
 class Costs:
     """One FMU's medians: start-up [s] and the cost of an extra step [s] over each longer run."""
@@ -89,7 +141,23 @@ def measure(fmusim: Path, fmus: dict[str, Path], rounds: int = ROUNDS) -> list[C
     return costs
 
 
-def page(costs: list[Costs], rounds: int, environment_at_start: dict[str, str]) -> str:
+def _exchange_lines(exchange: dict[str, list[ExchangeRun]]) -> tuple[list[str], list[str]]:
+    """The model-exchange table and its verdicts."""
+    rows, worse = [], []
+    for ours, theirs in zip(exchange["ours"], exchange["theirs"], strict=True):
+        rows.append([f"{ours.tolerance:.0e}", f"{ours.error:.3e}", f"{theirs.error:.3e}",
+                     f"{ours.error / theirs.error:.4f}", str(ours.calls), str(theirs.calls)])
+        if ours.error > theirs.error or ours.calls > theirs.calls:
+            worse.append(f"{ours.tolerance:.0e}")
+    header = ["tolerance", "ours: max height error [m]", "theirs [m]", "ours / theirs", "ours: calls",
+              "theirs: calls"]
+    verdict = (f"- model exchange, error at most theirs with no more calls at every tolerance: "
+               f"{'met' if not worse else 'NOT MET (at ' + ', '.join(worse) + ')'}")
+    return table(header, rows), [verdict]
+
+
+def page(costs: list[Costs], rounds: int, environment_at_start: dict[str, str],
+         exchange: dict[str, list[ExchangeRun]]) -> str:
     by_label = {cost.label: cost for cost in costs}
     rows, verdicts = [], []
     for version in (2, 3):
@@ -102,6 +170,13 @@ def page(costs: list[Costs], rounds: int, environment_at_start: dict[str, str]) 
                      f"{'met' if ours.startup <= STARTUP_GOAL else 'NOT MET'}",
                      f"- FMI {version}.0 cost per extra step over 8 s {ratio:.2f}x theirs (goal <= "
                      f"{STEP_RATIO_GOAL:g}x): {'met' if ratio <= STEP_RATIO_GOAL else 'NOT MET'}"]
+    exchange_table, exchange_verdicts = _exchange_lines(exchange)
+    exchange_intro = [
+        f"Model exchange (FMI 3.0), their scene: a rigid ball, e = {ME_SCENE.e:g}, v_min = {ME_SCENE.v_min:g} m/s, "
+        f"dropped from {ME_DROP:g} m (its bottom), {ME_STOP:g} s, outputs every {ME_INTERVAL:g} s; fmusim's CVODE "
+        "at each tolerance. The error is the largest |h - h_exact| at the outputs (the exact solution of the rigid "
+        "law); the calls are the master's integrator's into the FMU (fmi3GetContinuousStateDerivatives and "
+        "fmi3CompletedIntegratorStep, counted in fmusim's call log)."]
     header = ["FMU", "start-up (1-step run) [s]", "per extra step, 8 s [us]", "per extra step, 80 s [us]",
               "ratio to theirs, 8 s", "ratio to theirs, 80 s"]
     lines = ["# Our FMU beside a C FMU in fmusim", "",
@@ -110,7 +185,8 @@ def page(costs: list[Costs], rounds: int, environment_at_start: dict[str, str]) 
              "recorded after every step. Each figure is the median of fresh processes, ours and theirs alternated "
              f"({rounds} rounds); start-up is a 1-step run, a step's cost the longer run less the 1-step run, over "
              "its extra steps. Regenerate: `bouncingball bench --c-fmu DIR --output-dir docs` (DIR: fmusim and "
-             f"{THEIRS[2]}, {THEIRS[3]}).", "", *table(header, rows), "", "Goals:", "", *verdicts, "",
+             f"{THEIRS[2]}, {THEIRS[3]}).", "", *table(header, rows), "", *exchange_intro, "",
+             *exchange_table, "", "Goals:", "", *verdicts, *exchange_verdicts, "",
              "Machine:", "", *environment_lines(environment_at_start), ""]
     return "\n".join(lines)
 
@@ -128,7 +204,9 @@ def run(output_dir: Path, folder: str | Path, quick: bool = False) -> list[Path]
             fmus[f"theirs, FMI {version}.0"] = theirs[version]
         rounds = 2 if quick else ROUNDS
         costs = measure(fmusim, fmus, rounds)
+        exchange = {who: [model_exchange_run(fmusim, fmus[f"{who}, FMI 3.0"], tolerance, who == "ours")
+                          for tolerance in ME_TOLERANCES] for who in ("ours", "theirs")}
     path = output_dir / PAGE
     with atomic_write(path) as temporary:
-        temporary.write_text(page(costs, rounds, started_in), encoding="utf-8")
+        temporary.write_text(page(costs, rounds, started_in, exchange), encoding="utf-8")
     return [path]

@@ -139,11 +139,9 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
         return in_frame(integrator.ground, integrator.ball.m, self.time if time is None else time, h, v,
                         self._values["F_ext"])
 
-
     def get_continuous_states(self):
         """[x, v]: x = h - R (exact, by Sterbenz, where h is within a factor 2 of R, as near the ground)."""
-        h, v = self._model_exchange()[:2]
-        return [h - self._integrator.ball.R, v]
+        return [self._model_exchange()[0] - self._integrator.ball.R, self._exchange[1]]
 
     def set_continuous_states(self, values):
         state = self._model_exchange()
@@ -163,22 +161,19 @@ class BouncingBall(MeasuredMaster, BallSlave, Fmi3Slave, ModelExchange):
         ball = self._integrator.ball
         h, v, F_ext = self._in_frame(*state[:2])
         if state[2] == Mode.FLIGHT and h < 0.0 and not self._fell_through:
-            # Its centre below the ground in flight: a master stepped over an impact unseen (a master that calls
-            # fmi3CompletedIntegratorStep is asked for event mode there: bouncingball_fmu3_loader.c). Said once.
+            # A master stepped over an impact unseen (one that calls fmi3CompletedIntegratorStep is told). Said once.
             self._fell_through = True
             if self._master_error is not None:
                 self._master_error.lost = True
-            self.log(f"h = {state[0]!r} m at t = {self.time!r} s: the ball is below the ground in flight, so the "
-                     "master stepped over an impact without an event, and the results from here on are wrong",
-                     self.STATUS.warning)
+            self.log(f"h = {state[0]!r} m at t = {self.time!r} s: below the ground in flight, so the master stepped "
+                     "over an impact without an event, and the results from here on are wrong", self.STATUS.warning)
         return [event_indicator(ball, h, v, state[2], F_ext)]
 
     def get_nominals_of_continuous_states(self, size):
         """The nominals of x [m] and v [m/s] of the current phase (phase_nominals); fixed between events."""
         if self._exchange is not None:
             return self._exchange[4:6][:size]
-        if self._integrator is not None:
-            integrator = self._integrator
+        if (integrator := self._integrator) is not None:
             h, v, F_ext = self._in_frame(integrator.h, integrator.v)
             return phase_nominals(integrator.ball, h, v, integrator.mode, F_ext)[:size]
         # Before initialisation: from the start values, as a flight (the mode is decided at initialisation).

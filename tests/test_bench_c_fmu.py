@@ -1,0 +1,46 @@
+"""`bouncingball bench --c-fmu DIR`: our FMU beside the Reference-FMUs' C BouncingBall in fmusim (bench/c_fmu.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bouncingball.bench import c_fmu
+from bouncingball.cli import main
+
+MASTERS = Path(__file__).resolve().parents[2] / "shared" / "masters"  # beside the project's root, where it exists
+
+
+def test_a_folder_without_the_masters_is_refused_by_name_before_any_work(tmp_path, capsys):
+    output = tmp_path / "out"
+    assert main(["bench", "--c-fmu", str(tmp_path / "none"), "--output-dir", str(output)]) == 2
+    error = capsys.readouterr().err
+    assert all(name in error for name in ("fmusim", "Ref_BouncingBall_fmi2.fmu", "Ref_BouncingBall_fmi3.fmu"))
+    assert not output.exists()  # nothing made, nothing written
+
+
+def _costs(label, startup, step_8, step_80):
+    return c_fmu.Costs(label, startup, {8.0: step_8, 80.0: step_80})
+
+
+def test_the_page_judges_each_goal_from_the_numbers():
+    costs = [_costs("ours, FMI 2.0", 0.45, 2.0e-6, 1.0e-6), _costs("theirs, FMI 2.0", 0.01, 0.7e-6, 0.7e-6),
+             _costs("ours, FMI 3.0", 0.7, 2.2e-6, 1.0e-6), _costs("theirs, FMI 3.0", 0.01, 0.7e-6, 0.7e-6)]
+    exchange = {"ours": [c_fmu.ExchangeRun(1e-4, 1.0e-3, 200), c_fmu.ExchangeRun(1e-6, 2.0e-5, 240)],
+                "theirs": [c_fmu.ExchangeRun(1e-4, 1.1e-3, 205), c_fmu.ExchangeRun(1e-6, 1.0e-5, 243)]}
+    text = c_fmu.page(costs, 5, {"machine": "test"}, exchange)
+    assert "- FMI 2.0 start-up 0.450 s (goal <= 0.5 s): met" in text
+    assert "- FMI 3.0 start-up 0.700 s (goal <= 0.5 s): NOT MET" in text
+    assert "- FMI 2.0 cost per extra step over 8 s 2.86x theirs (goal <= 3x): met" in text
+    assert "- FMI 3.0 cost per extra step over 8 s 3.14x theirs (goal <= 3x): NOT MET" in text
+    assert "no more calls at every tolerance: NOT MET (at 1e-06)" in text
+    assert "| ours, FMI 2.0 | 0.450 | 2.00 | 1.00 | 2.86 | 1.43 |" in text
+
+
+@pytest.mark.skipif(not (MASTERS / "fmusim").is_file(), reason="needs ../shared/masters (fmusim, the Reference-FMUs)")
+def test_their_model_exchange_run_is_measured_against_the_exact_solution():
+    """Their C ball in fmusim's CVODE: its error shrinks with the tolerance, and is what the exact solution says."""
+    coarse, fine = (c_fmu.model_exchange_run(MASTERS / "fmusim", MASTERS / c_fmu.THEIRS[3], tolerance, ours=False)
+                    for tolerance in (1e-4, 1e-8))
+    assert 1e-4 < coarse.error < 1e-2 and 1e-8 < fine.error < 1e-6 and fine.calls > coarse.calls > 100
