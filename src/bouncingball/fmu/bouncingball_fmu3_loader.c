@@ -626,19 +626,18 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     }
     *eventHandlingNeeded = *terminateSimulation = *earlyReturn = fmi3False;
     *lastSuccessfulTime = currentCommunicationPoint;
-    if (stepped_in_c(c, t, step)) { /* inside CVODE's last step: no event in it, the slave's arithmetic compiled */
-        *lastSuccessfulTime = slave_time(c);
-        return fmi3OK;
-    }
     for (;;) {
-        /* The slave returns at the first impact or departure inside the step, or at its end. */
+        /* The slave returns at the first impact or departure inside the step, or at its end: compiled, without
+         * Python, where it can (stepped_in_c). */
         c->worst = fmi3OK;
-        unserve(c);
-        fmi3Status s = finish(c, inner.DoStep(c->inner, t, step, noSetFMUStatePriorToCurrentPoint, &ignored_event,
-                                              &terminate, &ignored_early, &ignored_time));
-        status = s > status ? s : status;
-        if (status > fmi3Warning) {
-            return status; /* the slave refused the step: it is still at *lastSuccessfulTime */
+        if (!stepped_in_c(c, t, step)) {
+            unserve(c);
+            fmi3Status s = finish(c, inner.DoStep(c->inner, t, step, noSetFMUStatePriorToCurrentPoint,
+                                                  &ignored_event, &terminate, &ignored_early, &ignored_time));
+            status = s > status ? s : status;
+            if (status > fmi3Warning) {
+                return status; /* the slave refused the step: it is still at *lastSuccessfulTime */
+            }
         }
         c->worst = fmi3OK;
         reached = slave_time(c);

@@ -46,14 +46,17 @@ static void (*release_python_state)(void); /* pythonfmu's finalizePythonInterpre
 
 /* --- what the loader serves without entering Python (fmu/c_layer.py, the slave's side) ----------------------
  * The slave's values by value reference (Integers and Booleans as doubles), and the control slots: READY (the
- * values are the slave's current ones and STEP may be called), STEP (0, or the address of a compiled function that
- * does the slave's doStep(currentCommunicationPoint, communicationStepSize) where it ends inside its integrator's
- * last CVODE step, writing the values it changes: 1 if it did, 0 if it did nothing) and CONTEXT (STEP's first
- * argument). The slave owns the memory and sets READY at the end of each step it took; the loader clears it before
- * it forwards any call but a getter (unserve), so that what a set, a reset or a restored state changes is never
- * served stale. The slave hands its memory over (bouncingball_serve) while it is being made: in fmi2Instantiate /
- * fmi3Instantiate* and Reset, where `linking` is the instance. */
-enum { SERVED_READY, SERVED_STEP, SERVED_CONTEXT, SERVED_SLOTS };
+ * values are the slave's current ones and STEP may be called), STEP (0, or the address of the compiled doStep,
+ * solvers/engines/c_entry.py, which writes the values it changes), CONTEXT (STEP's first argument), BEGUN (what STEP
+ * left for the slave to finish, read by it at its next do_step: 0 for nothing), and the descriptors of the files
+ * SUNDIALS writes its warnings to (LOG0, LOG1; -1 for none) with their sizes when the slave last read them
+ * (SIZE0, SIZE1). The slave owns the memory and sets READY at the end of each step it took; the loader clears it
+ * before it forwards any call but a getter (unserve), so that what a set, a reset or a restored state changes is
+ * never served stale. The slave hands its memory over (bouncingball_serve) while it is being made: in
+ * fmi2Instantiate / fmi3Instantiate* and Reset, where `linking` is the instance. */
+enum { SERVED_READY, SERVED_STEP, SERVED_CONTEXT, SERVED_BEGUN, SERVED_LOG0, SERVED_LOG1, SERVED_SIZE0, SERVED_SIZE1,
+       SERVED_SLOTS };
+enum { STEP_NOT_TAKEN, STEP_TAKEN, STEP_TAKEN_WITH_CVODE, STEP_FINISH = 16 }; /* c_entry's NOT_TAKEN, ... FINISH */
 typedef int (*InStep)(intptr_t context, double current_time, double step_size);
 
 static __thread Instance *linking;
@@ -92,16 +95,35 @@ static void unserve(Instance *c)
         linking = NULL;                 \
     } while (0)
 
-/* The slave's compiled doStep from current_time by step_size, where it is served and the step ends inside the
- * integrator's last CVODE step; 1 if taken (the values are current), else 0 and nothing changed. */
+/* 1 if SUNDIALS wrote to a warnings file since the slave last read it. */
+static int sundials_wrote(const intptr_t *control)
+{
+    for (int i = 0; i < 2; i++) {
+        int descriptor = (int)control[SERVED_LOG0 + i];
+        if (descriptor >= 0 && lseek(descriptor, 0, SEEK_END) != (off_t)control[SERVED_SIZE0 + i]) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* The slave's compiled doStep from current_time by step_size, where it is served: 1 if the step is taken and
+ * nothing is left to do (the values are current); else 0, and the slave takes the step, or finishes what the
+ * compiled step began (BEGUN: the failure to word, the warnings to read or check). */
 static int stepped_in_c(Instance *c, double current_time, double step_size)
 {
     InStep step;
+    int left;
     if (!served_ready(c) || c->served_control[SERVED_STEP] == 0) {
         return 0;
     }
     *(void **)&step = (void *)c->served_control[SERVED_STEP];
-    return step(c->served_control[SERVED_CONTEXT], current_time, step_size) == 1;
+    left = step(c->served_control[SERVED_CONTEXT], current_time, step_size);
+    if (left == STEP_TAKEN || (left == STEP_TAKEN_WITH_CVODE && !sundials_wrote(c->served_control))) {
+        return 1;
+    }
+    c->served_control[SERVED_BEGUN] = left == STEP_TAKEN_WITH_CVODE ? STEP_FINISH : left;
+    return 0;
 }
 
 /* In a getter, once its value references are checked: the served values (convert: a cast to the getter's type). */

@@ -1,4 +1,4 @@
-"""What the FMU's C layer serves without entering Python: the variables' values, and a step inside CVODE's last step.
+"""What the FMU's C layer does without entering Python: serve the variables' values, and take the steps.
 
 A master reads outputs after every step (fmusim all of them), and each read through pythonfmu enters Python. The
 loader (bouncingball_fmu_python.h) serves them itself from memory the slave owns and hands it while it is being made
@@ -6,12 +6,13 @@ loader (bouncingball_fmu_python.h) serves them itself from memory the slave owns
 slots. At the end of each step it took, the slave writes its values there and marks them ready (``publish``); the
 loader clears that mark before it forwards any call that may change them (a set, a reset, a restored state, a step).
 
-Most of an FMU's short steps end inside CVODE's last step, or on a rest, where the step is a little compiled
-arithmetic. There the loader calls the compiled engine itself
-(solvers/engines/c_entry.py), which also writes the outputs it changes: on the compiled engine and a still ground,
-where the slave's variables that change in a step are each a quantity it reports (``REPORTED_BY_VARIABLE``). Any other
-step runs in Python as before. A slave whose loader is not this one (run by pythonfmu's binary alone, or in tests
-without a binary) serves nothing and runs as before.
+The steps themselves the loader takes by calling the compiled engine (solvers/engines/c_entry.py), which runs the
+slave's do_step as BallIntegrator runs it, on the integrator's own CVODE solvers and machine state, and writes the
+outputs it changes: on the compiled engine and a still ground, where the slave's variables that change in a step are
+each a quantity it reports (``REPORTED_BY_VARIABLE``). What needs Python is left to it: a refusal to word, a
+failure to raise, SUNDIALS' warnings to read (their files grew), the accuracy warning to check; the slave finishes a
+step the loader began (``finish_begun``). Any other step runs in Python as before. A slave whose loader is not this
+one (run by pythonfmu's binary alone, or in tests without a binary) serves nothing and runs as before.
 """
 
 from __future__ import annotations
@@ -22,9 +23,11 @@ import os
 
 import numpy as np
 
+from ..solvers.integrator import compiled_arrays, finish_advance
 from .variables import MODEL_NAME
 
-READY, STEP, CONTEXT = range(3)  # the control slots (bouncingball_fmu_python.h: SERVED_READY, ...)
+# The control slots (bouncingball_fmu_python.h: SERVED_READY, ...).
+READY, STEP, CONTEXT, BEGUN, LOG0, LOG1, SIZE0, SIZE1, SLOTS = range(9)
 # The variables a step changes, by name, and the quantity of the compiled step (c_entry.REPORTED) that is each.
 # (gap, FMI 3.0's event indicator, and x, model exchange's state: h - R in co-simulation on a still ground, as slave3's
 # _gap and _x compute it.)
@@ -52,11 +55,14 @@ class ServedValues:
     """The slave's side of the served values: made with the slave, while its loader makes the instance.
 
     variables: the slave's registered variables by value reference (pythonfmu's ``vars``), each with its getter.
+    stop_at_event: the slave's STOP_AT_EVENT (FMI 3.0's do_step returns at the first event inside the step).
     """
 
-    def __init__(self, resources: str | None, variables: dict):
+    def __init__(self, resources: str | None, variables: dict, stop_at_event: bool = False):
+        self._stop_at_event = stop_at_event  # the slave's STOP_AT_EVENT: FMI 3.0's do_step returns at an event
         self.values = np.zeros(len(variables))
-        self.control = np.zeros(3, dtype=np.intp)
+        self.control = np.zeros(SLOTS, dtype=np.intp)
+        self.control[LOG0:LOG1 + 1] = -1
         numbers = {reference: variable for reference, variable in variables.items()
                    if type(variable).__name__ in _SERVED_TYPES}
         changing = {reference: variable for reference, variable in numbers.items()
@@ -82,21 +88,38 @@ class ServedValues:
         """
         if not self.linked:
             return
-        values = self.values
+        values, control = self.values, self.control
         if set_values != self._published:
             for reference, getter in self._set_only:
                 values[reference] = getter()
             self._published = dict(set_values)
         kept = self._compiled_step(integrator)
-        if kept is None or not kept[6](kept[2].ctypes.data):
+        if kept is None or not kept[-1](kept[2].ctypes.data):
             for reference, getter in self._changing:
                 values[reference] = getter()
-        self.control[STEP], self.control[CONTEXT] = (0, 0) if kept is None else (kept[5], kept[2].ctypes.data)
-        self.control[READY] = 1
+        if kept is None:
+            control[STEP] = control[CONTEXT] = 0
+        else:  # the step may run CVODE: the files of its warnings, as far as the integrator has read them
+            control[STEP], control[CONTEXT] = kept[3], kept[2].ctypes.data
+            for slot, log in enumerate(integrator._logs[:2]):  # SundialsLog, one per mode's solver
+                control[LOG0 + slot], control[SIZE0 + slot] = log.descriptor, log.size()
+        control[READY] = 1
+
+    def finish_begun(self, integrator) -> bool:
+        """Whether the loader's compiled step began the step the slave is asked for: then its end, as BallIntegrator
+        advance's (solvers/integrator.py's finish_advance: a SolverError for a failure; the warnings read, checked)."""
+        code = int(self.control[BEGUN])
+        if not code:
+            return False
+        self.control[BEGUN] = 0
+        from ..solvers.engines.c_entry import FINISH
+
+        finish_advance(integrator, code - FINISH)
+        return True
 
     def _compiled_step(self, integrator):
-        """(integrator, its machine state, context, parameters, settings, step address, report) or None where it
-        has no compiled step."""
+        """(integrator, its machine state, context, step address, the arrays the context points to, report) or None
+        where it has no compiled step."""
         if integrator is None or integrator.engine != "compiled" or integrator.ground.moves or \
                 any(quantity is None for quantity, _ in self._reported):
             return None
@@ -104,13 +127,16 @@ class ServedValues:
         if kept is None or kept[0] is not integrator or kept[1] is not integrator._machine_state:
             from ..solvers.engines import c_entry
 
+            engine, events, scratch = arrays = compiled_arrays(integrator)
             parameters = np.array(integrator._machine_parameters, dtype=float)
-            settings = np.array([integrator.settings.rtol, integrator._atol, integrator.resolvable_until])
+            settings = np.array([integrator.settings.rtol, integrator._atol, integrator.resolvable_until,
+                                 float(self._stop_at_event), len(events), len(scratch), len(engine)])
             pairs = [number for quantity, reference in self._reported
                      for number in (c_entry.REPORTED.index(quantity), reference)]
             context = np.array([parameters.ctypes.data, settings.ctypes.data, integrator._machine_state.ctypes.data,
-                                self.values.ctypes.data, len(pairs) // 2, *pairs], dtype=np.intp)
+                                self.values.ctypes.data, engine.ctypes.data, events.ctypes.data, scratch.ctypes.data,
+                                len(pairs) // 2, *pairs], dtype=np.intp)
             report = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_ssize_t)(c_entry.report_address())
-            kept = self._kept = (integrator, integrator._machine_state, context, parameters, settings,
-                                 c_entry.step_address(), report)
+            kept = self._kept = (integrator, integrator._machine_state, context, c_entry.step_address(), parameters,
+                                 settings, arrays, report)
         return kept

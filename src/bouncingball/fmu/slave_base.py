@@ -110,7 +110,7 @@ class BallSlave:
         for variable in FMI3_VARIABLES if self.VERSION_GETTERS else ():
             self._register(variable, getattr(self, self.VERSION_GETTERS[variable.name]),
                            lambda value, name=variable.name: self._error(f"{name} cannot be set"))
-        self._served = ServedValues(resources, getattr(self, "vars", {}))  # while the loader makes the instance
+        self._served = ServedValues(resources, getattr(self, "vars", {}), self.STOP_AT_EVENT)  # while being made
 
     def _output_getters(self) -> dict:
         """Each output's getter by the output's name (variables.VARIABLES'), the one table that pairs them."""
@@ -149,36 +149,36 @@ class BallSlave:
         return stepped
 
     def _step(self, current_time, step_size):
-        integrator = self._integrator
-        if integrator is None:
+        if (integrator := self._integrator) is None:
             self._error(f"{self.CALLS['step']} before initialisation (or after a failed one)")
             return self.REFUSED
         try:
-            target = current_time + step_size
-            # Most short steps, at the FMU's own time exactly: arithmetic that cannot warn.
-            if integrator.advance_within_step(target, current_time):
-                return self.STEPPED
-            t = integrator.t
-            rounded = current_time != t
-            # A master's own rounding of the communication points is tolerated, a jump is not.
-            if rounded and not abs(current_time - t) <= 1e-9 * max(1.0, abs(t)):
-                raise ValueError(f"currentCommunicationPoint = {current_time!r} s is not allowed: "
-                                 f"the FMU is at t = {t!r} s")
-            if not (step_size >= 0.0 and math.isfinite(target)):
-                raise ValueError(f"communicationStepSize = {step_size!r} s is not allowed: it must be >= 0 and "
-                                 "end the step at a finite time")
-            if rounded:  # the same arithmetic from the FMU's own time
-                target = max(target, t)  # a current time rounded below t, and a step shorter than that rounding
-                if integrator.advance_within_step(target, t):
-                    return self.STEPPED
-            integrator.advance(target, self.STOP_AT_EVENT)
+            if not self._served.finish_begun(integrator):  # else the loader's compiled step began it: ended here
+                self._advance(integrator, current_time, current_time + step_size, step_size)
         except (ValueError, SolverError) as error:
             self._log_warnings()  # those before the failure first
             self._error(error)
             return self.REFUSED
-        if self._warnings:
-            self._log_warnings()
+        self._log_warnings()
         return self.STEPPED
+
+    def _advance(self, integrator, current_time, target, step_size) -> None:
+        # Most short steps, at the FMU's own time exactly: arithmetic that cannot warn.
+        if integrator.advance_within_step(target, current_time):
+            return
+        rounded = current_time != (t := integrator.t)
+        # A master's own rounding of the communication points is tolerated, a jump is not.
+        if rounded and not abs(current_time - t) <= 1e-9 * max(1.0, abs(t)):
+            raise ValueError(f"currentCommunicationPoint = {current_time!r} s is not allowed: the FMU is at "
+                             f"t = {t!r} s")
+        if not (step_size >= 0.0 and math.isfinite(target)):
+            raise ValueError(f"communicationStepSize = {step_size!r} s is not allowed: it must be >= 0 and "
+                             "end the step at a finite time")
+        if rounded:  # the same arithmetic from the FMU's own time
+            target = max(target, t)  # a current time rounded below t, and a step shorter than that rounding
+            if integrator.advance_within_step(target, t):
+                return
+        integrator.advance(target, self.STOP_AT_EVENT)
 
     # --- FMU state: everything needed to continue exactly, in this or a fresh instance ------------
     def _get_fmu_state(self):

@@ -337,6 +337,25 @@ def _issue(held: list | None, warning: Warning) -> None:
         held.append(warning)
 
 
+def compiled_arrays(integrator: BallIntegrator) -> tuple:
+    """(engine, event rows, scratch rows): what the compiled machine's advance takes besides the state."""
+    return integrator._engine, integrator._event_rows, integrator._scratch
+
+
+def finish_advance(integrator: BallIntegrator, status: int) -> None:
+    """What BallIntegrator.advance does after its machine's call, for a call made by a C caller (fmu/c_layer.py).
+
+    A failure status raises its SolverError; the accuracy warning is checked, SUNDIALS' warnings read.
+    """
+    integrator._unreported = integrator._logs
+    try:
+        if status != machine.DONE:
+            raise _machine_failure(integrator, status)
+        integrator._warn_if_untrusted(whole=False)
+    finally:
+        integrator._report_sundials_warnings()
+
+
 def _machine_failure(integrator: BallIntegrator, status: int) -> SolverError:
     """The error the machine's failure status stands for, with where it failed (the state's fail_* fields)."""
     state, mode, R = integrator._state, integrator.mode, integrator.ball.R

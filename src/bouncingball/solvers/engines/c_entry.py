@@ -1,15 +1,18 @@
-"""The compiled engine's entry point for a C caller: an FMU's doStep where it needs no CVODE, and its values.
+"""The compiled engine's entry point for a C caller: an FMU's doStep without Python, and its values.
 
 An FMU's C layer (fmu/bouncingball_fmu_python.h, ``stepped_in_c``) calls the cfunc at ``step_address()`` with a
 context: a row of addresses and value references (``CONTEXT_FIELDS``) that fmu/c_layer.py fills for one integrator
-and the FMU's variables. Where the FMU slave's do_step would end inside CVODE's last step, or on a rest, it runs the
-very compiled calls BallIntegrator runs there (drivers.advance_in_step or drivers.rest_until, then
-drivers.keep_estimate) on the integrator's own machine state, then writes each ``REPORTED`` quantity the context
-asks for where it says, computed as the integrator's properties compute it, so that a step taken here and one taken
-through Python leave the same values to the bit. 1 if it stepped; 0 if it did nothing: the step needs CVODE, an
-event, a refusal or a warning's check, or the ground vibrates (its motion is the Python ground's own arithmetic),
-and the caller runs it in Python. ``report_address()`` writes the same quantities without stepping (after a step
-Python took).
+and the FMU's variables. It runs the FMU slave's do_step (fmu/slave_base.py) as BallIntegrator runs it, with the
+very compiled calls: inside CVODE's last step (drivers.advance_in_step), else the machine's advance
+(drivers.advance: CVODE, events, rests) on the integrator's own CVODE solvers and machine state, then
+drivers.keep_estimate; and writes each ``REPORTED`` quantity the context asks for where it says, computed as the
+integrator's properties compute it, so that a step taken here and one taken through Python leave the same values
+to the bit. It returns what is left to do: ``NOT_TAKEN`` (nothing done: a refusal to word, a target beyond what
+double precision resolves, a vibrating ground, whose motion is the Python ground's own arithmetic; the caller runs
+the step in Python), ``TAKEN``, ``TAKEN_WITH_CVODE`` (CVODE stepped: its warnings' files to look at) or
+``FINISH + status`` (the machine ran and Python is to finish what BallIntegrator.advance does after it: a failure
+to raise, the accuracy warning to check: solvers/integrator.py's finish_advance). ``report_address()`` writes the same
+quantities without stepping (after a step Python took).
 
 Import this module only to use it (it imports numba and the compiled engine).
 """
@@ -23,6 +26,7 @@ from numba import carray, cfunc, njit, types
 from ...codes import CONTACT
 from ...contact_laws import BallParameters, dispatch
 from ..phase_machine import drivers
+from ..phase_machine.machine import DONE
 from . import compiled
 from .jit import addresses, doubles
 
@@ -30,16 +34,21 @@ from .jit import addresses, doubles
 # h - R [m] computed from h as written (the FMI 3.0 slave's gap in co-simulation).
 REPORTED = ("t", "h", "v", "acceleration", "contact", "contact_force", "impacts", "error_estimate_at_t",
             "h_minus_R")
-# The context (one row of intp): the addresses of the integrator's BallParameters as float64, of [rtol, atol,
-# resolvable_until] (BallIntegrator's settings.rtol, _atol and resolvable_until: beyond it, its refusal), of its
-# machine state (layout.STATE_DTYPE's record) and of the caller's values (float64), the number of pairs that follow,
-# then each pair: a REPORTED quantity's place in REPORTED and the index in the values it is written at.
-CONTEXT_FIELDS = ("parameters", "settings", "machine_state", "values", "pairs")
-_PARAMETERS, _SETTINGS, _MACHINE_STATE, _VALUES, _PAIRS = range(len(CONTEXT_FIELDS))
+# The context (one row of intp): the addresses of the integrator's BallParameters as float64, of its settings
+# (SETTINGS: float64), of its machine state (layout.STATE_DTYPE's record), of the caller's values (float64), of the
+# compiled machine's engine (one row per mode, intp), of its event rows and scratch rows (float64, 3 columns), the
+# number of pairs that follow, then each pair: a REPORTED quantity's place in REPORTED and the index in the values it
+# is written at.
+CONTEXT_FIELDS = ("parameters", "settings", "machine_state", "values", "engine", "events", "scratch", "pairs")
+_PARAMETERS, _SETTINGS, _MACHINE_STATE, _VALUES, _ENGINE, _EVENTS, _SCRATCH, _PAIRS = range(len(CONTEXT_FIELDS))
+# BallIntegrator's settings.rtol, _atol, resolvable_until (beyond it, its refusal), the slave's STOP_AT_EVENT (1.0 or
+# 0.0), the rows of its event and scratch arrays and the engine's modes.
+SETTINGS = ("rtol", "atol", "resolvable_until", "stop_at_event", "event_rows", "scratch_rows", "engine_modes")
 _HEADER, _N_PARAMETERS = len(CONTEXT_FIELDS), len(BallParameters._fields)
+NOT_TAKEN, TAKEN, TAKEN_WITH_CVODE, FINISH = 0, 1, 2, 16
 
 _advance_in_step = compiled._compiled[drivers.advance_in_step]
-_rest_until = compiled._compiled[drivers.rest_until]
+_advance = compiled._compiled[drivers.advance]
 _keep_estimate = compiled._compiled[drivers.keep_estimate]
 _reported_acceleration = compiled._compiled[dispatch.reported_acceleration]
 _law_contact_force = compiled._compiled[dispatch.law_contact_force]
@@ -71,31 +80,41 @@ def _unpacked(context):
 
 
 @cfunc(types.int32(types.intp, types.float64, types.float64), cache=compiled._CACHE)
-def _step_without_cvode(context, current_time, step_size):
+def _do_step(context, current_time, step_size):
     row, parameters = _unpacked(context)
     state = carray(compiled._record_pointer(row[_MACHINE_STATE]), 1)[0]
+    settings = carray(doubles(row[_SETTINGS]), len(SETTINGS))
     if parameters.ground_amplitude != 0.0:
-        return 0
-    # As the FMU slave's do_step and BallIntegrator.advance: inside the last step from current_time, else from the
-    # state's time where current_time is its rounding, else on a rest; anything else (CVODE, an event, a refusal, a
-    # warning to check: err_from set) is left to them.
+        return NOT_TAKEN
+    # As the slave's do_step: inside the last step from current_time, else from the state's time where current_time
+    # is its rounding (a jump, a negative or endless step: refused in Python, in words); then BallIntegrator.advance.
     t, t_target = state.t, current_time + step_size
+    code = TAKEN
     if not _advance_in_step(parameters, state, current_time, t_target):
         rounded = current_time != t
         if (rounded and not abs(current_time - t) <= 1e-9 * max(1.0, abs(t))) or \
                 not (step_size >= 0.0 and math.isfinite(t_target)):
-            return 0
+            return NOT_TAKEN
         if rounded:
             t_target = max(t_target, t)
         if not (rounded and _advance_in_step(parameters, state, t, t_target)):
-            settings = carray(doubles(row[_SETTINGS]), 3)
-            if not math.isnan(state.err_from) or t_target > settings[2] or \
-                    not _rest_until(parameters, state, t_target):
-                return 0
-    settings = carray(doubles(row[_SETTINGS]), 3)
+            if not t_target >= t or t_target > settings[2]:
+                return NOT_TAKEN
+            steps = state.steps
+            engine = carray(addresses(row[_ENGINE]), (int(settings[6]), compiled._H_SIZE))
+            events = carray(doubles(row[_EVENTS]), (int(settings[4]), 3))
+            scratch = carray(doubles(row[_SCRATCH]), (int(settings[5]), 3))
+            status = _advance(engine, parameters, settings[0], settings[1], state, t_target, settings[3] != 0.0,
+                              events, 0, scratch)[0]
+            _keep_estimate(parameters, settings[0], settings[1], state)
+            if status != DONE or not math.isnan(state.err_from):
+                return FINISH + status
+            code = TAKEN if state.steps == steps else TAKEN_WITH_CVODE
+            _write_reported(row, parameters, state)
+            return code
     _keep_estimate(parameters, settings[0], settings[1], state)
     _write_reported(row, parameters, state)
-    return 1
+    return code
 
 
 @cfunc(types.int32(types.intp), cache=compiled._CACHE)
@@ -110,9 +129,8 @@ def _report(context):
 
 def step_address() -> int:
     """The address of the C function ``int step(intptr_t context, double current_time, double step_size)``: the
-    FMU slave's do_step (fmu/slave_base.py) where it needs no CVODE: it ends inside CVODE's last step, or on a rest;
-    1 if it stepped, else 0 and nothing changed."""
-    return _step_without_cvode.address
+    FMU slave's do_step; what is left to do (NOT_TAKEN, TAKEN, TAKEN_WITH_CVODE or FINISH + the machine's status)."""
+    return _do_step.address
 
 
 def report_address() -> int:

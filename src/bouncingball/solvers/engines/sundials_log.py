@@ -134,6 +134,15 @@ class SundialsLog:
                 messages.append(f"{function}: {message}" if function else message)
         return messages
 
+    @property
+    def descriptor(self) -> int:
+        """The file's descriptor, open for the log's life."""
+        return self._descriptor
+
+    def size(self) -> int:
+        """The file's size [bytes] now."""
+        return os.lseek(self._descriptor, 0, os.SEEK_END)
+
     def new_warnings(self) -> list[SundialsWarning]:
         """Each new cause (new_messages) as a SundialsWarning, to issue or to pass on."""
         return [SundialsWarning(f"SUNDIALS {message}") for message in self.new_messages()]

@@ -121,14 +121,6 @@ def advance_in_step(parameters, state, t_from, t_target):
     return True
 
 
-def rest_until(parameters, state, t_target):
-    """Whether the state rests (a rest begun, no event pending) and t_target lies after it: then the state there."""
-    if state.pending != 0.0 or math.isnan(state.rest_t) or not state.t < t_target:
-        return False
-    _rest_state(parameters, state, t_target)
-    return True
-
-
 def keep_estimate(parameters, rtol, atol, state):
     """The run's estimate at the state, the current phase so far included (error_estimate.run_estimate), kept in est.
 
@@ -160,7 +152,8 @@ def advance(engine, parameters, rtol, atol, state, t_target, stop_at_event, even
         if state.needs_init != 0.0 and math.isnan(state.rest_t) and \
                 not _decided_by_cvode(parameters, rtol, state, max(t_target - state.t, STEP_HORIZON)):
             continue  # a rest, or a phase in closed form: taken above
-        if rest_until(parameters, state, t_target):
+        if not math.isnan(state.rest_t):
+            _rest_state(parameters, state, t_target)
             break
         if _finish_by_taylor(parameters, state, t_target):
             break
