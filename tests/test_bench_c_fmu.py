@@ -20,8 +20,8 @@ def test_a_folder_without_the_masters_is_refused_by_name_before_any_work(tmp_pat
     assert not output.exists()  # nothing made, nothing written
 
 
-def _costs(label, startup, step_8, step_80):
-    return c_fmu.Costs(label, startup, {8.0: step_8, 80.0: step_80})
+def _costs(label, startup, step_8, step_long):
+    return c_fmu.Costs(label, startup, {8.0: step_8, c_fmu.LONG_RUN: step_long})
 
 
 def test_the_page_judges_each_goal_from_the_numbers():
