@@ -174,10 +174,9 @@ def page(costs: list[Costs], rounds: int, environment_at_start: dict[str, str],
                          *(f"{cost.per_step[stop] / theirs.per_step[stop]:.2f}" for stop in RUNS[1:])])
         verdicts.append(f"- FMI {version}.0 start-up {ours.startup:.3f} s (goal <= {STARTUP_GOAL:g} s): "
                         f"{'met' if ours.startup <= STARTUP_GOAL else 'NOT MET'}")
-        for stop in RUNS[1:]:
-            ratio = ours.per_step[stop] / theirs.per_step[stop]
-            verdicts.append(f"- FMI {version}.0 cost per extra step over {stop:g} s {ratio:.2f}x theirs (goal <= "
-                            f"{STEP_RATIO_GOAL:g}x): {'met' if ratio <= STEP_RATIO_GOAL else 'NOT MET'}")
+        ratio = ours.per_step[LONG_RUN] / theirs.per_step[LONG_RUN]  # the 8 s run's is within its start-up's spread
+        verdicts.append(f"- FMI {version}.0 cost per extra step {ratio:.2f}x theirs ({LONG_RUN:g} s bouncing; goal "
+                        f"<= {STEP_RATIO_GOAL:g}x): {'met' if ratio <= STEP_RATIO_GOAL else 'NOT MET'}")
     exchange_table, exchange_verdicts = _exchange_lines(exchange)
     exchange_intro = [
         f"Model exchange (FMI 3.0), their scene: a rigid ball, e = {ME_SCENE.e:g}, v_min = {ME_SCENE.v_min:g} m/s, "
