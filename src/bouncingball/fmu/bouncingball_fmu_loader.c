@@ -300,7 +300,7 @@ fmi2Status fmi2DoStep(fmi2Component instance, fmi2Real currentCommunicationPoint
 {
     CHECK(DoStep)
     if (stepped_in_c(c_, currentCommunicationPoint, communicationStepSize)) {
-        return fmi2OK; /* inside CVODE's last step: the slave's own arithmetic, compiled, without Python */
+        return fmi2OK; /* the slave's step, compiled, without Python */
     }
     CALL_TO(c_->state, DoStep, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint);
 }
