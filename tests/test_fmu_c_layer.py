@@ -151,3 +151,37 @@ def test_what_a_set_a_restored_state_or_a_reset_changes_is_read_back_at_once(unz
         print("ok")
     """, str(unzipped))
     assert out.split()[-1] == "ok"
+
+
+def test_a_step_whose_compiled_code_raises_ends_the_instance_with_an_error(unzipped):
+    """Its state may have changed before the raise: the step is not run again in Python (a result from an unknown
+    state), the call returns fmi2Error with a line that says so, and the instance takes no further call, as where the
+    slave's own step raises out of the FMU."""
+    out = run_case("""
+        import fmpy
+        from fmu_helpers import Instance
+        ball = Instance(sys.argv[1])
+        slave = slave_of(ball)
+        ball.initialize()
+        ball.step_to(0.1, 1e-3)
+        slave._served._kept[4][0] = 0.0  # the compiled step's m: a ZeroDivisionError where it takes the acceleration
+        python_steps = slave.python_steps
+        try:
+            ball.fmu.doStep(0.1, 1e-3)
+        except fmpy.fmi1.FMICallException as error:
+            assert error.status == 3, error.status  # fmi2Error
+        else:
+            raise AssertionError("the step was taken")
+        assert slave.python_steps == python_steps  # not run again in Python
+        assert "the compiled engine raised" in ball.errors()[-1], ball.errors()
+        try:
+            ball.fmu.doStep(0.1, 1e-3)
+        except fmpy.fmi1.FMICallException:
+            pass
+        else:
+            raise AssertionError("a further call was taken")
+        assert "an earlier error ended this instance" in ball.errors()[-1], ball.errors()
+        ball.free()
+        print("ok")
+    """, str(unzipped))
+    assert out.split()[-1] == "ok"

@@ -128,6 +128,7 @@ typedef struct Instance {
     fmi3Boolean early_return_allowed;
     fmi3Status worst; /* worst status logged during the current call */
     int dead;         /* pythonfmu3 returned fmi3Fatal: its instance is gone */
+    int ended;        /* the compiled step raised: its state unknown, no further call taken */
     double *served_values; /* what is served without entering Python (bouncingball_fmu_python.h) */
     intptr_t *served_control;
     Interface interface;
@@ -630,7 +631,11 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         /* The slave returns at the first impact or departure inside the step, or at its end: compiled, without
          * Python, where it can (stepped_in_c). */
         c->worst = fmi3OK;
-        if (!stepped_in_c(c, t, step)) {
+        int taken = stepped_in_c(c, t, step);
+        if (taken < 0) {
+            return fmi3Error;
+        }
+        if (!taken) {
             unserve(c);
             fmi3Status s = finish(c, inner.DoStep(c->inner, t, step, noSetFMUStatePriorToCurrentPoint,
                                                   &ignored_event, &terminate, &ignored_early, &ignored_time));

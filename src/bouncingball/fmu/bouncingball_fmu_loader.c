@@ -135,6 +135,7 @@ typedef struct Instance {
     fmi2Boolean logging_on;
     fmi2Status worst;             /* worst status logged during the current call */
     int dead;                     /* pythonfmu returned fmi2Fatal: its instance is gone */
+    int ended;                    /* the compiled step raised: its state unknown, no further call taken */
     State state;
     double *served_values;        /* what is served without entering Python (bouncingball_fmu_python.h) */
     intptr_t *served_control;
@@ -299,8 +300,11 @@ fmi2Status fmi2DoStep(fmi2Component instance, fmi2Real currentCommunicationPoint
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
     CHECK(DoStep)
-    if (stepped_in_c(c_, currentCommunicationPoint, communicationStepSize)) {
+    switch (stepped_in_c(c_, currentCommunicationPoint, communicationStepSize)) {
+    case 1:
         return fmi2OK; /* the slave's step, compiled, without Python */
+    case -1:
+        return fmi2Error;
     }
     CALL_TO(c_->state, DoStep, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint);
 }

@@ -13,7 +13,7 @@
  *   State                 an enum whose first value is INSTANTIATED, STATE_NAMES, IN(state) (a mask bit)
  *                         and ALLOWED_<call> (the mask of the states each forwarded call is allowed in);
  *   TYPE_NAMES            the version's names of the variable types R, I, B and S;
- *   Instance              with inner, name, logging_on, worst, dead, state, `double *served_values`,
+ *   Instance              with inner, name, logging_on, worst, dead, ended, state, `double *served_values`,
  *                         `intptr_t *served_control` and `struct Instance *next`;
  * and, after the #include, the functions declared below as the loader's.
  */
@@ -56,7 +56,7 @@ static void (*release_python_state)(void); /* pythonfmu's finalizePythonInterpre
  * fmi2Instantiate / fmi3Instantiate* and Reset, where `linking` is the instance. */
 enum { SERVED_READY, SERVED_STEP, SERVED_CONTEXT, SERVED_BEGUN, SERVED_LOG0, SERVED_LOG1, SERVED_SIZE0, SERVED_SIZE1,
        SERVED_SLOTS };
-enum { STEP_NOT_TAKEN, STEP_TAKEN, STEP_TAKEN_WITH_CVODE, STEP_FINISH = 16 }; /* c_entry's NOT_TAKEN, ... FINISH */
+enum { STEP_RAISED, STEP_NOT_TAKEN, STEP_TAKEN, STEP_TAKEN_WITH_CVODE, STEP_FINISH = 16 }; /* c_entry's RAISED, ... */
 typedef int (*InStep)(intptr_t context, double current_time, double step_size);
 
 static __thread Instance *linking;
@@ -95,6 +95,8 @@ static void unserve(Instance *c)
         linking = NULL;                 \
     } while (0)
 
+static void say(Instance *c, FMI(Status) status, const char *format, ...) __attribute__((format(printf, 3, 4)));
+
 /* 1 if SUNDIALS wrote to a warnings file since the slave last read it. */
 static int sundials_wrote(const intptr_t *control)
 {
@@ -108,8 +110,9 @@ static int sundials_wrote(const intptr_t *control)
 }
 
 /* The slave's compiled doStep from current_time by step_size, where it is served: 1 if the step is taken and
- * nothing is left to do (the values are current); else 0, and the slave takes the step, or finishes what the
- * compiled step began (BEGUN: the failure to word, the warnings to read or check). */
+ * nothing is left to do (the values are current); 0 if the slave takes the step, or finishes what the compiled
+ * step began (BEGUN: the failure to word, the warnings to read or check); -1 if the compiled code raised (the
+ * instance ended, the error logged). */
 static int stepped_in_c(Instance *c, double current_time, double step_size)
 {
     InStep step;
@@ -119,10 +122,17 @@ static int stepped_in_c(Instance *c, double current_time, double step_size)
     }
     *(void **)&step = (void *)c->served_control[SERVED_STEP];
     left = step(c->served_control[SERVED_CONTEXT], current_time, step_size);
+    if (left == STEP_RAISED) { /* its state unknown: as where the slave's own step raises, the instance ends */
+        c->ended = 1;
+        unserve(c);
+        say(c, FMI(Error), "the compiled engine raised inside the step from t = %.17g s (its message on stderr): "
+            "the instance's state is unknown, and it takes no further call", current_time);
+        return -1;
+    }
     if (left == STEP_TAKEN || (left == STEP_TAKEN_WITH_CVODE && !sundials_wrote(c->served_control))) {
         return 1;
     }
-    c->served_control[SERVED_BEGUN] = left == STEP_TAKEN_WITH_CVODE ? STEP_FINISH : left;
+    c->served_control[SERVED_BEGUN] = left == STEP_NOT_TAKEN ? 0 : left == STEP_TAKEN_WITH_CVODE ? STEP_FINISH : left;
     return 0;
 }
 
@@ -527,7 +537,7 @@ static FMI(Status) finish(Instance *c, FMI(Status) status)
 /* 1 if the call may run in c's state (and interface); else logs why and returns 0. */
 static int allowed(Instance *c, const char *function, unsigned mask)
 {
-    if (c->dead) {
+    if (c->dead || c->ended) {
         say(c, FMI(Error), "%s refused: an earlier error ended this instance", function);
         return 0;
     }

@@ -11,8 +11,9 @@ to the bit. It returns what is left to do: ``NOT_TAKEN`` (nothing done: a refusa
 double precision resolves, a vibrating ground, whose motion is the Python ground's own arithmetic; the caller runs
 the step in Python), ``TAKEN``, ``TAKEN_WITH_CVODE`` (CVODE stepped: its warnings' files to look at) or
 ``FINISH + status`` (the machine ran and Python is to finish what BallIntegrator.advance does after it: a failure
-to raise, the accuracy warning to check: solvers/integrator.py's finish_advance). ``report_address()`` writes the same
-quantities without stepping (after a step Python took).
+to raise, the accuracy warning to check: solvers/integrator.py's finish_advance); ``RAISED`` where the compiled code
+raised (its state then unknown: where Python's step would have raised out of the FMU, ending the instance).
+``report_address()`` writes the same quantities without stepping (after a step Python took).
 
 Import this module only to use it (it imports numba and the compiled engine).
 """
@@ -45,7 +46,9 @@ _PARAMETERS, _SETTINGS, _MACHINE_STATE, _VALUES, _ENGINE, _EVENTS, _SCRATCH, _PA
 # 0.0), the rows of its event and scratch arrays and the engine's modes.
 SETTINGS = ("rtol", "atol", "resolvable_until", "stop_at_event", "event_rows", "scratch_rows", "engine_modes")
 _HEADER, _N_PARAMETERS = len(CONTEXT_FIELDS), len(BallParameters._fields)
-NOT_TAKEN, TAKEN, TAKEN_WITH_CVODE, FINISH = 0, 1, 2, 16
+# 0 is what a cfunc returns when its compiled code raised (numba prints the exception and returns the default): the
+# state may have changed by then, so the caller is to end the instance, never to run the step again.
+RAISED, NOT_TAKEN, TAKEN, TAKEN_WITH_CVODE, FINISH = 0, 1, 2, 3, 16
 
 _advance_in_step = compiled._compiled[drivers.advance_in_step]
 _advance = compiled._compiled[drivers.advance]
