@@ -164,7 +164,7 @@ def test_a_step_whose_compiled_code_raises_ends_the_instance_with_an_error(unzip
         slave = slave_of(ball)
         ball.initialize()
         ball.step_to(0.1, 1e-3)
-        slave._served._kept[4][0] = 0.0  # the compiled step's m: a ZeroDivisionError where it takes the acceleration
+        slave._served._kept.parameters[0] = 0.0  # the compiled step's m: a ZeroDivisionError at the acceleration
         python_steps = slave.python_steps
         try:
             ball.fmu.doStep(0.1, 1e-3)

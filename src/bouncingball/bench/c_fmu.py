@@ -64,18 +64,21 @@ def masters(folder: str | Path) -> tuple[Path, dict[int, Path]]:
     return fmusim, theirs
 
 
-def run_seconds(fmusim: Path, fmu: Path, stop_time: float, *options: str) -> float:
-    """One fmusim process co-simulating fmu from 0 to stop_time at STEP, every output recorded: its wall time [s]."""
-    with tempfile.TemporaryDirectory() as folder:
-        command = [str(fmusim), "--output-interval", repr(STEP), "--stop-time", repr(stop_time), "--output-file",
-                   str(Path(folder) / "out.csv"), *options, str(fmu)]
-        started = time.perf_counter()
-        completed = subprocess.run(command, capture_output=True, text=True, check=False)
-        seconds = time.perf_counter() - started
+def _fmusim(command: list[str]) -> None:
+    """Run fmusim's command; RuntimeError with its end of output where it fails."""
+    completed = subprocess.run(command, capture_output=True, text=True, check=False)
     if completed.returncode != 0:
         raise RuntimeError(f"{' '.join(command)} failed (exit code {completed.returncode}):\n"
                            f"{(completed.stdout + completed.stderr)[-2000:]}")
-    return seconds
+
+
+def run_seconds(fmusim: Path, fmu: Path, stop_time: float, *options: str) -> float:
+    """One fmusim process co-simulating fmu from 0 to stop_time at STEP, every output recorded: its wall time [s]."""
+    with tempfile.TemporaryDirectory() as folder:
+        started = time.perf_counter()
+        _fmusim([str(fmusim), "--output-interval", repr(STEP), "--stop-time", repr(stop_time), "--output-file",
+                 str(Path(folder) / "out.csv"), *options, str(fmu)])
+        return time.perf_counter() - started
 
 
 ME_TOLERANCES = (1e-4, 1e-6, 1e-8, 1e-10)
@@ -106,10 +109,7 @@ def model_exchange_run(fmusim: Path, fmu: Path, tolerance: float, ours: bool) ->
             for name, value in (("contact_law", "rigid"), ("e", ME_SCENE.e), ("v_min", ME_SCENE.v_min),
                                 ("h", ME_DROP + R), ("R", R)):
                 command += ["--start-value", name, str(value)]
-        completed = subprocess.run([*command, str(fmu)], capture_output=True, text=True, check=False)
-        if completed.returncode != 0:
-            raise RuntimeError(f"{' '.join(command)} failed (exit code {completed.returncode}):\n"
-                               f"{(completed.stdout + completed.stderr)[-2000:]}")
+        _fmusim([*command, str(fmu)])
         with open(out, encoding="utf-8", newline="") as file:
             rows = list(csv.reader(file))
         calls = collections.Counter(line.split("(", 1)[0] for line in log.read_text(encoding="utf-8").splitlines())

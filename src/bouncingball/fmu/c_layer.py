@@ -20,6 +20,7 @@ from __future__ import annotations
 import ctypes
 import glob
 import os
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -51,6 +52,19 @@ def _loader(resources: str | None):
     return None
 
 
+class _CompiledStep(NamedTuple):
+    """What the loader's compiled step of one integrator needs, kept while the integrator and its state are the same."""
+
+    integrator: Any
+    machine_state: np.ndarray
+    context: np.ndarray  # c_entry.CONTEXT_FIELDS, pointing to what follows
+    step_address: int
+    parameters: np.ndarray
+    settings: np.ndarray  # c_entry.SETTINGS
+    arrays: tuple  # solvers/integrator.py's compiled_arrays
+    report: Any  # the ctypes function of c_entry.report_address()
+
+
 class ServedValues:
     """The slave's side of the served values: made with the slave, while its loader makes the instance.
 
@@ -75,7 +89,7 @@ class ServedValues:
         self._reported = [(REPORTED_BY_VARIABLE.get(variable.name), reference) for reference, variable in
                           changing.items()]
         self._published: dict | None = None  # the slave's values (parameters, inputs) as last published
-        self._kept = None  # (integrator, machine state, context and the arrays it points to) of the last publish
+        self._kept: _CompiledStep | None = None  # the last publish's
         library = _loader(resources)
         self.linked = bool(library) and library.bouncingball_serve(
             ctypes.c_void_p(self.values.ctypes.data), ctypes.c_void_p(self.control.ctypes.data),
@@ -93,14 +107,14 @@ class ServedValues:
             for reference, getter in self._set_only:
                 values[reference] = getter()
             self._published = dict(set_values)
-        kept = self._compiled_step(integrator)
-        if kept is None or not kept[-1](kept[2].ctypes.data):
+        step = self._compiled_step(integrator)
+        if step is None or not step.report(step.context.ctypes.data):
             for reference, getter in self._changing:
                 values[reference] = getter()
-        if kept is None:
+        if step is None:
             control[STEP] = control[CONTEXT] = 0
         else:  # the step may run CVODE: the files of its warnings, as far as the integrator has read them
-            control[STEP], control[CONTEXT] = kept[3], kept[2].ctypes.data
+            control[STEP], control[CONTEXT] = step.step_address, step.context.ctypes.data
             for slot, log in enumerate(integrator._logs[:2]):  # SundialsLog, one per mode's solver
                 control[LOG0 + slot], control[SIZE0 + slot] = log.descriptor, log.size()
         control[READY] = 1
@@ -117,14 +131,13 @@ class ServedValues:
         finish_advance(integrator, code - FINISH)
         return True
 
-    def _compiled_step(self, integrator):
-        """(integrator, its machine state, context, step address, the arrays the context points to, report) or None
-        where it has no compiled step."""
+    def _compiled_step(self, integrator) -> _CompiledStep | None:
+        """The compiled step of integrator, or None where it has none."""
         if integrator is None or integrator.engine != "compiled" or integrator.ground.moves or \
                 any(quantity is None for quantity, _ in self._reported):
             return None
         kept = self._kept
-        if kept is None or kept[0] is not integrator or kept[1] is not integrator._machine_state:
+        if kept is None or kept.integrator is not integrator or kept.machine_state is not integrator._machine_state:
             from ..solvers.engines import c_entry
 
             engine, events, scratch = arrays = compiled_arrays(integrator)
@@ -137,6 +150,6 @@ class ServedValues:
                                 self.values.ctypes.data, engine.ctypes.data, events.ctypes.data, scratch.ctypes.data,
                                 len(pairs) // 2, *pairs], dtype=np.intp)
             report = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_ssize_t)(c_entry.report_address())
-            kept = self._kept = (integrator, integrator._machine_state, context, c_entry.step_address(), parameters,
-                                 settings, arrays, report)
+            kept = self._kept = _CompiledStep(integrator, integrator._machine_state, context, c_entry.step_address(),
+                                              parameters, settings, arrays, report)
         return kept

@@ -29,6 +29,7 @@ from ..physics import Ball, Mode, unread_message, without_unread
 from ..scenes import SCENE_DEFAULTS
 from ..solvers.cvode import BallIntegrator, CvodeSettings, IntegratorState, SolverError, check_resolvable
 from ..solvers.integrator import checked_start
+from ..solvers.phase_machine.drivers import is_rounding_of
 from ..solvers.phase_machine.settings import MIN_RTOL, RTOL_RANGE_WHY
 from ..solvers.vibrating_ground import ground_motion, relative_start, relative_to
 from .c_layer import ServedValues
@@ -168,7 +169,7 @@ class BallSlave:
             return
         rounded = current_time != (t := integrator.t)
         # A master's own rounding of the communication points is tolerated, a jump is not.
-        if rounded and not abs(current_time - t) <= 1e-9 * max(1.0, abs(t)):
+        if rounded and not is_rounding_of(current_time, t):
             raise ValueError(f"currentCommunicationPoint = {current_time!r} s is not allowed: the FMU is at "
                              f"t = {t!r} s")
         if not (step_size >= 0.0 and math.isfinite(target)):

@@ -52,6 +52,7 @@ RAISED, NOT_TAKEN, TAKEN, TAKEN_WITH_CVODE, FINISH = 0, 1, 2, 3, 16
 
 _advance_in_step = compiled._compiled[drivers.advance_in_step]
 _advance = compiled._compiled[drivers.advance]
+_is_rounding_of = compiled._compiled[drivers.is_rounding_of]
 _keep_estimate = compiled._compiled[drivers.keep_estimate]
 _reported_acceleration = compiled._compiled[dispatch.reported_acceleration]
 _law_contact_force = compiled._compiled[dispatch.law_contact_force]
@@ -95,8 +96,7 @@ def _do_step(context, current_time, step_size):
     code = TAKEN
     if not _advance_in_step(parameters, state, current_time, t_target):
         rounded = current_time != t
-        if (rounded and not abs(current_time - t) <= 1e-9 * max(1.0, abs(t))) or \
-                not (step_size >= 0.0 and math.isfinite(t_target)):
+        if (rounded and not _is_rounding_of(current_time, t)) or not (step_size >= 0.0 and math.isfinite(t_target)):
             return NOT_TAKEN
         if rounded:
             t_target = max(t_target, t)

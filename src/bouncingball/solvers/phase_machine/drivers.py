@@ -121,6 +121,14 @@ def advance_in_step(parameters, state, t_from, t_target):
     return True
 
 
+def is_rounding_of(current_time, t):
+    """Whether a stepping caller's time current_time [s] is t [s] up to the caller's own rounding.
+
+    The tolerance is 1e-9 relative (1e-9 s below 1 s): a step from it is a step from t; a farther one is a jump.
+    """
+    return abs(current_time - t) <= 1e-9 * max(1.0, abs(t))
+
+
 def keep_estimate(parameters, rtol, atol, state):
     """The run's estimate at the state, the current phase so far included (error_estimate.run_estimate), kept in est.
 
