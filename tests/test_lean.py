@@ -44,24 +44,3 @@ def test_exact_run_and_cli_without_plot_load_no_extra():
     assert modules == []
     modules = _modules_after("from bouncingball.cli import main\nassert main(['run', 'article', '--t-end', '1']) == 0")
     assert set(modules) - baseline == set()
-
-
-def test_an_fmu_on_the_compiled_engine_loads_no_scikit_sundae_nor_what_it_loads():
-    """The FMU's start-up pays for the SUNDIALS libraries only: scikit-sundae's import (~0.4 s, SciPy's optimize and
-    sparse with it) is left to its own engine's first use."""
-    import importlib.util
-
-    import pytest
-
-    if importlib.util.find_spec("numba") is None:
-        pytest.skip("the compiled engine needs numba")
-    modules = _modules_after(  # what the loader runs first (the host check), then pythonfmu (the slave script)
-        "from bouncingball.fmu.host_check import check_source\n"
-        "namespace = {}\nexec(check_source(), namespace)\nassert namespace['problem'] == ''\n"
-        "import bouncingball.fmu.bouncingball_fmu_slave as script\n"
-        "slave = script.BouncingBall(instance_name='ball', resources=None)\n"
-        "slave.setup_experiment(0.0); slave.enter_initialization_mode(); slave.exit_initialization_mode()\n"
-        "assert slave._integrator.engine == 'compiled' and slave.do_step(0.0, 1e-3)"
-    )
-    assert modules and [m for m in modules if m.split(".")[0] == "sksundae" or
-                        m.startswith(("scipy.optimize", "scipy.sparse"))] == []

@@ -31,7 +31,6 @@ from ...physics import Ball, Mode
 from ..phase_machine import drivers, error_estimate, layout, machine, phases
 from ..phase_machine.engine_protocol import CV_ROOT_RETURN, CV_TSTOP_RETURN
 from . import sksundae_events
-from .sundials import sksundae_cvode_class
 from .sundials_log import ErrorsOffStdout, SundialsLog
 
 CV_RTFUNC_FAIL = -12
@@ -106,7 +105,9 @@ class SksundaePhaseSolver:
         event.terminal = [True, False, True]
         event.direction = list(directions)
         self._event = event
-        CVODE = sksundae_cvode_class()  # imported here, not with the module (~0.4 s), bound to its own SUNDIALS
+        # Imported here, not with the module: scikit-sundae's import takes ~0.4 s (it loads SciPy), which
+        # the compiled engine, needing only its SUNDIALS library, does not pay.
+        from sksundae.cvode import CVODE
 
         # The scaled state is of order 1: atol = rtol asks for rtol times the phase's scale.
         self._cvode = CVODE(rhs, method=method, rtol=rtol, atol=rtol, max_step=max_step, eventsfn=event,
