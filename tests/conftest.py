@@ -136,6 +136,45 @@ def fmu(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="session")
+def fmu_numba_cache(fmu, tmp_path_factory) -> Path:
+    """The FMU as build-fmu makes it where the native engine's library cannot be built: numba's cache files of its
+    compile in resources/numba-cache instead of the library (fmu/engine_cache.py's shipped_files)."""
+    import zipfile
+
+    from bouncingball.fmu import build, engine_cache
+    from bouncingball.solvers.engines.ahead_of_time import NATIVE_LIBRARY
+
+    folder = tmp_path_factory.mktemp("fmu_numba_cache")
+    with zipfile.ZipFile(fmu) as archive:
+        archive.extractall(folder / "unzipped")
+    [package] = [path for path in (folder / "unzipped" / "resources").glob("bouncingball_fmu_*") if path.is_dir()]
+    # The build's compile, kept in the user-wide cache under the key of the same package and compiler: found there.
+    cache = engine_cache.compile_cache(package, folder / "numba", build._compiler())
+    assert cache is not None and (cache / NATIVE_LIBRARY).is_file()
+    (cache / NATIVE_LIBRARY).rename(folder / NATIVE_LIBRARY)  # shipped_files then ships numba's files
+    try:
+        shipped = engine_cache.shipped_files(cache)
+    finally:
+        (folder / NATIVE_LIBRARY).rename(cache / NATIVE_LIBRARY)
+    path = folder / "BouncingBall.fmu"
+    with zipfile.ZipFile(fmu) as source, zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as target:
+        for info in source.infolist():
+            if info.filename != f"resources/{NATIVE_LIBRARY}":
+                target.writestr(info, source.read(info))
+        for file, name in shipped:
+            target.write(file, name)
+    return path
+
+
+@pytest.fixture(scope="session")
+def unzipped_numba_cache(fmu_numba_cache, tmp_path_factory) -> Path:
+    """fmu_numba_cache extracted once per session."""
+    from fmpy import extract
+
+    return Path(extract(str(fmu_numba_cache), str(tmp_path_factory.mktemp("unzipped_numba_cache"))))
+
+
+@pytest.fixture(scope="session")
 def unzipped(fmu, tmp_path_factory) -> Path:
     """The FMU extracted once per session, for FMU2Slave and the C master."""
     from fmpy import extract

@@ -150,10 +150,10 @@ def test_the_fmu_pages_build_figures_are_the_first_use_pages():
         pytest.skip("runs in a source checkout")
     measured = (ROOT / "docs" / "first_use.md").read_text(encoding="utf-8")
     found = re.search(r"`build-fmu` in that venv took (\d+) s, the FMU's compiled engine's compile included; the FMU "
-                      r"is ([\d.]+) MB, its numba cache ([\d.]+) MB \(([\d.]+) MB compressed\)", measured)
+                      r"is ([\d.]+) MB, its compiled engine ([\d.]+) MB \(([\d.]+) MB compressed\)", measured)
     assert found, measured
     seconds, size, cache, compressed = found.groups()
-    assert_fmu_page_quotes(f"the build took {seconds} s and the FMU is {size} MB, its numba cache {cache} MB "
+    assert_fmu_page_quotes(f"the build took {seconds} s and the FMU is {size} MB, its compiled engine {cache} MB "
                            f"({compressed} MB compressed)")
 
 

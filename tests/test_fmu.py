@@ -557,7 +557,7 @@ def test_a_build_host_that_cannot_compile_the_engine_ships_no_cache_and_says_why
     package = tmp_path / "bouncingball_fmu_broken"
     package.mkdir()
     (package / "__init__.py").write_text('raise ImportError("no engine on this host")\n')
-    assert engine_cache.compile_cache(package, tmp_path / "cache") is None
+    assert engine_cache.compile_cache(package, tmp_path / "cache", ["cc"]) is None
     assert engine_cache.shipped_files(None) == []
     assert capsys.readouterr().err == ("bouncingball: the FMU ships no cache of its compiled engine, which could not "
                                        "be compiled here (ImportError: no engine on this host): it compiles at its "

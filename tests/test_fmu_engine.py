@@ -170,8 +170,9 @@ def test_compiled_engine_resumes_from_an_fmu_state(unzipped, tmp_path):
 
 
 # --- where the compiled engine cannot run ----------------------------------------------------------------
-def test_compiled_engine_without_numba_gives_fmi2Error_with_the_reason(unzipped, numba_hidden):
-    """The instance stays usable: with engine sksundae the same instance then initialises and runs."""
+def test_compiled_engine_without_numba_gives_fmi2Error_with_the_reason(unzipped_numba_cache, numba_hidden):
+    """An FMU without the native engine (numba's cache instead): the instance stays usable: with engine sksundae the
+    same instance then initialises and runs."""
     run_python("""
         ball = Instance(sys.argv[1])
         ball.set(engine="compiled")
@@ -192,10 +193,11 @@ def test_compiled_engine_without_numba_gives_fmi2Error_with_the_reason(unzipped,
         print(*ball.step_to(1.0, 0.5)[-1])
         assert ball.errors() == [message]
         ball.free()
-    """, unzipped, env=numba_hidden)
+    """, unzipped_numba_cache, env=numba_hidden)
 
 
-def test_auto_engine_without_numba_runs_on_sksundae(unzipped, numba_hidden, tmp_path):
+def test_auto_engine_without_numba_runs_on_sksundae(unzipped_numba_cache, numba_hidden, tmp_path):
+    """An FMU without the native engine (numba's cache instead): auto runs scikit-sundae's, and says why."""
     run_python("""
         ball = Instance(sys.argv[1])
         ball.fmu.setDebugLogging(True, [])  # messages of status OK are logged only then
@@ -207,14 +209,14 @@ def test_auto_engine_without_numba_runs_on_sksundae(unzipped, numba_hidden, tmp_
         assert not [name for name in sys.modules if name.endswith(".solvers.engines.compiled")]
         ball.free()
         np.save(sys.argv[2], np.array([(row[0], row[5]) for row in rows]))
-    """, unzipped, tmp_path / "run.npy", env=numba_hidden)
+    """, unzipped_numba_cache, tmp_path / "run.npy", env=numba_hidden)
     run = np.load(tmp_path / "run.npy")
     h, _, impacts = exact_at(np.arange(1, 2001) * 1e-3)
     assert np.max(np.abs(run[:, 0] - h)) < EXACT
     np.testing.assert_array_equal(run[:, 1], impacts)
 
 
-# --- the first use of the compiled engine: numba's cache shipped in the FMU --------------------------------------
+# --- the first use of the compiled engine: numba's cache shipped in an FMU without the native engine --------------
 # A first 1 s run of the FMU just unzipped, in a fresh process and a user-wide cache of its own: what numba read from
 # its cache and compiled (every compiled function of the FMU's copy of the package), and the FMU's log in order.
 _FIRST_RUN = """
@@ -247,15 +249,15 @@ def _first_run(fmu: Path, folder: Path, cache: Path) -> dict:
     return report
 
 
-def test_the_fmus_first_use_of_the_compiled_engine_reads_the_cache_it_ships(fmu, tmp_path):
+def test_the_fmus_first_use_of_the_compiled_engine_reads_the_cache_it_ships(fmu_numba_cache, tmp_path):
     """A fresh unzip in a fresh process on a host with no cache: engine auto runs the compiled engine, every function
     read from the FMU's own cache, none compiled, nothing said."""
-    report = _first_run(fmu, tmp_path / "unzipped", tmp_path / "cache")
+    report = _first_run(fmu_numba_cache, tmp_path / "unzipped", tmp_path / "cache")
     assert report["misses"] == 0 and report["hits"] > 0, report
     assert report["log"] == [], report["log"]
 
 
-def test_the_fmu_ships_code_compiled_for_any_cpu_of_its_architecture(fmu, tmp_path, monkeypatch):
+def test_the_fmu_ships_code_compiled_for_any_cpu_of_its_architecture(fmu_numba_cache, tmp_path, monkeypatch):
     """Every overload in the FMU's cache was compiled for numba's generic CPU (no instruction this host has and
     another CPU of its architecture may lack), for this numba and from the FMU's own sources."""
     import zipfile
@@ -263,7 +265,7 @@ def test_the_fmu_ships_code_compiled_for_any_cpu_of_its_architecture(fmu, tmp_pa
     pytest.importorskip("numba")
     from bouncingball.solvers.engines import jit
 
-    with zipfile.ZipFile(fmu) as archive:
+    with zipfile.ZipFile(fmu_numba_cache) as archive:
         archive.extractall(tmp_path, [name for name in archive.namelist() if name.startswith("resources/")])
         names = [name for name in archive.namelist() if name.startswith("resources/numba-cache/")]
     # the overloads' signatures name the FMU's copy of the package (its BallParameters): importable, as in the FMU
@@ -277,14 +279,14 @@ def test_the_fmu_ships_code_compiled_for_any_cpu_of_its_architecture(fmu, tmp_pa
         assert {key[1] for key in overloads} == {(host[0], "generic", "")}, index.name
 
 
-def test_a_shipped_cache_that_does_not_fit_is_compiled_once_and_said_first(fmu, tmp_path):
+def test_a_shipped_cache_that_does_not_fit_is_compiled_once_and_said_first(fmu_numba_cache, tmp_path):
     """The FMU's cache compiled by another numba (its index files' version changed): numba compiles, said in the
     FMU's log as its first message; the code is then kept in the user-wide cache, which the next process reads."""
     import pickle
     import zipfile
 
     changed = tmp_path / "other_numba.fmu"
-    with zipfile.ZipFile(fmu) as source, zipfile.ZipFile(changed, "w") as target:
+    with zipfile.ZipFile(fmu_numba_cache) as source, zipfile.ZipFile(changed, "w") as target:
         indexes = 0
         for info in source.infolist():
             data = source.read(info)
@@ -321,13 +323,13 @@ _SECOND_INSTANCE = """
 """
 
 
-def test_a_second_instance_whose_first_unzip_is_deleted_reads_the_shipped_cache(fmu, tmp_path):
+def test_a_second_instance_whose_first_unzip_is_deleted_reads_the_shipped_cache(fmu_numba_cache, tmp_path):
     """A first instance on the scikit-sundae engine imports the package's copy from its unzipped folder, which FMPy
     deletes after the run; the second, on the compiled engine, imports the engine from its own unzip: it reads the
     engine's sources there, so numba's cache is used (it compiled for 16 s, in every such process, keeping nothing)."""
     import json
 
-    completed = subprocess.run([sys.executable, "-c", textwrap.dedent(_SECOND_INSTANCE), str(fmu)],
+    completed = subprocess.run([sys.executable, "-c", textwrap.dedent(_SECOND_INSTANCE), str(fmu_numba_cache)],
                                capture_output=True, text=True, timeout=300, check=False,
                                env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")})
     assert completed.returncode == 0, completed.stderr

@@ -18,7 +18,7 @@ def compiles(monkeypatch, tmp_path):
     """The list of (package, into) compile_portable was called with; the user-wide cache in tmp_path/cache."""
     calls = []
 
-    def compile_portable(package, into, shipped_by):
+    def compile_portable(package, into, shipped_by, compiler=None):
         calls.append((package, into))
         folder = into / "bouncingball" / "numba-0123"
         folder.mkdir(parents=True)
@@ -60,9 +60,18 @@ def test_a_changed_source_or_numba_setting_compiles_anew(compiles, tmp_path, mon
     assert [_compiled_by(path) for path in (first, second, third)] == ["compile 1", "compile 2", "compile 3"]
 
 
+def test_another_c_compiler_compiles_anew_and_the_same_takes_the_kept_compile(compiles, tmp_path):
+    """The native engine's library is linked by the C compiler: it is part of what a kept compile is keyed by."""
+    package = _package(tmp_path / "p")
+    gcc = engine_cache.compile_kept(package, tmp_path / "into", "the FMU", ["gcc"])
+    clang = engine_cache.compile_kept(package, tmp_path / "into", "the FMU", ["clang", "-O2"])
+    again = engine_cache.compile_kept(package, tmp_path / "into", "the FMU", ["gcc"])
+    assert len(compiles) == 2 and gcc != clang and again == gcc
+
+
 def test_a_failed_compile_keeps_nothing(monkeypatch, tmp_path):
     calls = []
-    monkeypatch.setattr(engine_cache, "compile_portable", lambda package, into, shipped_by: calls.append(into))
+    monkeypatch.setattr(engine_cache, "compile_portable", lambda package, into, by, compiler: calls.append(into))
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
     package = _package(tmp_path / "p")
     assert engine_cache.compile_kept(package, tmp_path / "into", "the FMU") is None

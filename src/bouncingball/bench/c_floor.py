@@ -160,15 +160,15 @@ class FloorResult:
 
 def settings(ball, h0: float, v0: float, t0: float, F_ext: float, rtol: float, atol: float | None,
              method: str) -> _Settings:
-    """The compiled engine's settings for this scene, from the solvers' and compiled.py's own constants."""
+    """The compiled engine's settings for this scene, from the solvers' and phase_solver.py's own constants."""
     from ..physics import Mode
     from ..solvers import integrator
-    from ..solvers.engines import compiled
+    from ..solvers.engines import phase_solver
     from ..solvers.phase_machine import phases
     from ..solvers.phase_machine import settings as solver_settings
 
     integrator_methods = {"auto": ("Adams", solver_settings.choose_method(ball))}.get(method, (method, method))
-    codes = [compiled.CV_ADAMS if m == "Adams" else compiled.CV_BDF for m in integrator_methods]
+    codes = [phase_solver.CV_ADAMS if m == "Adams" else phase_solver.CV_BDF for m in integrator_methods]
     s = _Settings(m=ball.m, k=ball.k, b=ball.b, R=ball.R, g=ball.g, F_ext=F_ext, h0=h0, v0=v0, t0=t0, rtol=rtol,
                   atol=0.0 if atol is None else atol, max_step=0.0,
                   own_side=integrator._own_side(Mode.FLIGHT),
@@ -177,9 +177,9 @@ def settings(ball, h0: float, v0: float, t0: float, F_ext: float, rtol: float, a
                   error_within_phase=solver_settings.ERROR_WITHIN_PHASE,
                   estimate_safety=solver_settings.ESTIMATE_SAFETY,
                   max_num_steps=integrator._MAX_STEPS_PER_CALL, max_steps_per_phase=integrator.MAX_STEPS_PER_PHASE,
-                  max_nonlin_iters=compiled._MAX_NONLIN_ITERS, max_conv_fails=compiled._MAX_CONV_FAILS)
+                  max_nonlin_iters=phase_solver.MAX_NONLIN_ITERS, max_conv_fails=phase_solver.MAX_CONV_FAILS)
     s.method[:] = codes
-    s.max_order[:] = [compiled._MAX_ORDER[code] for code in codes]
+    s.max_order[:] = [phase_solver.MAX_ORDER[code] for code in codes]
     return s
 
 

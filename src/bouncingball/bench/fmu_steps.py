@@ -218,10 +218,11 @@ class FmuStepCosts:
         return found[0] if found else math.nan
 
     def break_even(self, cache: str, take_state: bool = False) -> float:
-        """doSteps after which engine compiled has paid back its longer first use (nan: never, or not measured)."""
+        """doSteps after which engine compiled has paid back its longer first use (0: its first use is not longer;
+        nan: never, or not measured)."""
         extra = self.first("compiled", cache) - self.first("sksundae", cache)
         saved = self.per_step("sksundae", take_state) - self.per_step("compiled", take_state)
-        return extra / saved if saved > 0.0 else math.nan
+        return max(extra, 0.0) / saved if saved > 0.0 else math.nan
 
 
 def _run_child(job: dict, cache: str) -> dict:

@@ -245,6 +245,9 @@ def _fmu_steps_section(costs: FmuStepCosts) -> list[str]:
     even = {cache: costs.break_even(cache) for cache in ("cold", "warm")}
     if all(math.isnan(n) for n in even.values()):
         lines.append("Engine compiled did not make a doStep cheaper here: it never pays back its first use.")
+    elif all(n == 0.0 for n in even.values()):
+        lines.append("Engine compiled's first use is no longer than sksundae's here: it is the cheaper from the first "
+                     "doStep.")
     else:
         lines.append("Engine compiled pays back its longer first use after " + " and ".join(
             f"{n:,.0f} doSteps ({cache} cache)" for cache, n in even.items() if not math.isnan(n))

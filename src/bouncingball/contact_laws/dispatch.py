@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from ..codes import CONTACT, DEPARTURE, ENGAGE, FLIGHT, FREE, RELEASE, RESTART
 from ..equations import gap_acceleration, gap_flow_value, ground_flight_flow, rest_margin_value, ride_end_value
 from . import common, hunt_crossley, linear, no_pull, rigid
@@ -334,14 +332,17 @@ def contact_ends_in(parameters):
 def side_extreme(parameters, mode, x, v):
     """The extreme, over step ends (arrays x [m], v [m/s]) in mode, of what must keep the phase's side of its event.
 
-    The gap's least in flight (>= 0), its largest in contact (<= 0); in the no-pull law's pressed contact the
-    largest pressed gap z = x + (b / k) v = -force / k, which a missed release leaves above 0.
+    The gap's least in flight, its largest in contact, the no-pull law's largest pressed gap z = x + (b / k) v =
+    -force / k; NaN where one is NaN, as numpy's (not called: numba's need a helper the native engine lacks).
     """
-    if mode == FLIGHT:
-        return np.min(x)
-    if parameters.law == NO_PULL:
-        return np.max(x + (parameters.b / parameters.k) * v)
-    return np.max(x)
+    least, pressed_gap = mode == FLIGHT, mode != FLIGHT and parameters.law == NO_PULL
+    extreme = math.inf if least else -math.inf
+    for i in range(x.shape[0]):
+        value = x[i] + (parameters.b / parameters.k) * v[i] if pressed_gap else x[i]
+        if math.isnan(value):
+            return value
+        extreme = min(extreme, value) if least else max(extreme, value)
+    return extreme
 
 
 def third_root_releases(parameters, mode):

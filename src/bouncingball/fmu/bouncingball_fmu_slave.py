@@ -2,8 +2,11 @@
 
 pythonfmu 0.7 executes this script anew for every fmi2Instantiate and keeps alive whatever class
 it defines there (~45 kB per instance for the whole slave class). So the script stays small: it
-binds scikit-sundae to its own SUNDIALS, then names the slave class of a module imported once per
-process. tests/test_fmu_state_machine.py measures what an instance still costs.
+names the slave class of a module imported once per process. tests/test_fmu_state_machine.py measures what an
+instance still costs. Where the FMU ships its native engine (solvers/engines/native.py), scikit-sundae is imported
+only where its own engine runs (solvers/engines/sundials.py, sksundae_cvode_class): its import takes ~0.4 s. Where
+it does not, numba's compiled engine runs, and scikit-sundae is imported here, as it was before the native engine:
+its import left to its first use, with numba in the process, once corrupted the heap at the process's exit.
 
 The FMU carries its own copy of bouncingball under a name of its own (PACKAGE, set by the build to
 bouncingball_fmu_<digest of its sources>), so that it neither replaces nor uses a bouncingball the
@@ -15,7 +18,6 @@ Fmi3Slave, the class line's base Fmi3Slave, and SLAVE_MODULE slave3 (bouncingbal
 
 import importlib
 import os
-import sys
 
 from pythonfmu import Fmi2Slave
 
@@ -23,32 +25,12 @@ PACKAGE = "bouncingball"
 SLAVE_MODULE = "slave"
 
 
-def _import_sundials_for_this_fmu():
-    """Import scikit-sundae so that its SUNDIALS calls bind to its own SUNDIALS libraries.
-
-    A host that carries another SUNDIALS (a C master linked to a system SUNDIALS 6) would
-    otherwise capture scikit-sundae's calls into its own, different library and crash. Where
-    scikit-sundae is already loaded (a Python host imported it), it is used as it is.
-    """
-    deep_bind = getattr(os, "RTLD_DEEPBIND", 0)
-    flags = sys.getdlopenflags()
-    if deep_bind and "sksundae" not in sys.modules:
-        import numpy  # noqa: F401  (numpy resolves as usual; only SUNDIALS is bound deep)
-
-        sys.setdlopenflags(flags | deep_bind)
-    try:
-        importlib.import_module("sksundae.cvode")
-    finally:
-        sys.setdlopenflags(flags)
-
-
-_import_sundials_for_this_fmu()
-
-
 class BouncingBall(Fmi2Slave):  # pythonfmu finds the slave's name on this line; the class is the one below
     pass
 
 
+if importlib.import_module(f"{PACKAGE}.fmu.engine_cache").native_library(os.path.dirname(__file__)) is None:
+    importlib.import_module(f"{PACKAGE}.solvers.engines.sundials").sksundae_cvode_class()
 _slave = importlib.import_module(f"{PACKAGE}.fmu.{SLAVE_MODULE}")
 BouncingBall = _slave.BouncingBall  # noqa: F811
 # pythonfmu 0.7 uses this script's namespace after the script has run but keeps no reference to it:

@@ -48,11 +48,12 @@ LOADER_SOURCE = HERE / "bouncingball_fmu_loader.c"
 LOADER3_SOURCE = HERE / "bouncingball_fmu3_loader.c"
 LOADER_HEADER = HERE / "bouncingball_fmu_python.h"  # what the FMI 2.0 and 3.0 loaders share
 PACKAGE_DIR = HERE.parent  # the bouncingball package, copied into the FMU
-PACKAGE_FILES = ("*.py", "data/*.toml")
+PACKAGE_FILES = ("*.py", "data/*.toml", "solvers/engines/*.c")
 # What build_fmu says it is doing, in order (the compile of the engine's code is most of a build's time).
 BUILD_STEPS = ("compiling the C loader and staging the package", "pythonfmu builds the FMU",
-               "numba compiles the engine's code into the FMU (most of the build; none where a build of the same "
-               "sources is kept)", "packing the FMU", "writing the reference result (the exact solution)")
+               "numba compiles the engine's code, linked into the FMU's native engine (most of the build; none where "
+               "a build of the same sources is kept)", "packing the FMU",
+               "writing the reference result (the exact solution)")
 PLATFORM = "linux64"
 PYTHONFMU_BINARY = f"{MODEL_NAME}_pythonfmu.so"  # pythonfmu's binary, loaded by ours
 
@@ -102,7 +103,7 @@ def build_fmu(output: str | Path | None = None, fmi_version: int = 2, step=None)
                 if name == script.stem or name.split(".")[0] == package.name:
                     del sys.modules[name]
         step(BUILD_STEPS[2])
-        cache = shipped_files(compile_cache(package, temp / "numba"))
+        cache = shipped_files(compile_cache(package, temp / "numba", compiler))
         step(BUILD_STEPS[3])
         if make_folders:
             output.parent.mkdir(parents=True, exist_ok=True)

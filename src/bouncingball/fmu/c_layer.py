@@ -6,7 +6,8 @@ loader (bouncingball_fmu_python.h) serves them itself from memory the slave owns
 slots. At the end of each step it took, the slave writes its values there and marks them ready (``publish``); the
 loader clears that mark before it forwards any call that may change them (a set, a reset, a restored state, a step).
 
-The steps themselves the loader takes by calling the compiled engine (solvers/engines/c_entry.py), which runs the
+The steps themselves the loader takes by calling the compiled engine (solvers/engines/c_entry.py; the same code
+compiled ahead where the FMU's native engine runs: solvers/engines/native.py), which runs the
 slave's do_step as BallIntegrator runs it, on the integrator's own CVODE solvers and machine state, and writes the
 outputs it changes: on the compiled engine and a still ground, where the slave's variables that change in a step are
 each a quantity it reports (``REPORTED_BY_VARIABLE``). What needs Python is left to it: a refusal to word, a
@@ -29,7 +30,7 @@ from .variables import MODEL_NAME
 
 # The control slots (bouncingball_fmu_python.h: SERVED_READY, ...).
 READY, STEP, CONTEXT, BEGUN, LOG0, LOG1, SIZE0, SIZE1, SLOTS = range(9)
-# The variables a step changes, by name, and the quantity of the compiled step (c_entry.REPORTED) that is each.
+# The variables a step changes, by name, and the quantity of the compiled step (entry_contract.REPORTED) that is each.
 # (gap, FMI 3.0's event indicator, and x, model exchange's state: h - R in co-simulation on a still ground, as slave3's
 # _gap and _x compute it.)
 REPORTED_BY_VARIABLE = {"time": "t", "h": "h", "v": "v", "a": "acceleration", "der(x)": "v", "der(v)": "acceleration",
@@ -57,12 +58,12 @@ class _CompiledStep(NamedTuple):
 
     integrator: Any
     machine_state: np.ndarray
-    context: np.ndarray  # c_entry.CONTEXT_FIELDS, pointing to what follows
+    context: np.ndarray  # entry_contract.CONTEXT_FIELDS, pointing to what follows
     step_address: int
     parameters: np.ndarray
-    settings: np.ndarray  # c_entry.SETTINGS
+    settings: np.ndarray  # entry_contract.SETTINGS
     arrays: tuple  # solvers/integrator.py's compiled_arrays
-    report: Any  # the ctypes function of c_entry.report_address()
+    report: Any  # the ctypes function of the machine's report_address()
 
 
 class ServedValues:
@@ -85,7 +86,7 @@ class ServedValues:
         self._set_only = [(reference, variable.getter) for reference, variable in numbers.items()
                           if reference not in changing]
         self._changing = [(reference, variable.getter) for reference, variable in changing.items()]
-        # The quantity of the compiled step (c_entry.REPORTED) each changing variable is; a None: no compiled step.
+        # The quantity of the compiled step (entry_contract.REPORTED) each changing variable is; None: no compiled step.
         self._reported = [(REPORTED_BY_VARIABLE.get(variable.name), reference) for reference, variable in
                           changing.items()]
         self._published: dict | None = None  # the slave's values (parameters, inputs) as last published
@@ -126,7 +127,7 @@ class ServedValues:
         if not code:
             return False
         self.control[BEGUN] = 0
-        from ..solvers.engines.c_entry import FINISH
+        from ..solvers.engines.entry_contract import FINISH
 
         finish_advance(integrator, code - FINISH)
         return True
@@ -138,18 +139,19 @@ class ServedValues:
             return None
         kept = self._kept
         if kept is None or kept.integrator is not integrator or kept.machine_state is not integrator._machine_state:
-            from ..solvers.engines import c_entry
+            from ..solvers.engines import entry_contract
 
             engine, events, scratch = arrays = compiled_arrays(integrator)
             parameters = np.array(integrator._machine_parameters, dtype=float)
             settings = np.array([integrator.settings.rtol, integrator._atol, integrator.resolvable_until,
                                  float(self._stop_at_event), len(events), len(scratch), len(engine)])
             pairs = [number for quantity, reference in self._reported
-                     for number in (c_entry.REPORTED.index(quantity), reference)]
+                     for number in (entry_contract.REPORTED.index(quantity), reference)]
             context = np.array([parameters.ctypes.data, settings.ctypes.data, integrator._machine_state.ctypes.data,
                                 self.values.ctypes.data, engine.ctypes.data, events.ctypes.data, scratch.ctypes.data,
                                 len(pairs) // 2, *pairs], dtype=np.intp)
-            report = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_ssize_t)(c_entry.report_address())
-            kept = self._kept = _CompiledStep(integrator, integrator._machine_state, context, c_entry.step_address(),
+            machine = integrator._machine  # its C entry points: numba's compiled engine's, or the native one's
+            report = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_ssize_t)(machine.report_address())
+            kept = self._kept = _CompiledStep(integrator, integrator._machine_state, context, machine.step_address(),
                                               parameters, settings, arrays, report)
         return kept

@@ -33,7 +33,7 @@ from ..solvers.phase_machine.drivers import is_rounding_of
 from ..solvers.phase_machine.settings import MIN_RTOL, RTOL_RANGE_WHY
 from ..solvers.vibrating_ground import ground_motion, relative_start, relative_to
 from .c_layer import ServedValues
-from .engine_cache import first_use
+from .engine_cache import activate_native, first_use
 from .saved_state import STATE_FORMAT, saved_header, state_fields, state_from_bytes
 from .variables import (
     FMI3_VARIABLES,
@@ -85,9 +85,9 @@ class BallSlave:
         if resources is not None:
             _search_package_in(resources)
         self._resources = resources
-        # The values set by the master: parameters, start values of h and v, and the input F_ext. The
-        # defaults are the article's; they are not read from the package's data files, because a master
-        # (FMPy) may delete the unzipped FMU whose modules this process keeps using.
+        activate_native(resources)  # the compiled engine from the FMU's library, where it runs here
+        # The values set by the master: parameters, start values of h and v, the input F_ext. The defaults are the
+        # article's, not read from the package's data files: a master (FMPy) may delete the FMU's unzipped folder.
         ball, settings = Ball(), CvodeSettings()
         self._values = {**{name: SCENE_DEFAULTS[field] if field in SCENE_OWN_FIELDS else getattr(ball, field)
                            for name, field in SCENE_FIELD_OF_START_VALUE.items()},

@@ -24,6 +24,7 @@ import contextlib
 import fcntl
 import hashlib
 import importlib.metadata
+import json
 import os
 import platform
 import shutil
@@ -33,14 +34,17 @@ import tempfile
 import time
 from pathlib import Path
 
+NATIVE_LIBRARY = "bouncingball_engine.so"  # the native engine's library (solvers/engines/native_build.py's)
 SHIPPED = "numba-cache"  # the folder of the shipped cache files: inside the package (a wheel), in an FMU's resources
 PORTABLE_CPU = "generic"  # numba's name (NUMBA_CPU_NAME) of its architecture's baseline CPU
 
 # Run in a fresh process with the package's copy on its path: every compiled entry point a run reaches (a grid run;
 # advance and advance_in_step, with and without stopping at events, for the stepping API and an FMU's doStep; the
-# C entry points an FMU's loader calls, compiled at their import).
+# C entry points an FMU's loader calls, compiled at their import). Given a C compiler's command (JSON), the native
+# engine's library too, from the code just compiled (native_build.py), beside numba's cache files; where it cannot
+# be built, why (the last line on stderr).
 _COMPILE = """
-import importlib, sys
+import importlib, json, sys
 package = importlib.import_module(sys.argv[1])
 cvode = importlib.import_module(sys.argv[1] + ".solvers.cvode")
 importlib.import_module(sys.argv[1] + ".solvers.engines.c_entry")
@@ -51,6 +55,14 @@ for stop_at_event in (False, True):
     for i in range(1, 1001):
         if not integrator.advance_within_step(i * 1e-3):
             integrator.advance(i * 1e-3, stop_at_event=stop_at_event)
+if len(sys.argv) > 2:
+    try:
+        jit = importlib.import_module(sys.argv[1] + ".solvers.engines.jit")
+        native_build = importlib.import_module(sys.argv[1] + ".solvers.engines.native_build")
+        digest = jit.sources_digest(jit.engine_sources())
+        native_build.build(jit.cache_folder(digest), digest, json.loads(sys.argv[2]))
+    except Exception as error:
+        print(f"{type(error).__name__}: {error}".replace(chr(10), " "), file=sys.stderr)
 """
 
 
@@ -59,27 +71,33 @@ def say_on_stderr(message: str) -> None:
     print(f"bouncingball: {message}", file=sys.stderr, flush=True)
 
 
-def compile_portable(package: Path, into: Path, shipped_by: str) -> Path | None:
+def compile_portable(package: Path, into: Path, shipped_by: str, compiler: list[str] | None = None) -> Path | None:
     """Compile the compiled engine of the package's copy (folder package) for PORTABLE_CPU, its cache in into.
 
     Runs in a fresh process. Returns the folder of numba's cache files, or None where the engine
     cannot be compiled here (no numba, or a SUNDIALS the engine cannot bind), which is said on
     stderr with the reason: what shipped_by (a wheel, the FMU) then ships has no compiled code,
-    and the engine compiles at its first use where it runs.
+    and the engine compiles at its first use where it runs. With compiler (a C compiler's command), the folder
+    also holds the native engine's library (NATIVE_LIBRARY), or stderr says why it does not.
     """
     environment = {key: value for key, value in os.environ.items() if key != "NUMBA_CPU_FEATURES"}
     # The package's copy first on the path the caller has (a build environment's reaches its children that way).
     path = os.pathsep.join(filter(None, (str(package.parent), os.environ.get("PYTHONPATH"))))
     environment.update(PYTHONPATH=path, PYTHONDONTWRITEBYTECODE="1", NUMBA_CACHE_DIR=str(into),
                        NUMBA_CPU_NAME=PORTABLE_CPU)
-    completed = subprocess.run([sys.executable, "-c", _COMPILE, package.name], cwd=package.parent, env=environment,
-                               capture_output=True, text=True, check=False)
+    native = [json.dumps(compiler)] if compiler else []
+    completed = subprocess.run([sys.executable, "-c", _COMPILE, package.name, *native], cwd=package.parent,
+                               env=environment, capture_output=True, text=True, check=False)
     folders = sorted((into / "bouncingball").glob("numba-*"))
     if completed.returncode != 0 or len(folders) != 1:
         why = (completed.stderr.strip().splitlines() or [f"exit status {completed.returncode}"])[-1]
         say_on_stderr(f"{shipped_by} ships no cache of its compiled engine, which could not be compiled here ({why}):"
                       " it compiles at its first use where it runs")
         return None
+    if compiler and not (folders[0] / NATIVE_LIBRARY).is_file():
+        why = (completed.stderr.strip().splitlines() or ["no message"])[-1]
+        say_on_stderr(f"{shipped_by} ships no native engine, which could not be built here ({why}): it runs numba's "
+                      "compiled engine, which adds about 0.7 s to its start")
     return folders[0]
 
 
@@ -100,7 +118,7 @@ def user_cache_root() -> str:
 KEPT_COMPILES = 4  # compile_kept keeps the compiles of this many sets of sources, the most recently used
 
 
-def compile_kept(package: Path, into: Path, shipped_by: str) -> Path | None:
+def compile_kept(package: Path, into: Path, shipped_by: str, compiler: list[str] | None = None) -> Path | None:
     """compile_portable, kept in the user-wide cache: the folder of numba's cache files, or None (as compile_portable).
 
     The compile (about 15 s) is kept in user_cache_root's portable-<key>, the key a digest of all it
@@ -113,25 +131,25 @@ def compile_kept(package: Path, into: Path, shipped_by: str) -> Path | None:
     be written, compile_portable compiles into into.
     """
     root = Path(user_cache_root())
-    kept = root / f"portable-{_compile_key(package)[:24]}"
+    kept = root / f"portable-{_compile_key(package, compiler)[:24]}"
     try:
         root.mkdir(parents=True, exist_ok=True)
         with open(f"{kept}.lock", "a") as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
             if not kept.is_dir():
                 with tempfile.TemporaryDirectory(dir=root, prefix=".portable-") as temp:
-                    cache = compile_portable(package, Path(temp), shipped_by)
+                    cache = compile_portable(package, Path(temp), shipped_by, compiler)
                     if cache is None:
                         return None
                     cache.rename(kept)
             os.utime(kept)  # its last use, for _forget_old_compiles
     except OSError:  # a user-wide cache that cannot be written
-        return compile_portable(package, into, shipped_by)
+        return compile_portable(package, into, shipped_by, compiler)
     _forget_old_compiles(root)
     return kept
 
 
-def _compile_key(package: Path) -> str:
+def _compile_key(package: Path, compiler: list[str] | None) -> str:
     """The digest of everything compile_portable's result depends on (compile_kept)."""
     digest = hashlib.sha256()
     for path in sorted(path for path in package.rglob("*") if path.is_file() and "__pycache__" not in path.parts):
@@ -143,7 +161,8 @@ def _compile_key(package: Path) -> str:
     numba_settings = sorted(f"{key}={value}" for key, value in os.environ.items()
                             if key.startswith("NUMBA_") and key not in ("NUMBA_CACHE_DIR", "NUMBA_CPU_FEATURES"))
     where = (sys.executable, os.environ.get("PYTHONPATH", ""))  # the Python, and the numba, the child runs
-    for part in (_COMPILE, sys.version, *where, platform.machine(), PORTABLE_CPU, *versions, *numba_settings):
+    for part in (_COMPILE, sys.version, *where, platform.machine(), PORTABLE_CPU, *versions, *numba_settings,
+                 json.dumps(compiler)):
         digest.update(part.encode() + b"\0")
     return digest.hexdigest()
 

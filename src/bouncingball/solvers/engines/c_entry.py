@@ -1,19 +1,24 @@
-"""The compiled engine's entry point for a C caller: an FMU's doStep without Python, and its values.
+"""The compiled engine's entry points for a C caller: an FMU's doStep without Python, its values, the phase machine.
 
-An FMU's C layer (fmu/bouncingball_fmu_python.h, ``stepped_in_c``) calls the cfunc at ``step_address()`` with a
-context: a row of addresses and value references (``CONTEXT_FIELDS``) that fmu/c_layer.py fills for one integrator
-and the FMU's variables. It runs the FMU slave's do_step (fmu/slave_base.py) as BallIntegrator runs it, with the
-very compiled calls: inside CVODE's last step (drivers.advance_in_step), else the machine's advance
-(drivers.advance: CVODE, events, rests) on the integrator's own CVODE solvers and machine state, then
-drivers.keep_estimate; and writes each ``REPORTED`` quantity the context asks for where it says, computed as the
-integrator's properties compute it, so that a step taken here and one taken through Python leave the same values
-to the bit. It returns what is left to do: ``NOT_TAKEN`` (nothing done: a refusal to word, a target beyond what
-double precision resolves, a vibrating ground, whose motion is the Python ground's own arithmetic; the caller runs
-the step in Python), ``TAKEN``, ``TAKEN_WITH_CVODE`` (CVODE stepped: its warnings' files to look at) or
-``FINISH + status`` (the machine ran and Python is to finish what BallIntegrator.advance does after it: a failure
-to raise, the accuracy warning to check: solvers/integrator.py's finish_advance); ``RAISED`` where the compiled code
-raised (its state then unknown: where Python's step would have raised out of the FMU, ending the instance).
+Their contract (what they take and return) is solvers/engines/entry_contract.py's. An FMU's C layer
+(fmu/bouncingball_fmu_python.h, ``stepped_in_c``) calls the cfunc at ``step_address()`` with a context: a row of
+addresses and value references (``CONTEXT_FIELDS``) that fmu/c_layer.py fills for one integrator and the FMU's
+variables. It runs the FMU slave's do_step (fmu/slave_base.py) as BallIntegrator runs it, with the very compiled
+calls: inside CVODE's last step (drivers.advance_in_step), else the machine's advance (drivers.advance: CVODE,
+events, rests) on the integrator's own CVODE solvers and machine state, then drivers.keep_estimate; and writes each
+``REPORTED`` quantity the context asks for where it says, computed as the integrator's properties compute it, so
+that a step taken here and one taken through Python leave the same values to the bit. It returns what is left to do:
+``NOT_TAKEN`` (nothing done: a refusal to word, a target beyond what double precision resolves, a vibrating ground,
+whose motion is the Python ground's own arithmetic; the caller runs the step in Python), ``TAKEN``,
+``TAKEN_WITH_CVODE`` (CVODE stepped: its warnings' files to look at) or ``FINISH + status`` (the machine ran and
+Python is to finish what BallIntegrator.advance does after it: a failure to raise, the accuracy warning to check:
+solvers/integrator.py's finish_advance); ``RAISED`` where the compiled code raised (its state then unknown: where
+Python's step would have raised out of the FMU, ending the instance).
 ``report_address()`` writes the same quantities without stepping (after a step Python took).
+
+``ENTRY_POINTS`` are all the cfuncs a native library of the engine exports (solvers/engines/native_build.py): these
+two, the CVODE callbacks, and the phase machine's calls Python makes, with pointer arguments (the native engine's,
+solvers/engines/native.py).
 
 Import this module only to use it (it imports numba and the compiled engine).
 """
@@ -29,26 +34,27 @@ from ...contact_laws import BallParameters, dispatch
 from ..phase_machine import drivers
 from ..phase_machine.machine import DONE
 from . import compiled
+from .entry_contract import (
+    COMPLETED,
+    CONTEXT_FIELDS,
+    ENGINE,
+    EVENTS,
+    FINISH,
+    MACHINE_STATE,
+    NOT_TAKEN,
+    PAIRS,
+    PARAMETERS,
+    SCRATCH,
+    SETTINGS,
+    SETTINGS_AT,
+    TAKEN,
+    TAKEN_WITH_CVODE,
+    VALUES,
+)
 from .jit import addresses, doubles
+from .phase_solver import H_SIZE
 
-# What the step reports, in this order: the names of the integrator's properties (t, h, v, acceleration, ...), and
-# h - R [m] computed from h as written (the FMI 3.0 slave's gap in co-simulation).
-REPORTED = ("t", "h", "v", "acceleration", "contact", "contact_force", "impacts", "error_estimate_at_t",
-            "h_minus_R")
-# The context (one row of intp): the addresses of the integrator's BallParameters as float64, of its settings
-# (SETTINGS: float64), of its machine state (layout.STATE_DTYPE's record), of the caller's values (float64), of the
-# compiled machine's engine (one row per mode, intp), of its event rows and scratch rows (float64, 3 columns), the
-# number of pairs that follow, then each pair: a REPORTED quantity's place in REPORTED and the index in the values it
-# is written at.
-CONTEXT_FIELDS = ("parameters", "settings", "machine_state", "values", "engine", "events", "scratch", "pairs")
-_PARAMETERS, _SETTINGS, _MACHINE_STATE, _VALUES, _ENGINE, _EVENTS, _SCRATCH, _PAIRS = range(len(CONTEXT_FIELDS))
-# BallIntegrator's settings.rtol, _atol, resolvable_until (beyond it, its refusal), the slave's STOP_AT_EVENT (1.0 or
-# 0.0), the rows of its event and scratch arrays and the engine's modes.
-SETTINGS = ("rtol", "atol", "resolvable_until", "stop_at_event", "event_rows", "scratch_rows", "engine_modes")
 _HEADER, _N_PARAMETERS = len(CONTEXT_FIELDS), len(BallParameters._fields)
-# 0 is what a cfunc returns when its compiled code raised (numba prints the exception and returns the default): the
-# state may have changed by then, so the caller is to end the instance, never to run the step again.
-RAISED, NOT_TAKEN, TAKEN, TAKEN_WITH_CVODE, FINISH = 0, 1, 2, 3, 16
 
 _advance_in_step = compiled._compiled[drivers.advance_in_step]
 _advance = compiled._compiled[drivers.advance]
@@ -56,6 +62,7 @@ _is_rounding_of = compiled._compiled[drivers.is_rounding_of]
 _keep_estimate = compiled._compiled[drivers.keep_estimate]
 _reported_acceleration = compiled._compiled[dispatch.reported_acceleration]
 _law_contact_force = compiled._compiled[dispatch.law_contact_force]
+_phase_ends, _run_estimate = compiled._phase_ends, compiled._run_estimate
 _parameters_at, _load_at = compiled._parameters_at, compiled._load_at
 
 
@@ -69,7 +76,7 @@ def _write_reported(row, parameters, state):
     reported = (t, h, v + 0.0, _reported_acceleration(parameters, x, v, mode, load) + 0.0,
                 1.0 if mode == CONTACT else 0.0, _law_contact_force(parameters, x, v, mode, load),
                 float(state.impacts), state.est, h - parameters.R)
-    values = doubles(row[_VALUES])
+    values = doubles(row[VALUES])
     for i in range(_HEADER, len(row), 2):
         values[row[i + 1]] = reported[row[i]]
 
@@ -78,16 +85,16 @@ def _write_reported(row, parameters, state):
 def _unpacked(context):
     """(the whole context row, the parameters): the machine state is read where it is used (numba returns no record)."""
     header = carray(addresses(context), _HEADER)
-    row = carray(addresses(context), _HEADER + 2 * header[_PAIRS])
-    parameters = _parameters_at(carray(doubles(row[_PARAMETERS]), _N_PARAMETERS), 0)
+    row = carray(addresses(context), _HEADER + 2 * header[PAIRS])
+    parameters = _parameters_at(carray(doubles(row[PARAMETERS]), _N_PARAMETERS), 0)
     return row, parameters
 
 
 @cfunc(types.int32(types.intp, types.float64, types.float64), cache=compiled._CACHE)
 def _do_step(context, current_time, step_size):
     row, parameters = _unpacked(context)
-    state = carray(compiled._record_pointer(row[_MACHINE_STATE]), 1)[0]
-    settings = carray(doubles(row[_SETTINGS]), len(SETTINGS))
+    state = carray(compiled._record_pointer(row[MACHINE_STATE]), 1)[0]
+    settings = carray(doubles(row[SETTINGS_AT]), len(SETTINGS))
     if parameters.ground_amplitude != 0.0:
         return NOT_TAKEN
     # As the slave's do_step: inside the last step from current_time, else from the state's time where current_time
@@ -104,9 +111,9 @@ def _do_step(context, current_time, step_size):
             if not t_target >= t or t_target > settings[2]:
                 return NOT_TAKEN
             steps = state.steps
-            engine = carray(addresses(row[_ENGINE]), (int(settings[6]), compiled._H_SIZE))
-            events = carray(doubles(row[_EVENTS]), (int(settings[4]), 3))
-            scratch = carray(doubles(row[_SCRATCH]), (int(settings[5]), 3))
+            engine = carray(addresses(row[ENGINE]), (int(settings[6]), H_SIZE))
+            events = carray(doubles(row[EVENTS]), (int(settings[4]), 3))
+            scratch = carray(doubles(row[SCRATCH]), (int(settings[5]), 3))
             status = _advance(engine, parameters, settings[0], settings[1], state, t_target, settings[3] != 0.0,
                               events, 0, scratch)[0]
             _keep_estimate(parameters, settings[0], settings[1], state)
@@ -123,11 +130,70 @@ def _do_step(context, current_time, step_size):
 @cfunc(types.int32(types.intp), cache=compiled._CACHE)
 def _report(context):
     row, parameters = _unpacked(context)
-    state = carray(compiled._record_pointer(row[_MACHINE_STATE]), 1)[0]
+    state = carray(compiled._record_pointer(row[MACHINE_STATE]), 1)[0]
     if parameters.ground_amplitude != 0.0 or state.est_t != state.t:
         return 0
     _write_reported(row, parameters, state)
     return 1
+
+
+# --- the phase machine's calls with pointer arguments (entry_contract.ENTRIES): the native engine's, for Python ---
+_f8, _ip, _i32 = types.float64, types.intp, types.int32
+
+
+@njit(cache=compiled._CACHE)
+def _at(values, memory):
+    """(the BallParameters at address values, the machine state's record at address memory) (numba returns no record:
+    the caller indexes the carray)."""
+    return _parameters_at(carray(doubles(values), _N_PARAMETERS), 0), carray(compiled._record_pointer(memory), 1)
+
+
+@cfunc(_i32(_ip, _f8, _f8, _ip, _f8, _i32, _ip, _ip, _ip, _ip, _ip, _ip, _ip), cache=compiled._CACHE)
+def _advance_at(values, rtol, atol, memory, t_target, stop_at_event, engine, modes, events, rows, scratch,
+                scratch_rows, out):
+    parameters, record = _at(values, memory)
+    given = carray(doubles(events), (rows, 3))
+    status, got, n = _advance(carray(addresses(engine), (modes, H_SIZE)), parameters, rtol, atol, record[0],
+                              t_target, stop_at_event != 0, given, 0, carray(doubles(scratch), (scratch_rows, 3)))
+    if got.shape[0] != rows:  # the machine grew its copy: what fits goes back, and the count says the rest
+        for i in range(min(n, rows)):
+            given[i, 0], given[i, 1], given[i, 2] = got[i, 0], got[i, 1], got[i, 2]
+    _keep_estimate(parameters, rtol, atol, record[0])
+    answer = carray(addresses(out), 2)
+    answer[0], answer[1] = status, n
+    return COMPLETED
+
+
+@cfunc(_i32(_ip, _f8, _f8, _ip, _f8, _f8, _ip), cache=compiled._CACHE)
+def _advance_in_step_at(values, rtol, atol, memory, t_from, t_target, out):
+    parameters, record = _at(values, memory)
+    advanced = _advance_in_step(parameters, record[0], t_from, t_target)
+    if advanced:
+        _keep_estimate(parameters, rtol, atol, record[0])
+    carray(addresses(out), 1)[0] = 1 if advanced else 0
+    return COMPLETED
+
+
+@cfunc(_i32(_ip, _f8, _f8, _ip, _f8, _f8), cache=compiled._CACHE)
+def _phase_ends_at(values, rtol, atol, memory, jump, reflection):
+    parameters, record = _at(values, memory)
+    _phase_ends(parameters, rtol, atol, record[0], jump, reflection)
+    return COMPLETED
+
+
+@cfunc(_i32(_ip, _f8, _f8, _ip, _ip), cache=compiled._CACHE)
+def _run_estimate_at(values, rtol, atol, memory, out):
+    parameters, record = _at(values, memory)
+    estimate = _run_estimate(parameters, rtol, atol, record[0])
+    answer = carray(doubles(out), 3)
+    answer[0], answer[1], answer[2] = estimate[0], estimate[1], estimate[2]
+    return COMPLETED
+
+
+# Every entry point of entry_contract.ENTRIES, by its name there.
+ENTRY_POINTS = {"do_step": _do_step, "report": _report, "rhs": compiled._rhs, "roots": compiled._roots,
+                "jacobian": compiled._jacobian, "advance": _advance_at, "advance_in_step": _advance_in_step_at,
+                "phase_ends": _phase_ends_at, "run_estimate": _run_estimate_at}
 
 
 def step_address() -> int:

@@ -55,7 +55,6 @@ import contextlib
 import fcntl
 import functools
 import glob
-import hashlib
 import os
 import pickle
 import shutil
@@ -68,54 +67,23 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-from ...contact_laws.dispatch import LAW_MODULES
 from .ahead_of_time import PORTABLE_CPU, package_shipped, say_on_stderr, user_cache_root
-
-# Every source the compiled code is compiled from, relative to the package: the modules whose functions
-# compiled.py gives compiled_together, those whose constants they read (rule 5), jit.py and compiled.py.
-ENGINE_SOURCES = ("codes.py", "rounding.py", "oscillator.py", "equations.py", "contact_laws/dispatch.py",
-                  *(f"contact_laws/{module.__name__.rpartition('.')[2]}.py" for module in LAW_MODULES), "physics.py",
-                  *(f"solvers/phase_machine/{name}.py" for name in (
-                      "settings", "phases", "layout", "error_estimate", "engine_protocol", "integrated_contact",
-                      "machine", "drivers", "dense_output")),
-                  "solvers/engines/jit.py", "solvers/engines/compiled.py", "solvers/engines/c_entry.py")
+from .sources import ENGINE_SOURCES, engine_sources, sources_digest  # noqa: F401  (the API)
 
 _PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this module's package
-
-
-def engine_sources() -> list[str]:
-    """The files numba compiles the compiled engine from (ENGINE_SOURCES): an imported module's own file (in an FMU,
-    maybe that of a copy the master deleted since), else the one in this module's copy of the package.
-    """
-    root = __name__.split(".")[0]
-    files = []
-    for relative in ENGINE_SOURCES:
-        module = sys.modules.get(".".join((root, *relative.removesuffix(".py").removesuffix("/__init__").split("/"))))
-        files.append(getattr(module, "__file__", None) or os.path.join(_PACKAGE_DIR, *relative.split("/")))
-    return files
 
 
 def readable_sources(files) -> list[str]:
     """files (engine_sources'), each one gone from disk replaced by its source in this module's copy of the package.
 
     An FMU's modules imported by an earlier instance come from its unzipped copy, which the master
-    (FMPy) may have deleted since; this module then comes from the copy of the instance at hand
-    (fmu/slave_base.py's _search_package_in), whose sources are the same: the copy's package is named
-    after their digest. A package imported from one folder finds a gone file gone here too.
+    (FMPy) may have deleted since; this module (imported with the compiled engine, at its first use) then comes
+    from the copy of the instance at hand (fmu/slave_base.py's _search_package_in), whose sources are the same:
+    the copy's package is named after their digest. A package imported from one folder finds a gone file gone here
+    too.
     """
     return [file if os.path.isfile(file) else os.path.join(_PACKAGE_DIR, *relative.split("/"))
             for file, relative in zip(files, ENGINE_SOURCES, strict=True)]
-
-
-def sources_digest(files) -> str:
-    """The SHA-256 of the files' contents, in their order, and of the package's name (the compiled code names its
-    modules): what the compiled code's disk cache is keyed by.
-    """
-    digest = hashlib.sha256(__name__.split(".")[0].encode() + b"\0")
-    for file in files:
-        with open(file, "rb") as source:
-            digest.update(source.read())
-    return digest.hexdigest()
 
 
 def cache_folder(digest: str) -> str:

@@ -31,6 +31,7 @@ from ...physics import Ball, Mode
 from ..phase_machine import drivers, error_estimate, layout, machine, phases
 from ..phase_machine.engine_protocol import CV_ROOT_RETURN, CV_TSTOP_RETURN
 from . import sksundae_events
+from .sundials import sksundae_cvode_class
 from .sundials_log import ErrorsOffStdout, SundialsLog
 
 CV_RTFUNC_FAIL = -12
@@ -105,9 +106,7 @@ class SksundaePhaseSolver:
         event.terminal = [True, False, True]
         event.direction = list(directions)
         self._event = event
-        # Imported here, not with the module: scikit-sundae's import takes ~0.4 s (it loads SciPy), which
-        # the compiled engine, needing only its SUNDIALS library, does not pay.
-        from sksundae.cvode import CVODE
+        CVODE = sksundae_cvode_class()  # imported here, not with the module (~0.4 s), bound to its own SUNDIALS
 
         # The scaled state is of order 1: atol = rtol asks for rtol times the phase's scale.
         self._cvode = CVODE(rhs, method=method, rtol=rtol, atol=rtol, max_step=max_step, eventsfn=event,
@@ -216,7 +215,9 @@ class PhaseMachine:
     run_estimate (error_estimate.py) as the machine runs them: the compiled engine's cost ~6 us
     a call, where Python takes ~60 us, a fifth of a short run's time outside CVODE. advance_in_step takes
     (parameters, rtol, atol, state, t_from, t_target); the compiled engine's advance and advance_in_step keep
-    the run's estimate at their end (drivers.keep_estimate), the interpreted ones do not.
+    the run's estimate at their end (drivers.keep_estimate), the interpreted ones do not. solver: the engine's
+    PhaseSolver class (one mode's CVODE). step_address() and report_address(): the addresses of the C entry points
+    an FMU's loader calls (entry_contract.ENTRIES' do_step and report); None for the interpreted machine.
     """
 
     run_phases: Callable
@@ -228,19 +229,50 @@ class PhaseMachine:
     parameters: Callable
     phase_ends: Callable
     run_estimate: Callable
+    solver: type
+    step_address: Callable[[], int] | None
+    report_address: Callable[[], int] | None
 
 
 @functools.cache
 def phase_machine(engine: str) -> PhaseMachine:
-    """The phase machine of engine: compiled for "compiled", else machine.py's and drivers.py's as written."""
+    """The phase machine of engine: compiled for "compiled" (the native engine's where one is active: native.py),
+    else machine.py's and drivers.py's as written."""
     if engine == "compiled":
+        from . import native
+
+        library = native.active()
+        if library is not None:
+            return PhaseMachine(library.run_phases, library.advance, library.advance_in_step, None, _stacked_handles,
+                                layout.compiled_state, library.parameters, library.phase_ends, library.run_estimate,
+                                library.PhaseSolver, lambda: library.addresses["do_step"],
+                                lambda: library.addresses["report"])
         from . import compiled
 
         return PhaseMachine(compiled.run_phases, compiled.advance, compiled.advance_in_step, compiled.fill_grid,
-                            lambda solvers: np.stack([solver.handle() for solver in solvers]),
-                            layout.compiled_state, tuple, compiled.phase_ends, compiled.run_estimate)
+                            _stacked_handles, layout.compiled_state, tuple, compiled.phase_ends,
+                            compiled.run_estimate, compiled.PhaseSolver, _compiled_step_address,
+                            _compiled_report_address)
     return PhaseMachine(drivers.run_phases, drivers.advance, _advance_in_step, None, tuple,
-                        layout.interpreted_state, _as_given, machine.phase_ends, error_estimate.run_estimate)
+                        layout.interpreted_state, _as_given, machine.phase_ends, error_estimate.run_estimate,
+                        SksundaePhaseSolver, None, None)
+
+
+def _compiled_step_address() -> int:
+    from . import c_entry  # numba compiles it, or reads it from its cache, at its first import
+
+    return c_entry.step_address()
+
+
+def _compiled_report_address() -> int:
+    from . import c_entry
+
+    return c_entry.report_address()
+
+
+def _stacked_handles(solvers) -> np.ndarray:
+    """The compiled machine's engine: its solvers' rows (PhaseSolver.handle)."""
+    return np.stack([solver.handle() for solver in solvers])
 
 
 def _as_given(parameters):
@@ -268,11 +300,7 @@ def acquire(engine: str, ball: Ball, mode: Mode, method: str, rtol: float, max_s
         kept = _pool.get(key)
         solver = kept.pop() if kept else None
     if solver is None:
-        if engine == "compiled":
-            from .compiled import PhaseSolver
-        else:
-            PhaseSolver = SksundaePhaseSolver
-        solver = PhaseSolver(ball, mode, method, rtol, max_step, max_num_steps, own_side, directions,
+        solver = phase_machine(engine).solver(ball, mode, method, rtol, max_step, max_num_steps, own_side, directions,
                              max_evaluations)
         solver.pool_key = key
         if parameters is not None:

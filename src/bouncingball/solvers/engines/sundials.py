@@ -16,6 +16,7 @@ import ctypes
 import glob
 import importlib.util
 import os
+import sys
 from dataclasses import dataclass
 
 # SUNDIALS' major version we bind: its C API (the declarations below) is stable within a major.
@@ -84,6 +85,25 @@ class Library:
     path: str
     functions: dict
     addresses: dict
+
+
+def sksundae_cvode_class():
+    """scikit-sundae's CVODE class, its first import in the process made with RTLD_DEEPBIND (where the platform has
+    it): its modules then call their own SUNDIALS libraries, which a host process that exports another SUNDIALS (a C
+    master linked to a system SUNDIALS 6) would otherwise capture, and crash. Imported where its engine runs, not with
+    the package: the import takes ~0.4 s (it loads SciPy), which the compiled engine, needing only the libraries,
+    does not pay. Where scikit-sundae is imported already (a Python host did), it is used as it is."""
+    deep_bind = getattr(os, "RTLD_DEEPBIND", 0)
+    flags = sys.getdlopenflags()
+    if deep_bind and "sksundae" not in sys.modules:
+        import numpy  # noqa: F401  (numpy resolves as usual; only scikit-sundae and what it loads bind deep)
+
+        sys.setdlopenflags(flags | deep_bind)
+    try:
+        from sksundae.cvode import CVODE
+    finally:
+        sys.setdlopenflags(flags)
+    return CVODE
 
 
 def _library_paths() -> dict[str, str]:
