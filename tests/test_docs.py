@@ -348,22 +348,30 @@ def test_the_fmu_pages_constants_are_the_codes():
     """The DefaultExperiment, FMI's smallest min, the state's format, the check's tolerance, the nominals and the
     weightless scene's impact, as the code and its scenes have them."""
     from bouncingball.check.judge import DEFAULT_TOLERANCE
+    from bouncingball.equations import load_value
     from bouncingball.fmu.model_exchange import phase_nominals
     from bouncingball.fmu.saved_state import STATE_FORMAT
     from bouncingball.fmu.variables import SMALLEST_POSITIVE
     from bouncingball.physics import Mode
     from bouncingball.scenes import load_scene
+    from bouncingball.solvers.phase_machine.phases import phase_scales
     from bouncingball.solvers.phase_machine.settings import CvodeSettings
 
     article, rtol, weightless = load_scene("article"), CvodeSettings().rtol, load_scene("zero-gravity")
-    flight = phase_nominals(article.ball, article.h0, article.v0, Mode.FLIGHT, 0.0)
-    contact = phase_nominals(article.ball, article.ball.R, -flight[1], Mode.CONTACT, 0.0)
+    ball = article.ball
+    load = load_value(0.0, ball.m, ball.g)
+    flight = phase_scales(ball.parameters, Mode.FLIGHT, article.h0 - ball.R, article.v0, load)
+    contact = phase_scales(ball.parameters, Mode.CONTACT, 0.0, -flight[1], load)
+    flight_nominals = phase_nominals(ball, article.h0, article.v0, Mode.FLIGHT, 0.0)
+    contact_nominals = phase_nominals(ball, ball.R, -flight[1], Mode.CONTACT, 0.0)
     assert_fmu_page_quotes(f'so "> 0" is written `min="{SMALLEST_POSITIVE!r}"`',
                            f"The DefaultExperiment is the article scene: 0 to {article.t_end:g} s, step "
                            f"{article.output_interval * 1e3:g} ms, tolerance {rtol:g} (the default `rtol`)",
                            f'one byte (the state machine\'s state) and JSON (`"format": "{STATE_FORMAT}"`)',
                            f"more than the default tolerance of {page_figure(DEFAULT_TOLERANCE, 1)} m",
-                           f"(from {article.h0:g} m: {flight[0]:g} m and {flight[1]:.3g} m/s)",
-                           f"(the first contact: {page_figure(contact[0])} m and {contact[1]:.2g} m/s)",
+                           f"(from {article.h0:g} m: {flight[0]:.3g} m and {flight[1]:.3g} m/s, so nominals of "
+                           f"{flight_nominals[0]:g} m and {flight_nominals[1]:g} m/s)",
+                           f"(the first contact: {page_figure(contact[0])} m and {contact[1]:.2g} m/s, so "
+                           f"{page_figure(contact_nominals[0])} m and {contact_nominals[1]:g} m/s)",
                            # weightless, the ball falls at its start speed: a communication point of the 1 ms grid
                            f"(zero-gravity: at {(weightless.h0 - weightless.ball.R) / -weightless.v0:g} s)")
