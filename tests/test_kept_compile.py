@@ -69,6 +69,19 @@ def test_another_c_compiler_compiles_anew_and_the_same_takes_the_kept_compile(co
     assert len(compiles) == 2 and gcc != clang and again == gcc
 
 
+def test_a_kept_compile_without_the_native_engine_says_why_at_each_build(compiles, tmp_path, capsys):
+    """The stand-in builds no library (as a failed link): the compile kept says so again, with the first's reason."""
+    package = _package(tmp_path / "p")
+    engine_cache.compile_kept(package, tmp_path / "into", "the FMU", ["gcc"])  # the stand-in says nothing itself
+    kept = engine_cache.compile_kept(package, tmp_path / "into", "the FMU", ["gcc"])
+    assert capsys.readouterr().err == ("bouncingball: the FMU ships no native engine, which could not be built here "
+                                       "(no message): it runs numba's compiled engine, which adds about 0.7 s to its "
+                                       "start\n")
+    (kept / engine_cache.NATIVE_FAILURE).write_text("RuntimeError: linking failed")
+    engine_cache.compile_kept(package, tmp_path / "into", "the FMU", ["gcc"])
+    assert "(RuntimeError: linking failed)" in capsys.readouterr().err
+
+
 def test_a_failed_compile_keeps_nothing(monkeypatch, tmp_path):
     calls = []
     monkeypatch.setattr(engine_cache, "compile_portable", lambda package, into, by, compiler: calls.append(into))

@@ -35,6 +35,7 @@ import time
 from pathlib import Path
 
 NATIVE_LIBRARY = "bouncingball_engine.so"  # the native engine's library (solvers/engines/native_build.py's)
+NATIVE_FAILURE = "native-failure.txt"  # beside numba's files where the library could not be built: why
 SHIPPED = "numba-cache"  # the folder of the shipped cache files: inside the package (a wheel), in an FMU's resources
 PORTABLE_CPU = "generic"  # numba's name (NUMBA_CPU_NAME) of its architecture's baseline CPU
 
@@ -95,10 +96,16 @@ def compile_portable(package: Path, into: Path, shipped_by: str, compiler: list[
                       " it compiles at its first use where it runs")
         return None
     if compiler and not (folders[0] / NATIVE_LIBRARY).is_file():
-        why = (completed.stderr.strip().splitlines() or ["no message"])[-1]
-        say_on_stderr(f"{shipped_by} ships no native engine, which could not be built here ({why}): it runs numba's "
-                      "compiled engine, which adds about 0.7 s to its start")
+        (folders[0] / NATIVE_FAILURE).write_text((completed.stderr.strip().splitlines() or ["no message"])[-1])
+        _say_no_native(folders[0], shipped_by)
     return folders[0]
+
+
+def _say_no_native(cache: Path, shipped_by: str) -> None:
+    """Say on stderr why the compile in cache holds no native engine (its NATIVE_FAILURE), and what follows."""
+    why = (cache / NATIVE_FAILURE).read_text() if (cache / NATIVE_FAILURE).is_file() else "no message"
+    say_on_stderr(f"{shipped_by} ships no native engine, which could not be built here ({why}): it runs numba's "
+                  "compiled engine, which adds about 0.7 s to its start")
 
 
 def user_cache_root() -> str:
@@ -142,6 +149,8 @@ def compile_kept(package: Path, into: Path, shipped_by: str, compiler: list[str]
                     if cache is None:
                         return None
                     cache.rename(kept)
+            elif compiler and not (kept / NATIVE_LIBRARY).is_file():  # each build says it, not only the first
+                _say_no_native(kept, shipped_by)
             os.utime(kept)  # its last use, for _forget_old_compiles
     except OSError:  # a user-wide cache that cannot be written
         return compile_portable(package, into, shipped_by, compiler)
