@@ -41,7 +41,7 @@ P_SIZE = P_BALL + len(BallParameters._fields)
 
 # The C functions the compiled loop calls, by their place in the address array it receives.
 LOOP_FUNCTIONS = ("CVode", "CVodeGetRootInfo", "CVodeReInit", "CVodeSetStopTime", "CVodeClearStopTime",
-                   "CVodeGetNumRhsEvals")
+                  "CVodeGetNumRhsEvals")
 CVODE, ROOT_INFO, REINIT, SET_STOP, CLEAR_STOP, NUM_RHS = range(len(LOOP_FUNCTIONS))
 # engine: one row per mode (PhaseSolver.handle()): the addresses of its call table and arrays, its CVODE
 # memory and vector. Integers only, so that a call into the compiled machine unpacks no Python objects.
