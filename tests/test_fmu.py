@@ -299,6 +299,36 @@ def test_F_ext_step_change_mid_run(fmu):
 
 
 # --- FMU state -----------------------------------------------------------------------------------------
+def test_a_build_in_a_process_that_imported_part_of_the_same_copy_leaves_its_states_restorable(fmu, unzipped,
+                                                                                                 tmp_path):
+    """A process that imported part of the FMU's copy of the package (numba's cache index names its types), then built
+    an FMU of the same sources (the copy's name is its sources'), then runs the FMU: a state restores. The build once
+    removed the part it had added, which was imported again beside the rest: the restored state was refused."""
+    code = f"""
+import importlib, sys
+sys.path.insert(0, {str(Path(__file__).parent)!r})
+from bouncingball.fmu.build import build_fmu
+from fmu_helpers import TIGHT, Instance
+resources = {str(unzipped / "resources")!r}
+[package] = [name for name in {sorted(p.name for p in (unzipped / "resources").iterdir() if p.is_dir())!r}
+             if name.startswith("bouncingball_fmu_")]
+sys.path.insert(0, resources)
+importlib.import_module(package + ".contact_laws.common")
+sys.path.remove(resources)
+build_fmu({str(tmp_path / "same.fmu")!r})
+ball = Instance({str(unzipped)!r})
+ball.initialize(**TIGHT)
+ball.step_to(0.62, 0.01)
+state = ball.fmu.getFMUstate()
+ball.step_to(1.3, 0.01)
+ball.fmu.setFMUstate(state)
+print(ball.log)
+"""
+    completed = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600, check=False)
+    assert completed.returncode == 0, completed.stderr[-3000:]
+    assert completed.stdout.strip().splitlines()[-1] == "[]"
+
+
 def test_rollback_gives_the_same_outputs_bit_for_bit(unzipped):
     ball = Instance(unzipped)
     try:

@@ -99,8 +99,12 @@ def build_fmu(output: str | Path | None = None, fmi_version: int = 2, step=None)
                                                                      f"canSerialize{state}": True})
         finally:
             sys.path[:] = path
+            # The package's copy goes, unless this process had imported it (its name is its sources': an FMU of the
+            # same sources run here, or read): removing the part the build added left that part to be imported
+            # again beside the rest, with classes of its own (a restored FMU state was refused as not one).
+            had_package = package.name in modules
             for name in set(sys.modules) - modules:
-                if name == script.stem or name.split(".")[0] == package.name:
+                if name == script.stem or (name.split(".")[0] == package.name and not had_package):
                     del sys.modules[name]
         step(BUILD_STEPS[2])
         cache = shipped_files(compile_cache(package, temp / "numba", compiler))
