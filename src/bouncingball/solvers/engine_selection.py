@@ -64,16 +64,16 @@ def choose_engine(engine: str = "auto", steps: float | None = None) -> tuple[str
     engine = validation.choice("engine", engine, ENGINES)
     if engine == "sksundae":
         return "sksundae", "requested"
+    from .engines import native
+
+    library = native.active()  # loaded already (an FMU's): nothing to pay back
+    if library is not None:
+        return "compiled", "requested" if engine == "compiled" else f"the native engine {library.path}"
     if engine == "auto" and steps is not None and _numba_installed():
         break_even = compiled_break_even()
         if _sksundae_steps + steps < break_even:
             return "sksundae", (f"about {steps:.0f} CVODE steps expected, fewer than the {break_even:.0f} over "
                                 "which loading the compiled engine in this process pays back")
-    from .engines import native
-
-    library = native.active()
-    if library is not None:
-        return "compiled", "requested" if engine == "compiled" else f"the native engine {library.path}"
     try:
         from .engines import compiled
     except ImportError as error:

@@ -234,14 +234,21 @@ class PhaseMachine:
     report_address: Callable[[], int] | None
 
 
-@functools.cache
 def phase_machine(engine: str) -> PhaseMachine:
     """The phase machine of engine: compiled for "compiled" (the native engine's where one is active: native.py),
     else machine.py's and drivers.py's as written."""
+    library = None
     if engine == "compiled":
         from . import native
 
         library = native.active()
+    return _phase_machine(engine, library)
+
+
+@functools.cache
+def _phase_machine(engine: str, library) -> PhaseMachine:
+    """phase_machine's, made once per engine and native library (None: numba's)."""
+    if engine == "compiled":
         if library is not None:
             return PhaseMachine(library.run_phases, library.advance, library.advance_in_step, None, _stacked_handles,
                                 layout.compiled_state, library.parameters, library.phase_ends, library.run_estimate,
@@ -295,13 +302,14 @@ def acquire(engine: str, ball: Ball, mode: Mode, method: str, rtol: float, max_s
 
     parameters: the machine's BallParameters where they are not ball.parameters (a vibrating ground's).
     """
-    key = (engine, mode, method, rtol, max_step, max_num_steps, own_side, tuple(directions), max_evaluations)
+    solver_class = phase_machine(engine).solver  # numba's compiled engine's, the native one's, scikit-sundae's
+    key = (solver_class, mode, method, rtol, max_step, max_num_steps, own_side, tuple(directions), max_evaluations)
     with _pool_lock:
         kept = _pool.get(key)
         solver = kept.pop() if kept else None
     if solver is None:
-        solver = phase_machine(engine).solver(ball, mode, method, rtol, max_step, max_num_steps, own_side, directions,
-                             max_evaluations)
+        solver = solver_class(ball, mode, method, rtol, max_step, max_num_steps, own_side, directions,
+                              max_evaluations)
         solver.pool_key = key
         if parameters is not None:
             solver.bind(ball, parameters)
