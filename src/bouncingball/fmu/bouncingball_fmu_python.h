@@ -125,8 +125,9 @@ static int stepped_in_c(Instance *c, double current_time, double step_size)
     if (left == STEP_RAISED) { /* its state unknown: as where the slave's own step raises, the instance ends */
         c->ended = 1;
         unserve(c);
-        say(c, FMI(Error), "the compiled engine raised inside the step from t = %.17g s (its message on stderr): "
-            "the instance's state is unknown, and it takes no further call", current_time);
+        say(c, FMI(Error), "the compiled engine raised inside the step from t = %.17g s (numba's engine prints the "
+            "exception on stderr; the native engine keeps none of it): the instance's state is unknown, and it takes "
+            "no further call", current_time);
         return -1;
     }
     if (left == STEP_TAKEN || (left == STEP_TAKEN_WITH_CVODE && !sundials_wrote(c->served_control))) {
