@@ -23,7 +23,7 @@ def test_a_folder_without_the_masters_is_refused_by_name_before_any_work(tmp_pat
 
 
 def _costs(label, startup, step_8, step_long):
-    return c_fmu.Costs(label, startup, {8.0: step_8, c_fmu.LONG_RUN: step_long})
+    return c_fmu.Costs(label, startup, {c_fmu.ARTICLE_RUN: step_8, c_fmu.LONG_RUN: step_long})
 
 
 def test_the_page_judges_each_goal_from_the_numbers():
@@ -37,8 +37,11 @@ def test_the_page_judges_each_goal_from_the_numbers():
     text = c_fmu.page(costs, 5, {"machine": "test"}, exchange)
     assert "- FMI 2.0 start-up 0.450 s (goal <= 0.5 s): met" in text
     assert "- FMI 3.0 start-up 0.700 s (goal <= 0.5 s): NOT MET" in text
-    assert "- FMI 2.0 cost per extra step 1.43x theirs (800 s bouncing; goal <= 3x): met" in text
-    assert "- FMI 3.0 cost per extra step 3.14x theirs (800 s bouncing; goal <= 3x): NOT MET" in text
+    assert "- FMI 2.0 cost per extra step 2.86x theirs (8 s, the article: the goal's own run" in text
+    assert "- FMI 2.0 cost per extra step 1.43x theirs (800 s bouncing: " in text
+    assert "- FMI 3.0 cost per extra step 3.14x theirs (800 s bouncing: " in text
+    verdicts = [line.rsplit(": ", 1)[1] for line in text.splitlines() if "cost per extra step" in line]
+    assert verdicts == ["met", "met", "met", "NOT MET"]  # FMI 2.0 at 8 s and 800 s, then FMI 3.0
     assert "no more calls at every tolerance: NOT MET (at 1e-06)" in text
     assert "| ours, FMI 2.0 | 0.450 | 2.00 | 1.00 | 2.86 | 1.43 |" in text
 

@@ -41,7 +41,8 @@ PAGE = "c_fmu.md"
 ROUNDS = 5
 STEP = 1e-3  # [s]
 LONG_RUN = 800.0  # [s]
-RUNS = (STEP, 8.0, LONG_RUN)  # stop times [s]: the 1-step run, the article, the long run (BOUNCING)
+ARTICLE_RUN = 8.0  # [s], the goal's run
+RUNS = (STEP, ARTICLE_RUN, LONG_RUN)  # stop times [s]: the 1-step run, the article, the long run (BOUNCING)
 BOUNCING = {"ours": ("b", "0"), "theirs": ("e", "1")}  # start values: a ball that bounces to the end
 STARTUP_GOAL = 0.5  # [s]
 STEP_RATIO_GOAL = 3.0
@@ -179,9 +180,11 @@ def page(costs: list[Costs], rounds: int, environment_at_start: dict[str, str],
                          *(f"{cost.per_step[stop] / theirs.per_step[stop]:.2f}" for stop in RUNS[1:])])
         verdicts.append(f"- FMI {version}.0 start-up {ours.startup:.3f} s (goal <= {STARTUP_GOAL:g} s): "
                         f"{'met' if ours.startup <= STARTUP_GOAL else 'NOT MET'}")
-        ratio = ours.per_step[LONG_RUN] / theirs.per_step[LONG_RUN]  # the 8 s run's is within its start-up's spread
-        verdicts.append(f"- FMI {version}.0 cost per extra step {ratio:.2f}x theirs ({LONG_RUN:g} s bouncing; goal "
-                        f"<= {STEP_RATIO_GOAL:g}x): {'met' if ratio <= STEP_RATIO_GOAL else 'NOT MET'}")
+        for stop, run in ((ARTICLE_RUN, "8 s, the article: the goal's own run, within its start-up's spread"),
+                          (LONG_RUN, f"{LONG_RUN:g} s bouncing: the same step to a fraction of a microsecond")):
+            ratio = ours.per_step[stop] / theirs.per_step[stop]
+            verdicts.append(f"- FMI {version}.0 cost per extra step {ratio:.2f}x theirs ({run}; goal <= "
+                            f"{STEP_RATIO_GOAL:g}x): {'met' if ratio <= STEP_RATIO_GOAL else 'NOT MET'}")
     exchange_table, exchange_verdicts = _exchange_lines(exchange)
     exchange_intro = [
         f"Model exchange (FMI 3.0), their scene: a rigid ball, e = {ME_SCENE.e:g}, v_min = {ME_SCENE.v_min:g} m/s, "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import textwrap
 import time
 import warnings
@@ -11,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..accuracy import Accuracy, ExactOnGrid, accuracy_of, exact_on_grid
+from ..fmu import pythonfmu_workarounds
 from ..fmu.variables import start_values_of
 from ..scenes import Scene, load_scene
 from ..solvers import ARTICLE_LABEL
@@ -216,6 +218,12 @@ def exact_and_errors(scene: Scene, run: Run) -> tuple[ExactOnGrid, Accuracy]:
     return exact, accuracy_of(exact, run.h, events=run.events, impacts=run.impacts, v=run.v)
 
 
+# The empty slaves are pythonfmu's (pythonfmu3's) binary alone: they carry the workarounds of its bugs themselves.
+PYTHONFMU_WORKAROUNDS = inspect.getsource(pythonfmu_workarounds) + '''
+
+keep_script_namespace(globals(), locals())
+release_python_state_first(os.path.dirname(__file__))
+'''
 EMPTY_SLAVE_SCRIPT = '''\
 """An FMU that does nothing: the per-doStep cost any pythonfmu slave pays, stepped by the same master."""
 
@@ -232,7 +240,9 @@ class BenchEmptySlave(Fmi2Slave):
 
     def do_step(self, current_time, step_size):
         return True
-'''
+
+
+''' + PYTHONFMU_WORKAROUNDS
 # Two pythonfmu FMUs whose scripts share a module name cannot live in one process: keep this name distinctive.
 EMPTY_SLAVE_MODULE = "bouncingball_bench_empty_slave"
 EMPTY3_SLAVE_SCRIPT = '''\
@@ -253,7 +263,9 @@ class BenchEmptySlave3(Fmi3Slave):
 
     def do_step(self, current_time, step_size):
         return True
-'''
+
+
+''' + PYTHONFMU_WORKAROUNDS
 EMPTY3_SLAVE_MODULE = "bouncingball_bench_empty3_slave"
 
 

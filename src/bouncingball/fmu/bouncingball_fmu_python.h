@@ -332,10 +332,10 @@ static void *open_inner(void)
         snprintf(load_error, sizeof load_error, "cannot load %.2048s: %.1024s", path, dlerror());
         return NULL;
     }
-    /* pythonfmu 0.7.0 (and pythonfmu3 0.3, the same code) releases its PyState twice when the process exits with its binary loaded
-     * (its static shared_ptr's destructor, then its own destructor function), which corrupts the
-     * heap: about one exit in four crashed after a few FMPy runs. Release it once, first: exit
-     * handlers run in reverse order, and this one is registered after pythonfmu's. */
+    /* pythonfmu 0.7.0 (and pythonfmu3 0.3, the same code) releases its PyState twice when the process exits with
+     * its binary loaded (its static shared_ptr's destructor, then its own destructor function), which corrupts the
+     * heap: about one exit in four crashed after a few FMPy runs. Release it once, first: exit handlers run in
+     * reverse order, and this one is registered after pythonfmu's (fmu/pythonfmu_workarounds.py: its bugs). */
     *(void **)&release_python_state = dlsym(library, "finalizePythonInterpreter");
     if (release_python_state != NULL) {
         atexit(release_python_state);

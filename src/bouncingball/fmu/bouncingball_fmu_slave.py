@@ -5,8 +5,7 @@ it defines there (~45 kB per instance for the whole slave class). So the script 
 names the slave class of a module imported once per process. tests/test_fmu_state_machine.py measures what an
 instance still costs. Where the FMU ships its native engine (solvers/engines/native.py), scikit-sundae is imported
 only where its own engine runs (solvers/engines/sundials.py, sksundae_cvode_class): its import takes ~0.4 s. Where
-it does not, numba's compiled engine runs, and scikit-sundae is imported here, as it was before the native engine:
-its import left to its first use, with numba in the process, once corrupted the heap at the process's exit.
+it does not, numba's compiled engine runs, and scikit-sundae is imported here, as it was before the native engine.
 
 The FMU carries its own copy of bouncingball under a name of its own (PACKAGE, set by the build to
 bouncingball_fmu_<digest of its sources>), so that it neither replaces nor uses a bouncingball the
@@ -33,6 +32,5 @@ if importlib.import_module(f"{PACKAGE}.fmu.engine_cache").native_library(os.path
     importlib.import_module(f"{PACKAGE}.solvers.engines.sundials").sksundae_cvode_class()
 _slave = importlib.import_module(f"{PACKAGE}.fmu.{SLAVE_MODULE}")
 BouncingBall = _slave.BouncingBall  # noqa: F811
-# pythonfmu 0.7 uses this script's namespace after the script has run but keeps no reference to it:
-# once Python collects it, the next fmi2Instantiate crashes (the 3rd or 4th in a row). Keep it.
-_slave.SCRIPT_NAMESPACES.append(globals())
+# pythonfmu 0.7 releases a reference to this script's namespace it never took, at each fmi2Instantiate: give it back.
+importlib.import_module(f"{PACKAGE}.fmu.pythonfmu_workarounds").keep_script_namespace(globals(), locals())

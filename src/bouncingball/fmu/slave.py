@@ -13,8 +13,6 @@ from pythonfmu.enums import Fmi2Causality, Fmi2Initial, Fmi2Status, Fmi2Variabil
 
 from .slave_base import BallSlave
 
-# The namespace of each run of the FMU's slave script, kept alive for pythonfmu 0.7 (see that script).
-SCRIPT_NAMESPACES: list[dict] = []
 TYPES = {"Real": Real, "Integer": Integer, "Boolean": Boolean, "String": String}
 
 

@@ -41,8 +41,6 @@ from .saved_state import exchange_fields, saved_exchange
 from .slave_base import BallSlave
 from .variables import EVENT_INDICATOR, FMI3_VARIABLES, VARIABLES
 
-# The namespace of the FMU's slave script (pythonfmu3 imports it once per process; kept as for pythonfmu).
-SCRIPT_NAMESPACES: list[dict] = []
 TYPES = {"Real": Float64, "Integer": Int32, "Boolean": Boolean, "String": String}
 REFERENCES = {variable.name: i for i, variable in enumerate(VARIABLES + FMI3_VARIABLES)}
 _TIME_ONLY = [REFERENCES["time"]]
