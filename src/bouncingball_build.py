@@ -1,6 +1,6 @@
 """bouncingball's build backend: setuptools', and a wheel that carries its compiled engine's code compiled ahead.
 
-numba would compile the compiled engine at its first use after install (about 15 s). A wheel's build
+numba would compile the compiled engine at its first use after install (about a minute). A wheel's build
 compiles it once for any CPU of the build host's architecture and puts numba's cache files in the
 package (bouncingball/solvers/engines/ahead_of_time.py), so a first use reads them in well under a second.
 That needs the engine's own requirements in the build environment, which get_requires_for_build_wheel

@@ -1,6 +1,6 @@
 """build-fmu's compile of the engine kept in the user-wide cache (solvers/engines/ahead_of_time.compile_kept).
 
-The compile itself (about 15 s, a child process) is compile_portable's, which the FMU tests run for
+The compile itself (about a minute, a child process) is compile_portable's, which the FMU tests run for
 real; here a stand-in that writes one file per call shows when compile_kept compiles and when it
 takes what it kept.
 """

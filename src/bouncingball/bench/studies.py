@@ -29,7 +29,7 @@ def run_benchmark(output_dir: Path, quick: bool = False) -> tuple[list[Path], li
     settings = work_precision.QUICK if quick else work_precision.FULL
     scene = load_scene("article")
     machine = environment()
-    step("loading both CVODE engines (the compiled one from numba's cache, or compiled now: about 15 s)")
+    step("loading both CVODE engines (the compiled one from numba's cache, or compiled now: about a minute)")
     scene.simulate("cvode", t_end=1.0, engine="sksundae")  # load scikit-sundae before anything is timed
     try:  # and compile (or load from numba's cache) the compiled engine
         scene.simulate("cvode", t_end=1.0, engine="compiled")

@@ -1,7 +1,7 @@
 """The compiled engine in the FMU: compiled at build, as native code (or numba's cache), run at the FMU's start.
 
 A master unzips the FMU into a new folder, and the compiled engine's first use in its process would
-compile it (about 15 s), or import numba and read its cache (about 0.7 s). So build-fmu compiles the engine of the
+compile it (about a minute), or import numba and read its cache (about 0.7 s). So build-fmu compiles the engine of the
 FMU's copy of the package once, in a fresh process, for any CPU of the host's architecture
 (solvers/engines/ahead_of_time.py), and links that code into the native engine's library (native_build.py), which
 the FMU ships in its resources and the slave runs without numba (``activate_native``; solvers/engines/native.py).

@@ -1,6 +1,6 @@
 """The compiled engine's code compiled ahead, for any CPU of its architecture: made at a build, read at first use.
 
-numba compiles the compiled engine at its first use in a process with an empty cache: about 15 s.
+numba compiles the compiled engine at its first use in a process with an empty cache: about a minute.
 So a wheel's build (the build backend, src/bouncingball_build.py) and an FMU's (fmu/build.py) run
 ``compile_portable``: the engine compiled once in a fresh process for numba's generic CPU of the
 host's architecture (``PORTABLE_CPU``, the baseline instruction set, which every CPU of that
@@ -37,6 +37,9 @@ from pathlib import Path
 NATIVE_LIBRARY = "bouncingball_engine.so"  # the native engine's library (solvers/engines/native_build.py's)
 NATIVE_FAILURE = "native-failure.txt"  # beside numba's files where the library could not be built: why
 SHIPPED = "numba-cache"  # the folder of the shipped cache files: inside the package (a wheel), in an FMU's resources
+# What numba's compile of the whole engine takes, as messages say it: 47 s on a quiet 2-core machine (44 s of CPU),
+# 50-62 s beside another job (measured at ea3518a; "about 15 s" once, for a smaller engine).
+COMPILE_TIME = "about a minute"
 PORTABLE_CPU = "generic"  # numba's name (NUMBA_CPU_NAME) of its architecture's baseline CPU
 
 # Run in a fresh process with the package's copy on its path: every compiled entry point a run reaches (a grid run;
@@ -128,7 +131,7 @@ KEPT_COMPILES = 4  # compile_kept keeps the compiles of this many sets of source
 def compile_kept(package: Path, into: Path, shipped_by: str, compiler: list[str] | None = None) -> Path | None:
     """compile_portable, kept in the user-wide cache: the folder of numba's cache files, or None (as compile_portable).
 
-    The compile (about 15 s) is kept in user_cache_root's portable-<key>, the key a digest of all it
+    The compile (about a minute) is kept in user_cache_root's portable-<key>, the key a digest of all it
     depends on: the package's name and every file of it, the compiling script, this Python and its
     path, the versions of numba, llvmlite, numpy and scikit-sundae this process sees (the child runs
     the same Python, its path the same but for the package's folder first), the architecture and numba's

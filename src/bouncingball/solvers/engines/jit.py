@@ -67,7 +67,7 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-from .ahead_of_time import PORTABLE_CPU, package_shipped, say_on_stderr, user_cache_root
+from .ahead_of_time import COMPILE_TIME, PORTABLE_CPU, package_shipped, say_on_stderr, user_cache_root
 from .sources import ENGINE_SOURCES, engine_sources, sources_digest  # noqa: F401  (the API)
 
 _PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this module's package
@@ -132,8 +132,8 @@ def cache_allowed(files) -> bool:
     """
     readable = readable_sources(files)
     if not all(os.path.isfile(file) for file in readable):
-        _say("numba compiles the compiled engine in this process (about 15 s), and cannot keep it: its sources are "
-             "gone from disk")
+        _say(f"numba compiles the compiled engine in this process ({COMPILE_TIME}), and cannot keep it: its sources "
+             "are gone from disk")
         return False
     digest = sources_digest(readable)
     folder = cache_folder(digest)
@@ -150,11 +150,12 @@ def cache_allowed(files) -> bool:
                 else:
                     misfit = f"the cache shipped with it does not fit ({unfit})"
             if misfit is not None:
-                _say(f"numba compiles the compiled engine for this host, once (about 15 s; {misfit}), into {folder}")
+                _say(f"numba compiles the compiled engine for this host, once ({COMPILE_TIME}; {misfit}), into "
+                     f"{folder}")
         _use_folder([*files, *readable], folder, digest)  # numba names a function's source as it was imported
     except Exception as error:  # a numba without these internals, or a cache folder we cannot write
-        _say(f"numba compiles the compiled engine in this process (about 15 s), and cannot keep it: its cache folder "
-             f"{folder} cannot be used ({type(error).__name__}: {error})")
+        _say(f"numba compiles the compiled engine in this process ({COMPILE_TIME}), and cannot keep it: its cache "
+             f"folder {folder} cannot be used ({type(error).__name__}: {error})")
         return False
     return True
 
