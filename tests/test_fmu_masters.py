@@ -260,17 +260,22 @@ def test_the_fmi2_and_the_fmi3_fmu_in_one_python_process(fmu, fmu3):
 
 
 def test_two_different_builds_in_one_process(fmu, tmp_path, monkeypatch):
-    """A second build from other sources (here: a slave script one comment longer) gets other names."""
+    """A second build from other sources (here: a slave script one comment longer) gets other names.
+
+    The second is built without its compiled engine (what build-fmu does where numba is absent) and runs
+    scikit-sundae's: the names are the subject, and compiling its engine would cost a minute."""
     from bouncingball.fmu import build
 
     changed = tmp_path / "bouncingball_fmu_slave.py"
     changed.write_text(build.SLAVE_SCRIPT.read_text() + "# another build\n")
     monkeypatch.setattr(build, "SLAVE_SCRIPT", changed)
+    monkeypatch.setattr(build, "compile_cache", lambda *arguments: None)
     other = build.build_fmu(tmp_path / "Other.fmu")
     code = ("import sys\n"
             "from fmpy import simulate_fmu\n"
             "first = simulate_fmu(sys.argv[1], stop_time=1.0, output_interval=0.1)\n"
-            "second = simulate_fmu(sys.argv[2], stop_time=1.0, output_interval=0.1, start_values={'g': 1.62})\n"
+            "second = simulate_fmu(sys.argv[2], stop_time=1.0, output_interval=0.1,\n"
+            "                      start_values={'g': 1.62, 'engine': 'sksundae'})\n"
             "third = simulate_fmu(sys.argv[1], stop_time=1.0, output_interval=0.1)\n"
             "copies = sorted(n for n in sys.modules if n.startswith('bouncingball_fmu_') and n.count('.') == 0"
             " and not n.endswith('_slave'))\n"
