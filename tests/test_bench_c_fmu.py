@@ -44,6 +44,21 @@ def test_the_page_judges_each_goal_from_the_numbers():
     assert verdicts == ["met", "met", "met", "NOT MET"]  # FMI 2.0 at 8 s and 800 s, then FMI 3.0
     assert "no more calls at every tolerance: NOT MET (at 1e-06)" in text
     assert "| ours, FMI 2.0 | 0.450 | 2.00 | 1.00 | 2.86 | 1.43 |" in text
+    with_interval = c_fmu.Costs("ours, FMI 2.0", 0.45, {c_fmu.ARTICLE_RUN: 2.0e-6, c_fmu.LONG_RUN: 1.0e-6},
+                                {c_fmu.ARTICLE_RUN: (1.5e-6, 2.5e-6)})
+    text = c_fmu.page([with_interval, *costs[1:]], 5, {"machine": "test"}, exchange)
+    assert ("- FMI 2.0 cost per extra step 2.86x theirs (8 s, the article: the goal's own run, within its start-up's "
+            "spread; ours 2.00 us, 1.50 to 2.50 us over resampled runs (5% to 95%); goal <= 3x): met") in text
+
+
+def test_the_interval_of_a_step_s_cost_is_the_spread_of_its_runs():
+    """Runs that do not vary give one value; the 1-step runs' spread over 7999 steps widens it around the median."""
+    steps = round(c_fmu.ARTICLE_RUN / c_fmu.STEP) - 1
+    assert c_fmu._interval([0.25] * 5, [0.27] * 5, c_fmu.ARTICLE_RUN) == pytest.approx((0.02 / steps, 0.02 / steps))
+    startups, runs = [0.22, 0.24, 0.25, 0.26, 0.30], [0.27] * 5
+    low, high = c_fmu._interval(startups, runs, c_fmu.ARTICLE_RUN)
+    slack = 1e-9 / steps  # the subtractions round
+    assert -0.03 / steps - slack <= low < 0.02 / steps < high <= 0.05 / steps + slack  # the median of 0.22 .. 0.30 s
 
 
 @pytest.mark.skipif(not (MASTERS / "fmusim").is_file(), reason="needs ../shared/masters (fmusim, the Reference-FMUs)")

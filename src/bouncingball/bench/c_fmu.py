@@ -24,11 +24,12 @@ from __future__ import annotations
 
 import collections
 import csv
+import random
 import statistics
 import subprocess
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..accuracy import exact_on_grid
@@ -38,7 +39,9 @@ from .environment import environment, environment_lines
 from .text import table
 
 PAGE = "c_fmu.md"
-ROUNDS = 5
+# The goal asks for medians of 5; 15 narrow the 8 s figure: the 1-step run's interquartile range, 0.025 s, is 3 us a
+# step over 7999 steps (ours 2.1 us, theirs 0.9): with 5 rounds the 8 s ratio came out 2.5x to 3.2x run to run.
+ROUNDS = 15
 STEP = 1e-3  # [s]
 LONG_RUN = 800.0  # [s]
 ARTICLE_RUN = 8.0  # [s], the goal's run
@@ -129,11 +132,29 @@ def model_exchange_run(fmusim: Path, fmu: Path, tolerance: float, ours: bool) ->
 
 @dataclass(frozen=True)
 class Costs:
-    """One FMU's medians: start-up [s] and the cost of an extra step [s] over each longer run."""
+    """One FMU's medians: start-up [s] and the cost of an extra step [s] over each longer run, with the 5% and 95%
+    quantiles of that cost over resamples of the runs (INTERVAL_RESAMPLES, with replacement): its uncertainty."""
 
     label: str
     startup: float
     per_step: dict[float, float]  # by stop time [s]
+    interval: dict[float, tuple[float, float]] = field(default_factory=dict)  # by stop time [s]
+
+
+INTERVAL_RESAMPLES = 400
+
+
+def _per_step(startups: list[float], runs: list[float], stop: float) -> float:
+    return (statistics.median(runs) - statistics.median(startups)) / (round(stop / STEP) - 1)
+
+
+def _interval(startups: list[float], runs: list[float], stop: float) -> tuple[float, float]:
+    """The 5% and 95% quantiles of _per_step over resamples of both lists (a bootstrap, seeded: the same runs give the
+    same interval)."""
+    rng = random.Random(0)
+    costs = sorted(_per_step(rng.choices(startups, k=len(startups)), rng.choices(runs, k=len(runs)), stop)
+                   for _ in range(INTERVAL_RESAMPLES))
+    return costs[INTERVAL_RESAMPLES // 20], costs[INTERVAL_RESAMPLES - 1 - INTERVAL_RESAMPLES // 20]
 
 
 def measure(fmusim: Path, fmus: dict[str, Path], rounds: int = ROUNDS) -> list[Costs]:
@@ -146,12 +167,10 @@ def measure(fmusim: Path, fmus: dict[str, Path], rounds: int = ROUNDS) -> list[C
                 name, value = BOUNCING[label.split(",")[0]]
                 options = ("--start-value", name, value) if stop == LONG_RUN else ()
                 times[label, stop].append(run_seconds(fmusim, fmu, stop, *options))
-    costs = []
-    for label in fmus:
-        startup = statistics.median(times[label, STEP])
-        costs.append(Costs(label, startup, {stop: (statistics.median(times[label, stop]) - startup) /
-                                            (round(stop / STEP) - 1) for stop in RUNS[1:]}))
-    return costs
+    return [Costs(label, statistics.median(times[label, STEP]),
+                  {stop: _per_step(times[label, STEP], times[label, stop], stop) for stop in RUNS[1:]},
+                  {stop: _interval(times[label, STEP], times[label, stop], stop) for stop in RUNS[1:]})
+            for label in fmus]
 
 
 def _exchange_lines(exchange: dict[str, list[ExchangeRun]]) -> tuple[list[str], list[str]]:
@@ -183,7 +202,12 @@ def page(costs: list[Costs], rounds: int, environment_at_start: dict[str, str],
         for stop, run in ((ARTICLE_RUN, "8 s, the article: the goal's own run, within its start-up's spread"),
                           (LONG_RUN, f"{LONG_RUN:g} s bouncing: the same step to a fraction of a microsecond")):
             ratio = ours.per_step[stop] / theirs.per_step[stop]
-            verdicts.append(f"- FMI {version}.0 cost per extra step {ratio:.2f}x theirs ({run}; goal <= "
+            spread = ""
+            if stop in ours.interval:
+                low, high = ours.interval[stop]
+                spread = (f"; ours {ours.per_step[stop] * 1e6:.2f} us, {low * 1e6:.2f} to {high * 1e6:.2f} us over "
+                          "resampled runs (5% to 95%)")
+            verdicts.append(f"- FMI {version}.0 cost per extra step {ratio:.2f}x theirs ({run}{spread}; goal <= "
                             f"{STEP_RATIO_GOAL:g}x): {'met' if ratio <= STEP_RATIO_GOAL else 'NOT MET'}")
     exchange_table, exchange_verdicts = _exchange_lines(exchange)
     exchange_intro = [
