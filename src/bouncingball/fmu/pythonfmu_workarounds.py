@@ -43,7 +43,10 @@ def release_python_state_first(resources: str) -> None:
     """Have Python's exit call finalizePythonInterpreter of each pythonfmu binary of the FMU whose resources folder
     is resources (once per binary), before the C library's exit releases the state twice."""
     for path in glob.glob(os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", "*", "*.so")):
-        release = getattr(ctypes.CDLL(path), "finalizePythonInterpreter", None)
+        try:
+            release = getattr(ctypes.CDLL(path), "finalizePythonInterpreter", None)
+        except OSError:  # another platform's binary
+            continue
         if release is not None and path not in _RELEASED:
             _RELEASED.add(path)
             atexit.register(release)
