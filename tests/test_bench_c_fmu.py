@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 
@@ -48,7 +49,12 @@ def test_the_page_judges_each_goal_from_the_numbers():
                                 {c_fmu.ARTICLE_RUN: (1.5e-6, 2.5e-6)})
     text = c_fmu.page([with_interval, *costs[1:]], 5, {"machine": "test"}, exchange)
     assert ("- FMI 2.0 cost per extra step 2.86x theirs (8 s, the article: the goal's own run, within its start-up's "
-            "spread; ours 2.00 us, 1.50 to 2.50 us over resampled runs (5% to 95%); goal <= 3x): met") in text
+            "spread; ours 2.00 us, 1.50 to 2.50 us over resampled runs (5% to 95%); goal <= 3x): not resolved (ours' "
+            "interval is 2.14x to 3.57x theirs)") in text
+    for interval, verdict in (((1.5e-6, 2.05e-6), "met"), ((2.2e-6, 2.5e-6), "NOT MET")):
+        narrow = dataclasses.replace(with_interval, interval={c_fmu.ARTICLE_RUN: interval})
+        text = c_fmu.page([narrow, *costs[1:]], 5, {"machine": "test"}, exchange)
+        assert f"(5% to 95%); goal <= 3x): {verdict}\n" in text
 
 
 def test_the_interval_of_a_step_s_cost_is_the_spread_of_its_runs():
