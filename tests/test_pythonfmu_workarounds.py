@@ -40,15 +40,11 @@ def references_missing(module):
 folder, instances = sys.argv[1], int(sys.argv[2])
 description = read_model_description(folder)
 missing = []
+slave = FMU3Slave if description.fmiVersion.startswith("3") else FMU2Slave
 for _ in range(instances):
-    if description.fmiVersion.startswith("3"):
-        fmu = FMU3Slave(guid=description.guid, unzipDirectory=folder,
-                        modelIdentifier=description.coSimulation.modelIdentifier, instanceName="counted")
-        fmu.instantiate()
-    else:
-        fmu = FMU2Slave(guid=description.guid, unzipDirectory=folder,
-                        modelIdentifier=description.coSimulation.modelIdentifier, instanceName="counted")
-        fmu.instantiate()
+    fmu = slave(guid=description.guid, unzipDirectory=folder,
+                modelIdentifier=description.coSimulation.modelIdentifier, instanceName="counted")
+    fmu.instantiate()
     fmu.freeInstance()
     with open(folder + "/resources/slavemodule.txt") as file:
         missing.append(references_missing(sys.modules[file.read().strip()]))
